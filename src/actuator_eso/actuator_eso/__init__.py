@@ -1,0 +1,1 @@
+"""Extended state observer of the joint actuator: the ROS-free observer and its node."""
