@@ -1,0 +1,1 @@
+"""ROS-free helpers shared by the actuator packages: parameter specifications and checks."""

@@ -1,0 +1,13 @@
+"""Sample-time arithmetic shared by the nodes and the offline loop, so both compute identical times."""
+
+from __future__ import annotations
+
+
+def period_ns(dt_s: float) -> int:
+    """Sample period in integer nanoseconds (the unit of ROS stamps)."""
+    return int(round(dt_s * 1.0e9))
+
+
+def sample_time_s(elapsed_ns: int) -> float:
+    """Seconds since the start of the run from integer nanoseconds (one rounding, same everywhere)."""
+    return elapsed_ns * 1.0e-9

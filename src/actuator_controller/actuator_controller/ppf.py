@@ -1,0 +1,87 @@
+"""Prescribed performance function and error transformation, paper eq. (8)-(12).
+
+rho(t) = (rho0 - rho_inf) e^(-m t) + rho_inf bounds the error: -l rho < e < h rho (8).
+With the normalised error eps = e / rho, the transformed error is
+    z = S^-1(eps) = 1/2 ln((eps + l) / (h - eps))                      (11)
+and its derivative z' = r (e' - rho' e / rho) (12) with
+    r = dz/deps / rho = 1/(2 rho) (1/(eps + l) + 1/(h - eps)).
+Typo resolved: the paper prints r = 1/(2 rho) (1/(z + l) - 1/(z - h)) with z where the
+derivation of (11) gives eps = e/rho; ``test_ppf`` checks r against a numerical derivative.
+
+Error outside the bounds: (11) is undefined there. The normalised error is clamped to
+(-l, h) shrunk by ``BOUNDARY_MARGIN`` of the band, so z stays finite (|z| <= about 4.3 for
+l = h = 1) and the controller keeps pushing back at full strength; the caller reports the
+violation (``bounds_kept`` in ControllerState) instead of hiding it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from actuator_common.params import spec, validate
+
+#: Fraction of the band (l + h) kept between the clamped normalised error and each bound.
+BOUNDARY_MARGIN = 1.0e-4
+
+
+@dataclass(frozen=True)
+class PrescribedPerformance:
+    """Envelope parameters of (8): rho0 > rho_inf > 0 [rad], m > 0 [1/s], l, h > 0."""
+
+    rho0_rad: float = spec(0.25, 'rho0: initial half-width of the error envelope (Table 4)', 'rad',
+                           0.0, 10.0, low_open=True)
+    rho_inf_rad: float = spec(0.05, 'rho_inf: final half-width of the error envelope (Table 4)', 'rad',
+                              0.0, 10.0, low_open=True)
+    decay_rate_per_s: float = spec(0.5, 'm: decay rate of the envelope (Table 4)', '1/s', 0.0, 1.0e3, low_open=True)
+    lower_scale: float = spec(1.0, 'l: lower bound is -l rho (Table 4)', '', 0.0, 100.0, low_open=True)
+    upper_scale: float = spec(1.0, 'h: upper bound is +h rho (Table 4)', '', 0.0, 100.0, low_open=True)
+
+    def __post_init__(self) -> None:
+        """Refuse an envelope that grows."""
+        validate(self)
+        if not self.rho_inf_rad <= self.rho0_rad:
+            raise ValueError(f'rho_inf_rad ({self.rho_inf_rad}) must not exceed rho0_rad ({self.rho0_rad})')
+
+    def rho(self, t):
+        """rho(t) [rad], eq. (8)."""
+        return (self.rho0_rad - self.rho_inf_rad) * np.exp(-self.decay_rate_per_s * t) + self.rho_inf_rad
+
+    def rho_derivatives(self, t):
+        """(rho, rho', rho'') at t [rad, rad/s, rad/s^2]."""
+        decay = (self.rho0_rad - self.rho_inf_rad) * np.exp(-self.decay_rate_per_s * t)
+        m = self.decay_rate_per_s
+        return decay + self.rho_inf_rad, -m * decay, m * m * decay
+
+    def bounds(self, t):
+        """(-l rho, h rho) at t [rad]."""
+        rho = self.rho(t)
+        return -self.lower_scale * rho, self.upper_scale * rho
+
+
+class Transformed(NamedTuple):
+    """Transformed error z (11), its gain r (12) and whether e was inside the bounds (8)."""
+
+    z: object
+    r: object
+    inside: object
+
+
+def transform_error(e, rho, ppf: PrescribedPerformance) -> Transformed:
+    """z = S^-1(e / rho) of (11) and r of (12), clamping e / rho into the band (see module doc)."""
+    lo, hi = -ppf.lower_scale, ppf.upper_scale
+    eps = e / rho
+    inside = (eps > lo) & (eps < hi)
+    margin = BOUNDARY_MARGIN * (hi - lo)
+    eps_c = np.clip(eps, lo + margin, hi - margin)
+    z = 0.5 * np.log((eps_c - lo) / (hi - eps_c))
+    r = 0.5 / rho * (1.0 / (eps_c - lo) + 1.0 / (hi - eps_c))
+    return Transformed(z, r, inside)
+
+
+def inverse_transform(z, rho, ppf: PrescribedPerformance):
+    """e = rho S(z) with S(z) = (h e^z - l e^-z) / (e^z + e^-z), eq. (9)-(10)."""
+    ez, emz = np.exp(z), np.exp(-z)
+    return rho * (ppf.upper_scale * ez - ppf.lower_scale * emz) / (ez + emz)

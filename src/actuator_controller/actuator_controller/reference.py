@@ -1,0 +1,100 @@
+"""Reference trajectories with analytic derivatives: the paper's slow and fast ones, step and sine."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple, Protocol
+
+import numpy as np
+
+
+class ReferenceSample(NamedTuple):
+    """Desired position x1d [rad], velocity [rad/s] and acceleration [rad/s^2] at one time."""
+
+    position_rad: object
+    velocity_rad_s: object
+    acceleration_rad_s2: object
+
+
+class Reference(Protocol):
+    """A reference trajectory: ``sample(t)`` gives x1d and its first two derivatives."""
+
+    name: str
+
+    def sample(self, t) -> ReferenceSample:
+        """Reference at time t [s] since the start of the run."""
+
+
+@dataclass(frozen=True)
+class PaperTrajectory:
+    """y_d = A (0.5 - cos(w t)) (1 - e^(-t/tau)), section 5.3 (A = 2 pi/9, tau = 1 s)."""
+
+    frequency_rad_s: float
+    amplitude_rad: float = 2.0 * math.pi / 9.0
+    rise_time_constant_s: float = 1.0
+    name: str = 'paper'
+
+    def sample(self, t) -> ReferenceSample:
+        """Product rule on f = 0.5 - cos(w t) and g = 1 - e^(-t/tau)."""
+        w, tau, amp = self.frequency_rad_s, self.rise_time_constant_s, self.amplitude_rad
+        f, df, ddf = 0.5 - np.cos(w * t), w * np.sin(w * t), w * w * np.cos(w * t)
+        decay = np.exp(-t / tau)
+        g, dg, ddg = 1.0 - decay, decay / tau, -decay / (tau * tau)
+        return ReferenceSample(amp * f * g, amp * (df * g + f * dg), amp * (ddf * g + 2.0 * df * dg + f * ddg))
+
+
+def slow_trajectory() -> PaperTrajectory:
+    """The paper's slow motion: w = pi rad/s."""
+    return PaperTrajectory(frequency_rad_s=math.pi, name='slow')
+
+
+def fast_trajectory() -> PaperTrajectory:
+    """The paper's fast motion: w = 4 pi rad/s."""
+    return PaperTrajectory(frequency_rad_s=4.0 * math.pi, name='fast')
+
+
+@dataclass(frozen=True)
+class StepReference:
+    """x1d = amplitude for t >= start_s, else 0 (derivatives zero: the step itself is not differentiable)."""
+
+    amplitude_rad: float = 0.1
+    start_s: float = 0.0
+    name: str = 'step'
+
+    def sample(self, t) -> ReferenceSample:
+        """Step value; zero velocity and acceleration."""
+        zero = 0.0 * t
+        return ReferenceSample(np.where(t >= self.start_s, self.amplitude_rad, 0.0) + zero, zero, zero)
+
+
+@dataclass(frozen=True)
+class SineReference:
+    """x1d = offset + amplitude sin(w t)."""
+
+    amplitude_rad: float = 0.2
+    frequency_rad_s: float = 2.0 * math.pi
+    offset_rad: float = 0.0
+    name: str = 'sine'
+
+    def sample(self, t) -> ReferenceSample:
+        """Sine and its analytic derivatives."""
+        w, amp = self.frequency_rad_s, self.amplitude_rad
+        s, c = np.sin(w * t), np.cos(w * t)
+        return ReferenceSample(self.offset_rad + amp * s, amp * w * c, -amp * w * w * s)
+
+
+def make_reference(kind: str, amplitude_rad: float | None = None, frequency_rad_s: float | None = None) -> Reference:
+    """Build a reference by name: 'slow', 'fast', 'step' or 'sine' (amplitude/frequency override defaults)."""
+    if kind == 'slow':
+        ref: Reference = slow_trajectory()
+    elif kind == 'fast':
+        ref = fast_trajectory()
+    elif kind == 'step':
+        ref = StepReference(amplitude_rad=0.1 if amplitude_rad is None else amplitude_rad)
+    elif kind == 'sine':
+        ref = SineReference(amplitude_rad=0.2 if amplitude_rad is None else amplitude_rad,
+                            frequency_rad_s=2.0 * math.pi if frequency_rad_s is None else frequency_rad_s)
+    else:
+        raise ValueError(f"reference must be one of 'slow', 'fast', 'step', 'sine', got {kind!r}")
+    return ref
