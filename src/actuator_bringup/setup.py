@@ -35,6 +35,7 @@ setup(
         'console_scripts': [
             'offline_sim = actuator_bringup.offline:main',
             'bringup = actuator_bringup.bringup:main',
+            'stability_check = actuator_bringup.stability:main',
         ],
     },
 )

@@ -34,7 +34,6 @@ setup(
     entry_points={
         'console_scripts': [
             'controller_node = actuator_controller.controller_node:main',
-            'stability_check = actuator_controller.stability:main',
         ],
     },
 )
