@@ -1,0 +1,464 @@
+"""Writing rosbag2 bags as ROS 2 Jazzy does: a folder with metadata.yaml (version 9) and one MCAP file.
+
+The MCAP file has profile ``ros2``, one ``ros2msg`` schema per type holding the full
+definition text, ``cdr`` channels whose metadata carry ``offered_qos_profiles`` (a YAML
+string) and ``topic_type_hash`` (RIHS01), zstd-compressed chunks with CRCs, and a Metadata
+record ``rosbag2`` whose ``serialized_metadata`` is the YAML of the bag metadata.
+
+The ``mcap`` library's Writer is used rather than rosbags' Writer because only it lets the
+channel metadata carry ``topic_type_hash``, names the file ``<name>_0.mcap`` as rosbag2
+does, marks ``ros_distro: jazzy`` and can flush a finished chunk to disk on demand
+(rosbags keeps up to 1 MiB in memory until close). That flush is what makes a
+recording survive a SIGKILL: see repair.py.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass, field
+from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
+from typing import IO, Any, Iterable, Mapping, Optional, Sequence
+
+import yaml
+from mcap.writer import CompressionType, Writer as McapWriter
+
+from .errors import BagWriteError
+from .msgdefs import DefinitionSource, normalize_msgtype
+
+#: rosbag2 metadata format version written (Jazzy).
+METADATA_VERSION = 9
+#: ROS distribution recorded in the metadata.
+ROS_DISTRO = 'jazzy'
+#: The rmw value of an infinite duration, as the graph reports it for default deadline etc. (sec, nsec).
+DURATION_INFINITE = (9223372036, 854775807)
+#: Default size of an MCAP chunk before compression [bytes].
+DEFAULT_CHUNK_SIZE = 1 << 20
+#: Default longest time data may stay in memory before it is written to the file [s].
+DEFAULT_FLUSH_INTERVAL_S = 1.0
+
+_HISTORY = ('system_default', 'keep_last', 'keep_all', 'unknown')
+_RELIABILITY = ('system_default', 'reliable', 'best_effort', 'unknown', 'best_available')
+_DURABILITY = ('system_default', 'transient_local', 'volatile', 'unknown', 'best_available')
+_LIVELINESS = ('system_default', 'automatic', 'manual_by_topic', 'unknown', 'best_available')
+
+
+def _library_id() -> str:
+    """Writer identification for the MCAP header."""
+    try:
+        own = version('actuator_bag')
+    except PackageNotFoundError:
+        own = 'dev'
+    try:
+        lib = version('mcap')
+    except PackageNotFoundError:
+        lib = 'unknown'
+    return f'actuator_bag-{own}; mcap-python-{lib}'
+
+
+def _check_choice(name: str, value: str, choices: Sequence[str]) -> None:
+    """Raise BagWriteError unless value is one of choices."""
+    if value not in choices:
+        raise BagWriteError(f'QoS {name} must be one of {", ".join(choices)}, not {value!r}')
+
+
+def _time_dict(value: tuple[int, int]) -> dict[str, int]:
+    """A (sec, nsec) pair as rosbag2's YAML map."""
+    return {'sec': int(value[0]), 'nsec': int(value[1])}
+
+
+@dataclass(frozen=True)
+class QosProfile:
+    """One offered QoS profile as rosbag2 v9 stores it; durations are (sec, nsec)."""
+
+    history: str = 'keep_last'
+    depth: int = 10
+    reliability: str = 'reliable'
+    durability: str = 'volatile'
+    deadline: tuple[int, int] = DURATION_INFINITE
+    lifespan: tuple[int, int] = DURATION_INFINITE
+    liveliness: str = 'automatic'
+    liveliness_lease_duration: tuple[int, int] = DURATION_INFINITE
+    avoid_ros_namespace_conventions: bool = False
+
+    def __post_init__(self) -> None:
+        """Validate the policy names and the depth."""
+        _check_choice('history', self.history, _HISTORY)
+        _check_choice('reliability', self.reliability, _RELIABILITY)
+        _check_choice('durability', self.durability, _DURABILITY)
+        _check_choice('liveliness', self.liveliness, _LIVELINESS)
+        if self.depth < 0:
+            raise BagWriteError(f'QoS depth must be >= 0, not {self.depth}')
+
+    def as_dict(self) -> dict[str, Any]:
+        """The v9 YAML map of this profile."""
+        return {
+            'history': self.history,
+            'depth': int(self.depth),
+            'reliability': self.reliability,
+            'durability': self.durability,
+            'deadline': _time_dict(self.deadline),
+            'lifespan': _time_dict(self.lifespan),
+            'liveliness': self.liveliness,
+            'liveliness_lease_duration': _time_dict(self.liveliness_lease_duration),
+            'avoid_ros_namespace_conventions': bool(self.avoid_ros_namespace_conventions),
+        }
+
+    @classmethod
+    def from_dict(cls, dct: Mapping[str, Any]) -> QosProfile:
+        """Profile from a v9 YAML map."""
+
+        def pair(key: str) -> tuple[int, int]:
+            return (int(dct[key]['sec']), int(dct[key]['nsec']))
+
+        return cls(
+            history=str(dct['history']),
+            depth=int(dct['depth']),
+            reliability=str(dct['reliability']),
+            durability=str(dct['durability']),
+            deadline=pair('deadline'),
+            lifespan=pair('lifespan'),
+            liveliness=str(dct['liveliness']),
+            liveliness_lease_duration=pair('liveliness_lease_duration'),
+            avoid_ros_namespace_conventions=bool(dct['avoid_ros_namespace_conventions']),
+        )
+
+
+def qos_to_yaml(profiles: Sequence[QosProfile]) -> str:
+    """The offered_qos_profiles string of an MCAP channel (a YAML list of v9 maps)."""
+    return yaml.safe_dump([p.as_dict() for p in profiles], default_flow_style=False, sort_keys=False)
+
+
+def qos_from_yaml(text: str) -> tuple[QosProfile, ...]:
+    """Profiles from an offered_qos_profiles string (empty string: none)."""
+    loaded = yaml.safe_load(text) if text.strip() else []
+    if not isinstance(loaded, list):
+        raise BagWriteError('offered_qos_profiles is not a YAML list')
+    return tuple(QosProfile.from_dict(x) for x in loaded)
+
+
+@dataclass(frozen=True)
+class TopicSpec:
+    """Everything recorded about one topic: name, type, full definition, type hash, offered QoS."""
+
+    name: str
+    msgtype: str
+    definition: str
+    type_hash: str
+    qos: tuple[QosProfile, ...] = ()
+    serialization_format: str = 'cdr'
+    definition_encoding: str = 'ros2msg'
+
+    def __post_init__(self) -> None:
+        """Validate names and encodings."""
+        if not self.name.startswith('/') or self.name.endswith('/') or '//' in self.name:
+            raise BagWriteError(f'topic name must be fully qualified like /ns/topic, not {self.name!r}')
+        object.__setattr__(self, 'msgtype', normalize_msgtype(self.msgtype))
+        if self.serialization_format != 'cdr':
+            raise BagWriteError(f'only cdr serialization is supported, not {self.serialization_format!r}')
+        if self.definition_encoding not in ('ros2msg', 'ros2idl'):
+            raise BagWriteError(f'unknown definition encoding {self.definition_encoding!r}')
+
+
+def topic_spec(
+    name: str,
+    msgtype: str,
+    source: DefinitionSource,
+    qos: Iterable[QosProfile] = (),
+    type_hash: Optional[str] = None,
+) -> TopicSpec:
+    """TopicSpec with the definition (and, unless given, the hash) taken from a DefinitionSource."""
+    return TopicSpec(
+        name=name,
+        msgtype=msgtype,
+        definition=source.full_text(msgtype),
+        type_hash=type_hash or source.type_hash(msgtype),
+        qos=tuple(qos),
+    )
+
+
+@dataclass
+class BagSummary:
+    """What a closed bag holds: path, messages per topic, first and last log time [ns]."""
+
+    path: Path
+    counts: dict[str, int] = field(default_factory=dict)
+    start_ns: int = 0
+    end_ns: int = 0
+
+    @property
+    def message_count(self) -> int:
+        """Total number of messages."""
+        return sum(self.counts.values())
+
+    @property
+    def duration_s(self) -> float:
+        """Span of the log times [s]."""
+        return (self.end_ns - self.start_ns) * 1e-9
+
+    def line(self) -> str:
+        """One-line human summary."""
+        per_topic = ', '.join(f'{k}={v}' for k, v in self.counts.items()) or 'no topics'
+        return f'{self.path}: {self.message_count} messages in {self.duration_s:.3f} s ({per_topic})'
+
+
+def mcap_name(bag_dir: os.PathLike | str) -> str:
+    """File name of the (only) MCAP file of a bag folder, as rosbag2 names it: ``<name>_0.mcap``."""
+    return f'{Path(bag_dir).name}_0.mcap'
+
+
+def bag_metadata(
+    files: Sequence[str],
+    topics: Sequence[TopicSpec],
+    counts: Sequence[int],
+    start_ns: int,
+    end_ns: int,
+    custom_data: Optional[Mapping[str, str]] = None,
+) -> dict[str, Any]:
+    """The ``rosbag2_bagfile_information`` map (v9, every version-gated key present) for one file."""
+    if len(topics) != len(counts):
+        raise BagWriteError('one message count per topic is needed')
+    total = int(sum(counts))
+    start = int(start_ns) if total else 0
+    duration = max(0, int(end_ns) - int(start_ns)) if total else 0
+    return {
+        'version': METADATA_VERSION,
+        'storage_identifier': 'mcap',
+        'duration': {'nanoseconds': duration},
+        'starting_time': {'nanoseconds_since_epoch': start},
+        'message_count': total,
+        'topics_with_message_count': [
+            {
+                'topic_metadata': {
+                    'name': t.name,
+                    'type': t.msgtype,
+                    'serialization_format': t.serialization_format,
+                    'offered_qos_profiles': [q.as_dict() for q in t.qos],
+                    'type_description_hash': t.type_hash,
+                },
+                'message_count': int(n),
+            }
+            for t, n in zip(topics, counts)
+        ],
+        'compression_format': '',
+        'compression_mode': '',
+        'relative_file_paths': list(files),
+        'files': [
+            {
+                'path': name,
+                'starting_time': {'nanoseconds_since_epoch': start},
+                'duration': {'nanoseconds': duration},
+                'message_count': total,
+            }
+            for name in files
+        ],
+        'custom_data': dict(custom_data) if custom_data else {},
+        'ros_distro': ROS_DISTRO,
+    }
+
+
+def dump_yaml(data: Any) -> str:
+    """Block-style YAML text keeping key order."""
+    return yaml.safe_dump(data, default_flow_style=False, sort_keys=False, allow_unicode=True)
+
+
+def write_metadata_file(bag_dir: os.PathLike | str, info: Mapping[str, Any]) -> Path:
+    """Write ``metadata.yaml`` atomically (temporary file, then rename); return its path."""
+    path = Path(bag_dir) / 'metadata.yaml'
+    tmp = path.with_name('.metadata.yaml.tmp')
+    tmp.write_text(dump_yaml({'rosbag2_bagfile_information': dict(info)}), encoding='utf-8')
+    os.replace(tmp, path)
+    return path
+
+
+class BagWriter:
+    """Writes one rosbag2 bag folder; never overwrites; flushes chunks to disk regularly.
+
+    Use as a context manager, or call open(), add_topic(), write() and close().
+    Not thread-safe: call it from one thread (the recorder uses a writer thread).
+    """
+
+    def __init__(
+        self,
+        path: os.PathLike | str,
+        *,
+        chunk_size: int = DEFAULT_CHUNK_SIZE,
+        flush_interval_s: float = DEFAULT_FLUSH_INTERVAL_S,
+        compression: str = 'zstd',
+        custom_data: Optional[Mapping[str, str]] = None,
+    ) -> None:
+        """Prepare writing the bag folder ``path`` (which must not exist yet)."""
+        self.path = Path(path)
+        if chunk_size < 1024:
+            raise BagWriteError(f'chunk_size must be at least 1024 bytes, not {chunk_size}')
+        if not flush_interval_s > 0:
+            raise BagWriteError(f'flush_interval_s must be > 0, not {flush_interval_s}')
+        if compression not in ('zstd', 'none'):
+            raise BagWriteError(f'compression must be zstd or none, not {compression!r}')
+        if custom_data and not all(isinstance(v, str) for v in custom_data.values()):
+            raise BagWriteError('custom_data values must be strings')
+        if self.path.exists():
+            raise BagWriteError(f'{self.path} exists already, not overwriting')
+        self.chunk_size = int(chunk_size)
+        self.flush_interval_s = float(flush_interval_s)
+        self.compression = compression
+        self.custom_data = dict(custom_data or {})
+        self.mcap_path = self.path / mcap_name(self.path)
+        self.topics: list[TopicSpec] = []
+        self.counts: list[int] = []
+        self.start_ns = 0
+        self.end_ns = 0
+        self._file: Optional[IO[bytes]] = None
+        self._mcap: Optional[McapWriter] = None
+        self._schemas: dict[tuple[str, str], int] = {}
+        self._channels: list[int] = []
+        self._last_flush = time.monotonic()
+        self._unflushed = 0
+
+    @property
+    def is_open(self) -> bool:
+        """True between open() and close()/abort()."""
+        return self._mcap is not None
+
+    def open(self) -> None:
+        """Create the folder and the MCAP file and write the MCAP header."""
+        if self._mcap is not None:
+            raise BagWriteError(f'{self.path} is already open')
+        try:
+            self.path.mkdir(parents=True, exist_ok=False)
+        except FileExistsError:
+            raise BagWriteError(f'{self.path} exists already, not overwriting') from None
+        except OSError as err:
+            raise BagWriteError(f'cannot create {self.path}: {err.strerror}') from None
+        self._file = open(self.mcap_path, 'xb')
+        self._mcap = McapWriter(
+            self._file,
+            chunk_size=self.chunk_size,
+            compression=CompressionType.ZSTD if self.compression == 'zstd' else CompressionType.NONE,
+            enable_crcs=True,
+        )
+        self._mcap.start(profile='ros2', library=_library_id())
+        self._file.flush()
+        self._last_flush = time.monotonic()
+
+    def _writer(self) -> McapWriter:
+        """The open MCAP writer, or BagWriteError."""
+        if self._mcap is None:
+            raise BagWriteError(f'{self.path} is not open')
+        return self._mcap
+
+    def add_topic(self, topic: TopicSpec) -> int:
+        """Register a topic; return the handle to pass to write()."""
+        writer = self._writer()
+        if any(t.name == topic.name for t in self.topics):
+            raise BagWriteError(f'topic {topic.name} is already in {self.path}')
+        key = (topic.msgtype, topic.definition)
+        if key not in self._schemas:
+            self._schemas[key] = writer.register_schema(
+                name=topic.msgtype,
+                encoding=topic.definition_encoding,
+                data=topic.definition.encode('utf-8'),
+            )
+        channel = writer.register_channel(
+            topic=topic.name,
+            message_encoding=topic.serialization_format,
+            schema_id=self._schemas[key],
+            metadata={
+                'offered_qos_profiles': qos_to_yaml(topic.qos),
+                'topic_type_hash': topic.type_hash,
+            },
+        )
+        self.topics.append(topic)
+        self.counts.append(0)
+        self._channels.append(channel)
+        return len(self.topics) - 1
+
+    def write(self, handle: int, log_time_ns: int, data: bytes, publish_time_ns: Optional[int] = None) -> None:
+        """Append one serialized (CDR) message of topic ``handle`` received at ``log_time_ns``."""
+        writer = self._writer()
+        if not 0 <= handle < len(self._channels):
+            raise BagWriteError(f'unknown topic handle {handle}')
+        if log_time_ns < 0:
+            raise BagWriteError(f'log time must be >= 0 ns, not {log_time_ns}')
+        writer.add_message(
+            channel_id=self._channels[handle],
+            log_time=int(log_time_ns),
+            data=data,
+            publish_time=int(log_time_ns if publish_time_ns is None else publish_time_ns),
+        )
+        if not any(self.counts):
+            self.start_ns = self.end_ns = int(log_time_ns)
+        else:
+            self.start_ns = min(self.start_ns, int(log_time_ns))
+            self.end_ns = max(self.end_ns, int(log_time_ns))
+        self.counts[handle] += 1
+        self._unflushed += len(data) + 31
+        if self._unflushed >= self.chunk_size:
+            self.flush()
+        else:
+            self.flush_if_due()
+
+    def flush_if_due(self) -> bool:
+        """Flush when the flush interval has passed since the last flush; return True if it did."""
+        if self._unflushed and time.monotonic() - self._last_flush >= self.flush_interval_s:
+            self.flush()
+            return True
+        return False
+
+    def flush(self) -> None:
+        """Close the current chunk and hand everything written so far to the operating system."""
+        writer = self._writer()
+        writer.flush()
+        self._last_flush = time.monotonic()
+        self._unflushed = 0
+
+    def summary(self) -> BagSummary:
+        """Messages per topic and time span written so far."""
+        return BagSummary(
+            path=self.path,
+            counts={t.name: n for t, n in zip(self.topics, self.counts)},
+            start_ns=self.start_ns,
+            end_ns=self.end_ns,
+        )
+
+    def metadata(self) -> dict[str, Any]:
+        """The bag metadata map for what was written so far."""
+        return bag_metadata(
+            [self.mcap_path.name], self.topics, self.counts, self.start_ns, self.end_ns, self.custom_data
+        )
+
+    def close(self) -> BagSummary:
+        """Write the rosbag2 metadata record, the MCAP summary and footer, then metadata.yaml."""
+        writer = self._writer()
+        info = self.metadata()
+        writer.flush()
+        writer.add_metadata('rosbag2', {'serialized_metadata': dump_yaml(info)})
+        writer.finish()
+        assert self._file is not None
+        self._file.flush()
+        os.fsync(self._file.fileno())
+        self._file.close()
+        self._file = None
+        self._mcap = None
+        write_metadata_file(self.path, info)
+        return self.summary()
+
+    def abort(self) -> None:
+        """Close the file without summary or metadata.yaml (what is flushed stays repairable)."""
+        if self._file is not None:
+            self._file.close()
+        self._file = None
+        self._mcap = None
+
+    def __enter__(self) -> BagWriter:
+        """Open on entering the context."""
+        self.open()
+        return self
+
+    def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> None:
+        """Close normally, or abort when the block raised."""
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()

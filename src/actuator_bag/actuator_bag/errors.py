@@ -1,0 +1,48 @@
+"""Error classes of the bag tooling and the one-line error reporting of its command-line tools."""
+
+from __future__ import annotations
+
+import sys
+from typing import Callable, Optional, Sequence
+
+
+class BagError(Exception):
+    """Base class of every error the bag tooling raises on purpose."""
+
+
+class BagWriteError(BagError):
+    """A bag could not be created or written (target exists, bad topic, closed writer)."""
+
+
+class BagReadError(BagError):
+    """A path is not a readable rosbag2 bag (missing, not a bag, truncated, undecodable)."""
+
+
+class DefinitionError(BagError):
+    """A message definition could not be found or parsed."""
+
+
+class RepairError(BagError):
+    """A bag could not be repaired (nothing readable, target exists)."""
+
+
+class AnalysisError(BagError):
+    """A bag lacks what an analysis needs (topics, samples)."""
+
+
+def run_cli(
+    prog: str,
+    main: Callable[[Optional[Sequence[str]]], int],
+    argv: Optional[Sequence[str]] = None,
+) -> int:
+    """Run a tool's main, turning a BagError or an interrupt into a one-line message and an exit code."""
+    try:
+        return main(argv)
+    except BagError as err:
+        print(f'{prog}: error: {err}', file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print(f'{prog}: interrupted', file=sys.stderr)
+        return 130
+    except BrokenPipeError:
+        return 1
