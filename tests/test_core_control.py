@@ -1,0 +1,149 @@
+"""Controllers, closed loop and stability: behaviour of the control core without ROS."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from actuator_bringup.closed_loop import ClosedLoop, Scenario
+from actuator_bringup.metrics import compute_run_metrics
+from actuator_bringup.offline import run_scenario
+from actuator_bringup.scenarios import case1, paper_scenario
+from actuator_bringup.stability import radius_along_envelope
+from actuator_controller.laws import (CONTROLLER_NAMES, CommonConfig, NftsmcGains, PiGains, SmcGains,
+                                      make_controller, tanh_sq_over)
+from actuator_controller.reference import ReferenceSample, fast_trajectory, make_reference, slow_trajectory
+from actuator_plant.model import PlantParameters
+
+
+@pytest.mark.parametrize('name', CONTROLLER_NAMES)
+def test_each_controller_holds_zero_error_with_zero_command_on_ideal_plant_at_rest(name):
+    scenario = Scenario(name='rest', controller=name, reference='step', plant=PlantParameters().ideal(),
+                        duration_s=0.5)
+    loop = ClosedLoop(scenario)
+    loop.reference = type(loop.reference)(amplitude_rad=0.0)
+    trace = loop.run()
+    assert np.all(trace['current_a'] == 0.0)
+    assert np.all(trace['error_rad'] == 0.0)
+    assert np.all(trace['measured_position_rad'] == 0.0)
+
+
+@pytest.mark.parametrize('reference', [slow_trajectory(), fast_trajectory(), make_reference('sine')])
+def test_reference_derivatives_are_analytic(reference):
+    t = np.linspace(0.0, 3.0, 30001)
+    s = reference.sample(t)
+    assert np.allclose(np.gradient(s.position_rad, t)[5:-5], s.velocity_rad_s[5:-5], atol=1e-4)
+    assert np.allclose(np.gradient(s.velocity_rad_s, t)[5:-5], s.acceleration_rad_s2[5:-5], atol=2e-3)
+
+
+def test_unknown_reference_and_controller_are_refused():
+    with pytest.raises(ValueError, match='reference'):
+        make_reference('zigzag')
+    with pytest.raises(ValueError, match='controller'):
+        make_controller('lqr')
+
+
+def test_u_b_is_continuous_through_sigma_zero():
+    sigma = np.array([-1e-12, 0.0, 1e-12, 1e-6, 1e-3])
+    values = tanh_sq_over(sigma, 0.06)
+    assert values[1] == 0.0
+    assert np.all(np.isfinite(values))
+    assert values[4] == pytest.approx(np.tanh(1e-3 / 0.06) ** 2 / 1e-3)
+
+
+def test_current_limit_and_anti_windup():
+    common = CommonConfig(current_limit_a=1.0)
+    pi = make_controller('pi', PiGains(), common)
+    ref = ReferenceSample(1.0, 0.0, 0.0)
+    for _ in range(2000):                       # 2 s of a 1 rad error: far into saturation
+        out = pi.update(0.0, 0.0, 0.0, 0.0, ref)
+        assert out.current_a == 1.0 and out.saturated
+    assert pi.integral == 0.0                   # frozen: integrating would push further into the limit
+    out = pi.update(0.0, 1.5, 0.0, 0.0, ref)    # reversed and saturated low: still frozen
+    assert out.current_a == -1.0 and pi.integral == 0.0
+    out = pi.update(0.0, 1.001, 0.0, 0.0, ref)  # back inside the limit: integrates again at once
+    assert -1.0 < out.current_a < 0.0 and not out.saturated
+    assert pi.integral == pytest.approx(-1e-6)
+
+
+def test_non_finite_input_gives_zero_current_and_keeps_the_integral():
+    ctrl = make_controller('pp_nftsmc_eso')
+    out = ctrl.update(0.1, float('nan'), 0.0, 0.0, ReferenceSample(0.0, 0.0, 0.0))
+    assert out.current_a == 0.0 and not out.finite
+    assert ctrl.integral == 0.0
+
+
+def test_stability_check_reproduces_the_known_facts():
+    worst = {c: max(r for _, r in radius_along_envelope(c)) for c in ('pp_nftsmc_eso', 'smc_eso')}
+    assert worst['pp_nftsmc_eso'] < 1.0
+    assert worst['smc_eso'] > 10.0              # printed SMC-ESO gains cannot run at 1 kHz
+    late_eso = max(r for _, r in radius_along_envelope('pp_nftsmc_eso', eso_delay=1))
+    assert late_eso > 1.0                       # an ESO one current behind diverges
+    slow_loop = max(r for _, r in radius_along_envelope('smc_eso', SmcGains(k1_per_s=200.0, k2_per_s=100.0)))
+    assert slow_loop < 1.0
+
+
+def test_late_eso_current_diverges_in_the_closed_loop_too():
+    """The linearised verdict holds in the nonlinear loop: fed u(k-1), the ESO drives the loop into a
+    limit cycle held only by the current limit, with several times the normal error."""
+    loop = ClosedLoop(paper_scenario('late', 'pp_nftsmc_eso', 'fast', 'deep_sea', duration_s=3.0))
+    update = loop.eso.update
+    previous = {'u': 0.0}
+
+    def late_update(y, u):
+        update(y, previous['u'])
+        previous['u'] = u
+    loop.eso.update = late_update
+    trace = loop.run()
+    m = compute_run_metrics(trace['t_s'], trace['error_rad'], trace['current_a'], saturated=trace['saturated'])
+    normal = ClosedLoop(paper_scenario('ok', 'pp_nftsmc_eso', 'fast', 'deep_sea', duration_s=3.0)).run()
+    assert m.diverged or m.saturated_fraction > 0.3
+    assert not np.any(normal['saturated'])
+    assert np.max(np.abs(trace['error_rad'])) > 3.0 * np.max(np.abs(normal['error_rad'][1000:]))
+
+
+@pytest.fixture(scope='module')
+def case2_metrics():
+    return {c: run_scenario(paper_scenario(c, c, 'fast', 'deep_sea'))[1]
+            for c in ('pi', 'nftsmc_eso', 'pp_nftsmc_eso')}
+
+
+def test_case2_ordering_with_margins(case2_metrics):
+    pp, nft, pi = (case2_metrics[c].max_steady_error_rad for c in ('pp_nftsmc_eso', 'nftsmc_eso', 'pi'))
+    assert not any(case2_metrics[c].diverged for c in case2_metrics)
+    assert pp * 5.0 < nft                      # paper: almost 10x
+    assert nft * 1.5 < pi
+
+
+def test_case1_pp_stays_inside_its_bounds_and_near_table5():
+    for scenario, paper in case1():
+        trace, metrics, radius, _ = run_scenario(scenario)
+        assert metrics.bounds_kept, scenario.name
+        assert not metrics.diverged and radius < 1.0
+        assert 0.5 * paper < metrics.max_steady_error_rad < 1.5 * paper, scenario.name
+
+
+def test_batch_run_matches_single_runs():
+    scenario = paper_scenario('b', 'pp_nftsmc_eso', 'fast', 'deep_sea', duration_s=1.0)
+    single = ClosedLoop(scenario).run()
+    batch = ClosedLoop(scenario, batch=3).run()
+    assert batch['error_rad'].shape == (1000, 3)
+    for i in range(3):
+        assert np.allclose(batch['error_rad'][:, i], single['error_rad'], rtol=1e-9, atol=1e-12)
+
+
+def test_four_substeps_are_enough_in_closed_loop():
+    coarse = run_scenario(paper_scenario('c', 'pp_nftsmc_eso', 'fast', 'deep_sea', duration_s=6.0))[1]
+    fine_scenario = paper_scenario('f', 'pp_nftsmc_eso', 'fast', 'deep_sea', duration_s=6.0)
+    fine_scenario.plant = dataclasses.replace(fine_scenario.plant, substeps=32)
+    fine = run_scenario(fine_scenario)[1]
+    assert coarse.max_steady_error_rad == pytest.approx(fine.max_steady_error_rad, rel=0.02)
+
+
+def test_gains_refuse_out_of_range_values_with_the_name():
+    with pytest.raises(ValueError, match='alpha1.*range'):
+        NftsmcGains(alpha1=0.0)
+    with pytest.raises(ValueError, match='current_limit_a'):
+        CommonConfig(current_limit_a=float('inf'))
+    with pytest.raises(ValueError, match='k0_per_s'):
+        dataclasses.replace(make_controller('pp_nftsmc_eso').gains, k0_per_s=-1.0)

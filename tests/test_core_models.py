@@ -1,0 +1,160 @@
+"""Plant, loss models, ESO and PPF: the ROS-free core against hand calculations and known signals."""
+
+import math
+
+import numpy as np
+import pytest
+
+from actuator_controller.ppf import PrescribedPerformance, inverse_transform, transform_error
+from actuator_eso.observer import EsoGains, ExtendedStateObserver
+from actuator_plant.model import (JointPlant, PlantParameters, WorkingCondition, derive_constants,
+                                  disturbance_parts, joint_forces)
+from actuator_plant.oil import (MotorGeometry, OilProperties, dynamic_viscosity_pa_s, kinematic_viscosity_m2_s,
+                                stirring_geometry_constant_m3)
+
+
+def test_walther_passes_through_its_two_data_points():
+    oil = OilProperties()
+    assert kinematic_viscosity_m2_s(40.0, oil) == pytest.approx(22.0e-6, rel=1e-9)
+    assert kinematic_viscosity_m2_s(100.0, oil) == pytest.approx(4.3e-6, rel=1e-9)
+
+
+def test_viscosity_at_paper_conditions_by_hand():
+    oil = OilProperties()
+    # Walther by hand at 2 degC: A, B through (40 degC, 22) and (100 degC, 4.3).
+    w40, w100 = math.log10(math.log10(22.7)), math.log10(math.log10(5.0))
+    b = (w40 - w100) / (math.log10(373.15) - math.log10(313.15))
+    a = w40 + b * math.log10(313.15)
+    nu2 = 10 ** (10 ** (a - b * math.log10(275.15))) - 0.7
+    rho2 = 870.0 / (1.0 + 6.5e-4 * (2.0 - 15.0))
+    alpha = 1.0 / (4.49e7 + 1.6e-2 * 10.0)
+    assert dynamic_viscosity_pa_s(2.0, 10.0e6, oil) == pytest.approx(rho2 * nu2 * 1e-6 * math.exp(alpha * 10.0e6))
+    # Lab: no pressure, so exp(alpha P) = 1, and mu0(25 degC) is about 36 mPa s.
+    assert dynamic_viscosity_pa_s(25.0, 0.0, oil) == pytest.approx(0.0365, rel=0.02)
+    assert dynamic_viscosity_pa_s(2.0, 10.0e6, oil) > dynamic_viscosity_pa_s(2.0, 0.0, oil)
+
+
+def test_stirring_geometry_constant_by_hand():
+    k = stirring_geometry_constant_m3(MotorGeometry())
+    flank = math.pi * 0.0155 * 0.0375 ** 3 / (4 * 0.0003)
+    disk = math.pi * (0.063 ** 4 - 0.0375 ** 4) / (32 * 0.038)
+    assert k == pytest.approx(flank + disk, rel=1e-12)
+    with pytest.raises(ValueError, match='d2'):
+        MotorGeometry(rotor_end_diameter_m=0.063, housing_end_diameter_m=0.0375)  # Table 3 as printed
+
+
+def test_losses_at_one_state_by_hand():
+    params = PlantParameters(condition=WorkingCondition.deep_sea())
+    c = derive_constants(params)
+    t, v, u = 0.7, 2.0, 3.0
+    f = joint_forces(t, v, c)
+    k_mu = stirring_geometry_constant_m3(MotorGeometry()) * dynamic_viscosity_pa_s(2.0, 10e6, OilProperties())
+    assert f.stirring_torque_nm == pytest.approx(k_mu * 100.0 * v)                      # (6), rotor speed N q'
+    assert f.external_torque_nm == pytest.approx(20.0 * (1 + 0.5 * math.sin(0.5 * math.pi * t)))  # (40)
+    assert f.seal_torque_nm == pytest.approx(1 + math.exp(0.3591 * v) + math.exp(0.1504 * 10.0))  # (42)
+    assert f.inertia_kg_m2 == pytest.approx(3.34e-5 * (1 + 0.2 * math.sin(0.5 * math.pi * t)))   # (41)
+    parts = disturbance_parts(t, v, u, c)
+    assert parts.disturbance_rad_s2 == pytest.approx(
+        parts.parametric_rad_s2 + parts.stirring_rad_s2 + parts.external_rad_s2 + parts.seal_rad_s2)
+    # (1) solved for q'' equals the nominal model (5) plus d.
+    j, kt, kb = f.inertia_kg_m2, f.torque_constant_nm_a, f.viscous_coefficient_nm_s_rad
+    qdd = (kt * u - kb * 100 * v - f.stirring_torque_nm - (f.external_torque_nm + f.seal_torque_nm) / 100) / (j * 100)
+    assert parts.acceleration_rad_s2 == pytest.approx(qdd)
+    # Seal friction range of Fig. 4 at rest-limit: 3 N m in the lab, 6.5 N m in the deep sea.
+    lab = derive_constants(PlantParameters(condition=WorkingCondition.lab()))
+    assert joint_forces(0.0, 1e-12, lab).seal_torque_nm == pytest.approx(3.0)
+
+
+def test_depth_gives_hydrostatic_pressure():
+    assert WorkingCondition.at_depth(1000.0).pressure_pa == pytest.approx(10.05e6, rel=1e-3)
+    with pytest.raises(ValueError, match='depth_m'):
+        WorkingCondition.at_depth(-5.0)
+    with pytest.raises(ValueError, match='pressure_pa'):
+        WorkingCondition(pressure_pa=float('nan'), temperature_c=2.0)
+
+
+def test_ideal_plant_matches_closed_form_with_current_held():
+    params = PlantParameters().ideal()
+    plant = JointPlant(params, 1e-3)
+    th1, th2 = params.nominal.theta1n, params.nominal.theta2n
+    u = 2.0
+    for _ in range(500):
+        plant.step(u)
+    t = 0.5
+    v = th1 * u / th2 * (math.exp(th2 * t) - 1.0)
+    q = th1 * u / th2 * ((math.exp(th2 * t) - 1.0) / th2 - t)
+    assert plant.velocity_rad_s == pytest.approx(v, rel=1e-9)
+    assert plant.position_rad == pytest.approx(q, rel=1e-9)
+    assert plant.time_s == pytest.approx(0.5)
+
+
+def test_full_plant_converges_with_substeps():
+    coarse, fine = JointPlant(PlantParameters(substeps=4), 1e-3), JointPlant(PlantParameters(substeps=64), 1e-3)
+    for k in range(2000):
+        u = 5.0 * math.sin(8.0 * k * 1e-3)
+        coarse.step(u)
+        fine.step(u)
+    # The joint falls about 4.7 rad under the external torque, reversing through the seal's
+    # sign(q') discontinuity; 4 substeps stay within 1e-4 of the travel.
+    assert abs(coarse.position_rad - fine.position_rad) < 1e-4 * abs(fine.position_rad)
+    assert np.isfinite(coarse.velocity_rad_s)
+
+
+def test_eso_gains_follow_bandwidth_parametrisation_and_refuse_non_hurwitz():
+    g = EsoGains.from_bandwidth(60.0)
+    assert (g.l1, g.l2, g.l3) == (15.0, 75.0, 125.0)
+    poles = np.roots([1.0, g.beta[0], g.beta[1], g.beta[2]])
+    assert np.allclose(poles, -300.0, atol=1e-2)
+    with pytest.raises(ValueError, match='Hurwitz'):
+        EsoGains(l1=1.0, l2=1.0, l3=5.0)
+    with pytest.raises(ValueError, match='omega0_rad_s'):
+        EsoGains(omega0_rad_s=-1.0)
+
+
+def test_eso_converges_on_a_known_signal():
+    """Truth: x'' = theta1n u + theta2n x' + d with a slowly varying d; the ESO must find x' and d."""
+    gains = EsoGains()
+    dt = 1e-4
+    eso = ExtendedStateObserver(gains, dt)
+    x1, x2 = 0.1, 0.0
+    errors = []
+    for k in range(30000):
+        t = k * dt
+        u = math.sin(3.0 * t)
+        d = -40.0 + 10.0 * math.sin(2.0 * t)
+        eso.update(x1, u)
+        x2_new = x2 + dt * (gains.theta1n * u + gains.theta2n * x2 + d)
+        x1 += dt * x2
+        x2 = x2_new
+        d_next = -40.0 + 10.0 * math.sin(2.0 * (t + dt))
+        errors.append((eso.x1_hat - x1, eso.x2_hat - x2, eso.x3_hat - d_next))
+    err = np.abs(np.array(errors))
+    assert err[:100, 2].max() > 10.0            # it starts far off (x_hat(0) = 0, d = -40) ...
+    assert err[-5000:, 0].max() < 1e-5          # ... and converges: d' = 20 cos gives a small lag only
+    assert err[-5000:, 1].max() < 5e-3
+    assert err[-5000:, 2].max() < 0.5
+
+
+def test_ppf_transform_inverse_and_r_against_numerical_derivative():
+    ppf = PrescribedPerformance()
+    t = np.linspace(0.0, 8.0, 801)
+    rho, rho_d, _ = ppf.rho_derivatives(t)
+    e = 0.8 * rho * np.sin(3.0 * t)                        # inside the envelope
+    e_dot = 0.8 * (rho_d * np.sin(3.0 * t) + rho * 3.0 * np.cos(3.0 * t))
+    tr = transform_error(e, rho, ppf)
+    assert np.all(tr.inside)
+    assert np.allclose(inverse_transform(tr.z, rho, ppf), e, atol=1e-12)
+    z_dot_numeric = np.gradient(tr.z, t)
+    z_dot_12 = tr.r * (e_dot - rho_d * e / rho)          # eq. (12) with the corrected r
+    assert np.allclose(z_dot_12[5:-5], z_dot_numeric[5:-5], rtol=2e-3, atol=1e-3)
+    assert ppf.rho(0.0) == pytest.approx(0.25) and ppf.rho(100.0) == pytest.approx(0.05)
+
+
+def test_ppf_clamps_outside_the_bounds_and_reports_it():
+    ppf = PrescribedPerformance()
+    tr = transform_error(np.array([-1.0, 0.0, 0.3]), 0.25, ppf)
+    assert list(tr.inside) == [False, True, False]
+    assert np.all(np.isfinite(tr.z)) and np.all(np.isfinite(tr.r))
+    assert tr.z[0] < -4.0 and tr.z[2] > 4.0 and tr.z[1] == 0.0
+    with pytest.raises(ValueError, match='rho_inf_rad'):
+        PrescribedPerformance(rho0_rad=0.01, rho_inf_rad=0.05)
