@@ -1,0 +1,305 @@
+"""``recorder``: records the system's topics into a rosbag2 (MCAP) bag, losing nothing at 1 kHz.
+
+Hot path: one raw (serialized, never deserialized) subscription per topic, BEST_EFFORT
+KEEP_LAST with a deep queue (default 1000, i.e. one second at 1 kHz of backlog per topic).
+A best-effort subscription matches both best-effort and reliable publishers. The callback
+only stamps the message and appends it to a deque; a writer thread drains the deque into
+the BagWriter (chunking, zstd, flush every second), so file I/O and compression never
+block the executor. The executor defaults to rclpy's EventsExecutor, which costs far less
+per message than the SingleThreadedExecutor.
+
+Timestamps: each message's log time is its receive time on the node's ROS clock, as ros2
+bag records it: with use_sim_time the node clock's now() (sim time from /clock); otherwise
+system time when the callback runs. (With ``--executor single`` the middleware's reception
+timestamp is used instead, which executor queueing does not delay, and publish_time is the
+publisher's source timestamp; rclpy 7.1's EventsExecutor cannot pass message info to
+callbacks, it fails with SystemError, so the default executor stamps in the callback.) header.stamp stays inside each message;
+bag_analyze pairs samples by it and computes command latency as log time - header.stamp.
+
+SIGINT/SIGTERM: stop taking new messages, write what was received, close the bag (MCAP
+summary, metadata.yaml), print one summary line, exit 0. SIGKILL: what was flushed (all
+but the last <= 1 s / 1 MiB) stays on disk and ``bag_repair`` recovers it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import os
+import sys
+import threading
+import time
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any, Optional, Sequence
+
+import rclpy
+from rclpy.event_handler import SubscriptionEventCallbacks
+from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
+from rclpy.utilities import remove_ros_args
+
+from .bag_format import DEFAULT_CHUNK_SIZE, DEFAULT_FLUSH_INTERVAL_S, BagSummary, BagWriter, TopicSpec
+from .errors import BagError
+from .msgdefs import DefinitionSource, normalize_msgtype
+from .ros_common import EXECUTORS, StopFlag, make_executor, make_qos, message_class, to_bag_qos
+
+#: The system's topics (relative names) and their types.
+SYSTEM_TOPICS = {
+    'joint_states': 'sensor_msgs/msg/JointState',
+    'current_command': 'actuator_msgs/msg/CurrentCommand',
+    'eso/estimate': 'actuator_msgs/msg/StateEstimate',
+    'controller/state': 'actuator_msgs/msg/ControllerState',
+    'plant/truth': 'actuator_msgs/msg/PlantTruth',
+    '/clock': 'rosgraph_msgs/msg/Clock',
+}
+DEFAULT_TOPICS = ['joint_states', 'current_command', 'eso/estimate', 'controller/state', 'plant/truth']
+
+
+def parse_topic(entry: str) -> tuple[str, str]:
+    """``name`` (one of the system topics) or ``name:pkg/msg/Type`` -> (name, type)."""
+    name, sep, msgtype = entry.partition(':')
+    name = name.strip()
+    if not name:
+        raise BagError(f'empty topic name in {entry!r}')
+    if sep:
+        return name, normalize_msgtype(msgtype.strip())
+    if name in SYSTEM_TOPICS:
+        return name, SYSTEM_TOPICS[name]
+    raise BagError(f'topic {name!r} is not a system topic; give its type as {name}:pkg/msg/Type')
+
+
+def default_output(now: Optional[datetime] = None) -> Path:
+    """``bags/<UTC timestamp>`` under the working directory, with a suffix if that exists already."""
+    stamp = (now or datetime.now(timezone.utc)).strftime('%Y%m%dT%H%M%SZ')
+    path = Path('bags') / stamp
+    n = 1
+    while path.exists():
+        path = Path('bags') / f'{stamp}_{n}'
+        n += 1
+    return path
+
+
+class BagWriterThread(threading.Thread):
+    """Drains (topic, log time, publish time, data) items from a deque into a BagWriter."""
+
+    def __init__(self, writer: BagWriter, specs: list[TopicSpec]) -> None:
+        """Write into an open BagWriter; topics are registered when their first message arrives."""
+        super().__init__(name='bag-writer', daemon=True)
+        self.writer = writer
+        self.specs = specs
+        self.queue: collections.deque = collections.deque()
+        self.handles: dict[int, int] = {}
+        self.max_backlog = 0
+        self.error: Optional[BaseException] = None
+        self._stop_requested = threading.Event()
+
+    def stop(self) -> None:
+        """Ask the thread to write what is queued and end."""
+        self._stop_requested.set()
+
+    def run(self) -> None:
+        """Write until stopped and the queue is empty."""
+        queue = self.queue
+        writer = self.writer
+        try:
+            while True:
+                backlog = len(queue)
+                if backlog > self.max_backlog:
+                    self.max_backlog = backlog
+                if not backlog:
+                    if self._stop_requested.is_set():
+                        return
+                    writer.flush_if_due()
+                    time.sleep(0.002)
+                    continue
+                for _ in range(backlog):
+                    index, log_ns, pub_ns, data = queue.popleft()
+                    handle = self.handles.get(index)
+                    if handle is None:
+                        handle = self.handles[index] = writer.add_topic(self.specs[index])
+                    writer.write(handle, log_ns, data, pub_ns)
+        except BaseException as err:  # noqa: BLE001 - reported by the node on shutdown
+            self.error = err
+
+
+class RecorderNode(Node):
+    """Subscribes raw to each topic and hands messages to the writer thread."""
+
+    def __init__(self, defaults: argparse.Namespace) -> None:
+        """Declare parameters (defaults from the command line), resolve topics, open the bag."""
+        super().__init__('recorder')
+        self.declare_parameter('topics', list(defaults.topics))
+        self.declare_parameter('record_clock', bool(defaults.record_clock))
+        self.declare_parameter('output', defaults.output or '')
+        self.declare_parameter('queue_depth', int(defaults.queue_depth))
+        self.declare_parameter('reliability', defaults.reliability)
+        self.declare_parameter('flush_interval', float(defaults.flush_interval))
+        self.declare_parameter('chunk_size', int(defaults.chunk_size))
+        entries = list(self.get_parameter('topics').value or [])
+        if self.get_parameter('record_clock').value and '/clock' not in entries:
+            entries.append('/clock')
+        if not entries:
+            raise BagError('no topics to record')
+        topics = [parse_topic(e) for e in entries]
+        depth = int(self.get_parameter('queue_depth').value)
+        qos = make_qos(str(self.get_parameter('reliability').value), depth)
+        output = str(self.get_parameter('output').value)
+        path = Path(output) if output else default_output()
+        self.sim_time = bool(self.get_parameter('use_sim_time').value)
+        source = DefinitionSource()
+        self.specs: list[TopicSpec] = []
+        self._pending: list[tuple[str, str, str]] = []
+        self.lost = 0
+        classes = []
+        for name, msgtype in topics:
+            classes.append(message_class(msgtype))
+            resolved = self.resolve_topic_name(name)
+            self._pending.append((resolved, msgtype, source.full_text(msgtype)))
+        self._source = source
+        self.writer = BagWriter(
+            path,
+            chunk_size=int(self.get_parameter('chunk_size').value),
+            flush_interval_s=float(self.get_parameter('flush_interval').value),
+            custom_data={
+                'recorder': 'actuator_bag recorder',
+                'log_time': 'receive time on the recorder node clock' + (' (sim time)' if self.sim_time else ''),
+            },
+        )
+        self.writer.open()
+        self.specs = [
+            TopicSpec(name=n, msgtype=t, definition=d, type_hash=source.type_hash(t)) for n, t, d in self._pending
+        ]
+        self.thread = BagWriterThread(self.writer, self.specs)
+        self._seen = [False] * len(self.specs)
+        self.subscriptions_ = []
+        for index, ((resolved, _, _), cls) in enumerate(zip(self._pending, classes)):
+            self.subscriptions_.append(self.create_subscription(
+                cls, resolved, self._make_callback(index, defaults.executor == 'single'), qos, raw=True,
+                event_callbacks=SubscriptionEventCallbacks(message_lost=self._on_lost),
+            ))
+        self.thread.start()
+        self.get_logger().info(
+            f'recording {len(self.specs)} topics into {path} '
+            f'({qos.reliability.name.lower()}, depth {depth}): {", ".join(s.name for s in self.specs)}'
+        )
+
+    def _on_lost(self, info: Any) -> None:
+        """Count samples the middleware reports lost before they reached the subscription."""
+        self.lost += int(getattr(info, 'total_count_change', 0))
+
+    def _offered(self, index: int) -> TopicSpec:
+        """The topic's spec completed with the publishers' offered QoS and type hash from the graph."""
+        spec = self.specs[index]
+        try:
+            infos = self.get_publishers_info_by_topic(spec.name)
+        except Exception:  # noqa: BLE001 - graph queries can fail during shutdown; keep the computed spec
+            return spec
+        qos = tuple(to_bag_qos(i.qos_profile) for i in infos)
+        hashes = {str(i.topic_type_hash) for i in infos if str(i.topic_type_hash).startswith('RIHS01_')}
+        if hashes and spec.type_hash not in hashes:
+            self.get_logger().warning(
+                f'{spec.name}: publishers report type hash {sorted(hashes)}, the installed definition '
+                f'gives {spec.type_hash}; recording the installed one'
+            )
+        return TopicSpec(name=spec.name, msgtype=spec.msgtype, definition=spec.definition,
+                         type_hash=spec.type_hash, qos=qos)
+
+    def _make_callback(self, index: int, with_info: bool) -> Any:
+        """The raw-message callback of topic ``index``: stamp and enqueue, nothing else."""
+        append = self.thread.queue.append
+        clock = self.get_clock()
+        sim = self.sim_time
+        seen = self._seen
+
+        def first(index: int) -> None:
+            seen[index] = True
+            self.specs[index] = self._offered(index)
+
+        def callback_info(data: bytes, info: dict) -> None:
+            if not seen[index]:
+                first(index)
+            if sim:
+                log_ns = pub_ns = clock.now().nanoseconds
+            else:
+                log_ns = info.get('received_timestamp') or time.time_ns()
+                pub_ns = info.get('source_timestamp') or log_ns
+            append((index, log_ns, pub_ns, data))
+
+        def callback(data: bytes) -> None:
+            if not seen[index]:
+                first(index)
+            log_ns = clock.now().nanoseconds if sim else time.time_ns()
+            append((index, log_ns, log_ns, data))
+
+        return callback_info if with_info else callback
+
+    def finish(self) -> BagSummary:
+        """Stop the subscriptions, let the writer drain, close the bag."""
+        for sub in self.subscriptions_:
+            self.destroy_subscription(sub)
+        self.subscriptions_ = []
+        self.thread.stop()
+        self.thread.join()
+        if self.thread.error is not None:
+            self.writer.abort()
+            raise BagError(f'writing {self.writer.path} failed: {self.thread.error}')
+        return self.writer.close()
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Command-line interface of the recorder (each option is the default of the parameter of the same name)."""
+    parser = argparse.ArgumentParser(
+        prog='recorder',
+        description='Record the actuator topics into a rosbag2 (MCAP) bag. Each option sets the default of the '
+        'node parameter of the same name (override with --ros-args -p name:=value). Stops on SIGINT/SIGTERM.',
+    )
+    parser.add_argument('-o', '--output', default='', help='bag folder to create (default: bags/<UTC timestamp>)')
+    parser.add_argument('--topics', nargs='+', default=DEFAULT_TOPICS, metavar='NAME[:TYPE]',
+                        help='topics to record; system topics need no type (default: %(default)s)')
+    parser.add_argument('--record-clock', dest='record_clock', action='store_true', help='also record /clock')
+    parser.add_argument('--queue-depth', dest='queue_depth', type=int, default=1000,
+                        help='subscription KEEP_LAST depth per topic (default: %(default)s)')
+    parser.add_argument('--reliability', choices=('best_effort', 'reliable'), default='best_effort',
+                        help='subscription reliability; best_effort matches every publisher (default: %(default)s)')
+    parser.add_argument('--flush-interval', dest='flush_interval', type=float, default=DEFAULT_FLUSH_INTERVAL_S,
+                        help='longest time data stays in memory before it is written [s] (default: %(default)s)')
+    parser.add_argument('--chunk-size', dest='chunk_size', type=int, default=DEFAULT_CHUNK_SIZE,
+                        help='MCAP chunk size before compression [bytes] (default: %(default)s)')
+    parser.add_argument('--executor', choices=EXECUTORS, default='events',
+                        help='rclpy executor (default: %(default)s)')
+    return parser
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    """Entry point of ``recorder``."""
+    argv = list(sys.argv if argv is None else argv)
+    args = build_parser().parse_args(remove_ros_args(argv)[1:])
+    stop = StopFlag()
+    stop.install()
+    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
+    node: Optional[RecorderNode] = None
+    try:
+        node = RecorderNode(args)
+        executor = make_executor(args.executor)
+        executor.add_node(node)
+        while not stop.requested and rclpy.ok():
+            executor.spin_once(timeout_sec=0.1)
+        summary = node.finish()
+        lost = f', {node.lost} reported lost by the middleware' if node.lost else ''
+        print(f'recorder: wrote {summary.line()}; max writer backlog {node.thread.max_backlog}{lost}', flush=True)
+        return 0
+    except BagError as err:
+        print(f'recorder: error: {err}', file=sys.stderr)
+        return 1
+    finally:
+        if node is not None:
+            if node.writer.is_open:
+                node.writer.abort()
+            node.destroy_node()
+        if rclpy.ok():
+            rclpy.shutdown()
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())
