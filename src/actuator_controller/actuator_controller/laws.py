@@ -32,8 +32,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
-import numpy as np
-
+from actuator_common import xmath as xm
 from actuator_common.params import spec, validate
 from actuator_controller.ppf import PrescribedPerformance, transform_error
 from actuator_controller.reference import ReferenceSample
@@ -145,14 +144,14 @@ class ControlOutput(NamedTuple):
 
 def signed_power(z, alpha: float):
     """|z|^[alpha] = |z|^alpha sign(z), the notation of (27)."""
-    return np.sign(z) * np.abs(z) ** alpha
+    return xm.sign(z) * xm.fabs(z) ** alpha
 
 
 def tanh_sq_over(sigma, tau: float):
     """tanh^2(sigma/tau)/sigma of (35), continuous at sigma = 0 (limit 0, series sigma/tau^2)."""
-    small = np.abs(sigma) < 1.0e-9 * tau
-    safe = np.where(small, 1.0, sigma)
-    return np.where(small, sigma / (tau * tau), np.tanh(sigma / tau) ** 2 / safe)
+    small = xm.fabs(sigma) < 1.0e-9 * tau
+    safe = xm.where(small, 1.0, sigma)
+    return xm.where(small, sigma / (tau * tau), xm.tanh(sigma / tau) ** 2 / safe)
 
 
 class Controller:
@@ -176,15 +175,14 @@ class Controller:
     def _finish(self, u_unlimited, integrand, **terms) -> ControlOutput:
         """Limit u, decide the integral update (frozen on wind-up or non-finite output), pack the output."""
         limit = self.common.current_limit_a
-        finite = np.isfinite(u_unlimited)
-        u = np.where(finite, np.clip(np.where(finite, u_unlimited, 0.0), -limit, limit), 0.0)
+        finite = xm.isfinite(u_unlimited)
+        u = xm.where(finite, xm.clip(xm.where(finite, u_unlimited, 0.0), -limit, limit), 0.0)
         high = u_unlimited > limit
         low = u_unlimited < -limit
         push = self.integral_current_sign * integrand
         winding = (high & (push > 0)) | (low & (push < 0))
-        self.integral = np.where(finite & ~winding, self.integral + self.common.dt_s * integrand, self.integral)
-        if np.ndim(self.integral) == 0:
-            self.integral = float(self.integral)
+        integrate = finite & xm.logical_not(winding)
+        self.integral = xm.where(integrate, self.integral + self.common.dt_s * integrand, self.integral)
         return ControlOutput(current_a=u, current_unlimited_a=u_unlimited, saturated=(high | low) & finite,
                              finite=finite, **terms)
 
@@ -229,7 +227,7 @@ class SmcEsoController(Controller):
         z2 = x2_hat - ref.velocity_rad_s
         sigma = z2 + g.k1_per_s * z1
         u_eq = c.theta2n * x2_hat + x3_hat + g.k1_per_s * z2 - ref.acceleration_rad_s2
-        u_sw = g.eta_rad_s2 * np.sign(sigma) + g.k2_per_s * sigma
+        u_sw = g.eta_rad_s2 * xm.sign(sigma) + g.k2_per_s * sigma
         return self._finish(-(u_eq + u_sw) / c.theta1n, 0.0 * z1, error_rad=z1, rho_rad=NAN, lower_bound_rad=NAN,
                             upper_bound_rad=NAN, bounds_kept=True, z1=z1, z2_rad_s=z2, alpha_rad_s=ref.velocity_rad_s,
                             alpha_dot_rad_s2=ref.acceleration_rad_s2, sigma_rad_s=sigma, u_eq_rad_s2=u_eq,
@@ -254,7 +252,7 @@ class NftsmcEsoController(Controller):
         integrand = g.k1 * signed_power(z1, g.alpha1) + g.k2 * signed_power(z2, g.alpha2)
         sigma = z2 + self.integral
         u_eq = c.theta2n * x2_hat + x3_hat - ref.acceleration_rad_s2 + integrand
-        u_sw = g.eta_rad_s2 * np.sign(sigma) + g.k3_per_s * sigma
+        u_sw = g.eta_rad_s2 * xm.sign(sigma) + g.k3_per_s * sigma
         return self._finish(-(u_eq + u_sw) / c.theta1n, integrand, error_rad=z1, rho_rad=NAN,
                             lower_bound_rad=NAN, upper_bound_rad=NAN, bounds_kept=True, z1=z1, z2_rad_s=z2,
                             alpha_rad_s=ref.velocity_rad_s, alpha_dot_rad_s2=ref.acceleration_rad_s2,
@@ -288,8 +286,8 @@ class PpNftsmcEsoController(Controller):
         integrand = g.k1 * signed_power(z1, g.alpha1) + g.k2 * signed_power(z2, g.alpha2)
         sigma = z2 + self.integral                                 # (27)
         u_eq = c.theta2n * x2_hat + x3_hat - alpha_dot + integrand  # (33)
-        u_sw = g.eta_rad_s2 * np.sign(sigma) + g.k3_per_s * sigma   # (34)
-        u_b = 2.0 * np.abs(z1 * z2) * tanh_sq_over(sigma, g.tau_rad_s)  # (35)
+        u_sw = g.eta_rad_s2 * xm.sign(sigma) + g.k3_per_s * sigma   # (34)
+        u_b = 2.0 * xm.fabs(z1 * z2) * tanh_sq_over(sigma, g.tau_rad_s)  # (35)
         lower, upper = -g.ppf.lower_scale * rho, g.ppf.upper_scale * rho
         return self._finish(-(u_eq + u_sw + u_b) / c.theta1n, integrand, error_rad=e, rho_rad=rho,
                             lower_bound_rad=lower, upper_bound_rad=upper, bounds_kept=tr.inside, z1=z1,

@@ -19,8 +19,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import NamedTuple
 
-import numpy as np
-
+from actuator_common import xmath as xm
 from actuator_common.params import spec, validate
 
 #: Fraction of the band (l + h) kept between the clamped normalised error and each bound.
@@ -47,11 +46,11 @@ class PrescribedPerformance:
 
     def rho(self, t):
         """rho(t) [rad], eq. (8)."""
-        return (self.rho0_rad - self.rho_inf_rad) * np.exp(-self.decay_rate_per_s * t) + self.rho_inf_rad
+        return (self.rho0_rad - self.rho_inf_rad) * xm.exp(-self.decay_rate_per_s * t) + self.rho_inf_rad
 
     def rho_derivatives(self, t):
         """(rho, rho', rho'') at t [rad, rad/s, rad/s^2]."""
-        decay = (self.rho0_rad - self.rho_inf_rad) * np.exp(-self.decay_rate_per_s * t)
+        decay = (self.rho0_rad - self.rho_inf_rad) * xm.exp(-self.decay_rate_per_s * t)
         m = self.decay_rate_per_s
         return decay + self.rho_inf_rad, -m * decay, m * m * decay
 
@@ -75,13 +74,13 @@ def transform_error(e, rho, ppf: PrescribedPerformance) -> Transformed:
     eps = e / rho
     inside = (eps > lo) & (eps < hi)
     margin = BOUNDARY_MARGIN * (hi - lo)
-    eps_c = np.clip(eps, lo + margin, hi - margin)
-    z = 0.5 * np.log((eps_c - lo) / (hi - eps_c))
+    eps_c = xm.clip(eps, lo + margin, hi - margin)
+    z = 0.5 * xm.log((eps_c - lo) / (hi - eps_c))
     r = 0.5 / rho * (1.0 / (eps_c - lo) + 1.0 / (hi - eps_c))
     return Transformed(z, r, inside)
 
 
 def inverse_transform(z, rho, ppf: PrescribedPerformance):
     """e = rho S(z) with S(z) = (h e^z - l e^-z) / (e^z + e^-z), eq. (9)-(10)."""
-    ez, emz = np.exp(z), np.exp(-z)
+    ez, emz = xm.exp(z), xm.exp(-z)
     return rho * (ppf.upper_scale * ez - ppf.lower_scale * emz) / (ez + emz)

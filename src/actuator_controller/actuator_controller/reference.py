@@ -6,7 +6,7 @@ import math
 from dataclasses import dataclass
 from typing import NamedTuple, Protocol
 
-import numpy as np
+from actuator_common import xmath as xm
 
 
 class ReferenceSample(NamedTuple):
@@ -38,8 +38,8 @@ class PaperTrajectory:
     def sample(self, t) -> ReferenceSample:
         """Product rule on f = 0.5 - cos(w t) and g = 1 - e^(-t/tau)."""
         w, tau, amp = self.frequency_rad_s, self.rise_time_constant_s, self.amplitude_rad
-        f, df, ddf = 0.5 - np.cos(w * t), w * np.sin(w * t), w * w * np.cos(w * t)
-        decay = np.exp(-t / tau)
+        f, df, ddf = 0.5 - xm.cos(w * t), w * xm.sin(w * t), w * w * xm.cos(w * t)
+        decay = xm.exp(-t / tau)
         g, dg, ddg = 1.0 - decay, decay / tau, -decay / (tau * tau)
         return ReferenceSample(amp * f * g, amp * (df * g + f * dg), amp * (ddf * g + 2.0 * df * dg + f * ddg))
 
@@ -65,7 +65,7 @@ class StepReference:
     def sample(self, t) -> ReferenceSample:
         """Step value; zero velocity and acceleration."""
         zero = 0.0 * t
-        return ReferenceSample(np.where(t >= self.start_s, self.amplitude_rad, 0.0) + zero, zero, zero)
+        return ReferenceSample(xm.where(t >= self.start_s, self.amplitude_rad, 0.0) + zero, zero, zero)
 
 
 @dataclass(frozen=True)
@@ -80,7 +80,7 @@ class SineReference:
     def sample(self, t) -> ReferenceSample:
         """Sine and its analytic derivatives."""
         w, amp = self.frequency_rad_s, self.amplitude_rad
-        s, c = np.sin(w * t), np.cos(w * t)
+        s, c = xm.sin(w * t), xm.cos(w * t)
         return ReferenceSample(self.offset_rad + amp * s, amp * w * c, -amp * w * w * s)
 
 

@@ -18,6 +18,7 @@ import numpy as np
 
 from actuator_plant.oil import (PA_PER_MPA, MotorGeometry, OilProperties, dynamic_viscosity_pa_s,
                                 stirring_geometry_constant_m3)
+from actuator_common import xmath as xm
 from actuator_common.params import check_value, spec, validate
 from actuator_common.timing import period_ns, sample_time_s
 
@@ -170,7 +171,12 @@ def derive_constants(params: PlantParameters) -> PlantConstants:
     k_mu = stirring_geometry_constant_m3(params.geometry) * mu if params.with_stirring else 0.0
     seal_offset = params.seal.base_nm + np.exp(
         params.seal.pressure_coefficient_per_mpa * condition.pressure_pa / PA_PER_MPA)
-    return PlantConstants(params, k_mu, mu, seal_offset)
+    return PlantConstants(params, _plain(k_mu), _plain(mu), _plain(seal_offset))
+
+
+def _plain(x):
+    """A 0-d numpy value as a Python float (scalar arithmetic is several times faster); arrays unchanged."""
+    return float(x) if np.ndim(x) == 0 else x
 
 
 class JointForces(NamedTuple):
@@ -190,22 +196,22 @@ def joint_forces(t: float, velocity_rad_s, c: PlantConstants) -> JointForces:
     n = p.nominal
     if p.with_drift:
         d = p.drift
-        inertia = n.inertia_kg_m2 * (1.0 + d.inertia_amplitude * np.sin(d.inertia_frequency_rad_s * t))
+        inertia = n.inertia_kg_m2 * (1.0 + d.inertia_amplitude * xm.sin(d.inertia_frequency_rad_s * t))
         torque_constant = n.torque_constant_nm_a * (
-            1.0 + d.torque_constant_amplitude * np.cos(d.torque_constant_frequency_rad_s * t))
-        viscous = n.viscous_coefficient_nm_s_rad * (1.0 + d.viscous_amplitude * np.cos(d.viscous_frequency_rad_s * t))
+            1.0 + d.torque_constant_amplitude * xm.cos(d.torque_constant_frequency_rad_s * t))
+        viscous = n.viscous_coefficient_nm_s_rad * (1.0 + d.viscous_amplitude * xm.cos(d.viscous_frequency_rad_s * t))
     else:
         inertia, torque_constant, viscous = n.inertia_kg_m2, n.torque_constant_nm_a, n.viscous_coefficient_nm_s_rad
     stirring = c.stirring_coefficient_nm_s_rad * n.gear_ratio * velocity_rad_s
     if p.with_external_torque:
         e = p.external
-        external = e.mean_nm * (1.0 + e.relative_amplitude * np.sin(e.frequency_rad_s * t))
+        external = e.mean_nm * (1.0 + e.relative_amplitude * xm.sin(e.frequency_rad_s * t))
     else:
         external = 0.0 * t
     if p.with_seal_friction:
         # sign(0) = 0: at rest the seal friction is zero in this model (no stiction state).
-        seal = (c.seal_offset_nm + np.exp(p.seal.velocity_coefficient_s_rad * np.abs(velocity_rad_s))) \
-            * np.sign(velocity_rad_s)
+        seal = (c.seal_offset_nm + xm.exp(p.seal.velocity_coefficient_s_rad * xm.fabs(velocity_rad_s))) \
+            * xm.sign(velocity_rad_s)
     else:
         seal = 0.0 * velocity_rad_s
     return JointForces(inertia, torque_constant, viscous, stirring, external, seal)

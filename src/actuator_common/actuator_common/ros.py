@@ -1,0 +1,182 @@
+"""ROS plumbing shared by the nodes: parameters from specs, QoS by run mode, and a clean main().
+
+Imported by nodes only; the math modules never import it (or rclpy).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import signal
+import sys
+import threading
+from typing import Any, Callable, Sequence
+
+import rclpy
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.signals import SignalHandlerOptions
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from actuator_common.params import build, iter_specs, range_text
+
+#: Run modes: wall-clock 1 kHz timers, or lockstep on the plant's /clock.
+MODES = ('realtime', 'sim')
+
+
+class ParameterError(ValueError):
+    """A parameter value was refused; the message names the parameter and its valid range."""
+
+
+def control_qos(mode: str) -> QoSProfile:
+    """QoS of the 1 kHz streams.
+
+    realtime: BEST_EFFORT (a late sample is worth less than the next one; no retransmission
+    stalls), KEEP_LAST 10 so a burst of two or three samples before a callback runs is not
+    dropped from the queue. sim: RELIABLE, KEEP_LAST 100, because lockstep needs every message
+    and a lost one would stall the loop. A BEST_EFFORT subscriber matches either publisher.
+    """
+    if mode == 'sim':
+        return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100, reliability=ReliabilityPolicy.RELIABLE,
+                          durability=DurabilityPolicy.VOLATILE)
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.BEST_EFFORT,
+                      durability=DurabilityPolicy.VOLATILE)
+
+
+def _descriptor(name: str, meta: dict, default: Any, read_only: bool) -> ParameterDescriptor:
+    """Descriptor with description, unit, valid range and, where finite, an enforced range."""
+    text = meta['description']
+    if not isinstance(default, (bool, str)):
+        text += f' [{meta["unit"] or "-"}], valid {range_text(meta)}'
+    descriptor = ParameterDescriptor(name=name, description=text, read_only=read_only)
+    low, high = meta['low'], meta['high']
+    if isinstance(default, bool) or isinstance(default, str):
+        return descriptor
+    if isinstance(default, int) and math.isfinite(low) and math.isfinite(high):
+        descriptor.integer_range = [IntegerRange(from_value=int(low), to_value=int(high), step=1)]
+    elif isinstance(default, float) and math.isfinite(low) and math.isfinite(high):
+        descriptor.floating_point_range = [FloatingPointRange(from_value=float(low), to_value=float(high), step=0.0)]
+    return descriptor
+
+
+def declare_spec_parameters(node: Node, cls: type, prefix: str = '', read_only: bool = True) -> Any:
+    """Declare every spec'd field of dataclass ``cls`` as ``prefix + dotted name`` and build ``cls``.
+
+    Raises ParameterError naming the parameter and its valid range when a value given by
+    YAML or ``-p`` is out of range (rclpy's own range check, or the dataclass' checks).
+    """
+    values: dict[str, Any] = {}
+    for name, f in iter_specs(cls):
+        default = f.default
+        full = prefix + name
+        try:
+            values[name] = node.declare_parameter(full, default, _descriptor(full, f.metadata, default,
+                                                                               read_only)).value
+        except Exception as exc:  # rclpy raises InvalidParameterValueException / InvalidParameterTypeException
+            raise ParameterError(f'parameter {full!r} refused: valid {range_text(f.metadata)} '
+                                 f'({f.metadata["description"]}); {exc}') from None
+    try:
+        return build(cls, values)
+    except (ValueError, TypeError) as exc:
+        raise ParameterError(f'{prefix}{exc}') from None
+
+
+def declare_choice(node: Node, name: str, default: str, choices: Sequence[str], description: str) -> str:
+    """Declare a read-only string parameter limited to ``choices``; raise ParameterError otherwise."""
+    value = node.declare_parameter(name, default, ParameterDescriptor(
+        name=name, description=f'{description}; one of {", ".join(choices)}', read_only=True)).value
+    if value not in choices:
+        raise ParameterError(f'parameter {name!r} = {value!r} refused: must be one of {", ".join(choices)}')
+    return value
+
+
+def declare_number(node: Node, name: str, default: float | int, low: float, high: float, unit: str,
+                   description: str) -> float | int:
+    """Declare a read-only number parameter (an int when ``default`` is) in [low, high]; raise ParameterError otherwise."""
+    meta = {'description': description, 'unit': unit, 'low': low, 'high': high, 'low_open': False}
+    try:
+        value = node.declare_parameter(name, default, _descriptor(name, meta, default, True)).value
+    except Exception as exc:
+        raise ParameterError(f'parameter {name!r} refused: valid {range_text(meta)} ({description}); {exc}') from None
+    if not (isinstance(value, (int, float)) and math.isfinite(value) and low <= value <= high):
+        raise ParameterError(f'parameter {name!r} = {value} refused: valid {range_text(meta)} ({description})')
+    return value if isinstance(default, int) else float(value)
+
+
+def spec_parameter_names(cls: type, prefix: str = '') -> list[str]:
+    """Dotted parameter names a node declares for ``cls`` (for docs and YAML checks)."""
+    return [prefix + name for name, _ in iter_specs(cls)]
+
+
+def make_executor(kind: str):
+    """The executor by name: 'events' (rclpy.experimental.EventsExecutor) or 'single_threaded'."""
+    if kind == 'events':
+        from rclpy.experimental import EventsExecutor
+        return EventsExecutor()
+    return SingleThreadedExecutor()
+
+
+def run_node(prog: str, description: str, node_factory: Callable[[], Node], argv: Sequence[str] | None = None) -> int:
+    """main() of every node: --help, init, build the node (refusing bad parameters), spin, clean exit.
+
+    SIGINT and SIGTERM set a stop flag (rclpy's own handlers are off, so the context stays
+    valid): the loop ends, the node's ``close()`` runs and may still log, then the node is
+    destroyed and the process exits 0 with no traceback. A refused parameter exits 2 with
+    one line naming it.
+    """
+    args = sys.argv[1:] if argv is None else list(argv)
+    parser = argparse.ArgumentParser(prog=prog, description=description,
+                                     epilog='ROS arguments: --ros-args -p name:=value --params-file file.yaml')
+    parser.add_argument('--executor', choices=('events', 'single_threaded'), default='events',
+                        help='rclpy executor (default: events, the lower-latency EventsExecutor)')
+    parsed = parser.parse_args(rclpy.utilities.remove_ros_args(args))
+    stop = threading.Event()
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, lambda *_: stop.set())
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    node = None
+    try:
+        try:
+            node = node_factory()
+        except ParameterError as exc:
+            print(f'{prog}: {exc}', file=sys.stderr)
+            return 2
+        executor = make_executor(parsed.executor)
+        executor.add_node(node)
+        # Not executor.spin(): EventsExecutor.spin() does not return on shutdown (rclpy 7.1 here).
+        while not stop.is_set() and rclpy.ok():
+            executor.spin_once(timeout_sec=0.1)
+        return 0
+    except (KeyboardInterrupt, ExternalShutdownException):
+        return 0
+    finally:
+        if node is not None:
+            close = getattr(node, 'close', None)
+            if close is not None:
+                close()
+            node.destroy_node()
+        if rclpy.ok():
+            rclpy.shutdown()
+
+
+def stamp_to_ns(stamp) -> int:
+    """builtin_interfaces/Time to integer nanoseconds."""
+    return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+
+def ns_to_stamp(ns: int):
+    """Integer nanoseconds to builtin_interfaces/Time."""
+    from builtin_interfaces.msg import Time
+    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+def joint_position(msg, joint_name: str) -> float | None:
+    """The named joint's angle in a sensor_msgs/JointState (a sole unnamed joint is accepted), or None."""
+    if msg.name:
+        if joint_name not in msg.name:
+            return None
+        index = list(msg.name).index(joint_name)
+    else:
+        index = 0
+    return msg.position[index] if index < len(msg.position) else None

@@ -1,0 +1,150 @@
+"""Extended state observer node: pairs each measurement with the current commanded for it.
+
+subscribes joint_states (sensor_msgs/JointState) and current_command (actuator_msgs/CurrentCommand)
+publishes  eso/estimate (actuator_msgs/StateEstimate)
+
+The observer holds x_hat(k). When both y(k) and u(k) with the stamp t_k have arrived, it
+takes the forward-Euler step of (15) to x_hat(k+1) and publishes it stamped t_k + dt,
+before y(k+1) exists (docs/architecture.md). The pairing is by stamp, never "the latest
+message": with the paper's gains the loop diverges when the observer integrates u(k-1).
+A half of a pair that never arrives (a lost message, a skipped sample) is noticed once a
+measurement two samples newer is in: the step then uses the last known current (or, for
+a missing measurement, no correction) and says so in the estimate and the log.
+"""
+
+from __future__ import annotations
+
+import math
+
+from rclpy.node import Node
+
+from actuator_common.ros import MODES, control_qos, declare_choice, declare_number, declare_spec_parameters, \
+    joint_position, ns_to_stamp, run_node, stamp_to_ns
+from actuator_common.timing import period_ns
+from actuator_eso.observer import EsoGains, eso_step
+from actuator_msgs.msg import CurrentCommand, StateEstimate
+from sensor_msgs.msg import JointState
+
+#: How many unpaired samples of each kind are kept (older ones are dropped).
+PENDING_LIMIT = 64
+
+
+
+
+
+class EsoNode(Node):
+    """The ESO (15)-(16) between the sensor and the controller."""
+
+    def __init__(self) -> None:
+        """Declare parameters, set up the pairing buffers."""
+        super().__init__('actuator_eso')
+        self.mode = declare_choice(self, 'mode', 'realtime', MODES, 'selects the QoS of the 1 kHz streams')
+        self.gains = declare_spec_parameters(self, EsoGains)
+        self.dt_s = declare_number(self, 'sample_time_s', 1.0e-3, 1.0e-4, 0.1, 's', 'sensor sample period')
+        self.max_abs_position_rad = declare_number(self, 'max_abs_position_rad', 100.0, 0.0, 1.0e4, 'rad',
+                                                   'measurements beyond are refused')
+        self.max_abs_current_a = declare_number(self, 'max_abs_current_a', 1.0e3, 0.0, 1.0e5, 'A',
+                                                'commands beyond are refused')
+        self.joint_name = self.declare_parameter('joint_name', 'joint').value
+        self.period_ns = period_ns(self.dt_s)
+        qos = control_qos(self.mode)
+        self.pub = self.create_publisher(StateEstimate, 'eso/estimate', qos)
+        self.create_subscription(JointState, 'joint_states', self.on_measurement, qos)
+        self.create_subscription(CurrentCommand, 'current_command', self.on_command, qos)
+        self.x_hat = (0.0, 0.0, 0.0)
+        self.sample_ns = None            # stamp of the sample x_hat is valid at
+        self.measurements: dict[int, float] = {}
+        self.currents: dict[int, float] = {}
+        self.newest_measurement_ns = -1
+        self.last_current = 0.0
+        self.substituted = 0
+        self.refused = 0
+        self.msg = StateEstimate()
+
+    def on_measurement(self, msg: JointState) -> None:
+        """Store y(k); the first one starts the observer at x_hat(0)."""
+        y = joint_position(msg, self.joint_name)
+        if y is None or not math.isfinite(y) or abs(y) > self.max_abs_position_rad:
+            self.refused += 1
+            self.get_logger().error(f'measurement refused (joint {self.joint_name!r} missing, non-finite or beyond '
+                                    f'{self.max_abs_position_rad} rad): {list(msg.position)}', throttle_duration_sec=1.0)
+            return
+        stamp = stamp_to_ns(msg.header.stamp)
+        if self.sample_ns is None:
+            self.sample_ns = stamp
+            self._publish(initial=True, input_ns=0, y=0.0, u=0.0, substituted=False)
+        if stamp < self.sample_ns:
+            return
+        self.measurements[stamp] = y
+        self.newest_measurement_ns = max(self.newest_measurement_ns, stamp)
+        self._advance()
+
+    def on_command(self, msg: CurrentCommand) -> None:
+        """Store u(k) under the stamp of the sample it answers."""
+        u = msg.current_a
+        if not math.isfinite(u) or abs(u) > self.max_abs_current_a:
+            self.refused += 1
+            self.get_logger().error(f'command {u} A refused (non-finite or beyond {self.max_abs_current_a} A)',
+                                    throttle_duration_sec=1.0)
+            return
+        stamp = stamp_to_ns(msg.header.stamp)
+        if self.sample_ns is None or stamp < self.sample_ns:
+            return
+        self.currents[stamp] = u
+        self._advance()
+
+    def _advance(self) -> None:
+        """Step while the pair of the held sample is complete, or provably never will be."""
+        while True:
+            k = self.sample_ns
+            y = self.measurements.get(k)
+            u = self.currents.get(k)
+            complete = y is not None and u is not None
+            if not complete and self.newest_measurement_ns < k + 2 * self.period_ns:
+                break
+            substituted = not complete
+            if substituted:
+                self.substituted += 1
+                self.get_logger().warn(f'sample {k} ns: {"command" if y is not None else "measurement"} missing; '
+                                       'integrating with the last current', throttle_duration_sec=1.0)
+            y_used = y if y is not None else self.x_hat[0]
+            u_used = u if u is not None else self.last_current
+            self.x_hat = eso_step(*self.x_hat, y_used, u_used, self.dt_s, self.gains)
+            self.last_current = u_used
+            self.measurements.pop(k, None)
+            self.currents.pop(k, None)
+            self.sample_ns = k + self.period_ns
+            self._publish(initial=False, input_ns=k, y=y_used, u=u_used, substituted=substituted)
+        self._prune()
+
+    def _prune(self) -> None:
+        """Forget stale entries so a silent peer cannot grow the buffers."""
+        for buffer in (self.measurements, self.currents):
+            while len(buffer) > PENDING_LIMIT:
+                buffer.pop(min(buffer))
+
+    def _publish(self, initial: bool, input_ns: int, y: float, u: float, substituted: bool) -> None:
+        """Publish x_hat for ``self.sample_ns``."""
+        m = self.msg
+        m.header.stamp = ns_to_stamp(self.sample_ns)
+        m.position_rad, m.velocity_rad_s, m.disturbance_rad_s2 = (float(v) for v in self.x_hat)
+        m.input_stamp = ns_to_stamp(input_ns)
+        m.input_position_rad = float(y)
+        m.input_current_a = float(u)
+        m.initial = initial
+        m.current_substituted = substituted
+        m.missing_current_count = self.substituted
+        self.pub.publish(m)
+
+    def close(self) -> None:
+        """Log a one-line summary at shutdown."""
+        self.get_logger().info(f'stopped; substituted pairs {self.substituted}, refused inputs {self.refused}')
+
+
+def main(argv=None) -> int:
+    """Entry point of ``ros2 run actuator_eso eso_node``."""
+    return run_node('eso_node', 'Extended state observer (15)-(16) of the joint.', EsoNode, argv)
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

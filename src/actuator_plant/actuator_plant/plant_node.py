@@ -1,0 +1,219 @@
+"""Simulated joint node: integrates the joint model and publishes only what a position sensor gives.
+
+Topics (the contract a hardware driver implements, README "Nodes and topic contract"):
+  publishes  joint_states (sensor_msgs/JointState: name, position; stamp = sample time t_k)
+  publishes  plant/truth (actuator_msgs/PlantTruth), simulation only
+  publishes  /clock (rosgraph_msgs/Clock), mode 'sim' only
+  subscribes current_command (actuator_msgs/CurrentCommand)
+
+mode 'realtime': a wall-clock 1 kHz timer samples the joint; the current held over each
+sample is the newest valid command, or zero once commands are older than command_timeout_s.
+mode 'sim': the node owns /clock and steps in lockstep: it publishes sample k and waits for
+the command answering sample k (paired by stamp) before integrating to k+1, so the run is
+deterministic and as fast as the three processes allow.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+
+from actuator_common.ros import MODES, ParameterError, control_qos, declare_choice, declare_number, \
+    declare_spec_parameters, ns_to_stamp, run_node, stamp_to_ns
+from actuator_common.timing import period_ns
+from actuator_msgs.msg import CurrentCommand, PlantTruth
+from actuator_plant.model import JointPlant, PlantParameters, WorkingCondition
+from builtin_interfaces.msg import Time
+from rosgraph_msgs.msg import Clock as ClockMsg
+from sensor_msgs.msg import JointState
+
+CONDITIONS = ('deep_sea', 'lab', 'depth', 'custom')
+
+
+
+
+class PlantNode(Node):
+    """The simulated joint behind the sensor/command topic contract."""
+
+    def __init__(self) -> None:
+        """Declare and check parameters, build the model, start sampling."""
+        super().__init__('actuator_plant')
+        self.mode = declare_choice(self, 'mode', 'realtime', MODES, 'realtime: wall-clock 1 kHz; sim: lockstep /clock')
+        if self.mode == 'sim' and self.get_parameter('use_sim_time').value:
+            raise ParameterError("parameter 'use_sim_time' must be false for the plant: it owns /clock in sim mode")
+        condition = declare_choice(self, 'working_condition', 'deep_sea', CONDITIONS,
+                                   'deep_sea: 10 MPa, 2 degC; lab: 0 MPa, 25 degC; depth: depth_m and '
+                                   'condition.temperature_c; custom: condition.pressure_pa and condition.temperature_c')
+        depth = declare_number(self, 'depth_m', 1000.0, 0.0, 11000.0, 'm', 'water depth for working_condition depth')
+        params = declare_spec_parameters(self, PlantParameters)
+        if condition == 'deep_sea':
+            params = _with_condition(params, WorkingCondition.deep_sea())
+        elif condition == 'lab':
+            params = _with_condition(params, WorkingCondition.lab())
+        elif condition == 'depth':
+            params = _with_condition(params, WorkingCondition.at_depth(depth, params.condition.temperature_c))
+        self.dt_s = declare_number(self, 'sample_time_s', 1.0e-3, 1.0e-4, 0.1, 's', 'sensor sample period')
+        self.command_timeout_s = declare_number(self, 'command_timeout_s', 0.01, 1.0e-3, 10.0, 's',
+                                                'realtime: current drops to zero when commands are older')
+        self.current_limit_a = declare_number(self, 'current_limit_a', 30.0, 0.0, 1.0e3, 'A',
+                                              'commands beyond +-this are refused (zero applied)')
+        self.lockstep_timeout_s = declare_number(self, 'lockstep_timeout_s', 2.0, 0.01, 600.0, 's',
+                                                 'sim: wall time to wait for a command before stepping with 0 A')
+        self.wait_for_subscribers = declare_number(
+            self, 'wait_for_subscribers', 0, 0, 100, '',
+            'start sampling only once joint_states has this many subscribers (and current_command a publisher)')
+        self.joint_name = self.declare_parameter('joint_name', 'joint').value
+        self.plant = JointPlant(params, self.dt_s, position_rad=declare_number(
+            self, 'initial_position_rad', 0.0, -100.0, 100.0, 'rad', 'joint angle at sample 0'))
+        self.period_ns = period_ns(self.dt_s)
+        qos = control_qos(self.mode)
+        self.state_pub = self.create_publisher(JointState, 'joint_states', qos)
+        self.truth_pub = self.create_publisher(PlantTruth, 'plant/truth', qos)
+        self.clock_pub = self.create_publisher(ClockMsg, '/clock', 10) if self.mode == 'sim' else None
+        self.create_subscription(CurrentCommand, 'current_command', self.on_command, qos)
+        self.wall = Clock(clock_type=ClockType.STEADY_TIME)
+        self.current_a = 0.0              # current held over the running sample
+        self.last_command_wall_ns = None  # steady time of the newest valid command
+        self.start_ns = None              # stamp of sample 0 [ns]
+        self.rejected_commands = 0
+        self.timeouts = 0
+        self.waiting_since_ns = None      # sim: steady time sample k was published
+        self.settle_until_ns = None       # start once the graph has been ready this long
+        self.joint_state = JointState(name=[self.joint_name], position=[0.0])
+        self.truth = PlantTruth()
+        self.truth.pressure_pa = float(params.condition.pressure_pa)
+        self.truth.temperature_degc = float(params.condition.temperature_c)
+        self.truth.viscosity_pa_s = float(self.plant.constants.viscosity_pa_s)
+        self.get_logger().info(
+            f'{self.mode} mode, {condition}: P = {params.condition.pressure_pa / 1e6:.2f} MPa, '
+            f'T = {params.condition.temperature_c:.1f} degC, mu = {self.plant.constants.viscosity_pa_s * 1e3:.1f} mPa s')
+        # realtime: the sampling clock; sim: only the start-up and lockstep watchdog (10 Hz is plenty).
+        self.timer = self.create_timer(self.dt_s if self.mode == 'realtime' else 0.1, self.on_tick, clock=self.wall)
+
+    # --- sampling -------------------------------------------------------------------------
+    def _graph_ready(self) -> bool:
+        """Everyone expected has joined (only checked before sample 0)."""
+        return (self.state_pub.get_subscription_count() >= self.wait_for_subscribers
+                and (self.wait_for_subscribers == 0 or self.count_publishers('current_command') >= 1))
+
+    def _start(self) -> None:
+        """Fix the stamp of sample 0 and publish it."""
+        self.start_ns = 1_000_000_000 if self.mode == 'sim' else self.get_clock().now().nanoseconds
+        self.get_logger().info('sampling started')
+        self._publish_sample()
+
+    def on_tick(self) -> None:
+        """Wall timer: start once the graph is ready; realtime: sample; sim: lockstep watchdog."""
+        if self.start_ns is None:
+            if self._graph_ready():
+                if self.settle_until_ns is None:
+                    self.settle_until_ns = self.wall.now().nanoseconds + 500_000_000
+                elif self.wall.now().nanoseconds >= self.settle_until_ns:
+                    self._start()
+            return
+        if self.mode == 'realtime':
+            self._realtime_tick()
+        elif self.waiting_since_ns is not None and \
+                self.wall.now().nanoseconds - self.waiting_since_ns > self.lockstep_timeout_s * 1e9:
+            self.timeouts += 1
+            self.get_logger().warn(f'sim: no command for sample {self.plant.sample_index} within '
+                                   f'{self.lockstep_timeout_s} s; stepping with 0 A', throttle_duration_sec=1.0)
+            self._advance(0.0)
+
+    def _realtime_tick(self) -> None:
+        """Integrate every whole period elapsed since the last sample, then publish the newest sample."""
+        now = self.get_clock().now().nanoseconds
+        due = (now - self.start_ns) // self.period_ns
+        if due <= self.plant.sample_index:
+            return
+        if self.last_command_wall_ns is not None and \
+                self.wall.now().nanoseconds - self.last_command_wall_ns > self.command_timeout_s * 1e9:
+            if self.current_a != 0.0:
+                self.timeouts += 1
+                self.get_logger().warn('commands stopped: current set to 0 A', throttle_duration_sec=1.0)
+            self.current_a = 0.0
+        while self.plant.sample_index < due:
+            self.plant.step(self.current_a)
+        self._publish_sample()
+
+    def _advance(self, current_a: float) -> None:
+        """sim: integrate one sample with ``current_a`` and publish the next."""
+        self.current_a = current_a
+        self.plant.step(current_a)
+        self._publish_sample()
+
+    def _publish_sample(self) -> None:
+        """Publish /clock (sim), the measurement and the ground truth of the current sample."""
+        stamp = ns_to_stamp(self.start_ns + self.plant.sample_index * self.period_ns)
+        if self.clock_pub is not None:
+            self.clock_pub.publish(ClockMsg(clock=stamp))
+            self.waiting_since_ns = self.wall.now().nanoseconds
+        self.joint_state.header.stamp = stamp
+        self.joint_state.position[0] = float(self.plant.position_rad)
+        self.state_pub.publish(self.joint_state)
+        self._publish_truth(stamp)
+
+    def _publish_truth(self, stamp: Time) -> None:
+        """Ground truth at t_k with the current held over the preceding sample."""
+        parts = self.plant.truth(self.current_a)
+        f, m = parts.forces, self.truth
+        m.header.stamp = stamp
+        m.position_rad = float(self.plant.position_rad)
+        m.velocity_rad_s = float(self.plant.velocity_rad_s)
+        m.acceleration_rad_s2 = float(parts.acceleration_rad_s2)
+        m.current_a = float(self.current_a)
+        m.disturbance_rad_s2 = float(parts.disturbance_rad_s2)
+        m.parametric_rad_s2 = float(parts.parametric_rad_s2)
+        m.stirring_rad_s2 = float(parts.stirring_rad_s2)
+        m.external_rad_s2 = float(parts.external_rad_s2)
+        m.seal_rad_s2 = float(parts.seal_rad_s2)
+        m.stirring_torque_nm = float(f.stirring_torque_nm)
+        m.external_torque_nm = float(f.external_torque_nm)
+        m.seal_torque_nm = float(f.seal_torque_nm)
+        m.inertia_kg_m2 = float(f.inertia_kg_m2)
+        m.torque_constant_nm_a = float(f.torque_constant_nm_a)
+        m.viscous_coefficient_nm_s_rad = float(f.viscous_coefficient_nm_s_rad)
+        self.truth_pub.publish(m)
+
+    # --- commands -------------------------------------------------------------------------
+    def on_command(self, msg: CurrentCommand) -> None:
+        """Check a command; realtime: hold it; sim: step when it answers the waiting sample."""
+        current = msg.current_a
+        if not math.isfinite(current) or abs(current) > self.current_limit_a:
+            self.rejected_commands += 1
+            self.get_logger().error(f'command {current} A refused (valid: finite, |u| <= {self.current_limit_a} A); '
+                                    'applying 0 A', throttle_duration_sec=1.0)
+            current = 0.0
+        if self.start_ns is None:
+            return
+        if self.mode == 'realtime':
+            self.current_a = current
+            self.last_command_wall_ns = self.wall.now().nanoseconds
+            return
+        expected = self.start_ns + self.plant.sample_index * self.period_ns
+        if stamp_to_ns(msg.header.stamp) == expected and self.waiting_since_ns is not None:
+            self.waiting_since_ns = None
+            self._advance(current)
+
+    def close(self) -> None:
+        """Log a one-line summary at shutdown."""
+        self.get_logger().info(
+            f'stopped at sample {self.plant.sample_index} (t = {self.plant.time_s:.3f} s); '
+            f'refused commands {self.rejected_commands}, command timeouts {self.timeouts}')
+
+
+def _with_condition(params: PlantParameters, condition: WorkingCondition) -> PlantParameters:
+    """The same parameters in another working condition."""
+    return replace(params, condition=condition)
+
+
+def main(argv=None) -> int:
+    """Entry point of ``ros2 run actuator_plant plant_node``."""
+    return run_node('plant_node', 'Simulated deep-sea oil-filled joint (sensor: angle only).', PlantNode, argv)
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())
