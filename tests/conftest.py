@@ -1,0 +1,93 @@
+"""Fixtures shared by every test of the project (tooling in tests/ros_helpers.py).
+
+    ros_domain_id   a ROS domain id reserved for this test alone (see DomainReservation)
+    ros_env         environment dict for subprocesses: that domain, localhost-only discovery,
+                    per-test ROS_LOG_DIR, unbuffered output, plus the project environment
+    rclpy_context   rclpy initialised in this pytest process on the same isolated domain
+                    (os.environ patched for the test); yields the rclpy Context to pass as
+                    ``context=`` to Node and executors
+    ros_process     factory: ros_process(pkg, exe, args) -> started RosProcess, logs in
+                    tmp_path, stopped (SIGINT, SIGTERM, SIGKILL) when the test ends
+
+Run the tests through ``make test`` (or ``scripts/test.sh``), or after
+``source scripts/env.sh``.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import ros_helpers  # noqa: E402
+
+
+def _require_project_environment():
+    problem = ros_helpers.check_project_environment()
+    if problem:
+        pytest.fail(f'the project environment is not active ({problem}). Run the tests with '
+                    f'`make test` or `scripts/test.sh`, or `source scripts/env.sh` first.',
+                    pytrace=False)
+
+
+def pytest_report_header(config):
+    return (f'ROS: {os.environ.get("ACTUATOR_ROS_MODE")} mode, RMW {os.environ.get("RMW_IMPLEMENTATION")}, '
+            f'workspace {os.environ.get("ACTUATOR_WS")}')
+
+
+@pytest.fixture
+def ros_domain_id():
+    _require_project_environment()
+    with ros_helpers.DomainReservation() as reservation:
+        yield reservation.domain_id
+
+
+@pytest.fixture
+def ros_env(ros_domain_id, tmp_path):
+    log_dir = tmp_path / 'ros_log'
+    log_dir.mkdir(exist_ok=True)
+    return ros_helpers.isolated_ros_env(ros_domain_id, log_dir=log_dir)
+
+
+@pytest.fixture
+def rclpy_context(ros_env, monkeypatch):
+    import rclpy
+    from rclpy.context import Context
+
+    for name in ros_helpers.ISOLATION_UNSET:
+        monkeypatch.delenv(name, raising=False)
+    for name in (*ros_helpers.ISOLATION_SET, 'RMW_IMPLEMENTATION', 'ROS_LOG_DIR'):
+        monkeypatch.setenv(name, ros_env[name])
+    context = Context()
+    rclpy.init(context=context, domain_id=int(ros_env['ROS_DOMAIN_ID']))
+    try:
+        yield context
+    finally:
+        context.try_shutdown()
+
+
+@pytest.fixture
+def ros_process(ros_env, tmp_path):
+    started = []
+
+    def start(package, executable, args=(), env=None, **kwargs):
+        proc = ros_helpers.RosProcess.installed(
+            package, executable, args, env=ros_env if env is None else env,
+            log_dir=tmp_path / 'processes', **kwargs)
+        started.append(proc)
+        return proc
+
+    yield start
+    for proc in started:
+        proc.stop()
+
+
+@pytest.fixture(autouse=True)
+def _no_orphan_processes():
+    """Whatever RosProcess a test leaves running is stopped when the test ends."""
+    yield
+    ros_helpers.stop_all_processes()
