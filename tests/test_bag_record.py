@@ -1,0 +1,302 @@
+"""Recorder, player and repair against a live ROS graph: installed executables, isolated domain.
+
+Run as a script, this file is the load publisher the tests start in a separate process:
+``python test_bag_record.py N [--reliability R] [--clock]`` publishes N messages at 1 kHz on
+each of the five system topics (header.stamp.nanosec = sample index) once every topic has a
+subscriber, and prints ``published N``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+if __name__ != '__main__':
+    import pytest
+
+    pytest.importorskip('rclpy')
+    pytest.importorskip('actuator_msgs.msg')
+
+TOPICS = {
+    '/joint_states': ('sensor_msgs.msg', 'JointState'),
+    '/current_command': ('actuator_msgs.msg', 'CurrentCommand'),
+    '/eso/estimate': ('actuator_msgs.msg', 'StateEstimate'),
+    '/controller/state': ('actuator_msgs.msg', 'ControllerState'),
+    '/plant/truth': ('actuator_msgs.msg', 'PlantTruth'),
+}
+SIM_T0_S = 1000
+
+
+def publish(argv: list[str]) -> int:
+    """The load publisher (see the module docstring)."""
+    import importlib
+
+    import rclpy
+    from rclpy.node import Node
+    from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+    from rosgraph_msgs.msg import Clock
+
+    from ros_helpers import fill_message
+
+    parser = argparse.ArgumentParser()
+    parser.add_argument('count', type=int)
+    parser.add_argument('--reliability', choices=('reliable', 'best_effort'), default='reliable')
+    parser.add_argument('--clock', action='store_true', help='publish /clock and stamp in sim time')
+    args = parser.parse_args(argv)
+    rclpy.init()
+    node = Node('bag_test_publisher')
+    qos = QoSProfile(
+        history=HistoryPolicy.KEEP_LAST, depth=args.count,
+        reliability=ReliabilityPolicy.RELIABLE if args.reliability == 'reliable' else ReliabilityPolicy.BEST_EFFORT,
+    )
+    pubs, msgs = [], []
+    for topic, (module, name) in TOPICS.items():
+        cls = getattr(importlib.import_module(module), name)
+        pubs.append(node.create_publisher(cls, topic, qos))
+        msgs.append(fill_message(cls(), seed=len(msgs) + 1))
+    clock_pub = node.create_publisher(Clock, '/clock', 10) if args.clock else None
+    deadline = time.monotonic() + 30
+    while any(p.get_subscription_count() < 1 for p in pubs):
+        if time.monotonic() > deadline:
+            print('no subscriber', flush=True)
+            return 2
+        time.sleep(0.02)
+    time.sleep(1.0)
+    print('publishing', flush=True)
+    start = time.perf_counter()
+    for k in range(args.count):
+        due = start + k * 1e-3
+        while time.perf_counter() < due:
+            pass
+        if clock_pub is not None:
+            clock = Clock()
+            clock.clock.sec, clock.clock.nanosec = SIM_T0_S + k // 1000, (k % 1000) * 1_000_000
+            clock_pub.publish(clock)
+            sec, nanosec = clock.clock.sec, clock.clock.nanosec
+        else:
+            sec, nanosec = 1, k
+        for pub, msg in zip(pubs, msgs):
+            msg.header.stamp.sec, msg.header.stamp.nanosec = sec, nanosec
+            pub.publish(msg)
+    print(f'published {args.count} in {time.perf_counter() - start:.3f} s', flush=True)
+    time.sleep(1.0)
+    node.destroy_node()
+    rclpy.shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    raise SystemExit(publish(sys.argv[1:]))
+
+
+# ---------------------------------------------------------------------------------------- tests
+import hashlib  # noqa: E402
+import signal  # noqa: E402
+
+import yaml  # noqa: E402
+from rosbags.highlevel import AnyReader  # noqa: E402
+from rosbags.rosbag2 import Reader  # noqa: E402
+
+from ros_helpers import RosProcess  # noqa: E402
+
+N = 3000
+
+
+def _publisher(ros_env: dict, tmp_path: Path, *args: str) -> RosProcess:
+    """Start the load publisher (this file as a script)."""
+    return RosProcess.python(Path(__file__), [str(a) for a in args], env=ros_env, log_dir=tmp_path / 'processes',
+                             name='load_publisher')
+
+
+def _start_recorder(ros_process, out: Path, *extra: str) -> RosProcess:
+    """Start the installed recorder writing to ``out`` and wait until it subscribed."""
+    proc = ros_process('actuator_bag', 'recorder', ['-o', str(out), *extra])
+    proc.wait_for_output(r'recording \d+ topics', timeout=30)
+    return proc
+
+
+def _bag_messages(path: Path) -> dict[str, list[bytes]]:
+    """Raw messages per topic, every one decoded on the way (AnyReader also checks the type hashes)."""
+    out: dict[str, list[bytes]] = {}
+    with AnyReader([path]) as reader:
+        for conn, _, raw in reader.messages():
+            reader.deserialize(raw, conn.msgtype)
+            out.setdefault(conn.topic, []).append(bytes(raw))
+    return out
+
+
+def _stamps(path: Path) -> dict[str, list[int]]:
+    """header.stamp.nanosec of each message, per topic, in bag order."""
+    out: dict[str, list[int]] = {}
+    with AnyReader([path]) as reader:
+        for conn, _, raw in reader.messages():
+            out.setdefault(conn.topic, []).append(reader.deserialize(raw, conn.msgtype).header.stamp.nanosec)
+    return out
+
+
+def test_records_every_message_at_1khz(ros_env, ros_process, tmp_path: Path) -> None:
+    """N messages at 1 kHz on each of five topics: the bag holds exactly N per topic, in order, all decodable."""
+    bag = tmp_path / 'rec'
+    recorder = _start_recorder(ros_process, bag)
+    pub = _publisher(ros_env, tmp_path, N)
+    assert pub.wait(90) == 0, pub.describe()
+    assert recorder.stop() == 0 and recorder.stopped_by == 'SIGINT', recorder.describe()
+    stamps = _stamps(bag)
+    assert {k: len(v) for k, v in stamps.items()} == {t: N for t in TOPICS}, recorder.stdout
+    assert all(v == list(range(N)) for v in stamps.values())
+    summary = [line for line in recorder.stdout.splitlines() if line.startswith('recorder: wrote')]
+    assert len(summary) == 1 and f'{5 * N} messages' in summary[0] and str(bag) in summary[0]
+    assert 'Traceback' not in recorder.stderr
+    info = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    offered = info['topics_with_message_count'][0]['topic_metadata']['offered_qos_profiles']
+    assert offered and offered[0]['reliability'] == 'reliable'
+
+
+def test_best_effort_publisher_is_matched(ros_env, ros_process, tmp_path: Path) -> None:
+    """A best-effort 1 kHz publisher is recorded too, and its offered QoS says best_effort."""
+    bag = tmp_path / 'be'
+    recorder = _start_recorder(ros_process, bag)
+    pub = _publisher(ros_env, tmp_path, 500, '--reliability', 'best_effort')
+    assert pub.wait(60) == 0, pub.describe()
+    assert recorder.stop() == 0, recorder.describe()
+    with Reader(bag) as reader:
+        counts = {c.topic: c.msgcount for c in reader.connections}
+        qos = {c.topic: c.ext.offered_qos_profiles[0].reliability.name for c in reader.connections}
+    assert set(counts) == set(TOPICS) and all(n >= 490 for n in counts.values()), counts
+    assert set(qos.values()) == {'BEST_EFFORT'}
+
+
+def test_sim_time_log_times_follow_clock(ros_env, ros_process, tmp_path: Path) -> None:
+    """With use_sim_time the log time is the node's ROS time (from /clock), not wall time (lag bound allows load)."""
+    bag = tmp_path / 'sim'
+    recorder = _start_recorder(ros_process, bag, '--ros-args', '-p', 'use_sim_time:=true')
+    pub = _publisher(ros_env, tmp_path, 1000, '--clock')
+    assert pub.wait(60) == 0, pub.describe()
+    assert recorder.stop() == 0, recorder.describe()
+    with AnyReader([bag]) as reader:
+        lags = []
+        for conn, log_ns, raw in reader.messages():
+            stamp = reader.deserialize(raw, conn.msgtype).header.stamp
+            lags.append(log_ns - (stamp.sec * 1_000_000_000 + stamp.nanosec))
+    assert len(lags) > 4000
+    assert all(-5_000_000 <= lag <= 2_000_000_000 for lag in lags), (min(lags), max(lags))  # wall time: ~1.8e18
+
+
+def test_sigterm_closes_the_bag(ros_env, ros_process, tmp_path: Path) -> None:
+    """SIGTERM ends the recorder like SIGINT: exit 0, metadata.yaml written, summary printed."""
+    bag = tmp_path / 'term'
+    recorder = _start_recorder(ros_process, bag)
+    pub = _publisher(ros_env, tmp_path, 300)
+    assert pub.wait(60) == 0, pub.describe()
+    recorder.popen.send_signal(signal.SIGTERM)
+    assert recorder.wait(20) == 0, recorder.describe()
+    assert (bag / 'metadata.yaml').is_file()
+    assert 'recorder: wrote' in recorder.stdout and 'Traceback' not in recorder.stderr
+    with Reader(bag) as reader:
+        assert reader.message_count == 5 * 300
+
+
+def test_sigkill_mid_run_then_repair(ros_env, ros_process, tmp_path: Path) -> None:
+    """kill -9 while recording: bag_repair recovers the flushed part (> 0, all decodable), original untouched."""
+    bag = tmp_path / 'killed'
+    recorder = _start_recorder(ros_process, bag, '--flush-interval', '0.5')
+    pub = _publisher(ros_env, tmp_path, 4000)
+    pub.wait_for_output('publishing', timeout=30)
+    time.sleep(2.5)
+    assert pub.running
+    recorder.popen.send_signal(signal.SIGKILL)
+    recorder.popen.wait(10)
+    pub.wait(60)
+    assert not (bag / 'metadata.yaml').exists()
+    mcap = next(bag.glob('*.mcap'))
+    before = hashlib.sha256(mcap.read_bytes()).hexdigest()
+    with pytest.raises(Exception):
+        Reader(bag).open()
+    repair = RosProcess.installed('actuator_bag', 'bag_repair', [str(bag), '-o', str(tmp_path / 'fixed')],
+                                  env=ros_env, log_dir=tmp_path / 'processes')
+    assert repair.wait(60) == 0, repair.describe()
+    assert repair.stdout.startswith('repaired ')
+    messages = _bag_messages(tmp_path / 'fixed')
+    counts = {k: len(v) for k, v in messages.items()}
+    assert set(counts) == set(TOPICS)
+    assert all(500 <= n < 4000 for n in counts.values()), counts
+    assert hashlib.sha256(mcap.read_bytes()).hexdigest() == before
+
+
+def test_replay_reproduces_the_recording(ros_env, ros_process, tmp_path: Path) -> None:
+    """record -> play -> record again: same count and bytes per topic."""
+    first = tmp_path / 'first'
+    recorder = _start_recorder(ros_process, first)
+    pub = _publisher(ros_env, tmp_path, 2000)
+    assert pub.wait(60) == 0, pub.describe()
+    assert recorder.stop() == 0, recorder.describe()
+    second = tmp_path / 'second'
+    recorder2 = _start_recorder(ros_process, second)
+    player = ros_process('actuator_bag', 'player', [str(first), '--wait-for-subscribers', '1', '--start-delay', '1.0'])
+    assert player.wait(60) == 0, player.describe()
+    assert 'player: done: published 10000 messages' in player.stdout
+    time.sleep(0.5)
+    assert recorder2.stop() == 0, recorder2.describe()
+    a, b = _bag_messages(first), _bag_messages(second)
+    assert {k: len(v) for k, v in b.items()} == {k: len(v) for k, v in a.items()} == {t: 2000 for t in TOPICS}
+    assert all(a[t] == b[t] for t in TOPICS)
+    with Reader(first) as ra, Reader(second) as rb:
+        assert abs(rb.duration - ra.duration) < 0.2 * ra.duration
+
+
+def test_player_rate_and_topic_selection(ros_env, ros_process, tmp_path: Path) -> None:
+    """rate 2 halves the playing time; a topic selection plays only those topics."""
+    from test_bag_support import synthetic_run, write_run_bag
+
+    src = write_run_bag(tmp_path / 'src', synthetic_run(duration_s=2.0))
+    out = tmp_path / 'sel'
+    recorder = _start_recorder(ros_process, out)
+    player = ros_process('actuator_bag', 'player', [
+        str(src), '--rate', '2', '--topics', 'controller/state', '/joint_states',
+        '--wait-for-subscribers', '1', '--start-delay', '1.0'])
+    assert player.wait(60) == 0, player.describe()
+    line = next(x for x in player.stdout.splitlines() if x.startswith('player: done'))
+    seconds = float(line.split(' in ')[1].split(' s ')[0])
+    assert 0.9 <= seconds <= 1.3, line
+    time.sleep(0.5)
+    assert recorder.stop() == 0
+    with Reader(out) as reader:
+        assert {c.topic: c.msgcount for c in reader.connections} == {'/controller/state': 2000, '/joint_states': 2000}
+
+
+@pytest.mark.parametrize('exe, args, expect', [
+    ('recorder', ['-o', '{tmp}'], 'exists already'),
+    ('recorder', ['--topics', 'mystery'], "topic 'mystery' is not a system topic"),
+    ('recorder', ['--topics', 'x:nowhere_msgs/msg/Nothing'], 'not installed'),
+    ('player', ['{tmp}/missing'], 'does not exist'),
+    ('player', ['{tmp}', '--rate', '0'], 'rate must be'),
+    ('player', [], 'no bag given'),
+])
+def test_bad_input_one_line_error(ros_process, tmp_path: Path, exe: str, args: list, expect: str) -> None:
+    """Bad arguments: exit code 1, one error line naming the problem, no traceback."""
+    proc = ros_process('actuator_bag', exe, [a.replace('{tmp}', str(tmp_path)) for a in args])
+    assert proc.wait(30) == 1, proc.describe()
+    errors = [x for x in proc.stderr.splitlines() if x.startswith(f'{exe}: error:')]
+    assert len(errors) == 1 and expect in errors[0], proc.describe()
+    assert 'Traceback' not in proc.stderr
+
+
+def test_player_unknown_topic(ros_process, tmp_path: Path) -> None:
+    """Selecting a topic the bag lacks names the topics it has."""
+    from test_bag_support import synthetic_run, write_run_bag
+
+    src = write_run_bag(tmp_path / 'src', synthetic_run(duration_s=0.1), topics=('state',))
+    proc = ros_process('actuator_bag', 'player', [str(src), '--topics', 'nope'])
+    assert proc.wait(30) == 1
+    assert 'no topic /nope; the bag has: /controller/state' in proc.stderr and 'Traceback' not in proc.stderr
+
+
+@pytest.mark.parametrize('exe', ['recorder', 'player', 'bag_repair', 'bag_analyze'])
+def test_help(ros_process, exe: str) -> None:
+    """Every executable answers --help with usage and exit code 0."""
+    proc = ros_process('actuator_bag', exe, ['--help'])
+    assert proc.wait(30) == 0, proc.describe()
+    assert proc.stdout.startswith('usage: ')
