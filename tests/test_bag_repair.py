@@ -41,7 +41,8 @@ def _interrupted_bag(path: Path, flushed: int, unflushed: int) -> list[bytes]:
     handle = writer.add_topic(topic_spec('/current_command', MSGTYPE, SOURCE))
     for k in range(flushed + unflushed):
         msg = types[MSGTYPE](
-            header=types['std_msgs/msg/Header'](stamp=types['builtin_interfaces/msg/Time'](sec=1, nanosec=k), frame_id=''),
+            header=types['std_msgs/msg/Header'](
+                stamp=types['builtin_interfaces/msg/Time'](sec=1, nanosec=k), frame_id=''),
             current_a=0.001 * k, safe_stop=False)
         data = bytes(store.serialize_cdr(msg, MSGTYPE))
         payloads.append(data)

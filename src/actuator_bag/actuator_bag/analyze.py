@@ -372,7 +372,8 @@ def build_parser() -> argparse.ArgumentParser:
         'and loop timing per bag, read offline from rosbag2/MCAP bags. Draws the paper\'s figures with --out.',
     )
     parser.add_argument('bags', nargs='+', type=Path, metavar='BAG', help='bag folders (or .mcap files)')
-    parser.add_argument('--out', type=Path, help='write position, tracking error, estimate and input figures (PNG) here')
+    parser.add_argument('--out', type=Path,
+                        help='write position, tracking error, estimate and input figures (PNG) here')
     parser.add_argument('--json', type=Path, help='write the figures of every bag as JSON to this file')
     parser.add_argument(
         '--steady-start', type=float, default=STEADY_STATE_START_S, metavar='SECONDS',

@@ -75,7 +75,9 @@ class PlayerNode(Node):
                 wanted = {_absolute(t) for t in self.topics}
                 missing = wanted - {c.topic for c in conns}
                 if missing:
-                    raise BagError(f'{self.bag}: no topic {", ".join(sorted(missing))}; the bag has: {topic_names(conns)}')
+                    raise BagError(
+                        f'{self.bag}: no topic {", ".join(sorted(missing))}; the bag has: {topic_names(conns)}'
+                    )
                 conns = [c for c in conns if c.topic in wanted]
             if not conns:
                 raise BagError(f'{self.bag}: nothing to play (no topics)')

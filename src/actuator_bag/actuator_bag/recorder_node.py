@@ -8,13 +8,16 @@ the BagWriter (chunking, zstd, flush every second), so file I/O and compression 
 block the executor. The executor defaults to rclpy's EventsExecutor, which costs far less
 per message than the SingleThreadedExecutor.
 
-Timestamps: each message's log time is its receive time on the node's ROS clock, as ros2
-bag records it: with use_sim_time the node clock's now() (sim time from /clock); otherwise
-system time when the callback runs. (With ``--executor single`` the middleware's reception
+Timestamps: a message's log time is its receive time on the node's ROS clock, as ros2 bag
+record does, not its header.stamp: every topic gets a time (also ones without a header),
+playback reproduces the timing the recorder saw, and the header.stamp stays in the message
+for pairing. With use_sim_time that clock is sim time from /clock; otherwise it is system
+time taken in the callback. (With ``--executor single`` the middleware's reception
 timestamp is used instead, which executor queueing does not delay, and publish_time is the
-publisher's source timestamp; rclpy 7.1's EventsExecutor cannot pass message info to
-callbacks, it fails with SystemError, so the default executor stamps in the callback.) header.stamp stays inside each message;
-bag_analyze pairs samples by it and computes command latency as log time - header.stamp.
+publisher's source timestamp; rclpy 7.1's EventsExecutor fails with SystemError on
+callbacks that take message info, so the default executor stamps in the callback.)
+bag_analyze pairs samples by header.stamp and computes command latency as log time minus
+header.stamp.
 
 SIGINT/SIGTERM: stop taking new messages, write what was received, close the bag (MCAP
 summary, metadata.yaml), print one summary line, exit 0. SIGKILL: what was flushed (all
@@ -25,7 +28,6 @@ from __future__ import annotations
 
 import argparse
 import collections
-import os
 import sys
 import threading
 import time

@@ -102,7 +102,8 @@ def scan_mcap(
                     for record in records:
                         if isinstance(record, Message):
                             report.messages += 1
-                        yield record
+                        if isinstance(record, (Schema, Channel, Message)):
+                            yield record
                 elif opcode in (Opcode.DATA_END, Opcode.FOOTER):
                     report.complete = True
                     report.stop_reason = 'end of data section'
@@ -207,7 +208,9 @@ class RepairResult:
         return f'repaired {self.summary.line()}; {how}; {lost} bytes not recoverable'
 
 
-def repair_bag(bag: Union[str, os.PathLike], out: Union[str, os.PathLike, None] = None, *, quiet: bool = False) -> RepairResult:
+def repair_bag(
+    bag: Union[str, os.PathLike], out: Union[str, os.PathLike, None] = None, *, quiet: bool = False
+) -> RepairResult:
     """Scan the bag's MCAP files and write what is readable to the new bag folder ``out``."""
     bag = Path(bag)
     files = mcap_files(bag)
