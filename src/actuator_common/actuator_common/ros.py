@@ -34,11 +34,11 @@ def control_qos(mode: str) -> QoSProfile:
 
     realtime: BEST_EFFORT (a late sample is worth less than the next one; no retransmission
     stalls), KEEP_LAST 10 so a burst of two or three samples before a callback runs is not
-    dropped from the queue. sim: RELIABLE, KEEP_LAST 100, because lockstep needs every message
+    dropped from the queue. sim: RELIABLE, KEEP_LAST 1000, because lockstep needs every message
     and a lost one would stall the loop. A BEST_EFFORT subscriber matches either publisher.
     """
     if mode == 'sim':
-        return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100, reliability=ReliabilityPolicy.RELIABLE,
+        return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000, reliability=ReliabilityPolicy.RELIABLE,
                           durability=DurabilityPolicy.VOLATILE)
     return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.BEST_EFFORT,
                       durability=DurabilityPolicy.VOLATILE)
@@ -121,7 +121,7 @@ def run_node(prog: str, description: str, node_factory: Callable[[], Node], argv
     """main() of every node: --help, init, build the node (refusing bad parameters), spin, clean exit.
 
     SIGINT and SIGTERM set a stop flag (rclpy's own handlers are off, so the context stays
-    valid): the loop ends, the node's ``close()`` runs and may still log, then the node is
+    valid), and a node may end the run itself by setting ``finished``: the loop ends, the node's ``close()`` runs and may still log, then the node is
     destroyed and the process exits 0 with no traceback. A refused parameter exits 2 with
     one line naming it.
     """
@@ -145,7 +145,7 @@ def run_node(prog: str, description: str, node_factory: Callable[[], Node], argv
         executor = make_executor(parsed.executor)
         executor.add_node(node)
         # Not executor.spin(): EventsExecutor.spin() does not return on shutdown (rclpy 7.1 here).
-        while not stop.is_set() and rclpy.ok():
+        while not stop.is_set() and rclpy.ok() and not getattr(node, 'finished', False):
             executor.spin_once(timeout_sec=0.1)
         return 0
     except (KeyboardInterrupt, ExternalShutdownException):

@@ -65,6 +65,8 @@ class PlantNode(Node):
         self.wait_for_subscribers = declare_number(
             self, 'wait_for_subscribers', 0, 0, 100, '',
             'start sampling only once joint_states has this many subscribers (and current_command a publisher)')
+        self.stop_after_s = declare_number(self, 'stop_after_s', 0.0, 0.0, 1.0e6, 's',
+                                           'end the run (exit 0) after this much simulated time; 0 runs until stopped')
         self.joint_name = self.declare_parameter('joint_name', 'joint').value
         self.plant = JointPlant(params, self.dt_s, position_rad=declare_number(
             self, 'initial_position_rad', 0.0, -100.0, 100.0, 'rad', 'joint angle at sample 0'))
@@ -75,6 +77,7 @@ class PlantNode(Node):
         self.clock_pub = self.create_publisher(ClockMsg, '/clock', 10) if self.mode == 'sim' else None
         self.create_subscription(CurrentCommand, 'current_command', self.on_command, qos)
         self.wall = Clock(clock_type=ClockType.STEADY_TIME)
+        self.finished = False             # read by run_node: the run is over
         self.current_a = 0.0              # current held over the running sample
         self.last_command_wall_ns = None  # steady time of the newest valid command
         self.start_ns = None              # stamp of sample 0 [ns]
@@ -147,6 +150,12 @@ class PlantNode(Node):
 
     def _publish_sample(self) -> None:
         """Publish /clock (sim), the measurement and the ground truth of the current sample."""
+        if self.stop_after_s and self.plant.sample_index * self.period_ns >= self.stop_after_s * 1e9:
+            if not self.finished:
+                self.get_logger().info(f'run of {self.stop_after_s} s complete')
+            self.finished = True
+            self.waiting_since_ns = None
+            return
         stamp = ns_to_stamp(self.start_ns + self.plant.sample_index * self.period_ns)
         if self.clock_pub is not None:
             self.clock_pub.publish(ClockMsg(clock=stamp))

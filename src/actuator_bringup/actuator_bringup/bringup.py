@@ -1,0 +1,217 @@
+"""Bring up plant, ESO, controller (and the recorder) as separate processes: ``bringup``.
+
+Where ``ros2 launch`` exists (a Jazzy installation), ``launch/closed_loop.launch.py`` does
+the same. Here, without launch, this starts the same installed executables, found through
+the ament index as ``ros2 run`` finds them, with the scenario's parameter file, waits for
+the plant to finish the run, stops the rest with SIGINT (escalating to SIGTERM, SIGKILL),
+and measures each process' CPU and peak memory from /proc.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Sequence
+
+from ament_index_python.packages import PackageNotFoundError, get_package_prefix, get_package_share_directory
+
+from actuator_common.ros import MODES
+
+CLK_TCK = os.sysconf('SC_CLK_TCK')
+
+
+def executable(package: str, name: str) -> Path:
+    """<prefix>/lib/<package>/<name> through the ament index, as ``ros2 run`` resolves it."""
+    try:
+        path = Path(get_package_prefix(package)) / 'lib' / package / name
+    except PackageNotFoundError:
+        raise SystemExit(f'bringup: package {package!r} is not installed (build the workspace first)') from None
+    if not os.access(path, os.X_OK):
+        raise SystemExit(f'bringup: {path} is missing or not executable')
+    return path
+
+
+def scenario_file(scenario: str) -> Path:
+    """share/actuator_bringup/config/<scenario>.yaml."""
+    path = Path(get_package_share_directory('actuator_bringup')) / 'config' / f'{scenario}.yaml'
+    if not path.is_file():
+        names = sorted(p.stem for p in path.parent.glob('*.yaml'))
+        raise SystemExit(f'bringup: no scenario {scenario!r}; installed: {", ".join(names)}')
+    return path
+
+
+def scenario_duration(scenario: str) -> float:
+    """The paper scenario's run length [s] (10 s for any other parameter file)."""
+    from actuator_bringup.params_yaml import all_scenarios
+    known = all_scenarios().get(scenario)
+    return known.duration_s if known is not None else 10.0
+
+
+@dataclass
+class NodeProcess:
+    """One node process with its log and /proc readings."""
+
+    name: str
+    popen: subprocess.Popen
+    log: Path
+    started_wall: float = field(default_factory=time.monotonic)
+    cpu_ticks_at_mark: int | None = None
+    wall_at_mark: float | None = None
+    cpu_ticks_last: int = 0
+    wall_last: float = 0.0
+    peak_rss_kb: int = 0
+
+    def sample(self) -> None:
+        """Read CPU ticks and peak RSS from /proc while the process lives."""
+        try:
+            stat = Path(f'/proc/{self.popen.pid}/stat').read_text().rsplit(')', 1)[1].split()
+            self.cpu_ticks_last = int(stat[11]) + int(stat[12])
+            self.wall_last = time.monotonic()
+            for line in Path(f'/proc/{self.popen.pid}/status').read_text().splitlines():
+                if line.startswith('VmHWM:'):
+                    self.peak_rss_kb = int(line.split()[1])
+        except (OSError, IndexError, ValueError):
+            pass
+
+    def mark(self) -> None:
+        """Start of the measured interval (after start-up and imports)."""
+        self.sample()
+        self.cpu_ticks_at_mark, self.wall_at_mark = self.cpu_ticks_last, self.wall_last
+
+    def cpu_percent(self) -> float | None:
+        """CPU use since ``mark`` in % of one core."""
+        if self.wall_at_mark is None or self.wall_last <= self.wall_at_mark:
+            return None
+        return 100.0 * (self.cpu_ticks_last - self.cpu_ticks_at_mark) / CLK_TCK / (self.wall_last - self.wall_at_mark)
+
+    def stop(self, timeout_s: float = 10.0) -> int:
+        """SIGINT, then SIGTERM, then SIGKILL; returns the exit code."""
+        for sig, wait in ((signal.SIGINT, timeout_s), (signal.SIGTERM, 3.0), (signal.SIGKILL, 3.0)):
+            if self.popen.poll() is not None:
+                break
+            self.sample()
+            self.popen.send_signal(sig)
+            try:
+                self.popen.wait(wait)
+            except subprocess.TimeoutExpired:
+                continue
+        return self.popen.wait()
+
+
+@dataclass
+class RunResult:
+    """What a bring-up produced."""
+
+    name: str
+    mode: str
+    bag: Path | None
+    run_dir: Path
+    timing_log: Path
+    exit_codes: dict[str, int]
+    cpu_percent: dict[str, float | None]
+    peak_rss_mb: dict[str, float]
+    wall_s: float
+
+
+def run_closed_loop(scenario: str, mode: str, duration_s: float | None = None, record: bool = True,
+                    bag_root: Path = Path('bags'), results_root: Path = Path('results/runs'),
+                    executor: str = 'events', extra_params: Sequence[str] = (), quiet: bool = False) -> RunResult:
+    """Start the nodes for ``scenario`` in ``mode``, run to the end, stop everything, return the result."""
+    if mode not in MODES:
+        raise SystemExit(f'bringup: mode must be one of {", ".join(MODES)}')
+    params = scenario_file(scenario)
+    stamp = dt.datetime.now(dt.timezone.utc).strftime('%Y%m%dT%H%M%SZ')
+    name = f'{scenario}_{mode}_{stamp}'
+    run_dir = results_root / name
+    run_dir.mkdir(parents=True, exist_ok=True)
+    bag = bag_root / name if record else None
+    sim = mode == 'sim'
+    timing_log = run_dir / 'controller_timing.npz'
+    node_args = ['--executor', executor, '--ros-args', '--params-file', str(params), '-p', f'mode:={mode}']
+    clocked = ['-p', f'use_sim_time:={"true" if sim else "false"}']
+    plan = []
+    if bag is not None:
+        bag_root.mkdir(parents=True, exist_ok=True)
+        plan.append(('recorder', 'actuator_bag', 'recorder', ['--ros-args', '-p', f'output:={bag}', *clocked]))
+    plan += [('controller', 'actuator_controller', 'controller_node',
+              node_args + clocked + ['-p', f'timing_log:={timing_log}', *extra_params]),
+             ('eso', 'actuator_eso', 'eso_node', node_args + clocked + list(extra_params))]
+    plant_args = node_args + ['-p', f'wait_for_subscribers:={3 if bag else 2}']
+    if duration_s is not None:
+        plant_args += ['-p', f'stop_after_s:={duration_s}']
+    plan.append(('plant', 'actuator_plant', 'plant_node', plant_args))
+    procs: dict[str, NodeProcess] = {}
+    start = time.monotonic()
+    try:
+        for key, package, exe, args in plan:
+            log = run_dir / f'{key}.log'
+            popen = subprocess.Popen([str(executable(package, exe)), *args], stdout=log.open('w'),
+                                     stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, start_new_session=True)
+            procs[key] = NodeProcess(key, popen, log)
+        if not quiet:
+            print(f'[bringup] {scenario} in {mode} mode: {", ".join(procs)} started; logs in {run_dir}', flush=True)
+        _wait_for_plant(procs, duration_s, quiet)
+    finally:
+        codes = {key: proc.stop() for key, proc in reversed(list(procs.items()))}
+    wall = time.monotonic() - start
+    return RunResult(name, mode, bag, run_dir, timing_log, codes,
+                     {k: p.cpu_percent() for k, p in procs.items()},
+                     {k: p.peak_rss_kb / 1024.0 for k, p in procs.items()}, wall)
+
+
+def _wait_for_plant(procs: dict[str, NodeProcess], duration_s: float | None, quiet: bool) -> None:
+    """Poll until the plant exits (end of run); mark CPU baselines when sampling starts."""
+    plant = procs['plant']
+    marked = False
+    deadline = time.monotonic() + (max(120.0, 30.0 * duration_s) if duration_s else float('inf'))
+    last_note = time.monotonic()
+    while plant.popen.poll() is None:
+        for proc in procs.values():
+            proc.sample()
+        if not marked and 'sampling started' in plant.log.read_text(errors='replace'):
+            for proc in procs.values():
+                proc.mark()
+            marked = True
+        for key, proc in procs.items():
+            if key != 'plant' and proc.popen.poll() is not None:
+                raise SystemExit(f'bringup: {key} exited early with code {proc.popen.returncode}; see {proc.log}')
+        if time.monotonic() > deadline:
+            raise SystemExit('bringup: the run did not finish in time; see the logs')
+        if not quiet and time.monotonic() - last_note > 5.0:
+            print(f'[bringup] running ({time.monotonic() - plant.started_wall:.0f} s)', flush=True)
+            last_note = time.monotonic()
+        time.sleep(0.2)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """CLI: one closed-loop run of a scenario, optionally recorded to bags/."""
+    parser = argparse.ArgumentParser(prog='bringup', description=__doc__.splitlines()[0])
+    parser.add_argument('--scenario', default='case2_pp_nftsmc_eso',
+                        help='installed scenario (share/actuator_bringup/config/<name>.yaml)')
+    parser.add_argument('--mode', choices=MODES, default='realtime')
+    parser.add_argument('--duration', type=float, default=None,
+                        help='run length [s] (default: the paper scenario\'s, 10 s)')
+    parser.add_argument('--no-record', action='store_true', help='do not start the recorder')
+    parser.add_argument('--bags', type=Path, default=Path('bags'), help='folder for bags (default bags/)')
+    parser.add_argument('--executor', choices=('events', 'single_threaded'), default='events')
+    args = parser.parse_args(argv)
+    if args.duration is not None and not 0.0 < args.duration <= 3600.0:
+        parser.error('--duration must be in (0, 3600] s')
+    duration = args.duration if args.duration is not None else scenario_duration(args.scenario)
+    result = run_closed_loop(args.scenario, args.mode, duration, not args.no_record, args.bags,
+                             executor=args.executor)
+    print(json.dumps({'bag': str(result.bag), 'exit_codes': result.exit_codes, 'cpu_percent': result.cpu_percent,
+                      'peak_rss_mb': result.peak_rss_mb}, indent=1))
+    return 0 if all(code == 0 for code in result.exit_codes.values()) else 1
+
+
+if __name__ == '__main__':
+    sys.exit(main())
