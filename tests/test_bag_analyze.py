@@ -60,6 +60,7 @@ def test_figures_match_the_recorded_arrays(case2) -> None:
     assert report.timing['command_latency']['max_s'] == pytest.approx(latency.max())
     assert report.timing['sample_period']['p50_s'] == pytest.approx(1e-3)
     assert report.missed_samples == 0
+    assert report.as_dict()['status_not_ok_fraction'] == 0.0
 
 
 def test_gaps_violations_and_missing_envelope(case2, tmp_path: Path) -> None:

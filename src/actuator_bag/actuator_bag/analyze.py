@@ -36,6 +36,8 @@ PLANT_TRUTH = 'actuator_msgs/msg/PlantTruth'
 CURRENT_COMMAND = 'actuator_msgs/msg/CurrentCommand'
 JOINT_STATE = 'sensor_msgs/msg/JointState'
 
+#: ControllerState.status of a sample in closed-loop control.
+STATUS_OK = 0
 #: ControllerState.status of a controller still waiting for its first inputs.
 STATUS_WAITING = 1
 
@@ -61,6 +63,7 @@ class RunData:
     upper: np.ndarray
     current: np.ndarray
     saturated: np.ndarray
+    status: np.ndarray
     est_t: np.ndarray = field(default_factory=lambda: np.empty(0))
     est_velocity: np.ndarray = field(default_factory=lambda: np.empty(0))
     est_disturbance: np.ndarray = field(default_factory=lambda: np.empty(0))
@@ -93,6 +96,7 @@ class RunReport:
             'bag': str(self.run.path),
             'controller': self.run.controller,
             'has_envelope': self.run.has_envelope,
+            'status_not_ok_fraction': float(np.mean(self.run.status != STATUS_OK)),
             'metrics': self.metrics.as_dict(),
             'timing': self.timing,
             'missed_samples': self.missed_samples,
@@ -174,6 +178,7 @@ def _assemble(path: Path, rows: dict[str, list[tuple]]) -> RunData:
         upper=np.asarray(cols[7], dtype=float),
         current=np.asarray(cols[8], dtype=float),
         saturated=np.asarray(cols[9], dtype=bool),
+        status=np.asarray(cols[2], dtype=np.int64),
     )
     estimates = {r[0]: r for r in rows.get('estimate', [])}
     truths = {r[0]: r for r in rows.get('truth', [])}
@@ -258,6 +263,7 @@ def format_table(reports: Sequence[RunReport]) -> str:
     add('controller', [r.run.controller for r in reports])
     add('samples / duration', [f'{r.metrics.samples} / {r.metrics.duration_s:.3f} s' for r in reports])
     add('diverged', ['YES' if r.metrics.diverged else 'no' for r in reports])
+    add('status not OK', [f'{100 * np.mean(r.run.status != STATUS_OK):.2f} % of samples' for r in reports])
     add('steady window', ['{:.1f}-{:.3f} s'.format(*r.metrics.steady_window_s) for r in reports])
     add('max |e| in steady window', [_num(r.metrics.max_steady_error_rad, 'rad') for r in reports])
     add('RMS e in steady window', [_num(r.metrics.rms_steady_error_rad, 'rad') for r in reports])
