@@ -7,9 +7,14 @@ The observer holds x_hat(k). When both y(k) and u(k) with the stamp t_k have arr
 takes the forward-Euler step of (15) to x_hat(k+1) and publishes it stamped t_k + dt,
 before y(k+1) exists (docs/architecture.md). The pairing is by stamp, never "the latest
 message": with the paper's gains the loop diverges when the observer integrates u(k-1).
-A half of a pair that never arrives (a lost message, a skipped sample) is noticed once a
-measurement two samples newer is in: the step then uses the last known current (or, for
-a missing measurement, no correction) and says so in the estimate and the log.
+A half of a pair that has not arrived in time is replaced: the step then uses the last
+known current (or, for a missing measurement, no correction) and says so in the estimate
+and the log. "In time" depends on the mode. realtime: before the next measurement, because a
+command later than a whole period missed its sample (the plant held the previous current)
+and the controller needs x_hat(k+1) now; waiting longer would stall the loop after a single
+lost message. sim: messages are never lost, so the observer waits for the true pair as long
+as the lockstep does (it substitutes only once a measurement two samples newer exists,
+which happens only when the plant stepped without a command after its lockstep timeout).
 """
 
 from __future__ import annotations
@@ -47,6 +52,7 @@ class EsoNode(Node):
                                                 'commands beyond are refused')
         self.joint_name = self.declare_parameter('joint_name', 'joint').value
         self.period_ns = period_ns(self.dt_s)
+        self.patience_ns = self.period_ns * (2 if self.mode == 'sim' else 1)
         qos = control_qos(self.mode)
         self.pub = self.create_publisher(StateEstimate, 'eso/estimate', qos)
         self.create_subscription(JointState, 'joint_states', self.on_measurement, qos)
@@ -100,7 +106,7 @@ class EsoNode(Node):
             y = self.measurements.get(k)
             u = self.currents.get(k)
             complete = y is not None and u is not None
-            if not complete and self.newest_measurement_ns < k + 2 * self.period_ns:
+            if not complete and self.newest_measurement_ns < k + self.patience_ns:
                 break
             substituted = not complete
             if substituted:
