@@ -88,6 +88,14 @@ def ros_process(ros_env, tmp_path):
 
 @pytest.fixture(autouse=True)
 def _no_orphan_processes():
-    """Whatever RosProcess a test leaves running is stopped when the test ends."""
+    """Whatever RosProcess a test started and left running is stopped when the test ends.
+
+    Processes that were already running when the test began (started by module- or
+    session-scoped fixtures) are left to their own fixtures; the atexit hook of
+    ros_helpers stops anything still alive when pytest exits.
+    """
+    before = set(ros_helpers.live_processes())
     yield
-    ros_helpers.stop_all_processes()
+    for proc in ros_helpers.live_processes():
+        if proc not in before:
+            proc.stop(sigint_timeout=3.0, sigterm_timeout=2.0)

@@ -332,6 +332,11 @@ class RosProcess:
                 f'--- stdout:\n{last(self.stdout)}\n--- stderr:\n{last(self.stderr)}')
 
 
+def live_processes() -> 'list[RosProcess]':
+    """Every RosProcess started and not yet stopped or waited for."""
+    return list(_LIVE)
+
+
 def stop_all_processes() -> 'list[RosProcess]':
     """Stop every RosProcess still alive; returns those that were."""
     leftovers = [p for p in list(_LIVE) if p.running]

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from actuator_bringup.closed_loop import ClosedLoop, Scenario
-from actuator_bringup.metrics import compute_run_metrics
+from actuator_common.metrics import compute_run_metrics
 from actuator_bringup.offline import run_scenario
 from actuator_bringup.scenarios import case1, paper_scenario
 from actuator_bringup.stability import radius_along_envelope

@@ -17,7 +17,7 @@ from typing import Sequence
 import numpy as np
 
 from actuator_bringup.closed_loop import ClosedLoop, Scenario
-from actuator_bringup.metrics import STEADY_STATE_START_S, RunMetrics, compute_run_metrics
+from actuator_common.metrics import STEADY_STATE_START_S, RunMetrics, compute_run_metrics
 from actuator_bringup.scenarios import CONDITIONS, case1, case2, paper_scenario
 from actuator_bringup.stability import radius_along_envelope
 from actuator_controller.laws import CONTROLLER_NAMES
