@@ -111,30 +111,58 @@ fi
 PY="$VENV/bin/python"
 rm -f "$STAMP"
 
+step "record environment for scripts/env.sh"
+{
+    echo "ACTUATOR_ROS_MODE=$MODE"
+    echo "ACTUATOR_ROS_PREFIX=$ROS_PREFIX"
+} >"$ENV_FILE"
+
 step "select lock files"
 REQ_DIR="$VENV/.actuator-requirements"
 rm -rf "$REQ_DIR"
 mkdir -p "$REQ_DIR"
+# In system mode these come from the system whenever it has them: they must be the ones
+# the system's ROS was built and tested with (numpy above all: compiled message code).
+SYSTEM_FIRST=(numpy setuptools empy catkin-pkg lark-parser)
+system_has=()
 if [[ $MODE == wheels ]]; then
     selected=("$LOCKS/python.lock" "$LOCKS/colcon.lock" "$LOCKS/ros-jazzy-wheels.lock")
 else
     selected=("$LOCKS/python.lock")
+    # What the system (its site-packages, or ROS's PYTHONPATH) already provides.
+    (
+        ACTUATOR_ENV_NO_WORKSPACE=1 source "$ROOT/scripts/env.sh" >/dev/null
+        python - "${SYSTEM_FIRST[@]}" <<'PYHAS'
+import importlib.metadata as md
+import importlib.util
+import sys
+for name in sys.argv[1:]:
+    try:
+        md.version(name)
+        print(name)
+    except md.PackageNotFoundError:
+        pass
+if all(importlib.util.find_spec(m) for m in ('colcon_core', 'colcon_ros', 'colcon_bash', 'colcon_cmake')):
+    print('colcon')
+PYHAS
+    ) >"$REQ_DIR/system-provides" || fail "could not inspect the Python packages of $ROS_PREFIX"
+    mapfile -t system_has <"$REQ_DIR/system-provides"
     # colcon from apt (python3-colcon-common-extensions) is visible through the system site.
-    if "$PY" -c 'import colcon_core, colcon_ros, colcon_bash' 2>/dev/null; then
+    if printf '%s\n' "${system_has[@]}" | grep -qx colcon; then
         echo "[setup]   colcon: the system's"
     else
         echo "[setup]   colcon: from requirements/colcon.lock"
         selected+=("$LOCKS/colcon.lock")
     fi
 fi
+skip_re='^$'
+if ((${#system_has[@]})); then
+    skip_re="^($(printf '%s|' "${system_has[@]}" | sed 's/|$//'))=="
+    echo "[setup]   from the system: ${system_has[*]}"
+fi
 for f in "${selected[@]}"; do
     out="$REQ_DIR/$(basename "$f")"
-    if [[ $MODE == system ]]; then
-        # These must be the ones the system's ROS was built and tested with.
-        grep -v -i -E '^(numpy|setuptools|empy|catkin-pkg|lark-parser)==' "$f" >"$out" || true
-    else
-        cp "$f" "$out"
-    fi
+    grep -v -i -E "$skip_re" "$f" >"$out" || true
     echo "[setup]   $(basename "$f"): $(grep -c -E '^[^#]+==' "$out") pinned distributions"
 done
 
@@ -151,10 +179,16 @@ if ! { PIP_DISABLE_PIP_VERSION_CHECK=1 "$PY" -m pip install --no-deps --no-input
 fi
 
 step "check installed set against the locks"
-"$PY" -m pip check >/dev/null 2>&1 || {
-    "$PY" -m pip check >&2 || true
-    fail "pip check found broken requirements in the pinned set (see above)"
-}
+if [[ $MODE == system ]]; then
+    # The system's own site-packages often fail pip check for reasons of their own: report only.
+    "$PY" -m pip check >/dev/null 2>&1 || echo "[setup]   note: pip check reports conflicts (system packages included):" \
+        "$({ "$PY" -m pip check 2>&1 || true; } | head -5 | tr '\n' ';')"
+else
+    "$PY" -m pip check >/dev/null 2>&1 || {
+        "$PY" -m pip check >&2 || true
+        fail "pip check found broken requirements in the pinned set (see above)"
+    }
+fi
 if [[ $MODE == wheels ]]; then
     "$PY" - "$REQ_DIR"/*.lock <<'PYCHECK'
 import importlib.metadata as md
@@ -208,12 +242,6 @@ if [[ $MODE == wheels ]]; then
         fail "the wheel builder's paths are still in .venv/share/*/cmake"
     fi
 fi
-
-step "record environment for scripts/env.sh"
-{
-    echo "ACTUATOR_ROS_MODE=$MODE"
-    echo "ACTUATOR_ROS_PREFIX=$ROS_PREFIX"
-} >"$ENV_FILE"
 
 step "check ROS Python"
 (
