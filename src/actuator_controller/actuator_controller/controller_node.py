@@ -5,8 +5,9 @@ publishes  current_command (actuator_msgs/CurrentCommand), controller/state (act
 
 The control update of sample k runs as soon as y(k) and x_hat(k) (same stamp) are both in,
 as ros2_control's update follows its read: the loop is clocked by the sensor's 1 kHz
-sampling, and the sensor-to-command latency is one message hop plus the update. A 1 kHz
-timer on the node clock (the ROS clock: wall time, or /clock in sim mode) is the watchdog:
+sampling, and the sensor-to-command latency is one message hop plus the update. A timer on
+the node clock (the ROS clock: wall time, or /clock in sim mode) at half the staleness
+timeout is the watchdog:
 when the newest measurement or estimate is older than its timeout, the node commands 0 A
 with safe_stop set and says why. Invalid inputs (NaN, Inf, out of range) are refused and
 answered with 0 A for that sample; a non-finite control output or an error beyond
@@ -25,7 +26,7 @@ import time
 import numpy as np
 from rclpy.node import Node
 
-from actuator_common.ros import MODES, ParameterError, control_qos, declare_choice, declare_number, \
+from actuator_common.ros import RateLimitedLog, MODES, ParameterError, control_qos, declare_choice, declare_number, \
     declare_spec_parameters, joint_position, ns_to_stamp, run_node, stamp_to_ns
 from actuator_common.timing import period_ns, sample_time_s
 from actuator_controller.laws import CONTROLLER_NAMES, GAINS_BY_NAME, CommonConfig, ControlOutput, make_controller
@@ -47,6 +48,7 @@ class ControllerNode(Node):
     def __init__(self) -> None:
         """Declare and check parameters, build the control law and the reference."""
         super().__init__('actuator_controller')
+        self.log = RateLimitedLog(self.get_logger())
         self.mode = declare_choice(self, 'mode', 'realtime', MODES, 'realtime: wall clock; sim: /clock lockstep')
         name = declare_choice(self, 'controller', 'pp_nftsmc_eso', CONTROLLER_NAMES, 'control law')
         gains = declare_spec_parameters(self, GAINS_BY_NAME[name], prefix=f'{name}.')
@@ -76,7 +78,10 @@ class ControllerNode(Node):
         self.state_pub = self.create_publisher(ControllerState, 'controller/state', qos)
         self.create_subscription(JointState, 'joint_states', self.on_measurement, qos)
         self.create_subscription(StateEstimate, 'eso/estimate', self.on_estimate, qos)
-        self.watchdog = self.create_timer(common.dt_s, self.on_watchdog)
+        # Half the shortest timeout is enough to notice staleness in time; a 1 kHz watchdog would
+        # add a Python callback to every sample for nothing.
+        self.watchdog = self.create_timer(min(self.measurement_timeout_ns, self.estimate_timeout_ns) * 0.5e-9,
+                                          self.on_watchdog)
         self.estimates: dict[int, tuple[float, float]] = {}
         self.newest_estimate_ns = None
         self.pending = None              # (stamp_ns, y) waiting for its estimate
@@ -88,6 +93,9 @@ class ControllerNode(Node):
         self.missed = 0
         self.stale_events = 0
         self.refused = 0
+        self.unanswered = 0              # samples dropped while waiting for their estimate
+        self.measurements_in = 0
+        self.estimates_in = 0
         self.cmd = CurrentCommand()
         self.state = ControllerState(controller_name=name)
         self.timing = np.zeros((TIMING_CAPACITY, 4), dtype=np.int64)  # wall ns, stamp ns, latency ns, compute ns
@@ -99,6 +107,7 @@ class ControllerNode(Node):
     def on_measurement(self, msg: JointState) -> None:
         """y(k): check it, then control sample k as soon as x_hat(k) is in."""
         received_ns = time.time_ns()
+        self.measurements_in += 1
         stamp = stamp_to_ns(msg.header.stamp)
         if self.last_measurement_ns is not None and stamp <= self.last_measurement_ns:
             return
@@ -108,21 +117,23 @@ class ControllerNode(Node):
         y = joint_position(msg, self.joint_name)
         if y is None or not math.isfinite(y) or abs(y) > self.max_abs_position_rad:
             self.refused += 1
-            self.get_logger().error(f'measurement refused (joint {self.joint_name!r} missing, non-finite or beyond '
-                                    f'{self.max_abs_position_rad} rad): {list(msg.position)}; 0 A',
-                                    throttle_duration_sec=1.0)
+            self.log.error('bad_measurement', lambda: f'measurement refused (joint {self.joint_name!r} missing, non-finite or beyond '
+                                    f'{self.max_abs_position_rad} rad): {list(msg.position)}; 0 A')
             self._safe_command(stamp, ControllerState.STATUS_INVALID_INPUT)
             return
+        if self.pending is not None:
+            self.unanswered += 1         # the previous sample's estimate never came in time
         self.pending = (stamp, y, received_ns)
         self._try_control()
 
     def on_estimate(self, msg: StateEstimate) -> None:
         """x_hat(k): check it and keep it until its measurement is in."""
         x2, x3 = msg.velocity_rad_s, msg.disturbance_rad_s2
+        self.estimates_in += 1
         stamp = stamp_to_ns(msg.header.stamp)
         if not (math.isfinite(x2) and math.isfinite(x3)):
             self.refused += 1
-            self.get_logger().error(f'estimate refused (non-finite: {x2}, {x3})', throttle_duration_sec=1.0)
+            self.log.error('bad_estimate', lambda: f'estimate refused (non-finite: {x2}, {x3})')
             return
         self.estimates[stamp] = (x2, x3)
         self.newest_estimate_ns = stamp if self.newest_estimate_ns is None else max(self.newest_estimate_ns, stamp)
@@ -173,8 +184,8 @@ class ControllerNode(Node):
         latency_ns = wall_ns - stamp if self.mode == 'realtime' else 0
         if self.mode == 'realtime' and latency_ns > self.period_ns:
             self.late += 1
-            self.get_logger().warn(f'late sample: command {latency_ns / 1e3:.0f} us after its measurement '
-                                   f'(late {self.late}, missed {self.missed})', throttle_duration_sec=1.0)
+            self.log.warn('late', lambda: f'late sample: command {latency_ns / 1e3:.0f} us after its measurement '
+                                          f'(late {self.late}, missed {self.missed})')
         if self.timing_count < TIMING_CAPACITY:
             self.timing[self.timing_count] = (received_ns, stamp, latency_ns, compute_ns)
             self.timing_count += 1
@@ -247,15 +258,16 @@ class ControllerNode(Node):
             return
         if self.status != status:
             self.stale_events += 1
-        self.get_logger().warn(f'stale {reason} ({(now - (self.last_measurement_ns if reason == "measurement" else self.newest_estimate_ns)) / 1e6:.1f} ms old): commanding 0 A', throttle_duration_sec=1.0)
+        self.log.warn('stale', lambda: f'stale {reason} ({(now - (self.last_measurement_ns if reason == "measurement" else self.newest_estimate_ns)) / 1e6:.1f} ms old): commanding 0 A')
         self._safe_command(now, status)
 
     # --- shutdown -------------------------------------------------------------------------
     def timing_summary(self) -> dict:
         """Period, latency and compute-time percentiles of the control updates so far."""
         rows = self.timing[:self.timing_count]
-        summary = {'updates': int(self.timing_count), 'late': self.late, 'missed': self.missed,
-                   'stale_events': self.stale_events, 'refused_inputs': self.refused}
+        summary = {'updates': int(self.timing_count), 'measurements_in': self.measurements_in,
+                   'estimates_in': self.estimates_in, 'late': self.late, 'missed': self.missed,
+                   'unanswered': self.unanswered, 'stale_events': self.stale_events, 'refused_inputs': self.refused}
         if len(rows) > 2:
             period = np.diff(rows[:, 0]) / 1e3
             summary.update({

@@ -23,7 +23,7 @@ import math
 
 from rclpy.node import Node
 
-from actuator_common.ros import MODES, control_qos, declare_choice, declare_number, declare_spec_parameters, \
+from actuator_common.ros import RateLimitedLog, MODES, control_qos, declare_choice, declare_number, declare_spec_parameters, \
     joint_position, ns_to_stamp, run_node, stamp_to_ns
 from actuator_common.timing import period_ns
 from actuator_eso.observer import EsoGains, eso_step
@@ -43,6 +43,7 @@ class EsoNode(Node):
     def __init__(self) -> None:
         """Declare parameters, set up the pairing buffers."""
         super().__init__('actuator_eso')
+        self.log = RateLimitedLog(self.get_logger())
         self.mode = declare_choice(self, 'mode', 'realtime', MODES, 'selects the QoS of the 1 kHz streams')
         self.gains = declare_spec_parameters(self, EsoGains)
         self.dt_s = declare_number(self, 'sample_time_s', 1.0e-3, 1.0e-4, 0.1, 's', 'sensor sample period')
@@ -72,8 +73,8 @@ class EsoNode(Node):
         y = joint_position(msg, self.joint_name)
         if y is None or not math.isfinite(y) or abs(y) > self.max_abs_position_rad:
             self.refused += 1
-            self.get_logger().error(f'measurement refused (joint {self.joint_name!r} missing, non-finite or beyond '
-                                    f'{self.max_abs_position_rad} rad): {list(msg.position)}', throttle_duration_sec=1.0)
+            self.log.error('bad_measurement', lambda: f'measurement refused (joint {self.joint_name!r} missing, non-finite or beyond '
+                                    f'{self.max_abs_position_rad} rad): {list(msg.position)}')
             return
         stamp = stamp_to_ns(msg.header.stamp)
         if self.sample_ns is None:
@@ -90,8 +91,7 @@ class EsoNode(Node):
         u = msg.current_a
         if not math.isfinite(u) or abs(u) > self.max_abs_current_a:
             self.refused += 1
-            self.get_logger().error(f'command {u} A refused (non-finite or beyond {self.max_abs_current_a} A)',
-                                    throttle_duration_sec=1.0)
+            self.log.error('bad_command', lambda: f'command {u} A refused (non-finite or beyond {self.max_abs_current_a} A)')
             return
         stamp = stamp_to_ns(msg.header.stamp)
         if self.sample_ns is None or stamp < self.sample_ns:
@@ -111,8 +111,8 @@ class EsoNode(Node):
             substituted = not complete
             if substituted:
                 self.substituted += 1
-                self.get_logger().warn(f'sample {k} ns: {"command" if y is not None else "measurement"} missing; '
-                                       'integrating with the last current', throttle_duration_sec=1.0)
+                self.log.warn('substituted', lambda: f'sample {k} ns: {"command" if y is not None else "measurement"} missing; '
+                                       'integrating with the last current')
             y_used = y if y is not None else self.x_hat[0]
             u_used = u if u is not None else self.last_current
             self.x_hat = eso_step(*self.x_hat, y_used, u_used, self.dt_s, self.gains)

@@ -21,7 +21,7 @@ from dataclasses import replace
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 
-from actuator_common.ros import MODES, ParameterError, control_qos, declare_choice, declare_number, \
+from actuator_common.ros import RateLimitedLog, MODES, ParameterError, control_qos, declare_choice, declare_number, \
     declare_spec_parameters, ns_to_stamp, run_node, stamp_to_ns
 from actuator_common.timing import period_ns
 from actuator_msgs.msg import CurrentCommand, PlantTruth
@@ -41,6 +41,7 @@ class PlantNode(Node):
     def __init__(self) -> None:
         """Declare and check parameters, build the model, start sampling."""
         super().__init__('actuator_plant')
+        self.log = RateLimitedLog(self.get_logger())
         self.mode = declare_choice(self, 'mode', 'realtime', MODES, 'realtime: wall-clock 1 kHz; sim: lockstep /clock')
         if self.mode == 'sim' and self.get_parameter('use_sim_time').value:
             raise ParameterError("parameter 'use_sim_time' must be false for the plant: it owns /clock in sim mode")
@@ -122,8 +123,8 @@ class PlantNode(Node):
         elif self.waiting_since_ns is not None and \
                 self.wall.now().nanoseconds - self.waiting_since_ns > self.lockstep_timeout_s * 1e9:
             self.timeouts += 1
-            self.get_logger().warn(f'sim: no command for sample {self.plant.sample_index} within '
-                                   f'{self.lockstep_timeout_s} s; stepping with 0 A', throttle_duration_sec=1.0)
+            self.log.warn('lockstep_timeout', lambda: f'sim: no command for sample {self.plant.sample_index} within '
+                                   f'{self.lockstep_timeout_s} s; stepping with 0 A')
             self._advance(0.0)
 
     def _realtime_tick(self) -> None:
@@ -136,7 +137,7 @@ class PlantNode(Node):
                 self.wall.now().nanoseconds - self.last_command_wall_ns > self.command_timeout_s * 1e9:
             if self.current_a != 0.0:
                 self.timeouts += 1
-                self.get_logger().warn('commands stopped: current set to 0 A', throttle_duration_sec=1.0)
+                self.log.warn('command_timeout', lambda: 'commands stopped: current set to 0 A')
             self.current_a = 0.0
         while self.plant.sample_index < due:
             self.plant.step(self.current_a)
@@ -193,8 +194,8 @@ class PlantNode(Node):
         current = msg.current_a
         if not math.isfinite(current) or abs(current) > self.current_limit_a:
             self.rejected_commands += 1
-            self.get_logger().error(f'command {current} A refused (valid: finite, |u| <= {self.current_limit_a} A); '
-                                    'applying 0 A', throttle_duration_sec=1.0)
+            self.log.error('bad_command', lambda: f'command {current} A refused (valid: finite, |u| <= {self.current_limit_a} A); '
+                                    'applying 0 A')
             current = 0.0
         if self.start_ns is None:
             return
