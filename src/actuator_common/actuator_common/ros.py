@@ -208,7 +208,11 @@ class RateLimitedLog:
         self.last_ns[key] = now
         skipped = self.suppressed.pop(key, 0)
         text = message() + (f' ({skipped} more like this since the last report)' if skipped else '')
-        getattr(self.logger, level)(text)
+        # One call site per severity: rclpy refuses a severity change at the same call site.
+        if level == 'error':
+            self.logger.error(text)
+        else:
+            self.logger.warning(text)
 
     def warn(self, key: str, message: Callable[[], str]) -> None:
         """Rate-limited warning."""

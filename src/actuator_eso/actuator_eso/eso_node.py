@@ -67,6 +67,9 @@ class EsoNode(Node):
         self.substituted = 0
         self.refused = 0
         self.msg = StateEstimate()
+        beta = ', '.join(f'{b:.4g}' for b in self.gains.beta)
+        self.get_logger().info(f'{self.mode} mode, w0 = {self.gains.omega0_rad_s} rad/s, beta = ({beta}), '
+                               f'dt = {self.dt_s} s')
 
     def on_measurement(self, msg: JointState) -> None:
         """Store y(k); the first one starts the observer at x_hat(0)."""

@@ -1,0 +1,214 @@
+"""Each node on its own against bad input: refused and logged, safe output, clean shutdown."""
+
+import math
+import time
+
+import pytest
+
+from actuator_common.ros import ns_to_stamp
+
+pytestmark = pytest.mark.usefixtures('rclpy_context')
+
+
+class Harness:
+    """A test-side node that publishes into and records from the node under test."""
+
+    def __init__(self, context):
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.node import Node
+
+        from actuator_common.ros import control_qos
+        from actuator_msgs.msg import ControllerState, CurrentCommand, PlantTruth, StateEstimate
+        from sensor_msgs.msg import JointState
+
+        self.node = Node('harness', context=context)
+        qos = control_qos('realtime')
+        self.joint = self.node.create_publisher(JointState, 'joint_states', qos)
+        self.estimate = self.node.create_publisher(StateEstimate, 'eso/estimate', qos)
+        self.command = self.node.create_publisher(CurrentCommand, 'current_command', qos)
+        self.got = {'command': [], 'state': [], 'estimate': [], 'truth': []}
+        self.node.create_subscription(CurrentCommand, 'current_command', self.got['command'].append, qos)
+        self.node.create_subscription(ControllerState, 'controller/state', self.got['state'].append, qos)
+        self.node.create_subscription(StateEstimate, 'eso/estimate', self.got['estimate'].append, qos)
+        self.node.create_subscription(PlantTruth, 'plant/truth', self.got['truth'].append, qos)
+        self.executor = SingleThreadedExecutor(context=context)
+        self.executor.add_node(self.node)
+        self.types = {'JointState': JointState, 'StateEstimate': StateEstimate, 'CurrentCommand': CurrentCommand}
+
+    def spin(self, seconds: float) -> None:
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            self.executor.spin_once(timeout_sec=0.005)
+
+    def wait_for(self, predicate, timeout: float = 20.0, what: str = '') -> None:
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            if predicate():
+                return
+            self.executor.spin_once(timeout_sec=0.01)
+        raise AssertionError(f'timed out waiting for {what}')
+
+    def send_sample(self, stamp_ns: int, position: float, velocity=0.0, disturbance=0.0, estimate=True) -> None:
+        js = self.types['JointState'](name=['joint'], position=[position])
+        js.header.stamp = ns_to_stamp(stamp_ns)
+        if estimate:
+            est = self.types['StateEstimate'](velocity_rad_s=velocity, disturbance_rad_s2=disturbance)
+            est.header.stamp = ns_to_stamp(stamp_ns)
+            self.estimate.publish(est)
+            self.spin(0.002)
+        self.joint.publish(js)
+
+    def send_command(self, stamp_ns: int, current: float) -> None:
+        cmd = self.types['CurrentCommand'](current_a=current)
+        cmd.header.stamp = ns_to_stamp(stamp_ns)
+        self.command.publish(cmd)
+
+
+@pytest.fixture
+def harness(rclpy_context):
+    h = Harness(rclpy_context)
+    yield h
+    h.executor.shutdown()
+    h.node.destroy_node()
+
+
+def _now_ns(harness) -> int:
+    return harness.node.get_clock().now().nanoseconds
+
+
+def test_controller_refuses_nan_and_goes_safe_on_stale_inputs(harness, ros_process):
+    from actuator_msgs.msg import ControllerState
+    ctrl = ros_process('actuator_controller', 'controller_node',
+                       ['--ros-args', '-p', 'measurement_timeout_s:=0.05', '-p', 'estimate_timeout_s:=0.05',
+                        '-p', 'controller:=nftsmc_eso'])
+    harness.wait_for(lambda: harness.node.count_subscribers('joint_states') >= 1, what='controller subscription')
+    harness.spin(0.5)
+    period = 5_000_000
+    t = _now_ns(harness)
+    for k in range(40):                                    # valid pairs at 200 Hz
+        harness.send_sample(t + k * period, 0.0)
+        harness.spin(0.003)
+    harness.wait_for(lambda: any(s.status == ControllerState.STATUS_OK for s in harness.got['state']),
+                     what='a controlled sample')
+    ok = [c for c in harness.got['command'] if not c.safe_stop]
+    assert ok and all(math.isfinite(c.current_a) and abs(c.current_a) <= 20.0 for c in ok)
+
+    t = _now_ns(harness) + 1_000_000_000                   # later than every stamp sent so far
+    harness.send_sample(t, float('nan'))                   # NaN measurement: refused, 0 A
+    harness.wait_for(lambda: any(s.status == ControllerState.STATUS_INVALID_INPUT for s in harness.got['state']),
+                     what='invalid-input status')
+    bad = [c for c in harness.got['command'] if c.header.stamp == ns_to_stamp(t)]
+    assert bad and bad[-1].current_a == 0.0 and bad[-1].safe_stop
+
+    harness.got['state'].clear()                           # silence: stale measurement, 0 A
+    harness.wait_for(lambda: any(s.status == ControllerState.STATUS_STALE_MEASUREMENT
+                                 for s in harness.got['state']), what='stale-measurement status')
+    harness.got['command'].clear()
+    harness.spin(0.2)
+    assert harness.got['command'], 'the watchdog keeps commanding while stale'
+    assert all(c.current_a == 0.0 and c.safe_stop for c in harness.got['command'])
+
+    harness.got['state'].clear()                           # measurements without estimates: stale estimate
+    t = _now_ns(harness) + 2_000_000_000
+    for k in range(60):
+        harness.send_sample(t + k * period, 0.0, estimate=False)
+        harness.spin(0.004)
+    assert any(s.status == ControllerState.STATUS_STALE_ESTIMATE for s in harness.got['state'])
+    assert 'measurement refused' in ctrl.output and 'stale' in ctrl.output
+    assert ctrl.stop() == 0 and 'Traceback' not in ctrl.output
+
+
+def test_controller_latches_safe_stop_beyond_following_error(harness, ros_process):
+    from actuator_msgs.msg import ControllerState
+    ctrl = ros_process('actuator_controller', 'controller_node',
+                       ['--ros-args', '-p', 'following_error_limit_rad:=0.1', '-p', 'measurement_timeout_s:=0.05',
+                        '-p', 'estimate_timeout_s:=0.05'])
+    harness.wait_for(lambda: harness.node.count_subscribers('joint_states') >= 1, what='controller subscription')
+    harness.spin(0.5)
+    t = _now_ns(harness)
+    harness.send_sample(t, 0.5)                            # 0.5 rad off a reference that starts at 0
+    harness.wait_for(lambda: any(s.status == ControllerState.STATUS_DIVERGED for s in harness.got['state']),
+                     what='latched safe stop')
+    harness.send_sample(t + 5_000_000, 0.0)                # even a good sample stays at 0 A
+    harness.wait_for(lambda: len(harness.got['command']) >= 2, what='second command')
+    assert all(c.current_a == 0.0 and c.safe_stop for c in harness.got['command'])
+    assert 'following_error_limit_rad' in ctrl.output
+    assert ctrl.stop() == 0
+
+
+def test_plant_refuses_bad_commands_and_drops_to_zero_when_commands_stop(harness, ros_process):
+    plant = ros_process('actuator_plant', 'plant_node', ['--ros-args', '-p', 'command_timeout_s:=0.02',
+                                                         '-p', 'current_limit_a:=25.0'])
+    harness.wait_for(lambda: len(harness.got['truth']) > 10, what='plant samples')
+
+    def held_current():
+        harness.got['truth'].clear()
+        harness.wait_for(lambda: len(harness.got['truth']) > 3, what='truth')
+        return harness.got['truth'][-1].current_a
+
+    for _ in range(20):
+        harness.send_command(_now_ns(harness), 2.0)
+        harness.spin(0.002)
+    assert held_current() == 2.0
+    harness.spin(0.1)                                      # commands stopped: 0 A after the timeout
+    assert held_current() == 0.0
+    for bad in (float('nan'), float('inf'), 1.0e6):
+        for _ in range(5):
+            harness.send_command(_now_ns(harness), 2.0)
+            harness.spin(0.002)
+        harness.send_command(_now_ns(harness), bad)
+        harness.spin(0.003)
+        assert held_current() == 0.0, bad                 # never integrated: zero instead
+    assert 'refused' in plant.output
+    assert plant.stop() == 0 and 'Traceback' not in plant.output
+
+
+def test_eso_refuses_non_finite_measurements_and_commands(harness, ros_process):
+    eso = ros_process('actuator_eso', 'eso_node')
+    harness.wait_for(lambda: harness.node.count_subscribers('joint_states') >= 1, what='eso subscription')
+    harness.spin(0.5)
+    t = _now_ns(harness)
+    period = 1_000_000
+    for k in range(20):
+        harness.send_sample(t + k * period, 0.01, estimate=False)
+        harness.send_command(t + k * period, float('nan') if k == 5 else 1.0)
+        harness.spin(0.002)
+    harness.send_sample(t + 20 * period, float('nan'), estimate=False)
+    harness.spin(0.3)
+    assert len(harness.got['estimate']) >= 15
+    assert all(math.isfinite(e.velocity_rad_s) and math.isfinite(e.disturbance_rad_s2) for e in harness.got['estimate'])
+    assert all(math.isfinite(e.input_current_a) for e in harness.got['estimate'])
+    assert any(e.current_substituted for e in harness.got['estimate'])  # the NaN command's sample
+    assert 'refused' in eso.output
+    assert eso.stop() == 0
+
+
+@pytest.mark.parametrize('package, executable, args, names', [
+    ('actuator_controller', 'controller_node', ['-p', 'pp_nftsmc_eso.k0_per_s:=-5.0'], ['k0_per_s', '(0, 1e+06]']),
+    ('actuator_controller', 'controller_node', ['-p', 'controller:=lqr'], ['controller', 'pp_nftsmc_eso']),
+    ('actuator_controller', 'controller_node', ['-p', 'common.current_limit_a:=0.0'], ['current_limit_a']),
+    ('actuator_plant', 'plant_node', ['-p', 'working_condition:=custom', '-p', 'condition.temperature_c:=500.0'],
+     ['temperature_c', '[-10, 80] degC']),
+    ('actuator_plant', 'plant_node', ['-p', 'drift.inertia_amplitude:=1.5'], ['inertia_amplitude', '[0, 0.99]']),
+    ('actuator_eso', 'eso_node', ['-p', 'l3:=1.0e6'], ['l3']),
+    ('actuator_eso', 'eso_node', ['-p', 'omega0_rad_s:=-60.0'], ['omega0_rad_s']),
+])
+def test_invalid_parameter_is_refused_with_name_and_range(ros_process, package, executable, args, names):
+    proc = ros_process(package, executable, ['--ros-args', *args])
+    assert proc.wait(20.0) == 2
+    for name in names:
+        assert name in proc.stderr
+    assert 'Traceback' not in proc.output
+
+
+@pytest.mark.parametrize('package, executable', [
+    ('actuator_plant', 'plant_node'), ('actuator_eso', 'eso_node'), ('actuator_controller', 'controller_node')])
+@pytest.mark.parametrize('signal_name', ['SIGINT', 'SIGTERM'])
+def test_nodes_stop_cleanly_on_signals(ros_process, package, executable, signal_name):
+    import signal
+    proc = ros_process(package, executable)
+    proc.wait_for_output(r'\]: ', timeout=20.0)
+    time.sleep(0.5)
+    proc.popen.send_signal(getattr(signal, signal_name))
+    assert proc.wait(10.0) == 0
+    assert 'Traceback' not in proc.output and 'Failed to publish' not in proc.output
