@@ -123,8 +123,13 @@ class RunResult:
 
 def run_closed_loop(scenario: str, mode: str, duration_s: float | None = None, record: bool = True,
                     bag_root: Path = Path('bags'), results_root: Path = Path('results/runs'),
-                    executor: str = 'events', extra_params: Sequence[str] = (), quiet: bool = False) -> RunResult:
-    """Start the nodes for ``scenario`` in ``mode``, run to the end, stop everything, return the result."""
+                    executor: str = 'events', extra_params: Sequence[str] = (), quiet: bool = False,
+                    rt_priority: int = 0) -> RunResult:
+    """Start the nodes for ``scenario`` in ``mode``, run to the end, stop everything, return the result.
+
+    ``rt_priority`` > 0 runs plant, ESO and controller under SCHED_FIFO at that priority (the
+    recorder keeps normal scheduling, so it yields to the control loop).
+    """
     if mode not in MODES:
         raise SystemExit(f'bringup: mode must be one of {", ".join(MODES)}')
     params = scenario_file(scenario)
@@ -135,7 +140,8 @@ def run_closed_loop(scenario: str, mode: str, duration_s: float | None = None, r
     bag = bag_root / name if record else None
     sim = mode == 'sim'
     timing_log = run_dir / 'controller_timing.npz'
-    node_args = ['--executor', executor, '--ros-args', '--params-file', str(params), '-p', f'mode:={mode}']
+    priority = ['--rt-priority', str(rt_priority)] if rt_priority else []
+    node_args = ['--executor', executor, *priority, '--ros-args', '--params-file', str(params), '-p', f'mode:={mode}']
     clocked = ['-p', f'use_sim_time:={"true" if sim else "false"}']
     plan = []
     if bag is not None:
@@ -202,12 +208,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument('--no-record', action='store_true', help='do not start the recorder')
     parser.add_argument('--bags', type=Path, default=Path('bags'), help='folder for bags (default bags/)')
     parser.add_argument('--executor', choices=('events', 'single_threaded'), default='events')
+    parser.add_argument('--rt-priority', type=int, default=0, metavar='N',
+                        help='SCHED_FIFO priority of plant, ESO and controller (0 = normal scheduling)')
     args = parser.parse_args(argv)
     if args.duration is not None and not 0.0 < args.duration <= 3600.0:
         parser.error('--duration must be in (0, 3600] s')
     duration = args.duration if args.duration is not None else scenario_duration(args.scenario)
     result = run_closed_loop(args.scenario, args.mode, duration, not args.no_record, args.bags,
-                             executor=args.executor)
+                             executor=args.executor, rt_priority=args.rt_priority)
     print(json.dumps({'bag': str(result.bag), 'exit_codes': result.exit_codes, 'cpu_percent': result.cpu_percent,
                       'peak_rss_mb': result.peak_rss_mb}, indent=1))
     return 0 if all(code == 0 for code in result.exit_codes.values()) else 1

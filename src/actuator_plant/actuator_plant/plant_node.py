@@ -86,6 +86,7 @@ class PlantNode(Node):
         self.timeouts = 0
         self.waiting_since_ns = None      # sim: steady time sample k was published
         self.settle_until_ns = None       # start once the graph has been ready this long
+        self.next_sample = 0              # realtime: index of the next sample to publish
         self.joint_state = JointState(name=[self.joint_name], position=[0.0])
         self.truth = PlantTruth()
         self.truth.pressure_pa = float(params.condition.pressure_pa)
@@ -104,10 +105,18 @@ class PlantNode(Node):
                 and (self.wait_for_subscribers == 0 or self.count_publishers('current_command') >= 1))
 
     def _start(self) -> None:
-        """Fix the stamp of sample 0 and publish it."""
-        self.start_ns = 1_000_000_000 if self.mode == 'sim' else self.get_clock().now().nanoseconds
+        """Fix the stamp of sample 0 and publish it (realtime: at the timer's next tick).
+
+        realtime: the sample grid is anchored at the timer's next scheduled call, so each
+        stamp is the scheduled sampling instant and never later than the actual sampling;
+        whatever the tick is late by shows up in the measured latency, where it belongs.
+        """
         self.get_logger().info('sampling started')
-        self._publish_sample()
+        if self.mode == 'sim':
+            self.start_ns = 1_000_000_000
+            self._publish_sample()
+        else:
+            self.start_ns = self.get_clock().now().nanoseconds + self.timer.time_until_next_call()
 
     def on_tick(self) -> None:
         """Wall timer: start once the graph is ready; realtime: sample; sim: lockstep watchdog."""
@@ -128,10 +137,15 @@ class PlantNode(Node):
             self._advance(0.0)
 
     def _realtime_tick(self) -> None:
-        """Integrate every whole period elapsed since the last sample, then publish the newest sample."""
+        """Integrate every whole period elapsed since the last sample, then publish the newest sample.
+
+        rcl drops a late timer tick without replaying it; the samples it covered are then
+        integrated here with the current held, and only the newest is published (the
+        controller counts the gap as missed samples).
+        """
         now = self.get_clock().now().nanoseconds
         due = (now - self.start_ns) // self.period_ns
-        if due <= self.plant.sample_index:
+        if due < self.next_sample:
             return
         if self.last_command_wall_ns is not None and \
                 self.wall.now().nanoseconds - self.last_command_wall_ns > self.command_timeout_s * 1e9:
@@ -141,6 +155,7 @@ class PlantNode(Node):
             self.current_a = 0.0
         while self.plant.sample_index < due:
             self.plant.step(self.current_a)
+        self.next_sample = due + 1
         self._publish_sample()
 
     def _advance(self, current_a: float) -> None:
