@@ -149,8 +149,10 @@ def run_closed_loop(scenario: str, mode: str, duration_s: float | None = None, r
         plan.append(('recorder', 'actuator_bag', 'recorder', ['--ros-args', '-p', f'output:={bag}', *clocked]))
     plan += [('controller', 'actuator_controller', 'controller_node',
               node_args + clocked + ['-p', f'timing_log:={timing_log}', *extra_params]),
-             ('eso', 'actuator_eso', 'eso_node', node_args + clocked + list(extra_params))]
-    plant_args = node_args + ['-p', f'wait_for_subscribers:={3 if bag else 2}']
+             ('eso', 'actuator_eso', 'eso_node',
+              node_args + clocked + ['-p', f'stats_log:={run_dir / "eso_stats.json"}', *extra_params])]
+    plant_args = node_args + ['-p', f'wait_for_subscribers:={3 if bag else 2}',
+                              '-p', f'timing_log:={run_dir / "plant_samples.npz"}']
     if duration_s is not None:
         plant_args += ['-p', f'stop_after_s:={duration_s}']
     plan.append(('plant', 'actuator_plant', 'plant_node', plant_args))

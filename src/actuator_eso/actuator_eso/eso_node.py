@@ -19,6 +19,7 @@ which happens only when the plant stepped without a command after its lockstep t
 
 from __future__ import annotations
 
+import json
 import math
 
 from rclpy.node import Node
@@ -52,6 +53,8 @@ class EsoNode(Node):
         self.max_abs_current_a = declare_number(self, 'max_abs_current_a', 1.0e3, 0.0, 1.0e5, 'A',
                                                 'commands beyond are refused')
         self.joint_name = self.declare_parameter('joint_name', 'joint').value
+        self.stats_log = self.declare_parameter('stats_log', '').value
+        self.steps = 0
         self.period_ns = period_ns(self.dt_s)
         self.patience_ns = self.period_ns * (2 if self.mode == 'sim' else 1)
         qos = control_qos(self.mode)
@@ -119,6 +122,7 @@ class EsoNode(Node):
             y_used = y if y is not None else self.x_hat[0]
             u_used = u if u is not None else self.last_current
             self.x_hat = eso_step(*self.x_hat, y_used, u_used, self.dt_s, self.gains)
+            self.steps += 1
             self.last_current = u_used
             self.measurements.pop(k, None)
             self.currents.pop(k, None)
@@ -146,8 +150,13 @@ class EsoNode(Node):
         self.pub.publish(m)
 
     def close(self) -> None:
-        """Log a one-line summary at shutdown."""
-        self.get_logger().info(f'stopped; substituted pairs {self.substituted}, refused inputs {self.refused}')
+        """Log a one-line summary at shutdown; write the pairing counts as JSON if asked."""
+        self.get_logger().info(f'stopped; steps {self.steps}, substituted pairs {self.substituted}, '
+                               f'refused inputs {self.refused}')
+        if self.stats_log:
+            with open(self.stats_log, 'w') as f:
+                json.dump({'steps': self.steps, 'exact_pairs': self.steps - self.substituted,
+                           'substituted_pairs': self.substituted, 'refused_inputs': self.refused}, f)
 
 
 def main(argv=None) -> int:

@@ -16,7 +16,10 @@ deterministic and as fast as the three processes allow.
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import replace
+
+import numpy as np
 
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
@@ -69,6 +72,12 @@ class PlantNode(Node):
         self.stop_after_s = declare_number(self, 'stop_after_s', 0.0, 0.0, 1.0e6, 's',
                                            'end the run (exit 0) after this much simulated time; 0 runs until stopped')
         self.joint_name = self.declare_parameter('joint_name', 'joint').value
+        self.timing_log = self.declare_parameter('timing_log', '').value
+        # Per published sample: stamp, wall ns at publication, stamp of the command held over the
+        # preceding interval (-1: none yet / zero after a timeout). Written to timing_log (.npz).
+        self.samples_log = np.full((3_600_000, 3), -1, dtype=np.int64)
+        self.samples_logged = 0
+        self.held_stamp_ns = -1
         self.plant = JointPlant(params, self.dt_s, position_rad=declare_number(
             self, 'initial_position_rad', 0.0, -100.0, 100.0, 'rad', 'joint angle at sample 0'))
         self.period_ns = period_ns(self.dt_s)
@@ -149,6 +158,7 @@ class PlantNode(Node):
             return
         if self.last_command_wall_ns is not None and \
                 self.wall.now().nanoseconds - self.last_command_wall_ns > self.command_timeout_s * 1e9:
+            self.held_stamp_ns = -1
             if self.current_a != 0.0:
                 self.timeouts += 1
                 self.log.warn('command_timeout', lambda: 'commands stopped: current set to 0 A')
@@ -179,6 +189,9 @@ class PlantNode(Node):
         self.joint_state.header.stamp = stamp
         self.joint_state.position[0] = float(self.plant.position_rad)
         self.state_pub.publish(self.joint_state)
+        if self.samples_logged < len(self.samples_log):
+            self.samples_log[self.samples_logged] = (stamp_to_ns(stamp), time.time_ns(), self.held_stamp_ns)
+            self.samples_logged += 1
         self._publish_truth(stamp)
 
     def _publish_truth(self, stamp: Time) -> None:
@@ -216,15 +229,20 @@ class PlantNode(Node):
             return
         if self.mode == 'realtime':
             self.current_a = current
+            self.held_stamp_ns = stamp_to_ns(msg.header.stamp)
             self.last_command_wall_ns = self.wall.now().nanoseconds
             return
         expected = self.start_ns + self.plant.sample_index * self.period_ns
         if stamp_to_ns(msg.header.stamp) == expected and self.waiting_since_ns is not None:
             self.waiting_since_ns = None
+            self.held_stamp_ns = expected
             self._advance(current)
 
     def close(self) -> None:
-        """Log a one-line summary at shutdown."""
+        """Log a one-line summary at shutdown; write the per-sample log if asked."""
+        if self.timing_log:
+            rows = self.samples_log[:self.samples_logged]
+            np.savez(self.timing_log, stamp_ns=rows[:, 0], published_wall_ns=rows[:, 1], held_command_stamp_ns=rows[:, 2])
         self.get_logger().info(
             f'stopped at sample {self.plant.sample_index} (t = {self.plant.time_s:.3f} s); '
             f'refused commands {self.rejected_commands}, command timeouts {self.timeouts}')
