@@ -1,0 +1,140 @@
+"""The closed loop across processes: sim time equals the offline core, real time runs, the main job reports."""
+
+import ast
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from ros_helpers import executable_path
+
+
+@pytest.fixture
+def isolated(ros_env, monkeypatch, tmp_path):
+    """Run bring-up code in this process with the test's isolated ROS environment and a scratch cwd."""
+    for key, value in ros_env.items():
+        monkeypatch.setenv(key, value)
+    monkeypatch.chdir(tmp_path)
+    return tmp_path
+
+
+@pytest.mark.parametrize('controller', ['pp_nftsmc_eso', 'nftsmc_eso', 'smc_eso', 'pi'])
+def test_sim_mode_across_three_processes_equals_the_offline_core(isolated, controller):
+    from actuator_bag.analyze import load_run
+    from actuator_bringup.bringup import run_closed_loop
+    from actuator_bringup.closed_loop import ClosedLoop
+    from actuator_bringup.main import compare_with_offline
+    from actuator_bringup.params_yaml import all_scenarios
+
+    scenario_name = f'case2_{controller}'
+    result = run_closed_loop(scenario_name, 'sim', 2.0, record=True, bag_root=isolated / 'bags',
+                             results_root=isolated / 'runs', quiet=True)
+    assert all(code == 0 for code in result.exit_codes.values()), result.exit_codes
+    scenario = all_scenarios()[scenario_name]
+    scenario.duration_s = 2.0
+    offline = ClosedLoop(scenario).run()
+    run = load_run(result.bag, quiet=True)
+    comparison = compare_with_offline(run, offline)
+    assert comparison['samples_compared'] == 2000
+    assert comparison['identical'], comparison        # bit for bit, sample by sample
+    eso = json.loads((result.run_dir / 'eso_stats.json').read_text())
+    assert eso['substituted_pairs'] == 0 and eso['exact_pairs'] >= 2000
+
+
+def test_realtime_mode_closes_the_loop_and_reports_timing(isolated):
+    from actuator_bag.analyze import analyze_run, load_run
+    from actuator_bringup.bringup import run_closed_loop
+    from actuator_bringup.main import timing_figures
+
+    result = run_closed_loop('case2_pp_nftsmc_eso', 'realtime', 6.0, record=True, bag_root=isolated / 'bags',
+                             results_root=isolated / 'runs', quiet=True, rt_priority=50)
+    assert all(code == 0 for code in result.exit_codes.values()), result.exit_codes
+    timing = timing_figures(result)
+    assert timing['updates'] > 3000                     # most of the 6000 samples were controlled
+    assert 0.0 < timing['latency_us']['p50'] < 1.0e5
+    report = analyze_run(load_run(result.bag, quiet=True))
+    assert not report.metrics.diverged
+    assert report.metrics.max_abs_current_a <= 20.0 + 1e-9
+    plant = np.load(result.run_dir / 'plant_samples.npz')
+    assert plant['stamp_ns'].size > 5000 and np.all(np.diff(plant['stamp_ns']) % 1_000_000 == 0)
+    assert all(v is None or v < 400.0 for v in result.cpu_percent.values())
+    assert all(0.0 < v < 1000.0 for v in result.peak_rss_mb.values())
+
+
+def test_main_job_prints_the_report_and_writes_figures(ros_env, tmp_path):
+    env = dict(ros_env)
+    proc = subprocess.run([sys.executable, '-m', 'actuator_bringup.main', '--duration', '6', '--modes', 'sim',
+                           '--out', str(tmp_path / 'out')], env=env, cwd=tmp_path, capture_output=True, text=True,
+                          timeout=300)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert 'max steady-state error [5, 6] s' in proc.stdout
+    assert 'identical' in proc.stdout and 'PPF bounds kept' in proc.stdout
+    report = json.loads((tmp_path / 'out' / 'report.json').read_text())
+    sim = report['runs']['sim']
+    assert sim['offline_comparison']['identical']
+    assert sim['metrics']['max_steady_error_rad'] == pytest.approx(report['offline']['max_steady_error_rad'])
+    assert {Path(f).name for f in sim['figures']} == {'position.png', 'tracking_error.png', 'velocity_estimate.png',
+                                                      'disturbance_estimate.png', 'control_input.png'}
+    assert all(Path(f).stat().st_size > 10_000 for f in sim['figures'])
+    assert list((tmp_path / 'bags').iterdir())          # the run was recorded under bags/
+
+
+def test_installed_scenario_files_match_the_scenarios():
+    from ament_index_python.packages import get_package_share_directory
+
+    from actuator_bringup.params_yaml import all_scenarios, scenario_parameters
+
+    config = Path(get_package_share_directory('actuator_bringup')) / 'config'
+    scenarios = all_scenarios()
+    assert {p.stem for p in config.glob('*.yaml')} == set(scenarios)
+    assert len(scenarios) == 9                           # Case 1's four runs, Case 2's four + SMC as printed
+    for name, scenario in scenarios.items():
+        assert yaml.safe_load((config / f'{name}.yaml').read_text()) == scenario_parameters(scenario), name
+
+
+def test_launch_file_is_installed_and_starts_the_same_executables():
+    from ament_index_python.packages import get_package_share_directory
+
+    launch = Path(get_package_share_directory('actuator_bringup')) / 'launch' / 'closed_loop.launch.py'
+    tree = ast.parse(launch.read_text())
+    names = {n.name for n in ast.walk(tree) if isinstance(n, ast.FunctionDef)}
+    assert 'generate_launch_description' in names
+    text = launch.read_text()
+    for package, executable in (('actuator_plant', 'plant_node'), ('actuator_eso', 'eso_node'),
+                                ('actuator_controller', 'controller_node'), ('actuator_bag', 'recorder')):
+        assert f"package='{package}', executable='{executable}'" in text
+        assert os.access(executable_path(package, executable), os.X_OK)
+
+
+def test_offline_sim_cli_writes_json_and_refuses_bad_input(tmp_path):
+    exe = executable_path('actuator_bringup', 'offline_sim')
+    out = tmp_path / 'run.json'
+    proc = subprocess.run([exe, 'run', '--controller', 'pi', '--duration', '6', '--json', str(out),
+                           '--traces', str(tmp_path / 'traces')], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(out.read_text())
+    metrics = data['runs'][0]['metrics']
+    assert metrics['samples'] == 6000 and not metrics['diverged'] and metrics['max_steady_error_rad'] > 0.0
+    trace = np.load(tmp_path / 'traces' / 'run' / 'run_pi_fast_deep_sea.npz')
+    assert trace['error_rad'].shape == (6000,)
+    bad = subprocess.run([exe, 'run', '--duration', '-1'], capture_output=True, text=True, timeout=60)
+    assert bad.returncode == 2 and 'duration' in bad.stderr and 'Traceback' not in bad.stderr
+
+
+def test_stability_check_cli_verdicts():
+    exe = executable_path('actuator_bringup', 'stability_check')
+    stable = subprocess.run([exe, '--controller', 'pp_nftsmc_eso'], capture_output=True, text=True, timeout=120)
+    assert stable.returncode == 0 and 'STABLE' in stable.stdout
+    late = subprocess.run([exe, '--controller', 'pp_nftsmc_eso', '--eso-delay', '1', '--json'],
+                          capture_output=True, text=True, timeout=120)
+    assert late.returncode == 1 and json.loads(late.stdout)['stable'] is False
+    smc = subprocess.run([exe, '--controller', 'smc_eso'], capture_output=True, text=True, timeout=120)
+    assert smc.returncode == 1 and 'UNSTABLE' in smc.stdout
+    wrong = subprocess.run([exe, '--controller', 'pi', '--set', 'k0_per_s=5'], capture_output=True, text=True,
+                           timeout=60)
+    assert wrong.returncode != 0 and 'k0_per_s' in wrong.stderr
