@@ -28,6 +28,7 @@ from rclpy.node import Node
 
 from actuator_common.ros import RateLimitedLog, MODES, ParameterError, control_qos, declare_choice, declare_number, \
     declare_spec_parameters, joint_position, ns_to_stamp, run_node, stamp_to_ns
+from actuator_common.sample_log import SampleLog
 from actuator_common.timing import period_ns, sample_time_s
 from actuator_controller.laws import CONTROLLER_NAMES, GAINS_BY_NAME, CommonConfig, ControlOutput, make_controller
 from actuator_controller.reference import make_reference
@@ -36,8 +37,6 @@ from sensor_msgs.msg import JointState
 
 #: Estimates kept while waiting for their measurement.
 PENDING_LIMIT = 64
-#: Raw timing samples kept for the log (one per control update).
-TIMING_CAPACITY = 3_600_000
 
 
 
@@ -98,8 +97,7 @@ class ControllerNode(Node):
         self.estimates_in = 0
         self.cmd = CurrentCommand()
         self.state = ControllerState(controller_name=name)
-        self.timing = np.zeros((TIMING_CAPACITY, 4), dtype=np.int64)  # wall ns, stamp ns, latency ns, compute ns
-        self.timing_count = 0
+        self.timing = SampleLog(('received_wall_ns', 'stamp_ns', 'latency_ns', 'compute_ns'))
         self.get_logger().info(f'{name} on the {kind} reference, {self.mode} mode, current limit '
                                f'{common.current_limit_a} A')
 
@@ -186,9 +184,7 @@ class ControllerNode(Node):
             self.late += 1
             self.log.warn('late', lambda: f'late sample: command {latency_ns / 1e3:.0f} us after its measurement '
                                           f'(late {self.late}, missed {self.missed})')
-        if self.timing_count < TIMING_CAPACITY:
-            self.timing[self.timing_count] = (received_ns, stamp, latency_ns, compute_ns)
-            self.timing_count += 1
+        self.timing.append((received_ns, stamp, latency_ns, compute_ns))
         self.status = status
         self._publish_state(stamp, y, estimate, ref, out, current, compute_ns)
 
@@ -264,8 +260,8 @@ class ControllerNode(Node):
     # --- shutdown -------------------------------------------------------------------------
     def timing_summary(self) -> dict:
         """Period, latency and compute-time percentiles of the control updates so far."""
-        rows = self.timing[:self.timing_count]
-        summary = {'updates': int(self.timing_count), 'measurements_in': self.measurements_in,
+        rows = self.timing.array()
+        summary = {'updates': self.timing.rows, 'measurements_in': self.measurements_in,
                    'estimates_in': self.estimates_in, 'late': self.late, 'missed': self.missed,
                    'unanswered': self.unanswered, 'stale_events': self.stale_events, 'refused_inputs': self.refused}
         if len(rows) > 2:
@@ -287,9 +283,7 @@ class ControllerNode(Node):
         self.get_logger().info('timing ' + ' '.join(f'{k}={v:.1f}' if isinstance(v, float) else f'{k}={v}'
                                                     for k, v in summary.items()))
         if self.timing_log:
-            np.savez(self.timing_log, received_wall_ns=self.timing[:self.timing_count, 0],
-                     stamp_ns=self.timing[:self.timing_count, 1], latency_ns=self.timing[:self.timing_count, 2],
-                     compute_ns=self.timing[:self.timing_count, 3])
+            self.timing.save(self.timing_log)
 
 
 

@@ -19,13 +19,12 @@ import math
 import time
 from dataclasses import replace
 
-import numpy as np
-
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 
 from actuator_common.ros import RateLimitedLog, MODES, ParameterError, control_qos, declare_choice, declare_number, \
     declare_spec_parameters, ns_to_stamp, run_node, stamp_to_ns
+from actuator_common.sample_log import SampleLog
 from actuator_common.timing import period_ns
 from actuator_msgs.msg import CurrentCommand, PlantTruth
 from actuator_plant.model import JointPlant, PlantParameters, WorkingCondition
@@ -75,8 +74,7 @@ class PlantNode(Node):
         self.timing_log = self.declare_parameter('timing_log', '').value
         # Per published sample: stamp, wall ns at publication, stamp of the command held over the
         # preceding interval (-1: none yet / zero after a timeout). Written to timing_log (.npz).
-        self.samples_log = np.full((3_600_000, 3), -1, dtype=np.int64)
-        self.samples_logged = 0
+        self.samples_log = SampleLog(('stamp_ns', 'published_wall_ns', 'held_command_stamp_ns'))
         self.held_stamp_ns = -1
         self.plant = JointPlant(params, self.dt_s, position_rad=declare_number(
             self, 'initial_position_rad', 0.0, -100.0, 100.0, 'rad', 'joint angle at sample 0'))
@@ -189,9 +187,7 @@ class PlantNode(Node):
         self.joint_state.header.stamp = stamp
         self.joint_state.position[0] = float(self.plant.position_rad)
         self.state_pub.publish(self.joint_state)
-        if self.samples_logged < len(self.samples_log):
-            self.samples_log[self.samples_logged] = (stamp_to_ns(stamp), time.time_ns(), self.held_stamp_ns)
-            self.samples_logged += 1
+        self.samples_log.append((stamp_to_ns(stamp), time.time_ns(), self.held_stamp_ns))
         self._publish_truth(stamp)
 
     def _publish_truth(self, stamp: Time) -> None:
@@ -241,8 +237,7 @@ class PlantNode(Node):
     def close(self) -> None:
         """Log a one-line summary at shutdown; write the per-sample log if asked."""
         if self.timing_log:
-            rows = self.samples_log[:self.samples_logged]
-            np.savez(self.timing_log, stamp_ns=rows[:, 0], published_wall_ns=rows[:, 1], held_command_stamp_ns=rows[:, 2])
+            self.samples_log.save(self.timing_log)
         self.get_logger().info(
             f'stopped at sample {self.plant.sample_index} (t = {self.plant.time_s:.3f} s); '
             f'refused commands {self.rejected_commands}, command timeouts {self.timeouts}')
