@@ -48,6 +48,12 @@ def scenario_file(scenario: str) -> Path:
     return path
 
 
+#: CPU layout of ``--pin`` on a 2-core machine: the ESO and the controller work in strict
+#: sequence each sample (command -> estimate -> command), so they share a core; the plant
+#: (and, unpinned, the recorder) use the other.
+PINNING = {'plant': '0', 'eso': '1', 'controller': '1'}
+
+
 def scenario_duration(scenario: str) -> float:
     """The paper scenario's run length [s] (10 s for any other parameter file)."""
     from actuator_bringup.params_yaml import all_scenarios
@@ -124,12 +130,14 @@ class RunResult:
 def run_closed_loop(scenario: str, mode: str, duration_s: float | None = None, record: bool = True,
                     bag_root: Path = Path('bags'), results_root: Path = Path('results/runs'),
                     executor: str = 'events', extra_params: Sequence[str] = (), quiet: bool = False,
-                    rt_priority: int = 0) -> RunResult:
+                    rt_priority: int = 0, cpus: dict[str, str] | None = None) -> RunResult:
     """Start the nodes for ``scenario`` in ``mode``, run to the end, stop everything, return the result.
 
     ``rt_priority`` > 0 runs plant, ESO and controller under SCHED_FIFO at that priority (the
-    recorder keeps normal scheduling, so it yields to the control loop).
+    recorder keeps normal scheduling, so it yields to the control loop). ``cpus`` pins nodes to
+    CPUs by key ('plant', 'eso', 'controller'), e.g. {'plant': '0', 'eso': '1', 'controller': '1'}.
     """
+    cpus = cpus or {}
     if mode not in MODES:
         raise SystemExit(f'bringup: mode must be one of {", ".join(MODES)}')
     params = scenario_file(scenario)
@@ -147,12 +155,15 @@ def run_closed_loop(scenario: str, mode: str, duration_s: float | None = None, r
     if bag is not None:
         bag_root.mkdir(parents=True, exist_ok=True)
         plan.append(('recorder', 'actuator_bag', 'recorder', ['--ros-args', '-p', f'output:={bag}', *clocked]))
+    def pinned(key: str) -> list[str]:
+        return ['--cpus', cpus[key]] + node_args if key in cpus else node_args
+
     plan += [('controller', 'actuator_controller', 'controller_node',
-              node_args + clocked + ['-p', f'timing_log:={timing_log}', *extra_params]),
+              pinned('controller') + clocked + ['-p', f'timing_log:={timing_log}', *extra_params]),
              ('eso', 'actuator_eso', 'eso_node',
-              node_args + clocked + ['-p', f'stats_log:={run_dir / "eso_stats.json"}', *extra_params])]
-    plant_args = node_args + ['-p', f'wait_for_subscribers:={3 if bag else 2}',
-                              '-p', f'timing_log:={run_dir / "plant_samples.npz"}']
+              pinned('eso') + clocked + ['-p', f'stats_log:={run_dir / "eso_stats.json"}', *extra_params])]
+    plant_args = pinned('plant') + ['-p', f'wait_for_subscribers:={3 if bag else 2}',
+                                    '-p', f'timing_log:={run_dir / "plant_samples.npz"}']
     if duration_s is not None:
         plant_args += ['-p', f'stop_after_s:={duration_s}']
     plan.append(('plant', 'actuator_plant', 'plant_node', plant_args))
@@ -212,12 +223,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument('--executor', choices=('events', 'single_threaded'), default='events')
     parser.add_argument('--rt-priority', type=int, default=0, metavar='N',
                         help='SCHED_FIFO priority of plant, ESO and controller (0 = normal scheduling)')
+    parser.add_argument('--pin', action='store_true',
+                        help='pin the plant to CPU 0 and the ESO and controller (which run in sequence) to CPU 1')
     args = parser.parse_args(argv)
     if args.duration is not None and not 0.0 < args.duration <= 3600.0:
         parser.error('--duration must be in (0, 3600] s')
     duration = args.duration if args.duration is not None else scenario_duration(args.scenario)
     result = run_closed_loop(args.scenario, args.mode, duration, not args.no_record, args.bags,
-                             executor=args.executor, rt_priority=args.rt_priority)
+                             executor=args.executor, rt_priority=args.rt_priority,
+                             cpus=PINNING if args.pin else None)
     print(json.dumps({'bag': str(result.bag), 'exit_codes': result.exit_codes, 'cpu_percent': result.cpu_percent,
                       'peak_rss_mb': result.peak_rss_mb}, indent=1))
     return 0 if all(code == 0 for code in result.exit_codes.values()) else 1

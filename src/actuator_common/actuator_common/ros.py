@@ -136,9 +136,16 @@ def run_node(prog: str, description: str, node_factory: Callable[[], Node], argv
                         help='rclpy executor (default: events, the lower-latency EventsExecutor)')
     parser.add_argument('--rt-priority', type=int, default=0, metavar='N',
                         help='run under SCHED_FIFO at priority N (1-99; 0 = normal scheduling)')
+    parser.add_argument('--cpus', default='', metavar='LIST',
+                        help='pin the process to these CPUs, e.g. "1" or "0,1" (default: no pinning)')
     parsed = parser.parse_args(rclpy.utilities.remove_ros_args(args))
     if not 0 <= parsed.rt_priority <= 99:
         parser.error('--rt-priority must be in [0, 99]')
+    if parsed.cpus:
+        try:
+            os.sched_setaffinity(0, {int(c) for c in parsed.cpus.split(',')})
+        except (ValueError, OSError) as exc:
+            parser.error(f'--cpus {parsed.cpus!r} refused: {exc}')
     stop = threading.Event()
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda *_: stop.set())
