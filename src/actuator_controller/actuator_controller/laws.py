@@ -85,14 +85,14 @@ class SmcGains:
 
 @dataclass(frozen=True)
 class NftsmcGains:
-    """NFTSMC-ESO gains of eq. (47)-(49), Table 4 (u_sw uses k3, see module docstring)."""
+    """NFTSMC-ESO gains of eq. (47)-(49), (A9), Table 4 (u_sw uses k3, see module docstring)."""
 
-    k1: float = spec(1000.0, 'k1: weight of |z1|^[alpha1] in the sliding integral (A9)', '', 0.0, 1.0e7)
-    k2: float = spec(20.0, 'k2: weight of |z2|^[alpha2] in the sliding integral (A9)', '', 0.0, 1.0e7)
-    k3_per_s: float = spec(200.0, 'k3: linear reaching gain of u_sw', '1/s', 0.0, 1.0e6)
+    k1: float = spec(1000.0, 'k1: weight of |z1|^[alpha1] in the sliding integral (27)/(A9)', '', 0.0, 1.0e7)
+    k2: float = spec(20.0, 'k2: weight of |z2|^[alpha2] in the sliding integral (27)/(A9)', '', 0.0, 1.0e7)
+    k3_per_s: float = spec(200.0, 'k3: linear reaching gain of u_sw (34)', '1/s', 0.0, 1.0e6)
     alpha1: float = spec(1.1, 'alpha1: power on z1 (Table 4)', '', 0.0, 3.0, low_open=True)
     alpha2: float = spec(1.3, 'alpha2: power on z2 (Table 4)', '', 0.0, 3.0, low_open=True)
-    eta_rad_s2: float = spec(0.1, 'eta: switching gain of u_sw', 'rad/s^2', 0.0, 1.0e6)
+    eta_rad_s2: float = spec(0.1, 'eta: switching gain of u_sw (34)', 'rad/s^2', 0.0, 1.0e6)
 
     def __post_init__(self) -> None:
         """Refuse out-of-range values."""
@@ -100,22 +100,12 @@ class NftsmcGains:
 
 
 @dataclass(frozen=True)
-class PpNftsmcGains:
-    """PP-NFTSMC-ESO gains of eq. (23), (27), (33)-(35), Table 4, and its envelope (8)."""
+class PpNftsmcGains(NftsmcGains):
+    """PP-NFTSMC-ESO gains: NFTSMC-ESO's, which the paper says it inherits, plus (23), (35) and the envelope (8)."""
 
     k0_per_s: float = spec(100.0, 'k0: virtual-control gain of (23)', 'rad/s', 0.0, 1.0e6, low_open=True)
-    k1: float = spec(1000.0, 'k1: weight of |z1|^[alpha1] in (27)', '', 0.0, 1.0e7)
-    k2: float = spec(20.0, 'k2: weight of |z2|^[alpha2] in (27)', '', 0.0, 1.0e7)
-    k3_per_s: float = spec(200.0, 'k3: linear reaching gain of (34)', '1/s', 0.0, 1.0e6)
-    alpha1: float = spec(1.1, 'alpha1: power on z1 in (27) (Table 4)', '', 0.0, 3.0, low_open=True)
-    alpha2: float = spec(1.3, 'alpha2: power on z2 in (27) (Table 4)', '', 0.0, 3.0, low_open=True)
-    eta_rad_s2: float = spec(0.1, 'eta: switching gain of (34)', 'rad/s^2', 0.0, 1.0e6)
     tau_rad_s: float = spec(0.06, 'tau: width of the tanh in u_b (35)', 'rad/s', 0.0, 1.0e3, low_open=True)
     ppf: PrescribedPerformance = field(default_factory=PrescribedPerformance)
-
-    def __post_init__(self) -> None:
-        """Refuse out-of-range values."""
-        validate(self)
 
 
 class ControlOutput(NamedTuple):
