@@ -66,7 +66,7 @@ class ClosedLoop:
     def step(self) -> dict:
         """Run sample k in the node order; return every recorded quantity of that sample."""
         t = sample_time_s(self.sample_index * self.period_ns)
-        y = self.plant.position_rad
+        y, velocity = self.plant.position_rad, self.plant.velocity_rad_s
         truth = self.plant.truth(self.last_current)
         x1_hat, x2_hat, x3_hat = self.eso.state
         ref = self.reference.sample(t)
@@ -76,7 +76,7 @@ class ClosedLoop:
         self.last_current = out.current_a
         self.sample_index += 1
         record = dict(zip(EXTRA_FIELDS, (t, ref.position_rad, ref.velocity_rad_s, ref.acceleration_rad_s2, y,
-                                         x1_hat, x2_hat, x3_hat, truth_velocity(truth, self.plant, y),
+                                         x1_hat, x2_hat, x3_hat, velocity,
                                          truth.disturbance_rad_s2)))
         record.update(out._asdict())
         return record
@@ -98,7 +98,3 @@ class ClosedLoop:
                 break
         return {name: np.array([r[name] for r in rows], dtype=float) for name in TRACE_FIELDS}
 
-
-def truth_velocity(truth, plant: JointPlant, y):
-    """True joint velocity at t_k (the plant's state; ``truth`` is evaluated at the same instant)."""
-    return plant.velocity_rad_s

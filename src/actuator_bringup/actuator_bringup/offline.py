@@ -7,6 +7,7 @@ so Figures 5-7 can be drawn (``bag_analyze`` draws them from bags; ``--plot`` he
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import sys
@@ -42,7 +43,7 @@ def run_scenario(scenario: Scenario) -> tuple[dict[str, np.ndarray], RunMetrics,
     wall = time.perf_counter() - start
     metrics = trace_metrics(trace)
     if len(trace['t_s']) < scenario.samples:
-        metrics = __import__('dataclasses').replace(metrics, diverged=True)
+        metrics = dataclasses.replace(metrics, diverged=True)
     radius = max(r for _, r in radius_along_envelope(scenario.controller, scenario.gains, times_s=(0.0, 5.0, 10.0),
                                                      eso=scenario.eso, dt_s=scenario.common.dt_s,
                                                      plant=scenario.plant))
@@ -91,7 +92,7 @@ def run_case(runs: list[tuple[Scenario, float]], traces_dir: Path | None) -> lis
         rows.append({'name': scenario.name, 'controller': scenario.controller, 'reference': scenario.reference,
                      'pressure_pa': scenario.plant.condition.pressure_pa,
                      'temperature_c': scenario.plant.condition.temperature_c,
-                     'gains': None if scenario.gains is None else __import__('dataclasses').asdict(scenario.gains),
+                     'gains': None if scenario.gains is None else dataclasses.asdict(scenario.gains),
                      'paper_rad': paper, 'metrics': metrics.as_dict(), 'spectral_radius': radius,
                      'verdict': verdict(metrics, radius), 'wall_s': wall,
                      'realtime_factor': scenario.duration_s / wall})

@@ -108,11 +108,6 @@ def declare_number(node: Node, name: str, default: float | int, low: float, high
     return value if isinstance(default, int) else float(value)
 
 
-def spec_parameter_names(cls: type, prefix: str = '') -> list[str]:
-    """Dotted parameter names a node declares for ``cls`` (for docs and YAML checks)."""
-    return [prefix + name for name, _ in iter_specs(cls)]
-
-
 def make_executor(kind: str):
     """The executor by name: 'events' (rclpy.experimental.EventsExecutor) or 'single_threaded'."""
     if kind == 'events':

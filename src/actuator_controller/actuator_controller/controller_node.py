@@ -247,14 +247,14 @@ class ControllerNode(Node):
             return
         now = self.get_clock().now().nanoseconds
         if now - self.last_measurement_ns > self.measurement_timeout_ns:
-            reason, status = 'measurement', ControllerState.STATUS_STALE_MEASUREMENT
+            reason, status, age_ns = 'measurement', ControllerState.STATUS_STALE_MEASUREMENT, now - self.last_measurement_ns
         elif self.needs_estimate and now - self.newest_estimate_ns > self.estimate_timeout_ns:
-            reason, status = 'estimate', ControllerState.STATUS_STALE_ESTIMATE
+            reason, status, age_ns = 'estimate', ControllerState.STATUS_STALE_ESTIMATE, now - self.newest_estimate_ns
         else:
             return
         if self.status != status:
             self.stale_events += 1
-        self.log.warn('stale', lambda: f'stale {reason} ({(now - (self.last_measurement_ns if reason == "measurement" else self.newest_estimate_ns)) / 1e6:.1f} ms old): commanding 0 A')
+        self.log.warn('stale', lambda: f'stale {reason} ({age_ns / 1e6:.1f} ms old): commanding 0 A')
         self._safe_command(now, status)
 
     # --- shutdown -------------------------------------------------------------------------
