@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any, Optional, Sequence
 
 import numpy as np
+import yaml
 from actuator_common.metrics import STEADY_STATE_START_S, RunMetrics, compute_run_metrics
 
 from .errors import AnalysisError, BagError, run_cli
@@ -139,7 +140,22 @@ def load_run(path: os.PathLike | str, source: Optional[DefinitionSource] = None,
             if done % 1000 == 0:
                 progress.update(done)
         progress.update(done)
-    return _assemble(path, rows)
+    run = _assemble(path, rows)
+    if _logged_in_sim_time(path):
+        # Log times on a sim clock say when /clock had advanced, not when a message arrived:
+        # no latency can be read from them.
+        run.command_latency_s = np.empty(0)
+    return run
+
+
+def _logged_in_sim_time(path: Path) -> bool:
+    """True when the recorder wrote log times on sim time (metadata.yaml custom_data)."""
+    meta = path / 'metadata.yaml' if path.is_dir() else path.parent / 'metadata.yaml'
+    try:
+        info = yaml.safe_load(meta.read_text())['rosbag2_bagfile_information']
+        return 'sim time' in str((info.get('custom_data') or {}).get('log_time', ''))
+    except (OSError, KeyError, TypeError, yaml.YAMLError):
+        return False
 
 
 def _extract(kind: str, msg: Any, log_ns: int) -> tuple:
