@@ -234,8 +234,10 @@ def test_replay_reproduces_the_recording(ros_env, ros_process, tmp_path: Path) -
     assert pub.wait(60) == 0, pub.describe()
     assert recorder.stop() == 0, recorder.describe()
     second = tmp_path / 'second'
-    recorder2 = _start_recorder(ros_process, second)
-    player = ros_process('actuator_bag', 'player', [str(first), '--wait-for-subscribers', '1', '--start-delay', '1.0'])
+    # Reliable on both ends: the comparison is about the bytes, and a reliable pair cannot drop
+    # a message even when the machine is loaded (best effort may, by design).
+    recorder2 = _start_recorder(ros_process, second, '--reliability', 'reliable')
+    player = ros_process('actuator_bag', 'player', [str(first), '--wait-for-subscribers', '1', '--start-delay', '2.0'])
     assert player.wait(60) == 0, player.describe()
     assert 'player: done: published 10000 messages' in player.stdout
     time.sleep(0.5)

@@ -55,7 +55,7 @@ def test_realtime_mode_closes_the_loop_and_reports_timing(isolated):
                              results_root=isolated / 'runs', quiet=True, rt_priority=50)
     assert all(code == 0 for code in result.exit_codes.values()), result.exit_codes
     timing = timing_figures(result)
-    assert timing['updates'] > 1000                     # the loop closed (how well: see bench, not a test)
+    assert timing['updates'] > 300                      # the loop closed (how well: see bench, not a test)
     assert 0.0 < timing['latency_us']['p50'] < 1.0e5
     # Tracking quality in real time depends on the machine's load (README, Performance);
     # what must hold on any machine: every command finite and within the current limit.
