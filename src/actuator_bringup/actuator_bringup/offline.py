@@ -60,8 +60,10 @@ def verdict(metrics: RunMetrics, radius: float) -> str:
     if metrics.diverged:
         return 'DIVERGED: no figure reported'
     if metrics.saturated_fraction > 0.5:
-        return f'NOT A RESULT: saturated {metrics.saturated_fraction:.0%} of samples (radius {radius:.1f} > 1)'
-    return 'ok' if radius < 1.0 else f'bounded although linearised radius {radius:.3f} >= 1'
+        return f'NOT A RESULT: saturated {metrics.saturated_fraction:.0%} of samples (linearised radius {radius:.3g})'
+    note = f' (at the current limit in {metrics.saturated_fraction:.0%} of samples)' \
+        if metrics.saturated_fraction >= 0.01 else ''
+    return ('ok' if radius < 1.0 else f'bounded although linearised radius {radius:.3f} >= 1') + note
 
 
 def print_table(title: str, rows: list[dict]) -> None:
@@ -107,6 +109,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument('--json', type=Path, help='write the results as JSON to this file')
     parser.add_argument('--traces', type=Path, default=Path('results/offline'),
                         help='folder for the .npz traces (default results/offline)')
+    parser.add_argument('--no-traces', action='store_true', help='do not save traces')
     parser.add_argument('--controller', choices=CONTROLLER_NAMES, default='pp_nftsmc_eso', help='for "run"')
     parser.add_argument('--reference', choices=('slow', 'fast', 'step', 'sine'), default='fast', help='for "run"')
     parser.add_argument('--condition', choices=tuple(CONDITIONS), default='deep_sea', help='for "run"')
@@ -123,15 +126,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         runs = [(paper_scenario(f'run_{args.controller}_{args.reference}_{args.condition}', args.controller,
                                 args.reference, args.condition, args.duration), float('nan'))]
         title = 'Single run'
-    rows = run_case(runs, args.traces / args.case if args.traces else None)
+    traces = None if args.no_traces else args.traces / args.case
+    rows = run_case(runs, traces)
     print_table(f'{title}; {args.duration:g} s at 1 ms, steady-state window '
                 f'[{STEADY_STATE_START_S:g}, {args.duration:g}] s', rows)
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps({'case': args.case, 'runs': rows}, indent=2, default=float))
         print(f'JSON: {args.json}')
-    if args.traces:
-        print(f'traces: {args.traces / args.case}/*.npz')
+    if traces is not None:
+        print(f'traces: {traces}/*.npz')
     return 0
 
 
