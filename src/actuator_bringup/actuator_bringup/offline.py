@@ -76,7 +76,8 @@ def print_table(title: str, rows: list[dict]) -> None:
     for r in rows:
         m = r['metrics']
         ours = m['max_steady_error_rad']
-        ratio = '—' if m['diverged'] or r['verdict'].startswith('NOT') else f'{ours / r["paper_rad"]:.2f}'
+        no_ratio = m['diverged'] or r['verdict'].startswith('NOT') or math.isnan(r['paper_rad'])
+        ratio = '—' if no_ratio else f'{ours / r["paper_rad"]:.2f}'
         shown = '—' if r['verdict'].startswith(('DIVERGED', 'NOT')) else _fmt(ours)
         print(f'{r["name"]:28s} {shown:>10s} {_fmt(r["paper_rad"]):>10s} {ratio:>6s} {_fmt(m["rms_error_rad"]):>10s} '
               f'{m["max_abs_current_a"]:8.2f} {str(m["bounds_kept"]):>8s} {100 * m["saturated_fraction"]:6.1f} '
