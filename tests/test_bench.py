@@ -95,6 +95,19 @@ def test_latency_breakdown_joins_by_stamp():
     assert f['controller_wait_p50_us'] == pytest.approx(30.0)
 
 
+def test_coverage_of_the_controller_log():
+    f = bench.coverage_figures(np.arange(500, dtype=np.int64) * PERIOD_NS, np.arange(2000, dtype=np.int64) * PERIOD_NS)
+    assert f['controlled_pct'] == pytest.approx(25.0)
+    assert f['controlled_span_s'] == pytest.approx(0.499)
+
+
+def test_log_figures(tmp_path):
+    (tmp_path / 'plant.log').write_text('[INFO] running under SCHED_FIFO priority 50\n')
+    (tmp_path / 'controller.log').write_text('[ERROR] |error| 0.501 rad beyond following_error_limit_rad 0.5: '
+                                             'safe stop latched (0 A) until restart\n')
+    assert bench.log_figures(tmp_path) == {'fifo_nodes': 1.0, 'safe_stop': 1.0}
+
+
 def test_eso_figures():
     f = bench.eso_figures({'steps': 200, 'exact_pairs': 150, 'substituted_pairs': 50, 'refused_inputs': 2})
     assert f['eso_exact_pct'] == pytest.approx(75.0)
