@@ -148,15 +148,19 @@ def run_closed_loop(scenario: str, mode: str, duration_s: float | None = None, r
     bag = bag_root / name if record else None
     sim = mode == 'sim'
     timing_log = run_dir / 'controller_timing.npz'
-    priority = ['--rt-priority', str(rt_priority)] if rt_priority else []
-    node_args = ['--executor', executor, *priority, '--ros-args', '--params-file', str(params), '-p', f'mode:={mode}']
+    def node_args(priority: int) -> list[str]:
+        return ['--executor', executor, *(['--rt-priority', str(priority)] if priority else []),
+                '--ros-args', '--params-file', str(params), '-p', f'mode:={mode}']
     clocked = ['-p', f'use_sim_time:={"true" if sim else "false"}']
     plan = []
     if bag is not None:
         bag_root.mkdir(parents=True, exist_ok=True)
         plan.append(('recorder', 'actuator_bag', 'recorder', ['--ros-args', '-p', f'output:={bag}', *clocked]))
     def pinned(key: str) -> list[str]:
-        return ['--cpus', cpus[key]] + node_args if key in cpus else node_args
+        # The ESO and the controller form the critical cycle of each sample (command ->
+        # estimate -> command); the plant runs one priority level below them.
+        priority = max(rt_priority - 1, 1) if key == 'plant' and rt_priority else rt_priority
+        return (['--cpus', cpus[key]] if key in cpus else []) + node_args(priority)
 
     plan += [('controller', 'actuator_controller', 'controller_node',
               pinned('controller') + clocked + ['-p', f'timing_log:={timing_log}', *extra_params]),

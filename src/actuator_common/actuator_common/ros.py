@@ -144,6 +144,9 @@ def run_node(prog: str, description: str, node_factory: Callable[[], Node], argv
     stop = threading.Event()
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda *_: stop.set())
+    # Before rclpy.init: the middleware's threads (Fast DDS receive and event threads), which
+    # every message passes through, inherit the policy only if it is set before they exist.
+    priority_refused = set_realtime_priority(parsed.rt_priority) if parsed.rt_priority else None
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     node = None
     try:
@@ -152,8 +155,10 @@ def run_node(prog: str, description: str, node_factory: Callable[[], Node], argv
         except ParameterError as exc:
             print(f'{prog}: {exc}', file=sys.stderr)
             return 2
-        if parsed.rt_priority:
-            set_realtime_priority(node, parsed.rt_priority)
+        if priority_refused:
+            node.get_logger().warning(priority_refused)
+        elif parsed.rt_priority:
+            node.get_logger().info(f'running under SCHED_FIFO priority {parsed.rt_priority} (all threads)')
         # Everything built so far lives for the whole run: move it out of the collector's view,
         # so a collection in the 1 kHz path scans only what the loop itself allocates.
         gc.collect()
@@ -180,23 +185,20 @@ def run_node(prog: str, description: str, node_factory: Callable[[], Node], argv
             rclpy.shutdown()
 
 
-def set_realtime_priority(node: Node, priority: int) -> bool:
-    """SCHED_FIFO at ``priority``, as ros2_control's thread_priority does.
+def set_realtime_priority(priority: int) -> str | None:
+    """SCHED_FIFO at ``priority`` for this process, as ros2_control's thread_priority does.
 
-    Memory is not locked (ros2_control's lock_memory): mlockall made every mapped page of the
-    middleware resident here, 300-400 MB per node against a target of 80 MB.
-
-    Where the machine refuses (no CAP_SYS_NICE, a container), the node says so and goes on
-    with normal scheduling; the return value tells which.
+    Returns None on success, or the reason it was refused (no CAP_SYS_NICE, a container):
+    the node then logs it and runs with normal scheduling. Memory is not locked
+    (ros2_control's lock_memory): mlockall made every mapped page of the middleware
+    resident here, 300-400 MB per node against a target of 80 MB.
     """
     try:
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
     except (PermissionError, OSError) as exc:
-        node.get_logger().warning(f'SCHED_FIFO priority {priority} refused ({exc}); running with normal '
-                                  'scheduling (grant CAP_SYS_NICE or an rtprio limit to enable it)')
-        return False
-    node.get_logger().info(f'running under SCHED_FIFO priority {priority}')
-    return True
+        return (f'SCHED_FIFO priority {priority} refused ({exc}); running with normal scheduling '
+                '(grant CAP_SYS_NICE or an rtprio limit to enable it)')
+    return None
 
 
 def stamp_to_ns(stamp) -> int:
