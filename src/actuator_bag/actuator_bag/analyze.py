@@ -24,6 +24,7 @@ from typing import Any, Optional, Sequence
 
 import numpy as np
 import yaml
+from actuator_common.timing import stamp_to_ns
 from actuator_common.metrics import STEADY_STATE_START_S, RunMetrics, compute_run_metrics
 
 from .errors import AnalysisError, BagError, run_cli
@@ -41,11 +42,6 @@ JOINT_STATE = 'sensor_msgs/msg/JointState'
 STATUS_OK = 0
 #: ControllerState.status of a controller still waiting for its first inputs.
 STATUS_WAITING = 1
-
-
-def _stamp_ns(header: Any) -> int:
-    """header.stamp in integer nanoseconds."""
-    return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
 
 
 @dataclass
@@ -162,15 +158,15 @@ def _extract(kind: str, msg: Any, log_ns: int) -> tuple:
     """The fields of one message that the analysis uses."""
     if kind == 'state':
         return (
-            _stamp_ns(msg.header), msg.controller_name, int(msg.status),
+            stamp_to_ns(msg.header.stamp), msg.controller_name, int(msg.status),
             msg.reference_position_rad, msg.measured_position_rad, msg.error_rad,
             msg.lower_bound_rad, msg.upper_bound_rad, msg.current_a, bool(msg.saturated),
         )
     if kind == 'estimate':
-        return (_stamp_ns(msg.header), msg.velocity_rad_s, msg.disturbance_rad_s2)
+        return (stamp_to_ns(msg.header.stamp), msg.velocity_rad_s, msg.disturbance_rad_s2)
     if kind == 'truth':
-        return (_stamp_ns(msg.header), msg.velocity_rad_s, msg.disturbance_rad_s2)
-    return (_stamp_ns(msg.header), int(log_ns))
+        return (stamp_to_ns(msg.header.stamp), msg.velocity_rad_s, msg.disturbance_rad_s2)
+    return (stamp_to_ns(msg.header.stamp), int(log_ns))
 
 
 def _assemble(path: Path, rows: dict[str, list[tuple]]) -> RunData:

@@ -44,7 +44,9 @@ from rclpy.utilities import remove_ros_args
 from .bag_format import DEFAULT_CHUNK_SIZE, DEFAULT_FLUSH_INTERVAL_S, BagSummary, BagWriter, TopicSpec
 from .errors import BagError
 from .msgdefs import DefinitionSource, normalize_msgtype
-from .ros_common import EXECUTORS, StopFlag, make_executor, make_qos, message_class, to_bag_qos
+from actuator_common.ros import make_executor
+
+from .ros_common import EXECUTORS, StopFlag, make_qos, message_class, to_bag_qos
 
 #: The system's topics (relative names) and their types.
 SYSTEM_TOPICS = {
@@ -177,7 +179,7 @@ class RecorderNode(Node):
         self.subscriptions_ = []
         for index, ((resolved, _, _), cls) in enumerate(zip(self._pending, classes)):
             self.subscriptions_.append(self.create_subscription(
-                cls, resolved, self._make_callback(index, defaults.executor == 'single'), qos, raw=True,
+                cls, resolved, self._make_callback(index, defaults.executor == 'single_threaded'), qos, raw=True,
                 event_callbacks=SubscriptionEventCallbacks(message_lost=self._on_lost),
             ))
         self.thread.start()

@@ -8,7 +8,6 @@ from types import FrameType
 from typing import Any, Optional
 
 from rclpy.duration import Duration
-from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.qos import (
     DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile, ReliabilityPolicy,
 )
@@ -18,7 +17,7 @@ from .errors import BagError
 from .msgdefs import normalize_msgtype
 
 #: Executors a node can be run with.
-EXECUTORS = ('events', 'single')
+EXECUTORS = ('events', 'single_threaded')  # actuator_common.ros.make_executor's names
 
 
 def message_class(msgtype: str) -> Any:
@@ -63,19 +62,6 @@ def make_qos(reliability: str, depth: int) -> QoSProfile:
         history=HistoryPolicy.KEEP_LAST, depth=depth, reliability=policies[reliability],
         durability=DurabilityPolicy.VOLATILE,
     )
-
-
-def make_executor(kind: str) -> Executor:
-    """An EventsExecutor ('events', far less overhead per message in rclpy) or a SingleThreadedExecutor."""
-    if kind not in EXECUTORS:
-        raise BagError(f'executor must be one of {", ".join(EXECUTORS)}, not {kind!r}')
-    if kind == 'events':
-        try:
-            from rclpy.experimental import EventsExecutor
-        except ImportError:
-            return SingleThreadedExecutor()
-        return EventsExecutor()
-    return SingleThreadedExecutor()
 
 
 class StopFlag:

@@ -201,11 +201,6 @@ def set_realtime_priority(priority: int) -> str | None:
     return None
 
 
-def stamp_to_ns(stamp) -> int:
-    """builtin_interfaces/Time to integer nanoseconds."""
-    return stamp.sec * 1_000_000_000 + stamp.nanosec
-
-
 def ns_to_stamp(ns: int):
     """Integer nanoseconds to builtin_interfaces/Time."""
     from builtin_interfaces.msg import Time

@@ -11,3 +11,8 @@ def period_ns(dt_s: float) -> int:
 def sample_time_s(elapsed_ns: int) -> float:
     """Seconds since the start of the run from integer nanoseconds (one rounding, same everywhere)."""
     return elapsed_ns * 1.0e-9
+
+
+def stamp_to_ns(stamp) -> int:
+    """A builtin_interfaces/Time (or any object with sec and nanosec) as integer nanoseconds."""
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)

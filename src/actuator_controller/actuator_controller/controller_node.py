@@ -27,9 +27,9 @@ import numpy as np
 from rclpy.node import Node
 
 from actuator_common.ros import RateLimitedLog, MODES, ParameterError, control_qos, declare_choice, declare_number, \
-    declare_spec_parameters, joint_position, ns_to_stamp, run_node, stamp_to_ns
+    declare_spec_parameters, joint_position, ns_to_stamp, run_node
 from actuator_common.sample_log import SampleLog
-from actuator_common.timing import period_ns, sample_time_s
+from actuator_common.timing import period_ns, sample_time_s, stamp_to_ns
 from actuator_controller.laws import CONTROLLER_NAMES, GAINS_BY_NAME, CommonConfig, ControlOutput, make_controller
 from actuator_controller.reference import make_reference
 from actuator_msgs.msg import ControllerState, CurrentCommand, StateEstimate

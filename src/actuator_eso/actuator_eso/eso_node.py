@@ -25,8 +25,8 @@ import math
 from rclpy.node import Node
 
 from actuator_common.ros import RateLimitedLog, MODES, control_qos, declare_choice, declare_number, declare_spec_parameters, \
-    joint_position, ns_to_stamp, run_node, stamp_to_ns
-from actuator_common.timing import period_ns
+    joint_position, ns_to_stamp, run_node
+from actuator_common.timing import period_ns, stamp_to_ns
 from actuator_eso.observer import EsoGains, eso_step
 from actuator_msgs.msg import CurrentCommand, StateEstimate
 from sensor_msgs.msg import JointState

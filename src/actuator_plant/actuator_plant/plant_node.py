@@ -23,9 +23,9 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 
 from actuator_common.ros import RateLimitedLog, MODES, ParameterError, control_qos, declare_choice, declare_number, \
-    declare_spec_parameters, ns_to_stamp, run_node, stamp_to_ns
+    declare_spec_parameters, ns_to_stamp, run_node
 from actuator_common.sample_log import SampleLog
-from actuator_common.timing import period_ns
+from actuator_common.timing import period_ns, stamp_to_ns
 from actuator_msgs.msg import CurrentCommand, PlantTruth
 from actuator_plant.model import JointPlant, PlantParameters, WorkingCondition
 from builtin_interfaces.msg import Time
