@@ -12,9 +12,10 @@ known current (or, for a missing measurement, no correction) and says so in the 
 and the log. "In time" depends on the mode. realtime: before the next measurement, because a
 command later than a whole period missed its sample (the plant held the previous current)
 and the controller needs x_hat(k+1) now; waiting longer would stall the loop after a single
-lost message. sim: messages are never lost, so the observer waits for the true pair as long
-as the lockstep does (it substitutes only once a measurement two samples newer exists,
-which happens only when the plant stepped without a command after its lockstep timeout).
+lost message. sim: messages are never lost, so the observer waits for the true pair
+(SIM_PATIENCE_SAMPLES, enough for a PI controller, which does not wait for the observer, to
+run ahead); it substitutes only when the plant stepped without a command after its lockstep
+timeout.
 """
 
 from __future__ import annotations
@@ -32,7 +33,9 @@ from actuator_msgs.msg import CurrentCommand, StateEstimate
 from sensor_msgs.msg import JointState
 
 #: How many unpaired samples of each kind are kept (older ones are dropped).
-PENDING_LIMIT = 64
+PENDING_LIMIT = 256
+#: sim mode: samples to wait for the command of a sample before substituting (see _advance).
+SIM_PATIENCE_SAMPLES = 100
 
 
 
@@ -56,7 +59,9 @@ class EsoNode(Node):
         self.stats_log = self.declare_parameter('stats_log', '').value
         self.steps = 0
         self.period_ns = period_ns(self.dt_s)
-        self.patience_ns = self.period_ns * (2 if self.mode == 'sim' else 1)
+        # sim: nothing is lost, so wait for the true pair; 100 samples covers a controller that
+        # does not wait for the observer (PI) running ahead of it in the lockstep.
+        self.patience_ns = self.period_ns * (SIM_PATIENCE_SAMPLES if self.mode == 'sim' else 1)
         qos = control_qos(self.mode)
         self.pub = self.create_publisher(StateEstimate, 'eso/estimate', qos)
         self.create_subscription(JointState, 'joint_states', self.on_measurement, qos)
