@@ -95,6 +95,7 @@ class BagWriterThread(threading.Thread):
         self.queue: collections.deque = collections.deque()
         self.handles: dict[int, int] = {}
         self.max_backlog = 0
+        self.written = 0
         self.error: Optional[BaseException] = None
         self._stop_requested = threading.Event()
 
@@ -123,6 +124,7 @@ class BagWriterThread(threading.Thread):
                     if handle is None:
                         handle = self.handles[index] = writer.add_topic(self.specs[index])
                     writer.write(handle, log_ns, data, pub_ns)
+                    self.written += 1
         except BaseException as err:  # noqa: BLE001 - reported by the node on shutdown
             self.error = err
 
@@ -275,6 +277,23 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def drain(executor: Any, node: 'RecorderNode', quiet_s: float = 0.3, limit_s: float = 3.0) -> None:
+    """After a stop request, take what the middleware already delivered: spin until nothing new came for ``quiet_s``.
+
+    A stop right after a fast run (sim time) would otherwise lose the messages still queued in
+    the subscriptions; measured in CI: 208 of 2000 samples of a 2 s lockstep run.
+    """
+    end = time.monotonic() + limit_s
+    last, quiet_since = -1, time.monotonic()
+    while rclpy.ok() and time.monotonic() < end:
+        executor.spin_once(timeout_sec=0.05)
+        received = node.thread.written + len(node.thread.queue)
+        if received != last:
+            last, quiet_since = received, time.monotonic()
+        elif time.monotonic() - quiet_since > quiet_s:
+            return
+
+
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Entry point of ``recorder``."""
     argv = list(sys.argv if argv is None else argv)
@@ -289,6 +308,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         executor.add_node(node)
         while not stop.requested and rclpy.ok():
             executor.spin_once(timeout_sec=0.1)
+        drain(executor, node)
         summary = node.finish()
         lost = f', {node.lost} reported lost by the middleware' if node.lost else ''
         print(f'recorder: wrote {summary.line()}; max writer backlog {node.thread.max_backlog}{lost}', flush=True)
