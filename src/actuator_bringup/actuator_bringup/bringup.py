@@ -23,6 +23,7 @@ from typing import Sequence
 
 from ament_index_python.packages import PackageNotFoundError, get_package_prefix, get_package_share_directory
 
+from actuator_bringup.params_yaml import all_scenarios
 from actuator_common.ros import MODES
 
 CLK_TCK = os.sysconf('SC_CLK_TCK')
@@ -56,7 +57,6 @@ PINNING = {'plant': '0', 'eso': '1', 'controller': '1'}
 
 def scenario_duration(scenario: str) -> float:
     """The paper scenario's run length [s] (10 s for any other parameter file)."""
-    from actuator_bringup.params_yaml import all_scenarios
     known = all_scenarios().get(scenario)
     return known.duration_s if known is not None else 10.0
 

@@ -153,8 +153,9 @@ class Controller:
     #: Whether the controller has an integral state at all.
     has_integral = True
 
-    def __init__(self, common: CommonConfig):
-        """Start with a zero integral state."""
+    def __init__(self, gains, common: CommonConfig):
+        """Hold the gains (the subclass' gains dataclass); the integral state starts at zero."""
+        self.gains = gains
         self.common = common
         self.integral = 0.0
 
@@ -181,12 +182,8 @@ class PiController(Controller):
     """u = kp (x1d - y) + ki int (x1d - y) dt, eq. (43); measurement only, no observer."""
 
     name = 'pi'
+    gains: PiGains
     integral_current_sign = 1.0
-
-    def __init__(self, gains: PiGains, common: CommonConfig):
-        """Hold the gains."""
-        super().__init__(common)
-        self.gains = gains
 
     def update(self, t, y, x2_hat, x3_hat, ref: ReferenceSample) -> ControlOutput:
         """Current for this sample; the integral advances by (x1d - y) dt."""
@@ -203,12 +200,8 @@ class SmcEsoController(Controller):
     """SMC-ESO, eq. (44)-(46): sigma = z2 + k1 z1, u = -(u_eq + u_sw)/theta1n."""
 
     name = 'smc_eso'
+    gains: SmcGains
     has_integral = False
-
-    def __init__(self, gains: SmcGains, common: CommonConfig):
-        """Hold the gains (no integral state)."""
-        super().__init__(common)
-        self.gains = gains
 
     def update(self, t, y, x2_hat, x3_hat, ref: ReferenceSample) -> ControlOutput:
         """Current for this sample."""
@@ -228,11 +221,7 @@ class NftsmcEsoController(Controller):
     """NFTSMC-ESO, eq. (47)-(49): sigma = z2 + int(k1 |z1|^[a1] + k2 |z2|^[a2]) dt."""
 
     name = 'nftsmc_eso'
-
-    def __init__(self, gains: NftsmcGains, common: CommonConfig):
-        """Hold the gains; the sliding integral starts at zero."""
-        super().__init__(common)
-        self.gains = gains
+    gains: NftsmcGains
 
     def update(self, t, y, x2_hat, x3_hat, ref: ReferenceSample) -> ControlOutput:
         """Current for this sample; the sliding integral advances by its integrand times dt."""
@@ -254,11 +243,7 @@ class PpNftsmcEsoController(Controller):
     """PP-NFTSMC-ESO, eq. (19)-(35): PPF-transformed error, backstepping, NFTSMC with u_b."""
 
     name = 'pp_nftsmc_eso'
-
-    def __init__(self, gains: PpNftsmcGains, common: CommonConfig):
-        """Hold the gains; the sliding integral starts at zero."""
-        super().__init__(common)
-        self.gains = gains
+    gains: PpNftsmcGains
 
     def update(self, t, y, x2_hat, x3_hat, ref: ReferenceSample) -> ControlOutput:
         """Current for this sample; the sliding integral of (27) advances by its integrand times dt."""
