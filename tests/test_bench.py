@@ -10,7 +10,7 @@ import sys
 import numpy as np
 import pytest
 
-from actuator_bringup import bench
+from actuator_bringup import bench, floor
 
 PERIOD_NS = 1_000_000
 
@@ -154,7 +154,7 @@ def test_offline_speed_is_positive():
 
 
 @pytest.mark.parametrize('argv', [['--scenario', 'no_such_scenario'], ['--duration', '0'], ['--duration', '4000'],
-                                  ['--repeats', '0'], ['--rt-priority', '100']])
+                                  ['--repeats', '0'], ['--rt-priority', '100'], ['--floor-s', '0.5']])
 def test_bad_input_is_one_line_and_exit_2(argv, capsys, tmp_path):
     assert bench.main([*argv, '--out', str(tmp_path)]) == 2
     err = capsys.readouterr().err
@@ -162,10 +162,26 @@ def test_bad_input_is_one_line_and_exit_2(argv, capsys, tmp_path):
     assert not any(tmp_path.iterdir())
 
 
+def test_hop_figures_halve_the_round_trip_and_count_lost_messages():
+    figures = floor.hop_figures(np.array([2_000, 4_000, 6_000]), sent=4)
+    assert figures['floor_lost_pct'] == pytest.approx(25.0)
+    assert figures['floor_hop_p50_us'] == pytest.approx(2.0)
+    assert figures['floor_hop_max_us'] == pytest.approx(3.0)
+    assert floor.hop_figures(np.array([], dtype=np.int64), sent=5) == {'floor_lost_pct': 100.0}
+    assert floor.hop_figures(np.array([], dtype=np.int64), sent=0) == {}
+
+
+def test_steal_share_between_two_readings():
+    assert bench.steal_percent((10, 1000), (30, 2000)) == pytest.approx(2.0)
+    assert bench.steal_percent((0, 0), (0, 0)) is None
+    steal, total = bench.cpu_times()
+    assert 0 <= steal <= total
+
+
 def test_short_sim_run_end_to_end(ros_env, tmp_path):
     out = tmp_path / 'bench'
     proc = subprocess.run([sys.executable, '-m', 'actuator_bringup.bench', '--duration', '2', '--repeats', '1',
-                           '--skip-offline', '--modes', 'sim', '--out', str(out)],
+                           '--skip-offline', '--modes', 'sim', '--floor-s', '2', '--out', str(out)],
                           env=ros_env, capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert 'speed: sim s / wall s' in proc.stdout and '>= 3' in proc.stdout
@@ -180,3 +196,8 @@ def test_short_sim_run_end_to_end(ros_env, tmp_path):
     assert (base / 'runs.csv').read_text().startswith('variant,')
     assert (base / 'table.txt').is_file()
     assert list(base.glob('runs/sim_rep1/*/plant_samples.npz'))
+    # The middleware floor: echoes came back, and the echo node's CPU was measured.
+    (hops,) = summary['floor_runs']
+    assert hops['floor_hop_p50_us'] > 0 and hops['floor_lost_pct'] < 50.0
+    assert hops['cpu_echo_pct'] > 0
+    assert 'middleware floor' in proc.stdout

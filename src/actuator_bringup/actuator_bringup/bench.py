@@ -317,6 +317,7 @@ def realtime_rows(period_us: float) -> list[Row]:
         Row('latency_p99_us', 'sensor-to-command latency p99', 'us', '.1f', Target('<= 300', high=300.0)),
         Row('latency_max_us', 'sensor-to-command latency max', 'us'),
         Row('latency_over_period', f'commands > {period_us:g} us after stamp', 'count', '.6g'),
+        Row('plant_late_p50_us', '  part: plant tick late p50', 'us'),
         Row('plant_late_p99_us', '  part: plant tick late p99', 'us'),
         Row('transport_p99_us', '  part: plant->controller p99', 'us'),
         Row('controller_wait_p99_us', '  part: controller wait+compute p99', 'us'),
@@ -330,6 +331,8 @@ def realtime_rows(period_us: float) -> list[Row]:
     ]
     return rows + eso_rows() + error_rows(ratio) + node_rows(Target('<= 25', high=25.0), Target('<= 80', high=80.0)) + [
         Row('fifo_nodes', 'nodes granted SCHED_FIFO', 'count', '.6g'),
+        Row('plant_interval_max_us', 'longest gap between plant samples', 'us'),
+        Row('steal_pct', 'CPU steal by the hypervisor', '%', '.2f'),
         Row('wall_s', 'wall time of the run', 's')]
 
 
@@ -368,6 +371,17 @@ def node_rows(cpu: Optional[Target], rss: Optional[Target]) -> list[Row]:
     """CPU and peak RSS per node."""
     return ([Row(f'cpu_{n}_pct', f'CPU {n}', '% core', '.1f', cpu) for n in NODES] +
             [Row(f'rss_{n}_mb', f'peak RSS {n}', 'MB', '.1f', rss) for n in NODES])
+
+
+def floor_rows() -> list[Row]:
+    """Middleware floor lines (floor.py): one hop and the CPU of a node doing nothing but echo."""
+    return [Row('floor_hop_p50_us', 'one hop (round trip / 2) p50', 'us'),
+            Row('floor_hop_p99_us', 'one hop p99', 'us'),
+            Row('floor_hop_max_us', 'one hop max', 'us'),
+            Row('floor_lost_pct', 'messages not echoed', '%', '.3f'),
+            Row('cpu_echo_pct', 'CPU echo (1 sub + 1 pub per sample)', '% core'),
+            Row('cpu_source_pct', 'CPU source (1 pub + 1 sub per sample)', '% core'),
+            Row('steal_pct', 'CPU steal by the hypervisor', '%', '.2f')]
 
 
 def offline_rows(batches: Sequence[int]) -> list[Row]:
@@ -482,12 +496,28 @@ def expected_wall_s(variant: Variant, duration_s: float) -> float:
     return duration_s * (2.0 if variant.mode == 'sim' else 1.0) + 5.0
 
 
+def cpu_times() -> tuple[int, int]:
+    """(steal, total) jiffies of all CPUs from /proc/stat; (0, 0) where it cannot be read."""
+    try:
+        fields = [int(v) for v in Path('/proc/stat').read_text().splitlines()[0].split()[1:]]
+    except (OSError, ValueError, IndexError):
+        return 0, 0
+    return (fields[7] if len(fields) > 7 else 0), sum(fields)
+
+
+def steal_percent(before: tuple[int, int], after: tuple[int, int]) -> Optional[float]:
+    """Share of CPU time the hypervisor gave to other guests between two cpu_times() readings [%]."""
+    total = after[1] - before[1]
+    return 100.0 * (after[0] - before[0]) / total if total > 0 else None
+
+
 def run_one(variant: Variant, repeat: int, args: argparse.Namespace, base: Path, period_ns: int) -> RunRecord:
     """One recorded run of ``variant``; figures from its files and bag, or the error."""
     from actuator_bringup.bringup import PINNING, run_closed_loop
     record = RunRecord(variant.slug, repeat)
     where = f'{variant.slug}_rep{repeat}'
     label = f'{variant.slug} repeat {repeat}/{args.repeats}'
+    times_before = cpu_times()
     try:
         with progress(label, expected_wall_s(variant, args.duration), args.quiet):
             result = run_closed_loop(args.scenario, variant.mode, args.duration, record=True,
@@ -503,11 +533,42 @@ def run_one(variant: Variant, repeat: int, args: argparse.Namespace, base: Path,
     record.figures.update(run_dir_figures(result.run_dir, variant.mode, period_ns))
     record.figures.update(process_figures(result.cpu_percent, result.peak_rss_mb))
     record.figures['wall_s'] = result.wall_s
+    record.figures['steal_pct'] = steal_percent(times_before, cpu_times())
     try:
         record.figures.update(bag_figures(result.bag))
     except Exception as exc:  # a bag that cannot be analysed leaves the error figures out, not the run
         record.error = (record.error + '; ' if record.error else '') + f'bag analysis failed: {exc}'
     return record
+
+
+def floor_run(args: argparse.Namespace, base: Path, repeat: int, rt_priority: int) -> Figures:
+    """One middleware-floor run (actuator_bringup.floor): echo and source as processes for --floor-s seconds."""
+    from actuator_bringup.bringup import NodeProcess, wait_for_leader
+    from actuator_bringup.floor import hop_figures
+    run_dir = base / 'floor' / f'rep{repeat}'
+    run_dir.mkdir(parents=True, exist_ok=True)
+    output = run_dir / 'rtt.npz'
+    priority = ['--rt-priority', str(rt_priority)] if rt_priority else []
+    roles = {'echo': [], 'source': ['-p', f'duration_s:={args.floor_s}', '-p', f'output:={output}']}
+    procs: dict[str, NodeProcess] = {}
+    times_before = cpu_times()
+    try:
+        for role, params in roles.items():
+            log = run_dir / f'{role}.log'
+            popen = subprocess.Popen([sys.executable, '-m', 'actuator_bringup.floor', role, *priority, '--ros-args',
+                                      *params], stdout=log.open('w'), stderr=subprocess.STDOUT,
+                                     stdin=subprocess.DEVNULL, start_new_session=True)
+            procs[role] = NodeProcess(role, popen, log)
+        wait_for_leader(procs, args.floor_s, quiet=True, leader='source')
+    finally:
+        codes = {role: proc.stop() for role, proc in procs.items()}
+    if any(codes.values()) or not output.is_file():
+        raise SystemExit(f'floor run failed (exit codes {codes}); logs in {run_dir}')
+    with np.load(output) as rtt:
+        figures = hop_figures(rtt['rtt_ns'], int(rtt['sent']))
+    figures.update({f'cpu_{role}_pct': proc.cpu_percent() for role, proc in procs.items()})
+    figures['steal_pct'] = steal_percent(times_before, cpu_times())
+    return figures
 
 
 def one_line(record: RunRecord) -> str:
@@ -552,7 +613,16 @@ def environment() -> dict:
         commit = None
     return {'cpus': os.cpu_count(), 'load_avg_1_5_15': list(os.getloadavg()), 'kernel': platform.release(),
             'python': platform.python_version(), 'rmw': os.environ.get('RMW_IMPLEMENTATION'),
-            'ros_domain_id': os.environ.get('ROS_DOMAIN_ID'), 'git_commit': commit}
+            'ros_domain_id': os.environ.get('ROS_DOMAIN_ID'), 'git_commit': commit,
+            'rt_runtime_us_per_s': _read_int('/proc/sys/kernel/sched_rt_runtime_us')}
+
+
+def _read_int(path: str) -> Optional[int]:
+    """An integer kernel setting (e.g. the SCHED_FIFO budget per second; -1 = unlimited), or None."""
+    try:
+        return int(Path(path).read_text().split()[0])
+    except (OSError, ValueError, IndexError):
+        return None
 
 
 def write_csv(path: Path, records: list[RunRecord], offline: list[Figures]) -> None:
@@ -593,6 +663,9 @@ def build_parser() -> OneLineParser:
     p.add_argument('--rt-priority', type=int, default=50, metavar='P',
                    help='SCHED_FIFO priority of plant, ESO and controller in the fifo variants (1-99, default 50)')
     p.add_argument('--skip-offline', action='store_true', help='skip the offline ClosedLoop speed measurement')
+    p.add_argument('--floor-s', type=float, default=10.0, metavar='S',
+                   help='length of each middleware-floor run (echo of one message per sample, no control code) '
+                        '[s]; 0 skips it (default 10)')
     p.add_argument('--batches', type=int, nargs='+', default=[1, 10, 100, 1000], metavar='N',
                    help='batch sizes of the offline speed measurement (default 1 10 100 1000)')
     p.add_argument('--offline-sim-s', type=float, default=5.0, metavar='S',
@@ -615,6 +688,8 @@ def check_args(args: argparse.Namespace) -> Optional[str]:
         return f'--rt-priority {args.rt_priority} out of range [1, 99]'
     if any(not 1 <= n <= 100_000 for n in args.batches):
         return '--batches must be in [1, 100000]'
+    if not (args.floor_s == 0.0 or 1.0 <= args.floor_s <= 600.0):
+        return '--floor-s must be 0 (skip) or in [1, 600] s'
     if not 0.0 < args.offline_sim_s <= 600.0:
         return '--offline-sim-s must be in (0, 600] s'
     known = all_scenarios()
@@ -648,6 +723,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         f'{env_start["cpus"]} CPUs, load {env_start["load_avg_1_5_15"][0]:.2f}; results in {base}')
     records: list[RunRecord] = []
     offline: list[Figures] = []
+    floor: list[Figures] = []
+    floor_priority = args.rt_priority if any('fifo' in v for v in args.rt_variants) else 0
     interrupted = False
     try:
         total, k = len(variants) * args.repeats, 0
@@ -659,6 +736,13 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                 record = run_one(variant, repeat, args, base, period_ns)
                 records.append(record)
                 say(f'  done: {one_line(record)}')
+        if args.floor_s:
+            for repeat in range(1, args.repeats + 1):
+                say(f'middleware floor {repeat}/{args.repeats}: echo at 1 kHz for {args.floor_s:g} s')
+                try:
+                    floor.append(floor_run(args, base, repeat, floor_priority))
+                except SystemExit as exc:
+                    print(f'bench: {exc}', file=sys.stderr)
         if not args.skip_offline:
             for repeat in range(1, args.repeats + 1):
                 say(f'offline speed {repeat}/{args.repeats}: scalar and batch {", ".join(map(str, args.batches))}, '
@@ -667,11 +751,12 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     except KeyboardInterrupt:
         interrupted = True
         print('bench: interrupted; summarising the runs made so far', file=sys.stderr)
-    return report(args, variants, records, offline, base, period_ns, env_start, interrupted)
+    return report(args, variants, records, offline, base, period_ns, env_start, interrupted, floor, floor_priority)
 
 
 def report(args: argparse.Namespace, variants: list[Variant], records: list[RunRecord], offline: list[Figures],
-           base: Path, period_ns: int, env_start: dict, interrupted: bool) -> int:
+           base: Path, period_ns: int, env_start: dict, interrupted: bool, floor: Sequence[Figures] = (),
+           floor_priority: int = 0) -> int:
     """Print the table and write summary.json, runs.csv and table.txt; return the exit code."""
     has_realtime = any(v.mode == 'realtime' for v in variants)
     reference, reference_source = (tracking_reference(records, args.scenario, args.duration)
@@ -683,6 +768,10 @@ def report(args: argparse.Namespace, variants: list[Variant], records: list[RunR
         runs = [r.figures for r in records if r.variant == variant.slug and r.figures]
         rows = sim_rows(period_us) if variant.mode == 'sim' else realtime_rows(period_us)
         sections.append((variant.title, rows, runs, variant.slug))
+    if floor:
+        sched = f'SCHED_FIFO {floor_priority}' if floor_priority else 'normal scheduling'
+        sections.append((f'middleware floor: one message per sample echoed between two processes, no control '
+                         f'code, {sched}', floor_rows(), list(floor), 'floor'))
     if offline:
         sections.append((f'offline core speed ({args.offline_sim_s:g} simulated s, steps without trace)',
                          offline_rows(args.batches), offline, 'offline'))
@@ -698,7 +787,7 @@ def report(args: argparse.Namespace, variants: list[Variant], records: list[RunR
                'interrupted': interrupted, 'tracking_reference': {'source': reference_source, **reference},
                'sections': {slug: {'title': t, 'figures': section_summary(rows, runs)}
                             for t, rows, runs, slug in sections},
-               'runs': [dataclasses.asdict(r) for r in records], 'offline_runs': offline}
+               'runs': [dataclasses.asdict(r) for r in records], 'offline_runs': offline, 'floor_runs': list(floor)}
     (base / 'summary.json').write_text(json.dumps(summary, indent=1))
     write_csv(base / 'runs.csv', records, offline)
     (base / 'table.txt').write_text(f'{title}\n{table}\n')

@@ -187,7 +187,7 @@ def run_closed_loop(scenario: str, mode: str, duration_s: float | None = None, r
             procs[key] = NodeProcess(key, popen, log)
         if not quiet:
             print(f'[bringup] {scenario} in {mode} mode: {", ".join(procs)} started; logs in {run_dir}', flush=True)
-        _wait_for_plant(procs, duration_s, quiet)
+        wait_for_leader(procs, duration_s, quiet)
     finally:
         codes = {key: proc.stop() for key, proc in reversed(list(procs.items()))}
     wall = time.monotonic() - start
@@ -205,9 +205,10 @@ def _fifo_prefix(priority: int) -> list[str]:
     return ['chrt', '-f', str(priority)] if ok else []
 
 
-def _wait_for_plant(procs: dict[str, NodeProcess], duration_s: float | None, quiet: bool) -> None:
-    """Poll until the plant exits (end of run); mark CPU baselines when sampling starts."""
-    plant = procs['plant']
+def wait_for_leader(procs: dict[str, NodeProcess], duration_s: float | None, quiet: bool,
+                    leader: str = 'plant') -> None:
+    """Poll until the leader (the plant) exits at the end of the run; mark CPU baselines when it logs 'sampling started'."""
+    plant = procs[leader]
     marked = False
     deadline = time.monotonic() + (max(120.0, 30.0 * duration_s) if duration_s else float('inf'))
     last_note = time.monotonic()
@@ -219,7 +220,7 @@ def _wait_for_plant(procs: dict[str, NodeProcess], duration_s: float | None, qui
                 proc.mark()
             marked = True
         for key, proc in procs.items():
-            if key != 'plant' and proc.popen.poll() is not None:
+            if key != leader and proc.popen.poll() is not None:
                 raise SystemExit(f'bringup: {key} exited early with code {proc.popen.returncode}; see {proc.log}')
         if time.monotonic() > deadline:
             raise SystemExit('bringup: the run did not finish in time; see the logs')

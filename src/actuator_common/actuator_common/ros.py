@@ -120,8 +120,9 @@ def run_node(prog: str, description: str, node_factory: Callable[[], Node], argv
     """main() of every node: --help, init, build the node (refusing bad parameters), spin, clean exit.
 
     SIGINT and SIGTERM set a stop flag (rclpy's own handlers are off, so the context stays
-    valid), and a node may end the run itself by setting ``finished``: the loop ends, the node's ``close()`` runs and may still log, then the node is
-    destroyed and the process exits 0 with no traceback. A refused parameter exits 2 with
+    valid), and a node may end the run itself by setting ``finished``: the loop ends, the node's
+    ``close()`` runs and may still log, then the node is destroyed and the process exits 0 with
+    no traceback, or 1 when the node set ``error`` (a message, logged). A refused parameter exits 2 with
     one line naming it.
     """
     args = sys.argv[1:] if argv is None else list(argv)
@@ -172,6 +173,10 @@ def run_node(prog: str, description: str, node_factory: Callable[[], Node], argv
         never = rclpy.task.Future()
         while not stop.is_set() and rclpy.ok() and not getattr(node, 'finished', False):
             executor.spin_until_future_complete(never, timeout_sec=0.1)
+        error = getattr(node, 'error', None)
+        if error:
+            node.get_logger().error(error)
+            return 1
         return 0
     except (KeyboardInterrupt, ExternalShutdownException):
         return 0

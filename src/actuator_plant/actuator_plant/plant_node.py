@@ -6,8 +6,9 @@ Topics (the contract a hardware driver implements, README "Nodes and topic contr
   publishes  /clock (rosgraph_msgs/Clock), mode 'sim' only
   subscribes current_command (actuator_msgs/CurrentCommand)
 
-mode 'realtime': a wall-clock 1 kHz timer samples the joint; the current held over each
-sample is the newest valid command, or zero once commands are older than command_timeout_s.
+mode 'realtime': a sampling thread wakes on an absolute 1 kHz grid of the system clock (as
+ros2_control's loop does) and samples the joint; the current held over each sample is the
+newest valid command, or zero once commands are older than command_timeout_s.
 mode 'sim': the node owns /clock and steps in lockstep: it publishes sample k and waits for
 the command answering sample k (paired by stamp) before integrating to k+1, so the run is
 deterministic and as fast as the three processes allow.
@@ -16,6 +17,7 @@ deterministic and as fast as the three processes allow.
 from __future__ import annotations
 
 import math
+import threading
 import time
 from dataclasses import replace
 
@@ -45,8 +47,9 @@ class PlantNode(Node):
         super().__init__('actuator_plant')
         self.log = RateLimitedLog(self.get_logger())
         self.mode = declare_choice(self, 'mode', 'realtime', MODES, 'realtime: wall-clock 1 kHz; sim: lockstep /clock')
-        if self.mode == 'sim' and self.get_parameter('use_sim_time').value:
-            raise ParameterError("parameter 'use_sim_time' must be false for the plant: it owns /clock in sim mode")
+        if self.get_parameter('use_sim_time').value:
+            raise ParameterError("parameter 'use_sim_time' must be false for the plant: it is the time source "
+                                 "(system clock in realtime, /clock in sim)")
         condition = declare_choice(self, 'working_condition', 'deep_sea', CONDITIONS,
                                    'deep_sea: 10 MPa, 2 degC; lab: 0 MPa, 25 degC; depth: depth_m and '
                                    'condition.temperature_c; custom: condition.pressure_pa and condition.temperature_c')
@@ -75,7 +78,7 @@ class PlantNode(Node):
         # Per published sample: stamp, wall ns at publication, stamp of the command held over the
         # preceding interval (-1: none yet / zero after a timeout). Written to timing_log (.npz).
         self.samples_log = SampleLog(('stamp_ns', 'published_wall_ns', 'held_command_stamp_ns'))
-        self.held_stamp_ns = -1
+        self.held_stamp_ns = -1           # stamp of the command held over the running sample
         self.plant = JointPlant(params, self.dt_s, position_rad=declare_number(
             self, 'initial_position_rad', 0.0, -100.0, 100.0, 'rad', 'joint angle at sample 0'))
         self.period_ns = period_ns(self.dt_s)
@@ -87,7 +90,13 @@ class PlantNode(Node):
         self.wall = Clock(clock_type=ClockType.STEADY_TIME)
         self.finished = False             # read by run_node: the run is over
         self.current_a = 0.0              # current held over the running sample
-        self.last_command_wall_ns = None  # steady time of the newest valid command
+        # realtime: the newest valid command as one tuple (current [A], stamp [ns], steady receive
+        # time [ns]), so the sampling thread never sees one command's current with another's stamp.
+        self.command: tuple[float, int, int | None] = (0.0, -1, None)
+        self.command_stale = False        # realtime: commands have timed out
+        self.sampler: threading.Thread | None = None
+        self.stop_sampling = threading.Event()
+        self.error: str | None = None     # read by run_node: the run failed
         self.start_ns = None              # stamp of sample 0 [ns]
         self.rejected_commands = 0
         self.timeouts = 0
@@ -102,8 +111,9 @@ class PlantNode(Node):
         self.get_logger().info(
             f'{self.mode} mode, {condition}: P = {params.condition.pressure_pa / 1e6:.2f} MPa, '
             f'T = {params.condition.temperature_c:.1f} degC, mu = {self.plant.constants.viscosity_pa_s * 1e3:.1f} mPa s')
-        # realtime: the sampling clock; sim: only the start-up and lockstep watchdog (10 Hz is plenty).
-        self.timer = self.create_timer(self.dt_s if self.mode == 'realtime' else 0.1, self.on_tick, clock=self.wall)
+        # Start-up (both modes) and the sim lockstep watchdog: 10 Hz is plenty. Realtime sampling
+        # runs on its own thread (see _sampling_loop).
+        self.timer = self.create_timer(0.1, self.on_tick, clock=self.wall)
 
     # --- sampling -------------------------------------------------------------------------
     def _graph_ready(self) -> bool:
@@ -112,21 +122,23 @@ class PlantNode(Node):
                 and (self.wait_for_subscribers == 0 or self.count_publishers('current_command') >= 1))
 
     def _start(self) -> None:
-        """Fix the stamp of sample 0 and publish it (realtime: at the timer's next tick).
+        """Fix the stamp of sample 0 and publish it (realtime: start the sampling thread).
 
-        realtime: the sample grid is anchored at the timer's next scheduled call, so each
-        stamp is the scheduled sampling instant and never later than the actual sampling;
-        whatever the tick is late by shows up in the measured latency, where it belongs.
+        realtime: each stamp is the scheduled sampling instant on the grid, never later than
+        the actual sampling; whatever the thread wakes late by shows up in the measured
+        latency, where it belongs.
         """
         self.get_logger().info('sampling started')
         if self.mode == 'sim':
             self.start_ns = 1_000_000_000
             self._publish_sample()
         else:
-            self.start_ns = self.get_clock().now().nanoseconds + self.timer.time_until_next_call()
+            self.start_ns = time.time_ns() + self.period_ns
+            self.sampler = threading.Thread(target=self._sampling_loop, name='sampling', daemon=True)
+            self.sampler.start()
 
     def on_tick(self) -> None:
-        """Wall timer: start once the graph is ready; realtime: sample; sim: lockstep watchdog."""
+        """10 Hz wall timer: start once the graph is ready; sim: lockstep watchdog."""
         if self.start_ns is None:
             if self._graph_ready():
                 if self.settle_until_ns is None:
@@ -134,35 +146,51 @@ class PlantNode(Node):
                 elif self.wall.now().nanoseconds >= self.settle_until_ns:
                     self._start()
             return
-        if self.mode == 'realtime':
-            self._realtime_tick()
-        elif self.waiting_since_ns is not None and \
+        if self.mode == 'sim' and self.waiting_since_ns is not None and \
                 self.wall.now().nanoseconds - self.waiting_since_ns > self.lockstep_timeout_s * 1e9:
             self.timeouts += 1
             self.log.warn('lockstep_timeout', lambda: f'sim: no command for sample {self.plant.sample_index} within '
                                    f'{self.lockstep_timeout_s} s; stepping with 0 A')
             self._advance(0.0)
 
+    def _sampling_loop(self) -> None:
+        """realtime: sleep until the next instant of the sample grid, sample, repeat (ros2_control's loop).
+
+        One thread wake per sample, against two for an rclpy timer (its timer thread, then the
+        executor); it inherits the process's SCHED_FIFO priority. An exception ends the run
+        with the error (run_node exits 1) instead of leaving a node that no longer samples.
+        """
+        try:
+            while not self.finished and not self.stop_sampling.is_set():
+                wait_ns = self.start_ns + self.next_sample * self.period_ns - time.time_ns()
+                if wait_ns > 0:
+                    time.sleep(wait_ns * 1e-9)
+                self._realtime_tick()
+        except Exception as exc:  # noqa: BLE001 - reported by run_node, never lost with the thread
+            self.error = f'sampling thread failed: {exc!r}'
+            self.finished = True
+
     def _realtime_tick(self) -> None:
         """Integrate every whole period elapsed since the last sample, then publish the newest sample.
 
-        rcl drops a late timer tick without replaying it; the samples it covered are then
-        integrated here with the current held, and only the newest is published (the
+        After a stall (the process did not run for several periods) the samples it covered
+        are integrated with the current held, and only the newest is published (the
         controller counts the gap as missed samples).
         """
-        now = self.get_clock().now().nanoseconds
-        due = (now - self.start_ns) // self.period_ns
+        due = (time.time_ns() - self.start_ns) // self.period_ns
         if due < self.next_sample:
             return
-        if self.last_command_wall_ns is not None and \
-                self.wall.now().nanoseconds - self.last_command_wall_ns > self.command_timeout_s * 1e9:
-            self.held_stamp_ns = -1
-            if self.current_a != 0.0:
+        current, stamp_ns, received_ns = self.command
+        stale = received_ns is not None and time.monotonic_ns() - received_ns > self.command_timeout_s * 1e9
+        if stale:
+            if not self.command_stale:
                 self.timeouts += 1
                 self.log.warn('command_timeout', lambda: 'commands stopped: current set to 0 A')
-            self.current_a = 0.0
+            current, stamp_ns = 0.0, -1
+        self.command_stale = stale
+        self.current_a, self.held_stamp_ns = current, stamp_ns
         while self.plant.sample_index < due:
-            self.plant.step(self.current_a)
+            self.plant.step(current)
         self.next_sample = due + 1
         self._publish_sample()
 
@@ -224,9 +252,7 @@ class PlantNode(Node):
         if self.start_ns is None:
             return
         if self.mode == 'realtime':
-            self.current_a = current
-            self.held_stamp_ns = stamp_to_ns(msg.header.stamp)
-            self.last_command_wall_ns = self.wall.now().nanoseconds
+            self.command = (current, stamp_to_ns(msg.header.stamp), time.monotonic_ns())
             return
         expected = self.start_ns + self.plant.sample_index * self.period_ns
         if stamp_to_ns(msg.header.stamp) == expected and self.waiting_since_ns is not None:
@@ -235,7 +261,10 @@ class PlantNode(Node):
             self._advance(current)
 
     def close(self) -> None:
-        """Log a one-line summary at shutdown; write the per-sample log if asked."""
+        """Stop the sampling thread; log a one-line summary; write the per-sample log if asked."""
+        self.stop_sampling.set()
+        if self.sampler is not None:
+            self.sampler.join(timeout=1.0)
         if self.timing_log:
             self.samples_log.save(self.timing_log)
         self.get_logger().info(
