@@ -122,7 +122,7 @@ def write_run_bag(
             put('estimate', ns + 60_000, types['actuator_msgs/msg/StateEstimate'](
                 header=header(ns), position_rad=run.reference[k] + run.error[k],
                 velocity_rad_s=run.est_velocity[k], disturbance_rad_s2=run.est_disturbance[k],
-                input_stamp=time_t(sec=0, nanosec=0), input_position_rad=0.0, input_current_a=0.0,
+                input_stamp=time_t(sec=0, nanosec=0), input_position_rad=0.0, input_current_a=0.0, input_current_gain=0.0,
                 initial=k == 0, current_substituted=False, missing_current_count=0))
             put('command', ns + int(run.latency_ns[k]), types['actuator_msgs/msg/CurrentCommand'](
                 header=header(ns), current_a=run.current[k], safe_stop=False))

@@ -109,8 +109,10 @@ def test_log_figures(tmp_path):
 
 
 def test_eso_figures():
-    f = bench.eso_figures({'steps': 200, 'exact_pairs': 150, 'substituted_pairs': 50, 'refused_inputs': 2})
+    f = bench.eso_figures({'steps': 200, 'exact_pairs': 150, 'substituted_pairs': 50, 'repaired_pairs': 40,
+                           'refused_inputs': 2})
     assert f['eso_exact_pct'] == pytest.approx(75.0)
+    assert f['eso_exact_or_repaired_pct'] == pytest.approx(95.0) and f['eso_repaired'] == 40
     assert f['eso_substituted'] == 50 and f['eso_refused'] == 2
     assert bench.eso_figures({'steps': 0})['eso_exact_pct'] is None
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from actuator_controller.ppf import PrescribedPerformance, inverse_transform, transform_error
-from actuator_eso.observer import EsoGains, ExtendedStateObserver
+from actuator_eso.observer import EsoGains, ExtendedStateObserver, eso_step, input_current_correction
 from actuator_plant.model import (JointPlant, PlantParameters, WorkingCondition, derive_constants,
                                   disturbance_parts, joint_forces)
 from actuator_plant.oil import (MotorGeometry, OilProperties, dynamic_viscosity_pa_s, kinematic_viscosity_m2_s,
@@ -133,6 +133,21 @@ def test_eso_converges_on_a_known_signal():
     assert err[-5000:, 0].max() < 1e-5          # ... and converges: d' = 20 cos gives a small lag only
     assert err[-5000:, 1].max() < 5e-3
     assert err[-5000:, 2].max() < 0.5
+
+
+@pytest.mark.parametrize('steps', [0, 1, 4])
+def test_late_current_correction_equals_stepping_with_the_right_current(steps):
+    """A step taken with a substituted current, repaired `steps` steps later, equals the exact run."""
+    gains, dt = EsoGains(), 1e-3
+    rng = np.random.default_rng(7)
+    ys, us = rng.normal(0.0, 0.1, 8), rng.normal(0.0, 5.0, 8)
+    exact, wrong = (0.01, -0.2, 3.0), (0.01, -0.2, 3.0)
+    for k in range(1 + steps):
+        exact = eso_step(*exact, ys[k], us[k], dt, gains)
+        wrong = eso_step(*wrong, ys[k], (us[k] - 2.5) if k == 0 else us[k], dt, gains)   # sample 0 substituted
+    assert not np.allclose(wrong, exact, rtol=0.0, atol=1e-9)
+    repaired = np.add(wrong, input_current_correction(2.5, steps, dt, gains))
+    assert np.allclose(repaired, exact, rtol=1e-12, atol=1e-12)
 
 
 def test_ppf_transform_inverse_and_r_against_numerical_derivative():

@@ -118,6 +118,37 @@ def test_controller_refuses_nan_and_goes_safe_on_stale_inputs(harness, ros_proce
     assert ctrl.stop() == 0 and 'Traceback' not in ctrl.output
 
 
+def test_controller_corrects_an_estimate_integrated_with_a_substituted_current(harness, ros_process):
+    """x_hat(k) says it integrated 1 A less than the controller commanded for k-1: x2_hat gains 1 A * gain."""
+    ctrl = ros_process('actuator_controller', 'controller_node',     # long timeouts: no watchdog command between
+                       ['--ros-args', '-p', 'controller:=nftsmc_eso', '-p', 'measurement_timeout_s:=5.0',
+                        '-p', 'estimate_timeout_s:=5.0'])
+    harness.wait_for(lambda: harness.node.count_subscribers('joint_states') >= 1, what='controller subscription')
+    harness.spin(0.5)
+    t, period = _now_ns(harness), 1_000_000
+    harness.send_sample(t, 0.0)
+    harness.wait_for(lambda: any(c.header.stamp == ns_to_stamp(t) for c in harness.got['command']), what='command 0')
+    commanded = next(c.current_a for c in harness.got['command'] if c.header.stamp == ns_to_stamp(t))
+    for k, (input_ns, input_current) in enumerate([(t, commanded - 1.0), (t + period, None)], start=1):
+        est = harness.types['StateEstimate'](velocity_rad_s=0.25, disturbance_rad_s2=0.0, input_current_gain=0.5)
+        est.header.stamp, est.input_stamp = ns_to_stamp(t + k * period), ns_to_stamp(input_ns)
+        if input_current is None:   # sample 1's estimate integrated what was commanded: left alone
+            input_current = next(c.current_a for c in harness.got['command']
+                                 if c.header.stamp == ns_to_stamp(t + period))
+        est.input_current_a = input_current
+        harness.estimate.publish(est)
+        harness.spin(0.01)
+        js = harness.types['JointState'](name=['joint'], position=[0.0])
+        js.header.stamp = est.header.stamp
+        harness.joint.publish(js)
+        harness.wait_for(lambda: any(s.header.stamp == est.header.stamp for s in harness.got['state']),
+                         what=f'state {k}')
+    states = {s.header.stamp.nanosec: s for s in harness.got['state']}
+    assert states[ns_to_stamp(t + period).nanosec].estimated_velocity_rad_s == pytest.approx(0.25 + 0.5)
+    assert states[ns_to_stamp(t + 2 * period).nanosec].estimated_velocity_rad_s == pytest.approx(0.25)
+    assert ctrl.stop() == 0
+
+
 def test_controller_latches_safe_stop_beyond_following_error(harness, ros_process):
     from actuator_msgs.msg import ControllerState
     ctrl = ros_process('actuator_controller', 'controller_node',
@@ -181,6 +212,46 @@ def test_eso_refuses_non_finite_measurements_and_commands(harness, ros_process):
     assert any(e.current_substituted for e in harness.got['estimate'])  # the NaN command's sample
     assert 'refused' in eso.output
     assert eso.stop() == 0
+
+
+def test_eso_repairs_its_state_when_a_command_comes_late(harness, ros_process):
+    """Sample 10's command comes after y(11): the step is substituted, then repaired to the exact pair."""
+    from actuator_eso.observer import EsoGains, eso_step
+
+    eso = ros_process('actuator_eso', 'eso_node')
+    harness.wait_for(lambda: harness.node.count_subscribers('joint_states') >= 1
+                     and harness.node.count_subscribers('current_command') >= 1, what='eso subscriptions')
+    harness.spin(0.5)
+    t, period = _now_ns(harness), 1_000_000
+    ys = [0.001 * k for k in range(16)]
+    us = [2.0 * math.sin(k) for k in range(16)]
+    for k in range(16):
+        harness.send_sample(t + k * period, ys[k], estimate=False)
+        harness.spin(0.01)
+        if k == 11:
+            harness.send_command(t + 10 * period, us[10])      # late: y(11) is already in
+            harness.spin(0.01)
+        if k != 10:
+            harness.send_command(t + k * period, us[k])
+            harness.spin(0.01)
+    harness.spin(0.3)
+    by_stamp = {e.header.stamp.sec * 1_000_000_000 + e.header.stamp.nanosec: e for e in harness.got['estimate']}
+    exact, gains = [(0.0, 0.0, 0.0)], EsoGains()
+    for k in range(15):
+        exact.append(eso_step(*exact[-1], ys[k], us[k], 1e-3, gains))
+    substituted = by_stamp[t + 11 * period]
+    assert substituted.current_substituted and substituted.input_current_a == pytest.approx(us[9])
+    # The controller's correction of the estimate it received ...
+    corrected = substituted.velocity_rad_s + (us[10] - substituted.input_current_a) * substituted.input_current_gain
+    assert corrected == pytest.approx(exact[11][1], rel=1e-9, abs=1e-12)
+    assert substituted.velocity_rad_s != pytest.approx(exact[11][1], rel=1e-6)
+    # ... and the observer's own repair: every later estimate is the exact one.
+    last = by_stamp[t + 15 * period]
+    assert not last.current_substituted
+    assert (last.position_rad, last.velocity_rad_s, last.disturbance_rad_s2) == pytest.approx(exact[15], rel=1e-9,
+                                                                                              abs=1e-12)
+    assert eso.stop() == 0
+    assert 'repaired when the command came late: 1' in eso.output
 
 
 @pytest.mark.parametrize('package, executable, args, names', [

@@ -133,8 +133,8 @@ def run_closed_loop(scenario: str, mode: str, duration_s: float | None = None, r
                     rt_priority: int = 0, cpus: dict[str, str] | None = None) -> RunResult:
     """Start the nodes for ``scenario`` in ``mode``, run to the end, stop everything, return the result.
 
-    ``rt_priority`` > 0 runs the ESO and controller under SCHED_FIFO at that priority, the plant
-    one level above and the recorder ten below (when this machine permits it). ``cpus`` pins nodes to
+    ``rt_priority`` > 0 runs the ESO and controller under SCHED_FIFO at that priority and the plant
+    one level above; the recorder keeps normal scheduling. ``cpus`` pins nodes to
     CPUs by key ('plant', 'eso', 'controller'), e.g. {'plant': '0', 'eso': '1', 'controller': '1'}.
     """
     cpus = cpus or {}
@@ -155,11 +155,16 @@ def run_closed_loop(scenario: str, mode: str, duration_s: float | None = None, r
     plan = []
     if bag is not None:
         bag_root.mkdir(parents=True, exist_ok=True)
-        plan.append(('recorder', 'actuator_bag', 'recorder', ['--ros-args', '-p', f'output:={bag}', *clocked]))
-    # The recorder under SCHED_FIFO too, 10 levels below the loop: it yields to the control
-    # nodes but is not starved by them (measured: at normal scheduling it fell 0.3-1 s behind
-    # and once stalled for good). Started through chrt, set before its threads exist.
-    recorder_prefix = _fifo_prefix(max(rt_priority - 10, 1)) if rt_priority else []
+        # The recorder keeps normal scheduling, with a 5 s queue per topic in real time to ride
+        # out the bursts in which the SCHED_FIFO loop leaves it no CPU. Under SCHED_FIFO as
+        # well, the real-time threads used ~90 % of both cores, past the kernel's default
+        # budget (sched_rt_runtime_us = 950000 per second), and the kernel then stopped every
+        # one of them for the rest of the second: gaps of 27-63 ms in the plant's sampling.
+        # Measured, 3 runs each way: longest gap 17-43 ms -> 5-18 ms, latency p99 1.4-2.5 ->
+        # 0.9-1.9 ms; one of those runs overflowed the 1 s queue it had then (8 % of messages
+        # reported lost by the middleware).
+        depth = ['-p', 'queue_depth:=5000'] if mode == 'realtime' else []
+        plan.append(('recorder', 'actuator_bag', 'recorder', ['--ros-args', '-p', f'output:={bag}', *depth, *clocked]))
     def pinned(key: str) -> list[str]:
         # The plant is the sampling hardware: it runs one level above the ESO and controller, so
         # its tick is not queued behind their callbacks (measured, 3 runs of 20 s each way: latency
@@ -181,8 +186,7 @@ def run_closed_loop(scenario: str, mode: str, duration_s: float | None = None, r
     try:
         for key, package, exe, args in plan:
             log = run_dir / f'{key}.log'
-            prefix = recorder_prefix if key == 'recorder' else []
-            popen = subprocess.Popen([*prefix, str(executable(package, exe)), *args], stdout=log.open('w'),
+            popen = subprocess.Popen([str(executable(package, exe)), *args], stdout=log.open('w'),
                                      stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, start_new_session=True)
             procs[key] = NodeProcess(key, popen, log)
         if not quiet:
@@ -194,15 +198,6 @@ def run_closed_loop(scenario: str, mode: str, duration_s: float | None = None, r
     return RunResult(name, mode, bag, run_dir, timing_log, codes,
                      {k: p.cpu_percent() for k, p in procs.items()},
                      {k: p.peak_rss_kb / 1024.0 for k, p in procs.items()}, wall)
-
-
-def _fifo_prefix(priority: int) -> list[str]:
-    """['chrt', '-f', N] when this machine lets us use SCHED_FIFO, else [] (normal scheduling)."""
-    try:
-        ok = subprocess.run(['chrt', '-f', str(priority), 'true'], capture_output=True, timeout=5).returncode == 0
-    except (OSError, subprocess.TimeoutExpired):
-        ok = False
-    return ['chrt', '-f', str(priority)] if ok else []
 
 
 def wait_for_leader(procs: dict[str, NodeProcess], duration_s: float | None, quiet: bool,

@@ -63,17 +63,24 @@ class ClosedLoop:
         self.sample_index = 0
         self.last_current = zero
 
-    def step(self) -> dict:
-        """Run sample k in the node order; return every recorded quantity of that sample."""
+    def step(self, command_late: bool = False, eso_integrates_applied: bool = False) -> dict:
+        """Run sample k in the node order; return every recorded quantity of that sample.
+
+        Fault injection for the real-time case (``late_commands``): ``command_late`` makes the
+        plant hold the previous current over this sample, as when a command misses its sample;
+        ``eso_integrates_applied`` makes the ESO integrate that held current instead of the
+        commanded one.
+        """
         t = sample_time_s(self.sample_index * self.period_ns)
         y, velocity = self.plant.position_rad, self.plant.velocity_rad_s
         truth = self.plant.truth(self.last_current)
         x1_hat, x2_hat, x3_hat = self.eso.state
         ref = self.reference.sample(t)
         out = self.controller.update(t, y, x2_hat, x3_hat, ref)
-        self.eso.update(y, out.current_a)
-        self.plant.step(out.current_a)
-        self.last_current = out.current_a
+        applied = self.last_current if command_late else out.current_a
+        self.eso.update(y, applied if eso_integrates_applied else out.current_a)
+        self.plant.step(applied)
+        self.last_current = applied
         self.sample_index += 1
         record = dict(zip(EXTRA_FIELDS, (t, ref.position_rad, ref.velocity_rad_s, ref.acceleration_rad_s2, y,
                                          x1_hat, x2_hat, x3_hat, velocity,

@@ -68,6 +68,22 @@ def eso_step(x1_hat, x2_hat, x3_hat, y, u, dt_s: float, gains: EsoGains):
             x3_hat + dt_s * (beta3 * x1_tilde))
 
 
+def input_current_correction(du_a, steps: int, dt_s: float, gains: EsoGains):
+    """Change of x_hat(k+1+steps) when u(k) of step k changes by ``du_a`` [A], eq. (15) by forward Euler.
+
+    The step puts dt * theta1n * du on x2_hat; each further step carries that change by the
+    observer's error dynamics (d y = 0, d u = 0). Exact, since (15) is linear: adding the
+    result to a state stepped with the wrong current gives the state stepped with the right one.
+    """
+    beta1, beta2, beta3 = gains.beta
+    d1, d2, d3 = 0.0 * du_a, dt_s * gains.theta1n * du_a, 0.0 * du_a
+    for _ in range(steps):
+        d1, d2, d3 = (d1 + dt_s * (d2 - beta1 * d1),
+                      d2 + dt_s * (gains.theta2n * d2 + d3 - beta2 * d1),
+                      d3 - dt_s * beta3 * d1)
+    return d1, d2, d3
+
+
 class ExtendedStateObserver:
     """Holds x_hat for the current sample; ``update`` consumes that sample's (y, u) pair."""
 

@@ -64,6 +64,7 @@ class PlantNode(Node):
         self.dt_s = declare_number(self, 'sample_time_s', 1.0e-3, 1.0e-4, 0.1, 's', 'sensor sample period')
         self.command_timeout_s = declare_number(self, 'command_timeout_s', 0.01, 1.0e-3, 10.0, 's',
                                                 'realtime: current drops to zero when commands are older')
+        self.command_timeout_ns = int(round(self.command_timeout_s * 1e9))
         self.current_limit_a = declare_number(self, 'current_limit_a', 30.0, 0.0, 1.0e3, 'A',
                                               'commands beyond +-this are refused (zero applied)')
         self.lockstep_timeout_s = declare_number(self, 'lockstep_timeout_s', 2.0, 0.01, 600.0, 's',
@@ -90,8 +91,8 @@ class PlantNode(Node):
         self.wall = Clock(clock_type=ClockType.STEADY_TIME)
         self.finished = False             # read by run_node: the run is over
         self.current_a = 0.0              # current held over the running sample
-        # realtime: the newest valid command as one tuple (current [A], stamp [ns], steady receive
-        # time [ns]), so the sampling thread never sees one command's current with another's stamp.
+        # realtime: the newest valid command as one tuple (current [A], stamp [ns], receive time
+        # [ns, system clock]), so the sampling thread never sees one command's current with another's stamp.
         self.command: tuple[float, int, int | None] = (0.0, -1, None)
         self.command_stale = False        # realtime: commands have timed out
         self.sampler: threading.Thread | None = None
@@ -174,23 +175,24 @@ class PlantNode(Node):
         """Integrate every whole period elapsed since the last sample, then publish the newest sample.
 
         After a stall (the process did not run for several periods) the samples it covered
-        are integrated with the current held, and only the newest is published (the
-        controller counts the gap as missed samples).
+        are integrated one by one, and only the newest is published (the controller counts
+        the gap as missed samples). Each sample holds the newest command unless that is older
+        than command_timeout_s at the sample's start, as a drive's watchdog would see it in
+        real time: a 40 ms stall holds the current for 10 ms, then 0 A, not 0 A throughout.
         """
         due = (time.time_ns() - self.start_ns) // self.period_ns
         if due < self.next_sample:
             return
         current, stamp_ns, received_ns = self.command
-        stale = received_ns is not None and time.monotonic_ns() - received_ns > self.command_timeout_s * 1e9
-        if stale:
-            if not self.command_stale:
+        while self.plant.sample_index < due:
+            sample_start_ns = self.start_ns + self.plant.sample_index * self.period_ns
+            stale = received_ns is not None and sample_start_ns - received_ns > self.command_timeout_ns
+            if stale and not self.command_stale:
                 self.timeouts += 1
                 self.log.warn('command_timeout', lambda: 'commands stopped: current set to 0 A')
-            current, stamp_ns = 0.0, -1
-        self.command_stale = stale
-        self.current_a, self.held_stamp_ns = current, stamp_ns
-        while self.plant.sample_index < due:
-            self.plant.step(current)
+            self.command_stale = stale
+            self.current_a, self.held_stamp_ns = (0.0, -1) if stale else (current, stamp_ns)
+            self.plant.step(self.current_a)
         self.next_sample = due + 1
         self._publish_sample()
 
@@ -252,7 +254,7 @@ class PlantNode(Node):
         if self.start_ns is None:
             return
         if self.mode == 'realtime':
-            self.command = (current, stamp_to_ns(msg.header.stamp), time.monotonic_ns())
+            self.command = (current, stamp_to_ns(msg.header.stamp), time.time_ns())
             return
         expected = self.start_ns + self.plant.sample_index * self.period_ns
         if stamp_to_ns(msg.header.stamp) == expected and self.waiting_since_ns is not None:
