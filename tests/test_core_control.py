@@ -147,3 +147,17 @@ def test_gains_refuse_out_of_range_values_with_the_name():
         CommonConfig(current_limit_a=float('inf'))
     with pytest.raises(ValueError, match='k0_per_s'):
         dataclasses.replace(make_controller('pp_nftsmc_eso').gains, k0_per_s=-1.0)
+
+
+def test_late_commands_bursts_and_the_eso_integrating_the_commanded_current():
+    """Late bursts have the asked length; the ESO integrating u(k) tolerates what integrating u(k-1) does not."""
+    from actuator_bringup.late_commands import late_mask, max_steady_error
+
+    mask = late_mask(20000, 0.1, 3, seed=1)
+    starts = np.flatnonzero(mask & ~np.roll(mask, 1))
+    assert starts.size > 100 and 0.2 < mask.mean() < 0.3
+    assert not late_mask(1000, 0.0, 3, seed=1).any()
+    mask = late_mask(6000, 0.1, 3, seed=0)
+    commanded = max_steady_error(mask, eso_integrates_applied=False, duration_s=6.0)
+    held = max_steady_error(mask, eso_integrates_applied=True, duration_s=6.0)
+    assert commanded < 3e-3 and held > 5 * commanded

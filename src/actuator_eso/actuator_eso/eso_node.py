@@ -14,8 +14,8 @@ the state: (15) is linear, so adding ``input_current_correction`` gives exactly 
 the true pair would have given (the controller corrects the one estimate it already
 used, from ``input_current_gain``). Simulated offline with the plant applying u(k-1) on
 random samples, integrating the commanded u(k) kept the error near the undisturbed run
-where integrating u(k-1) grew it 4-30x (10 % of samples late in bursts of 3:
-max steady error 0.8-2.0e-3 against 2.6-4.0e-2 rad). "In time" depends on the mode. realtime: before the next measurement, because a
+where integrating u(k-1) grew it up to 30x (bursts of 3 late samples starting on
+10 % of samples: max steady error 0.8-2.0e-3 against 2.6-4.0e-2 rad). "In time" depends on the mode. realtime: before the next measurement, because a
 command later than a whole period missed its sample (the plant held the previous current)
 and the controller needs x_hat(k+1) now; waiting longer would stall the loop after a single
 lost message. sim: messages are never lost, so the observer waits for the true pair
