@@ -161,3 +161,43 @@ def test_late_commands_bursts_and_the_eso_integrating_the_commanded_current():
     commanded = max_steady_error(mask, eso_integrates_applied=False, duration_s=6.0)
     held = max_steady_error(mask, eso_integrates_applied=True, duration_s=6.0)
     assert commanded < 3e-3 and held > 5 * commanded
+
+
+def test_envelope_restarts_when_the_error_leaves_it_and_not_otherwise():
+    """e beyond h rho restarts (8) at t with rho0 = max(rho0, margin |e|); restart_margin 0 keeps the paper's clamp."""
+    from actuator_controller.laws import PpNftsmcGains, make_controller
+    from actuator_controller.ppf import PrescribedPerformance
+    from actuator_controller.reference import ReferenceSample
+
+    ref = ReferenceSample(0.0, 0.0, 0.0)
+    ctrl = make_controller('pp_nftsmc_eso')
+    out = ctrl.update(6.0, 0.01, 0.0, 0.0, ref)              # inside (rho(6) ~ 0.06): no restart
+    assert bool(out.bounds_kept) and ctrl.envelope_restarts == 0
+    out = ctrl.update(6.001, 0.3, 0.0, 0.0, ref)             # beyond: restarted at t = 6.001 with rho0 = 0.6
+    assert ctrl.envelope_restarts == 1 and ctrl.envelope_start_s == 6.001
+    assert out.rho_rad == pytest.approx(0.6) and not bool(out.bounds_kept)   # the violation is still reported
+    assert bool(ctrl.update(6.002, 0.3, 0.0, 0.0, ref).bounds_kept) and ctrl.envelope_restarts == 1
+    ctrl.reset()
+    assert ctrl.envelope_start_s == 0.0 and ctrl.envelope_rho0_rad == 0.25
+    paper = make_controller('pp_nftsmc_eso', PpNftsmcGains(ppf=PrescribedPerformance(restart_margin=0.0)))
+    out = paper.update(6.001, 0.3, 0.0, 0.0, ref)
+    assert not bool(out.bounds_kept) and paper.envelope_restarts == 0 and out.rho_rad < 0.1
+
+
+@pytest.mark.parametrize('restart_margin, recovers', [(2.0, True), (0.0, False)])
+def test_loop_recovers_from_a_40_ms_current_dropout_only_with_envelope_restarts(restart_margin, recovers):
+    """40 ms of 0 A at t = 5 s (a drive watchdog after a controller stall) throws the error out of the envelope."""
+    from actuator_controller.laws import PpNftsmcGains
+    from actuator_controller.ppf import PrescribedPerformance
+
+    scenario = paper_scenario('dropout', 'pp_nftsmc_eso', 'fast', 'deep_sea', 8.0,
+                              gains=PpNftsmcGains(ppf=PrescribedPerformance(restart_margin=restart_margin)))
+    loop = ClosedLoop(scenario)
+    errors = []
+    for k in range(scenario.samples):
+        if k == 5000:
+            loop.last_current = 0.0        # the plant holds 0 A over the next 40 samples
+        errors.append(abs(float(loop.step(command_late=5000 <= k < 5040)['error_rad'])))
+    worst_late = max(errors[7000:])
+    assert max(errors[5000:5200]) > 0.05                     # the dropout did throw it out
+    assert (worst_late < 2e-3) == recovers, worst_late

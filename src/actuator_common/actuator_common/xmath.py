@@ -71,6 +71,11 @@ def clip(x, low, high):
     return low if x < low else (high if x > high else x)
 
 
+def all_true(x) -> bool:
+    """``x`` (a bool or a bool array) is true everywhere."""
+    return bool(np.all(x)) if isinstance(x, _ndarray) else bool(x)
+
+
 def logical_not(x):
     """Elementwise not of a boolean (``~`` is wrong on a Python bool)."""
     return np.logical_not(x) if isinstance(x, _ndarray) else not x

@@ -85,6 +85,7 @@ class ControllerNode(Node):
         self.estimates: dict[int, tuple[float, float, int, float, float]] = {}
         self.commanded: tuple[int, float] = (-1, 0.0)   # (stamp, current) of the newest command
         self.corrected_estimates = 0
+        self.envelope_restarts = 0
         self.newest_estimate_ns = None
         self.pending = None              # (stamp_ns, y) waiting for its estimate
         self.start_ns = None             # stamp of the first controlled sample (reference t = 0)
@@ -185,6 +186,11 @@ class ControllerNode(Node):
         t = sample_time_s(stamp - self.start_ns)
         ref = self.reference.sample(t)
         out = self.law.update(t, y, estimate[0], estimate[1], ref)
+        if getattr(self.law, 'envelope_restarts', 0) != self.envelope_restarts:
+            self.envelope_restarts = self.law.envelope_restarts
+            self.log.warn('envelope', lambda: f'error {float(out.error_rad):.3g} rad left the prescribed envelope: '
+                                              f'restarted it with rho0 = {float(out.rho_rad):.3g} rad '
+                                              f'(restart {self.envelope_restarts})')
         status = ControllerState.STATUS_OK
         if not bool(out.finite):
             status = self.latched = ControllerState.STATUS_DIVERGED
@@ -283,7 +289,7 @@ class ControllerNode(Node):
         summary = {'updates': self.timing.rows, 'measurements_in': self.measurements_in,
                    'estimates_in': self.estimates_in, 'late': self.late, 'missed': self.missed,
                    'unanswered': self.unanswered, 'stale_events': self.stale_events, 'refused_inputs': self.refused,
-                   'corrected_estimates': self.corrected_estimates}
+                   'corrected_estimates': self.corrected_estimates, 'envelope_restarts': self.envelope_restarts}
         if len(rows) > 2:
             period = np.diff(rows[:, 0]) / 1e3
             summary.update({

@@ -245,12 +245,31 @@ class PpNftsmcEsoController(Controller):
     name = 'pp_nftsmc_eso'
     gains: PpNftsmcGains
 
+    def __init__(self, gains, common: CommonConfig):
+        """The envelope (8) starts at t = 0 with the gains' rho0 (until a restart, see ppf)."""
+        super().__init__(gains, common)
+        self.envelope_start_s = 0.0
+        self.envelope_rho0_rad = gains.ppf.rho0_rad
+        self.envelope_restarts = 0
+
+    def reset(self) -> None:
+        """A new run: zero integral, the gains' envelope from t = 0."""
+        super().reset()
+        self.envelope_start_s, self.envelope_rho0_rad, self.envelope_restarts = 0.0, self.gains.ppf.rho0_rad, 0
+
     def update(self, t, y, x2_hat, x3_hat, ref: ReferenceSample) -> ControlOutput:
         """Current for this sample; the sliding integral of (27) advances by its integrand times dt."""
         g, c = self.gains, self.common
-        rho, rho_d, rho_dd = g.ppf.rho_derivatives(t)
         e = y - ref.position_rad                                   # (19)
+        rho, rho_d, rho_dd = g.ppf.rho_derivatives(t - self.envelope_start_s, self.envelope_rho0_rad)
         tr = transform_error(e, rho, g.ppf)                        # (21), r of (12)
+        bounds_kept = tr.inside                                    # reported even when restarted below
+        if g.ppf.restart_margin > 0.0 and not xm.all_true(tr.inside):   # left the envelope: restart (8) at t
+            self.envelope_start_s = xm.where(tr.inside, self.envelope_start_s, t)
+            self.envelope_rho0_rad = xm.where(tr.inside, self.envelope_rho0_rad, g.ppf.restart_rho0(e))
+            self.envelope_restarts += 1
+            rho, rho_d, rho_dd = g.ppf.rho_derivatives(t - self.envelope_start_s, self.envelope_rho0_rad)
+            tr = transform_error(e, rho, g.ppf)
         z1 = tr.z
         alpha = -g.k0_per_s * z1 + ref.velocity_rad_s + rho_d * e / rho   # (23)
         e_dot_hat = x2_hat - ref.velocity_rad_s
@@ -265,7 +284,7 @@ class PpNftsmcEsoController(Controller):
         u_b = 2.0 * xm.fabs(z1 * z2) * tanh_sq_over(sigma, g.tau_rad_s)  # (35)
         lower, upper = -g.ppf.lower_scale * rho, g.ppf.upper_scale * rho
         return self._finish(-(u_eq + u_sw + u_b) / c.theta1n, integrand, error_rad=e, rho_rad=rho,
-                            lower_bound_rad=lower, upper_bound_rad=upper, bounds_kept=tr.inside, z1=z1,
+                            lower_bound_rad=lower, upper_bound_rad=upper, bounds_kept=bounds_kept, z1=z1,
                             z2_rad_s=z2, alpha_rad_s=alpha, alpha_dot_rad_s2=alpha_dot, sigma_rad_s=sigma,
                             u_eq_rad_s2=u_eq, u_sw_rad_s2=u_sw, u_b_rad_s2=u_b, proportional_a=NAN, integral_a=NAN)
 
