@@ -46,29 +46,36 @@ def test_sim_mode_across_three_processes_equals_the_offline_core(isolated, contr
     assert eso['substituted_pairs'] == 0 and eso['exact_pairs'] >= 2000
 
 
-def test_realtime_mode_closes_the_loop_and_reports_timing(isolated):
+def test_realtime_loop_stays_stable_for_the_whole_fast_deep_sea_run(isolated):
+    """The paper's 10 s fast deep-sea run, PP-NFTSMC-ESO, in real time: the loop closes and, under SCHED_FIFO, stays stable."""
     from actuator_bag.analyze import analyze_run, load_run
     from actuator_bringup.bringup import run_closed_loop
     from actuator_bringup.main import timing_figures
 
-    result = run_closed_loop('case2_pp_nftsmc_eso', 'realtime', 6.0, record=True, bag_root=isolated / 'bags',
+    result = run_closed_loop('case2_pp_nftsmc_eso', 'realtime', None, record=True, bag_root=isolated / 'bags',
                              results_root=isolated / 'runs', quiet=True, rt_priority=50)
     assert all(code == 0 for code in result.exit_codes.values()), result.exit_codes
     timing = timing_figures(result)
-    assert timing['updates'] > 300                      # the loop closed (how well: see bench, not a test)
+    assert timing['updates'] > 500                      # the loop closed
     assert 0.0 < timing['latency_us']['p50'] < 1.0e5
-    # Tracking quality in real time depends on the machine's load (README, Performance);
-    # what must hold on any machine: every command finite and within the current limit.
     run = load_run(result.bag, quiet=True)
     assert np.all(np.isfinite(run.current)) and np.max(np.abs(run.current)) <= 20.0 + 1e-9
-    # Recorded and readable. How much of a real-time run the recorder keeps when the loop
-    # saturates both cores depends on the load (measured: 50 % to all of it); its keep-up at
-    # 1 kHz is tested on its own in test_bag_record.
-    assert analyze_run(run).metrics.samples > 0
+    assert analyze_run(run).metrics.samples > 0         # recorded and readable
     plant = np.load(result.run_dir / 'plant_samples.npz')
-    assert plant['stamp_ns'].size > 5000 and np.all(np.diff(plant['stamp_ns']) % 1_000_000 == 0)
+    assert plant['stamp_ns'].size > 9000 and np.all(np.diff(plant['stamp_ns']) % 1_000_000 == 0)
     assert all(v is None or v < 400.0 for v in result.cpu_percent.values())
     assert all(0.0 < v < 1000.0 for v in result.peak_rss_mb.values())
+    logs = {key: (result.run_dir / f'{key}.log').read_text() for key in ('plant', 'eso', 'controller')}
+    if not all('running under SCHED_FIFO' in text for text in logs.values()):
+        pytest.skip('SCHED_FIFO refused on this machine: real-time stability is only claimed under it '
+                    '(normal scheduling latches; see README, Performance)')
+    # Stable for the whole run: never latched, the error stays inside the paper's initial
+    # envelope (rho0 = 0.25 rad; 9 runs here: at most 4.6e-2 rad), and the observer integrated
+    # the commanded current on time or by repair for nearly every sample.
+    assert 'safe stop latched' not in logs['controller']
+    assert np.max(np.abs(run.error)) < 0.25, np.max(np.abs(run.error))
+    eso = json.loads((result.run_dir / 'eso_stats.json').read_text())
+    assert eso['exact_pairs'] + eso['repaired_pairs'] >= 0.9 * eso['steps'], eso
 
 
 def test_main_job_prints_the_report_and_writes_figures(ros_env, tmp_path):

@@ -133,11 +133,14 @@ def run_closed_loop(scenario: str, mode: str, duration_s: float | None = None, r
                     rt_priority: int = 0, cpus: dict[str, str] | None = None) -> RunResult:
     """Start the nodes for ``scenario`` in ``mode``, run to the end, stop everything, return the result.
 
+    ``duration_s`` None runs the scenario's own length (10 s for the paper's cases), never forever.
     ``rt_priority`` > 0 runs the ESO and controller under SCHED_FIFO at that priority and the plant
     one level above; the recorder keeps normal scheduling. ``cpus`` pins nodes to
     CPUs by key ('plant', 'eso', 'controller'), e.g. {'plant': '0', 'eso': '1', 'controller': '1'}.
     """
     cpus = cpus or {}
+    if duration_s is None:
+        duration_s = scenario_duration(scenario)
     if mode not in MODES:
         raise SystemExit(f'bringup: mode must be one of {", ".join(MODES)}')
     params = scenario_file(scenario)
