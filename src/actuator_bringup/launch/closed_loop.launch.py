@@ -40,7 +40,11 @@ def _nodes(context):
                           output='screen'))
     if record:
         nodes.append(Node(package='actuator_bag', executable='recorder', name='recorder',
-                          parameters=[{'use_sim_time': sim}], output='screen'))
+                          # as bringup: sim RELIABLE with 10 s of queue (a 1 s queue lost samples
+                          # when the lockstep ran ahead), realtime BEST_EFFORT with 5 s.
+                          parameters=[{'use_sim_time': sim, 'reliability': 'reliable' if sim else 'best_effort',
+                                       'queue_depth': 10000 if sim else 5000}],
+                          output='screen'))
     return nodes
 
 
