@@ -283,3 +283,45 @@ def test_nodes_stop_cleanly_on_signals(ros_process, package, executable, signal_
     proc.popen.send_signal(getattr(signal, signal_name))
     assert proc.wait(10.0) == 0
     assert 'Traceback' not in proc.output and 'Failed to publish' not in proc.output
+
+
+def test_exit_waits_until_reliable_subscribers_have_everything(rclpy_context, ros_process, tmp_path):
+    """wait_for_acknowledgements (run_node's exit): True once a RELIABLE subscriber has all, False when it does not answer."""
+    import os
+    import signal
+
+    from rclpy.node import Node
+
+    from actuator_common.ros import control_qos, wait_for_acknowledgements
+    from sensor_msgs.msg import JointState
+
+    recorder = ros_process('actuator_bag', 'recorder', ['--ros-args', '-p', f'output:={tmp_path / "bag"}',
+                                                        '-p', 'reliability:=reliable'])
+    recorder.wait_for_output('recording', timeout=20.0)
+    node = Node('ack_test', context=rclpy_context)
+    reliable = node.create_publisher(JointState, 'joint_states', control_qos('sim'))
+    best_effort = node.create_publisher(JointState, 'plant/truth_like', control_qos('realtime'))
+    deadline = time.monotonic() + 20.0
+    while reliable.get_subscription_count() < 1:
+        assert time.monotonic() < deadline, 'the recorder never matched'
+        time.sleep(0.05)
+    msg = JointState(name=['joint'], position=[0.0])
+    try:
+        for _ in range(20):
+            reliable.publish(msg)
+        assert wait_for_acknowledgements(node, timeout_s=5.0)
+        os.kill(recorder.pid, signal.SIGSTOP)          # a subscriber that no longer answers
+        try:
+            for _ in range(20):
+                reliable.publish(msg)
+                best_effort.publish(msg)
+            started = time.monotonic()
+            assert not wait_for_acknowledgements(node, timeout_s=1.0)
+            assert time.monotonic() - started < 3.0     # bounded by the timeout, not the subscriber
+        finally:
+            os.kill(recorder.pid, signal.SIGCONT)
+        assert wait_for_acknowledgements(node, timeout_s=10.0)   # resent and acknowledged after all
+    finally:
+        node.destroy_node()
+    recorder.stop()
+    assert 'Traceback' not in recorder.output
