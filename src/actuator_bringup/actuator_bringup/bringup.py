@@ -127,6 +127,26 @@ class RunResult:
     wall_s: float
 
 
+def recorder_parameters(mode: str) -> dict[str, str | int]:
+    """The recorder's queue for a closed-loop run in ``mode`` (bringup and the launch file both use it).
+
+    realtime: BEST_EFFORT, 5 s of queue per topic. The recorder keeps normal scheduling, and the
+    queue rides out the bursts in which the SCHED_FIFO loop leaves it no CPU. Under SCHED_FIFO as
+    well, the real-time threads used ~90 % of both cores, past the kernel's default budget
+    (sched_rt_runtime_us = 950000 per second), and the kernel then stopped every one of them for
+    the rest of the second: gaps of 27-63 ms in the plant's sampling. Measured, 3 runs each way:
+    longest gap 17-43 ms -> 5-18 ms, latency p99 1.4-2.5 -> 0.9-1.9 ms; one of those runs
+    overflowed the 1 s queue it had then (8 % of messages reported lost by the middleware).
+    sim: RELIABLE like the publishers, and 10 s of queue. The lockstep runs as fast as the CPU
+    allows and does not wait for the recorder, which then falls behind by more than a 1 s queue:
+    2 s PI runs lost 68-669 of 2000 samples in 12 of 94 runs (best effort or reliable, several
+    middleware settings), 0 of 32 with 10 s.
+    """
+    if mode == 'sim':
+        return {'reliability': 'reliable', 'queue_depth': 10000}
+    return {'reliability': 'best_effort', 'queue_depth': 5000}
+
+
 def run_closed_loop(scenario: str, mode: str, duration_s: float | None = None, record: bool = True,
                     bag_root: Path = Path('bags'), results_root: Path = Path('results/runs'),
                     executor: str = 'events', extra_params: Sequence[str] = (), quiet: bool = False,
@@ -158,21 +178,8 @@ def run_closed_loop(scenario: str, mode: str, duration_s: float | None = None, r
     plan = []
     if bag is not None:
         bag_root.mkdir(parents=True, exist_ok=True)
-        # The recorder keeps normal scheduling, with a 5 s queue per topic in real time to ride
-        # out the bursts in which the SCHED_FIFO loop leaves it no CPU. Under SCHED_FIFO as
-        # well, the real-time threads used ~90 % of both cores, past the kernel's default
-        # budget (sched_rt_runtime_us = 950000 per second), and the kernel then stopped every
-        # one of them for the rest of the second: gaps of 27-63 ms in the plant's sampling.
-        # Measured, 3 runs each way: longest gap 17-43 ms -> 5-18 ms, latency p99 1.4-2.5 ->
-        # 0.9-1.9 ms; one of those runs overflowed the 1 s queue it had then (8 % of messages
-        # reported lost by the middleware).
-        # sim: RELIABLE like the publishers, and 10 s of queue. The lockstep runs as fast as the CPU
-        # allows and does not wait for the recorder, which then falls behind by more than its
-        # 1 s queue: 2 s PI runs lost 68-669 of 2000 samples in 12 of 94 runs (best effort or
-        # reliable, several middleware settings), 0 of 32 with 10 s.
-        depth = (['-p', 'queue_depth:=5000'] if mode == 'realtime' else
-                 ['-p', 'queue_depth:=10000', '-p', 'reliability:=reliable'])
-        plan.append(('recorder', 'actuator_bag', 'recorder', ['--ros-args', '-p', f'output:={bag}', *depth, *clocked]))
+        recorder = [a for k, v in recorder_parameters(mode).items() for a in ('-p', f'{k}:={v}')]
+        plan.append(('recorder', 'actuator_bag', 'recorder', ['--ros-args', '-p', f'output:={bag}', *recorder, *clocked]))
     def pinned(key: str) -> list[str]:
         # The plant is the sampling hardware: it runs one level above the ESO and controller, so
         # its tick is not queued behind their callbacks (measured, 3 runs of 20 s each way: latency

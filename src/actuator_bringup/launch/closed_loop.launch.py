@@ -15,6 +15,8 @@ from launch.actions import DeclareLaunchArgument, OpaqueFunction
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
+from actuator_bringup.bringup import recorder_parameters
+
 
 def _nodes(context):
     scenario = LaunchConfiguration('scenario').perform(context)
@@ -40,10 +42,7 @@ def _nodes(context):
                           output='screen'))
     if record:
         nodes.append(Node(package='actuator_bag', executable='recorder', name='recorder',
-                          # as bringup: sim RELIABLE with 10 s of queue (a 1 s queue lost samples
-                          # when the lockstep ran ahead), realtime BEST_EFFORT with 5 s.
-                          parameters=[{'use_sim_time': sim, 'reliability': 'reliable' if sim else 'best_effort',
-                                       'queue_depth': 10000 if sim else 5000}],
+                          parameters=[{'use_sim_time': sim, **recorder_parameters(mode)}],
                           output='screen'))
     return nodes
 

@@ -217,7 +217,7 @@ def wait_for_acknowledgements(node: Node, timeout_s: float = ACK_TIMEOUT_S) -> b
             unacked.append(pub.topic_name)
     if unacked:
         node.get_logger().warning(f'exiting with samples not acknowledged by every subscriber on '
-                                  f'{", ".join(unacked)} after {timeout_s:g} s: a RELIABLE recorder missed them')
+                                  f'{", ".join(unacked)} after {timeout_s:g} s: a RELIABLE subscriber (the recorder?) missed them')
     return not unacked
 
 
