@@ -62,8 +62,13 @@ if [[ $MODE == system ]]; then
 else
     BASE_PY="${ACTUATOR_BASE_PYTHON:-python3}"
 fi
-command -v "$BASE_PY" >/dev/null || fail "no Python interpreter '$BASE_PY' on PATH"
-BASE_PY="$("$BASE_PY" -c 'import sys; print(sys.executable)')"  # past any pyenv shim
+# Resolve the interpreter with the project's own venv taken off PATH: a shell that sourced
+# scripts/env.sh has .venv/bin first, and the venv's python3 is not a base interpreter.
+BASE_PATH="$(printf '%s' "$PATH" | tr ':' '\n' | grep -v -x -F -e "$VENV/bin" | paste -sd: -)"
+BASE_PY_CMD="$(PATH="$BASE_PATH" command -v "$BASE_PY" || true)"
+[[ -n $BASE_PY_CMD ]] || fail "no Python interpreter '$BASE_PY' on PATH"
+# Past any pyenv shim, and past any virtual environment to the interpreter it was made from.
+BASE_PY="$(env -u VIRTUAL_ENV -u PYTHONHOME "$BASE_PY_CMD" -c 'import sys; print(getattr(sys, "_base_executable", sys.executable) if sys.prefix != sys.base_prefix else sys.executable)')"
 BASE_VER="$("$BASE_PY" -c 'import sys; print("%d.%d.%d" % sys.version_info[:3])')"
 if [[ $MODE == wheels && $BASE_VER != 3.11.* ]]; then
     fail "the ROS 2 Jazzy wheels are built for CPython 3.11 (cp311); $BASE_PY is $BASE_VER." \

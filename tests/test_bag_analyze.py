@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 pytest.importorskip('rosbags')
-pytest.importorskip('actuator_common.metrics')
+pytest.importorskip('actuator_core.metrics')
 
 from actuator_bag.analyze import analyze_run, load_run, main  # noqa: E402
 from actuator_bag.bag_format import mcap_name  # noqa: E402

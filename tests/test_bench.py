@@ -10,7 +10,7 @@ import sys
 import numpy as np
 import pytest
 
-from actuator_bringup import bench, floor
+from actuator_tools import bench, floor
 
 PERIOD_NS = 1_000_000
 
@@ -182,7 +182,7 @@ def test_steal_share_between_two_readings():
 
 def test_short_sim_run_end_to_end(ros_env, tmp_path):
     out = tmp_path / 'bench'
-    proc = subprocess.run([sys.executable, '-m', 'actuator_bringup.bench', '--duration', '2', '--repeats', '1',
+    proc = subprocess.run([sys.executable, '-m', 'actuator_tools.bench', '--duration', '2', '--repeats', '1',
                            '--skip-offline', '--modes', 'sim', '--floor-s', '2', '--out', str(out)],
                           env=ros_env, capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stdout + proc.stderr

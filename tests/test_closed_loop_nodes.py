@@ -26,10 +26,10 @@ def isolated(ros_env, monkeypatch, tmp_path):
 @pytest.mark.parametrize('controller', ['pp_nftsmc_eso', 'nftsmc_eso', 'smc_eso', 'pi'])
 def test_sim_mode_across_three_processes_equals_the_offline_core(isolated, controller):
     from actuator_bag.analyze import load_run
-    from actuator_bringup.bringup import run_closed_loop
-    from actuator_bringup.closed_loop import ClosedLoop
-    from actuator_bringup.main import compare_with_offline
-    from actuator_bringup.params_yaml import all_scenarios
+    from actuator_tools.bringup import run_closed_loop
+    from actuator_sim.loop import ClosedLoop
+    from actuator_tools.main import compare_with_offline
+    from actuator_sim.params_yaml import all_scenarios
 
     scenario_name = f'case2_{controller}'
     result = run_closed_loop(scenario_name, 'sim', 2.0, record=True, bag_root=isolated / 'bags',
@@ -49,8 +49,8 @@ def test_sim_mode_across_three_processes_equals_the_offline_core(isolated, contr
 def test_realtime_loop_stays_stable_for_the_whole_fast_deep_sea_run(isolated):
     """The paper's 10 s fast deep-sea run, PP-NFTSMC-ESO, in real time: the loop closes and, under SCHED_FIFO, stays stable."""
     from actuator_bag.analyze import analyze_run, load_run
-    from actuator_bringup.bringup import run_closed_loop
-    from actuator_bringup.main import timing_figures
+    from actuator_tools.bringup import run_closed_loop
+    from actuator_tools.main import timing_figures
 
     result = run_closed_loop('case2_pp_nftsmc_eso', 'realtime', None, record=True, bag_root=isolated / 'bags',
                              results_root=isolated / 'runs', quiet=True, rt_priority=50)
@@ -80,7 +80,7 @@ def test_realtime_loop_stays_stable_for_the_whole_fast_deep_sea_run(isolated):
 
 def test_main_job_prints_the_report_and_writes_figures(ros_env, tmp_path):
     env = dict(ros_env)
-    proc = subprocess.run([sys.executable, '-m', 'actuator_bringup.main', '--duration', '6', '--modes', 'sim',
+    proc = subprocess.run([sys.executable, '-m', 'actuator_tools.main', '--duration', '6', '--modes', 'sim',
                            '--out', str(tmp_path / 'out')], env=env, cwd=tmp_path, capture_output=True, text=True,
                           timeout=300)
     assert proc.returncode == 0, proc.stdout + proc.stderr
@@ -99,7 +99,7 @@ def test_main_job_prints_the_report_and_writes_figures(ros_env, tmp_path):
 def test_installed_scenario_files_match_the_scenarios():
     from ament_index_python.packages import get_package_share_directory
 
-    from actuator_bringup.params_yaml import all_scenarios, scenario_parameters
+    from actuator_sim.params_yaml import all_scenarios, scenario_parameters
 
     config = Path(get_package_share_directory('actuator_bringup')) / 'config'
     scenarios = all_scenarios()

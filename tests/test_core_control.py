@@ -5,11 +5,11 @@ import dataclasses
 import numpy as np
 import pytest
 
-from actuator_bringup.closed_loop import ClosedLoop, Scenario
-from actuator_common.metrics import compute_run_metrics
-from actuator_bringup.offline import run_scenario
-from actuator_bringup.scenarios import case1, paper_scenario
-from actuator_bringup.stability import radius_along_envelope
+from actuator_sim.loop import ClosedLoop, Scenario
+from actuator_core.metrics import compute_run_metrics
+from actuator_sim.offline import run_scenario
+from actuator_sim.scenarios import case1, paper_scenario
+from actuator_sim.stability import radius_along_envelope
 from actuator_controller.laws import (CONTROLLER_NAMES, CommonConfig, NftsmcGains, PiGains, SmcGains,
                                       make_controller, tanh_sq_over)
 from actuator_controller.reference import ReferenceSample, fast_trajectory, make_reference, slow_trajectory
@@ -151,7 +151,7 @@ def test_gains_refuse_out_of_range_values_with_the_name():
 
 def test_late_commands_bursts_and_the_eso_integrating_the_commanded_current():
     """Late bursts have the asked length; the ESO integrating u(k) tolerates what integrating u(k-1) does not."""
-    from actuator_bringup.late_commands import late_mask, max_steady_error
+    from actuator_sim.late_commands import late_mask, max_steady_error
 
     mask = late_mask(20000, 0.1, 3, seed=1)
     starts = np.flatnonzero(mask & ~np.roll(mask, 1))

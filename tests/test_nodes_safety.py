@@ -5,7 +5,7 @@ import time
 
 import pytest
 
-from actuator_common.ros import ns_to_stamp
+from actuator_ros.runtime import ns_to_stamp
 
 pytestmark = pytest.mark.usefixtures('rclpy_context')
 
@@ -17,7 +17,7 @@ class Harness:
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.node import Node
 
-        from actuator_common.ros import control_qos
+        from actuator_ros.runtime import control_qos
         from actuator_msgs.msg import ControllerState, CurrentCommand, PlantTruth, StateEstimate
         from sensor_msgs.msg import JointState
 
@@ -292,7 +292,7 @@ def test_exit_waits_until_reliable_subscribers_have_everything(rclpy_context, ro
 
     from rclpy.node import Node
 
-    from actuator_common.ros import control_qos, wait_for_acknowledgements
+    from actuator_ros.runtime import control_qos, wait_for_acknowledgements
     from sensor_msgs.msg import JointState
 
     recorder = ros_process('actuator_bag', 'recorder', ['--ros-args', '-p', f'output:={tmp_path / "bag"}',

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from actuator_common.sample_log import CHUNK_ROWS, SampleLog
+from actuator_core.sample_log import CHUNK_ROWS, SampleLog
 
 
 def test_rows_across_chunks_and_cap(tmp_path):

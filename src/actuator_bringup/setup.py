@@ -3,7 +3,7 @@
 import os
 from glob import glob
 
-from setuptools import find_packages, setup
+from setuptools import setup
 
 package_name = 'actuator_bringup'
 
@@ -17,7 +17,7 @@ def share_files(folder, pattern):
 setup(
     name=package_name,
     version='0.1.0',
-    packages=find_packages(exclude=['test', 'test.*']),
+    packages=[],
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
@@ -28,14 +28,10 @@ setup(
     zip_safe=True,
     maintainer='Actuator control team',
     maintainer_email='actuator@example.com',
-    description='Closed-loop core, offline simulation, process runner, launch files and scenarios of the actuator node suite.',
+    description='Launch files and scenario parameter files of the actuator node suite.',
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={
-        'console_scripts': [
-            'offline_sim = actuator_bringup.offline:main',
-            'bringup = actuator_bringup.bringup:main',
-            'stability_check = actuator_bringup.stability:main',
-        ],
+        'console_scripts': [],
     },
 )

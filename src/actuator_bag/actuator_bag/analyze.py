@@ -2,7 +2,7 @@
 
 Each bag is read with rosbags; message types come from the installed .msg files (or, for
 types not installed, the definitions embedded in the bag). Per bag it reports the run
-metrics of ``actuator_common.metrics.compute_run_metrics`` computed from the
+metrics of ``actuator_core.metrics.compute_run_metrics`` computed from the
 ``controller/state`` samples (reference, error, prescribed-performance bounds, current),
 the estimation error of ``eso/estimate`` against ``plant/truth`` paired by header.stamp,
 and loop timing from stamps: the joint_states sample period and the command latency
@@ -24,8 +24,8 @@ from typing import Any, Optional, Sequence
 
 import numpy as np
 import yaml
-from actuator_common.timing import stamp_to_ns
-from actuator_common.metrics import STEADY_STATE_START_S, RunMetrics, compute_run_metrics
+from actuator_core.timing import stamp_to_ns
+from actuator_core.metrics import STEADY_STATE_START_S, RunMetrics, compute_run_metrics
 
 from .errors import AnalysisError, BagError, run_cli
 from .msgdefs import DefinitionSource, definition_roots

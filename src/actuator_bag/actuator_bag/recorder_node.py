@@ -44,7 +44,7 @@ from rclpy.utilities import remove_ros_args
 from .bag_format import DEFAULT_CHUNK_SIZE, DEFAULT_FLUSH_INTERVAL_S, BagSummary, BagWriter, TopicSpec
 from .errors import BagError
 from .msgdefs import DefinitionSource, normalize_msgtype
-from actuator_common.ros import make_executor
+from actuator_ros.runtime import make_executor
 
 from .ros_common import EXECUTORS, StopFlag, make_qos, message_class, to_bag_qos
 

@@ -15,7 +15,7 @@ from launch.actions import DeclareLaunchArgument, OpaqueFunction
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
-from actuator_bringup.bringup import recorder_parameters
+from actuator_tools.bringup import recorder_parameters
 
 
 def _nodes(context):

@@ -26,10 +26,11 @@ import time
 import numpy as np
 from rclpy.node import Node
 
-from actuator_common.ros import RateLimitedLog, MODES, ParameterError, control_qos, declare_choice, declare_number, \
+from actuator_core import limits
+from actuator_ros.runtime import RateLimitedLog, MODES, ParameterError, control_qos, declare_choice, declare_number, \
     declare_spec_parameters, joint_position, ns_to_stamp, run_node
-from actuator_common.sample_log import SampleLog
-from actuator_common.timing import period_ns, sample_time_s, stamp_to_ns
+from actuator_core.sample_log import SampleLog
+from actuator_core.timing import period_ns, sample_time_s, stamp_to_ns
 from actuator_controller.laws import CONTROLLER_NAMES, GAINS_BY_NAME, CommonConfig, ControlOutput, make_controller
 from actuator_controller.reference import make_reference
 from actuator_msgs.msg import ControllerState, CurrentCommand, StateEstimate
@@ -57,12 +58,12 @@ class ControllerNode(Node):
         frequency = declare_number(self, 'reference_frequency_rad_s', 2.0 * math.pi, 0.0, 1.0e3, 'rad/s',
                                    'sine angular frequency')
         self.measurement_timeout_ns = int(1e9 * declare_number(
-            self, 'measurement_timeout_s', 0.005, 1.0e-3, 10.0, 's', 'older measurement: safe stop (0 A)'))
+            self, 'measurement_timeout_s', limits.MEASUREMENT_TIMEOUT_S, *limits.TIMEOUT_RANGE_S, 's', 'older measurement: safe stop (0 A)'))
         self.estimate_timeout_ns = int(1e9 * declare_number(
-            self, 'estimate_timeout_s', 0.005, 1.0e-3, 10.0, 's', 'older estimate: safe stop (0 A)'))
+            self, 'estimate_timeout_s', limits.ESTIMATE_TIMEOUT_S, *limits.TIMEOUT_RANGE_S, 's', 'older estimate: safe stop (0 A)'))
         self.following_error_limit_rad = declare_number(
-            self, 'following_error_limit_rad', 0.5, 1.0e-4, 100.0, 'rad', '|e| beyond latches a safe stop')
-        self.max_abs_position_rad = declare_number(self, 'max_abs_position_rad', 100.0, 0.0, 1.0e4, 'rad',
+            self, 'following_error_limit_rad', limits.FOLLOWING_ERROR_LIMIT_RAD, 1.0e-4, 100.0, 'rad', '|e| beyond latches a safe stop')
+        self.max_abs_position_rad = declare_number(self, 'max_abs_position_rad', limits.POSITION_LIMIT_RAD, 0.0, 1.0e4, 'rad',
                                                    'measurements beyond are refused')
         self.joint_name = self.declare_parameter('joint_name', 'joint').value
         self.timing_log = self.declare_parameter('timing_log', '').value

@@ -32,8 +32,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
-from actuator_common import xmath as xm
-from actuator_common.params import spec, validate
+from actuator_core import limits
+from actuator_core import xmath as xm
+from actuator_core.params import spec, validate
 from actuator_controller.ppf import PrescribedPerformance, transform_error
 from actuator_controller.reference import ReferenceSample
 
@@ -46,12 +47,12 @@ NAN = float('nan')
 class CommonConfig:
     """What every controller shares: the nominal model (3), the sample time and the current limit."""
 
-    theta1n: float = spec(0.105 / (3.34e-5 * 100.0), 'theta_1n = k_tn/(J_n N), eq. (3)', 'rad/s^2/A',
+    theta1n: float = spec(limits.THETA1N, 'theta_1n = k_tn/(J_n N), eq. (3)', 'rad/s^2/A',
                           0.0, 1.0e6, low_open=True)
-    theta2n: float = spec(-1.95e-5 / 3.34e-5, 'theta_2n = -k_bn/J_n, eq. (3)', '1/s', -1.0e4, 1.0e4)
-    dt_s: float = spec(1.0e-3, 'sample time of the control loop', 's', 1.0e-5, 0.1)
-    current_limit_a: float = spec(20.0, 'the commanded current is limited to +-this value', 'A',
-                                  0.0, 1.0e3, low_open=True)
+    theta2n: float = spec(limits.THETA2N, 'theta_2n = -k_bn/J_n, eq. (3)', '1/s', -1.0e4, 1.0e4)
+    dt_s: float = spec(limits.SAMPLE_TIME_S, 'sample time of the control loop', 's', *limits.SAMPLE_TIME_RANGE_S)
+    current_limit_a: float = spec(limits.CURRENT_LIMIT_A, 'the commanded current is limited to +-this value', 'A',
+                                  *limits.CURRENT_LIMIT_RANGE_A, low_open=True)
 
     def __post_init__(self) -> None:
         """Refuse out-of-range values."""

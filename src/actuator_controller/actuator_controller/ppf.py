@@ -29,8 +29,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import NamedTuple
 
-from actuator_common import xmath as xm
-from actuator_common.params import spec, validate
+from actuator_core import xmath as xm
+from actuator_core.params import spec, validate
 
 #: Fraction of the band (l + h) kept between the clamped normalised error and each bound.
 BOUNDARY_MARGIN = 1.0e-4

@@ -6,7 +6,7 @@ import math
 from dataclasses import dataclass
 from typing import NamedTuple, Protocol
 
-from actuator_common import xmath as xm
+from actuator_core import xmath as xm
 
 
 class ReferenceSample(NamedTuple):

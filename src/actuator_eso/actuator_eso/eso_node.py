@@ -31,9 +31,10 @@ import math
 
 from rclpy.node import Node
 
-from actuator_common.ros import RateLimitedLog, MODES, control_qos, declare_choice, declare_number, declare_spec_parameters, \
+from actuator_core import limits
+from actuator_ros.runtime import RateLimitedLog, MODES, control_qos, declare_choice, declare_number, declare_spec_parameters, \
     joint_position, ns_to_stamp, run_node
-from actuator_common.timing import period_ns, stamp_to_ns
+from actuator_core.timing import period_ns, stamp_to_ns
 from actuator_eso.observer import EsoGains, eso_step, input_current_correction
 from actuator_msgs.msg import CurrentCommand, StateEstimate
 from sensor_msgs.msg import JointState
@@ -56,10 +57,10 @@ class EsoNode(Node):
         self.log = RateLimitedLog(self.get_logger())
         self.mode = declare_choice(self, 'mode', 'realtime', MODES, 'selects the QoS of the 1 kHz streams')
         self.gains = declare_spec_parameters(self, EsoGains)
-        self.dt_s = declare_number(self, 'sample_time_s', 1.0e-3, 1.0e-4, 0.1, 's', 'sensor sample period')
-        self.max_abs_position_rad = declare_number(self, 'max_abs_position_rad', 100.0, 0.0, 1.0e4, 'rad',
+        self.dt_s = declare_number(self, 'sample_time_s', limits.SAMPLE_TIME_S, *limits.SAMPLE_TIME_RANGE_S, 's', 'sensor sample period')
+        self.max_abs_position_rad = declare_number(self, 'max_abs_position_rad', limits.POSITION_LIMIT_RAD, 0.0, 1.0e4, 'rad',
                                                    'measurements beyond are refused')
-        self.max_abs_current_a = declare_number(self, 'max_abs_current_a', 1.0e3, 0.0, 1.0e5, 'A',
+        self.max_abs_current_a = declare_number(self, 'max_abs_current_a', limits.CURRENT_LIMIT_A, *limits.CURRENT_LIMIT_RANGE_A, 'A',
                                                 'commands beyond are refused')
         self.joint_name = self.declare_parameter('joint_name', 'joint').value
         self.stats_log = self.declare_parameter('stats_log', '').value

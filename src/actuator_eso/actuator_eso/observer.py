@@ -13,7 +13,7 @@ where u(k) is the current commanded for sample k and held over [t_k, t_k+1). Thi
 decision, not a detail: with the paper's controller gains at 1 kHz the loop is only
 lightly stable, and it diverges when the observer integrates u(k-1) instead of u(k), or is
 discretised exactly (zero-order hold) instead of by Euler (see docs/paper-resolutions.md
-and ``actuator_bringup.stability``). x_hat(k+1) depends on samples up to k only, so the
+and ``actuator_sim.stability``). x_hat(k+1) depends on samples up to k only, so the
 observer never delays the sensor-to-command path.
 """
 
@@ -23,7 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from actuator_common.params import spec, validate
+from actuator_core import limits
+from actuator_core.params import spec, validate
 
 
 @dataclass(frozen=True)
@@ -35,9 +36,9 @@ class EsoGains:
     l1: float = spec(15.0, 'l1 of (15)-(16) (Table 4)', '', 0.0, 1.0e4, low_open=True)
     l2: float = spec(75.0, 'l2 of (15)-(16) (Table 4)', '', 0.0, 1.0e6, low_open=True)
     l3: float = spec(125.0, 'l3 of (15)-(16) (Table 4)', '', 0.0, 1.0e9, low_open=True)
-    theta1n: float = spec(0.105 / (3.34e-5 * 100.0), 'theta_1n = k_tn/(J_n N), eq. (3)', 'rad/s^2/A',
+    theta1n: float = spec(limits.THETA1N, 'theta_1n = k_tn/(J_n N), eq. (3)', 'rad/s^2/A',
                           0.0, 1.0e6, low_open=True)
-    theta2n: float = spec(-1.95e-5 / 3.34e-5, 'theta_2n = -k_bn/J_n, eq. (3)', '1/s', -1.0e4, 1.0e4)
+    theta2n: float = spec(limits.THETA2N, 'theta_2n = -k_bn/J_n, eq. (3)', '1/s', -1.0e4, 1.0e4)
 
     def __post_init__(self) -> None:
         """Refuse gains that make (16) non-Hurwitz: all > 0 and l1*l2 > l3 (Routh)."""

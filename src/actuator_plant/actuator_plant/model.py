@@ -16,11 +16,12 @@ from typing import NamedTuple
 
 import numpy as np
 
+from actuator_core import limits
 from actuator_plant.oil import (PA_PER_MPA, MotorGeometry, OilProperties, dynamic_viscosity_pa_s,
                                 stirring_geometry_constant_m3)
-from actuator_common import xmath as xm
-from actuator_common.params import check_value, spec, validate
-from actuator_common.timing import period_ns, sample_time_s
+from actuator_core import xmath as xm
+from actuator_core.params import check_value, spec, validate
+from actuator_core.timing import period_ns, sample_time_s
 
 #: Sea-water density [kg/m^3] and gravity [m/s^2] for the hydrostatic pressure at a depth.
 SEAWATER_DENSITY_KG_M3 = 1025.0
@@ -31,13 +32,13 @@ GRAVITY_M_S2 = 9.80665
 class JointNominal:
     """Nominal joint parameters of Table 1 and the model coefficients of eq. (3)."""
 
-    inertia_kg_m2: float = spec(3.34e-5, 'J_n: nominal inertia at the motor shaft (Table 1)', 'kg m^2', 0.0, 10.0,
+    inertia_kg_m2: float = spec(limits.NOMINAL_INERTIA_KG_M2, 'J_n: nominal inertia at the motor shaft (Table 1)', 'kg m^2', 0.0, 10.0,
                                 low_open=True)
-    torque_constant_nm_a: float = spec(0.105, 'k_tn: nominal motor torque constant (Table 1)', 'N m/A', 0.0, 100.0,
+    torque_constant_nm_a: float = spec(limits.NOMINAL_TORQUE_CONSTANT_NM_A, 'k_tn: nominal motor torque constant (Table 1)', 'N m/A', 0.0, 100.0,
                                        low_open=True)
-    viscous_coefficient_nm_s_rad: float = spec(1.95e-5, 'k_bn: nominal motor viscous coefficient (Table 1)',
+    viscous_coefficient_nm_s_rad: float = spec(limits.NOMINAL_VISCOUS_NM_S_RAD, 'k_bn: nominal motor viscous coefficient (Table 1)',
                                                'N m s/rad', 0.0, 10.0)
-    gear_ratio: float = spec(100.0, 'N: gear reduction ratio (Table 1)', '', 0.0, 1.0e4, low_open=True)
+    gear_ratio: float = spec(limits.NOMINAL_GEAR_RATIO, 'N: gear reduction ratio (Table 1)', '', 0.0, 1.0e4, low_open=True)
 
     def __post_init__(self) -> None:
         """Refuse non-physical values."""

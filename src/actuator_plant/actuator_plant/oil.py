@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from actuator_common.params import spec, validate
+from actuator_core.params import spec, validate
 
 PA_PER_MPA = 1.0e6
 KELVIN_OFFSET = 273.15

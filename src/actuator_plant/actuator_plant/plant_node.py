@@ -24,10 +24,11 @@ from dataclasses import replace
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 
-from actuator_common.ros import RateLimitedLog, MODES, ParameterError, control_qos, declare_choice, declare_number, \
+from actuator_core import limits
+from actuator_ros.runtime import RateLimitedLog, MODES, ParameterError, control_qos, declare_choice, declare_number, \
     declare_spec_parameters, ns_to_stamp, run_node
-from actuator_common.sample_log import SampleLog
-from actuator_common.timing import period_ns, stamp_to_ns
+from actuator_core.sample_log import SampleLog
+from actuator_core.timing import period_ns, stamp_to_ns
 from actuator_msgs.msg import CurrentCommand, PlantTruth
 from actuator_plant.model import JointPlant, PlantParameters, WorkingCondition
 from builtin_interfaces.msg import Time
@@ -61,11 +62,11 @@ class PlantNode(Node):
             params = _with_condition(params, WorkingCondition.lab())
         elif condition == 'depth':
             params = _with_condition(params, WorkingCondition.at_depth(depth, params.condition.temperature_c))
-        self.dt_s = declare_number(self, 'sample_time_s', 1.0e-3, 1.0e-4, 0.1, 's', 'sensor sample period')
-        self.command_timeout_s = declare_number(self, 'command_timeout_s', 0.01, 1.0e-3, 10.0, 's',
+        self.dt_s = declare_number(self, 'sample_time_s', limits.SAMPLE_TIME_S, *limits.SAMPLE_TIME_RANGE_S, 's', 'sensor sample period')
+        self.command_timeout_s = declare_number(self, 'command_timeout_s', limits.COMMAND_TIMEOUT_S, *limits.TIMEOUT_RANGE_S, 's',
                                                 'realtime: current drops to zero when commands are older')
         self.command_timeout_ns = int(round(self.command_timeout_s * 1e9))
-        self.current_limit_a = declare_number(self, 'current_limit_a', 30.0, 0.0, 1.0e3, 'A',
+        self.current_limit_a = declare_number(self, 'current_limit_a', limits.CURRENT_LIMIT_A, *limits.CURRENT_LIMIT_RANGE_A, 'A',
                                               'commands beyond +-this are refused (zero applied)')
         self.lockstep_timeout_s = declare_number(self, 'lockstep_timeout_s', 2.0, 0.01, 600.0, 's',
                                                  'sim: wall time to wait for a command before stepping with 0 A')

@@ -11,12 +11,8 @@ from typing import Optional
 
 import numpy as np
 
-#: Default start of the steady-state window [s]. The paper's references carry the factor
-#: (1 - exp(-t)), which is within 0.7 % of 1 after 5 s; the paper does not state its window.
-STEADY_STATE_START_S = 5.0
+from actuator_core.limits import DIVERGENCE_ERROR_RAD, STEADY_STATE_START_S
 
-#: An |error| above this [rad] (about 57 degrees) means the loop left any sensible operating range.
-DIVERGENCE_ERROR_RAD = 1.0
 
 
 @dataclass(frozen=True)

@@ -213,8 +213,8 @@ def bag_figures(bag: Path) -> Figures:
 
 def offline_speed(scenario_name: str, batch: Optional[int], sim_s: float) -> float:
     """Total simulated seconds per wall second of ``ClosedLoop`` stepped for ``sim_s`` (``batch`` copies at once)."""
-    from actuator_bringup.closed_loop import ClosedLoop
-    from actuator_bringup.params_yaml import all_scenarios
+    from actuator_sim.loop import ClosedLoop
+    from actuator_sim.params_yaml import all_scenarios
     scenario = all_scenarios()[scenario_name]
     loop = ClosedLoop(scenario, batch=batch)
     steps = max(1, int(round(sim_s / scenario.common.dt_s)))
@@ -235,9 +235,9 @@ def offline_figures(scenario_name: str, batches: Sequence[int], sim_s: float) ->
 
 def offline_reference(scenario_name: str, duration_s: float) -> Figures:
     """Tracking error of the offline core (identical to a sim-time run) when no sim-time run was made."""
-    from actuator_bringup.closed_loop import ClosedLoop
-    from actuator_bringup.offline import trace_metrics
-    from actuator_bringup.params_yaml import all_scenarios
+    from actuator_sim.loop import ClosedLoop
+    from actuator_sim.offline import trace_metrics
+    from actuator_sim.params_yaml import all_scenarios
     scenario = dataclasses.replace(all_scenarios()[scenario_name], duration_s=duration_s)
     metrics = trace_metrics(ClosedLoop(scenario).run())
     return {'max_steady_error_rad': metrics.max_steady_error_rad, 'rms_error_rad': metrics.rms_error_rad}
@@ -519,7 +519,7 @@ def steal_percent(before: tuple[int, int], after: tuple[int, int]) -> Optional[f
 
 def run_one(variant: Variant, repeat: int, args: argparse.Namespace, base: Path, period_ns: int) -> RunRecord:
     """One recorded run of ``variant``; figures from its files and bag, or the error."""
-    from actuator_bringup.bringup import PINNING, run_closed_loop
+    from actuator_tools.bringup import PINNING, run_closed_loop
     record = RunRecord(variant.slug, repeat)
     where = f'{variant.slug}_rep{repeat}'
     label = f'{variant.slug} repeat {repeat}/{args.repeats}'
@@ -548,9 +548,9 @@ def run_one(variant: Variant, repeat: int, args: argparse.Namespace, base: Path,
 
 
 def floor_run(args: argparse.Namespace, base: Path, repeat: int, rt_priority: int) -> Figures:
-    """One middleware-floor run (actuator_bringup.floor): echo and source as processes for --floor-s seconds."""
-    from actuator_bringup.bringup import NodeProcess, wait_for_leader
-    from actuator_bringup.floor import hop_figures
+    """One middleware-floor run (actuator_tools.floor): echo and source as processes for --floor-s seconds."""
+    from actuator_tools.bringup import NodeProcess, wait_for_leader
+    from actuator_tools.floor import hop_figures
     run_dir = base / 'floor' / f'rep{repeat}'
     run_dir.mkdir(parents=True, exist_ok=True)
     output = run_dir / 'rtt.npz'
@@ -561,7 +561,7 @@ def floor_run(args: argparse.Namespace, base: Path, repeat: int, rt_priority: in
     try:
         for role, params in roles.items():
             log = run_dir / f'{role}.log'
-            popen = subprocess.Popen([sys.executable, '-m', 'actuator_bringup.floor', role, *priority, '--ros-args',
+            popen = subprocess.Popen([sys.executable, '-m', 'actuator_tools.floor', role, *priority, '--ros-args',
                                       *params], stdout=log.open('w'), stderr=subprocess.STDOUT,
                                      stdin=subprocess.DEVNULL, start_new_session=True)
             procs[role] = NodeProcess(role, popen, log)
@@ -684,7 +684,7 @@ def build_parser() -> OneLineParser:
 
 def check_args(args: argparse.Namespace) -> Optional[str]:
     """The first problem with the arguments, or None."""
-    from actuator_bringup.params_yaml import all_scenarios
+    from actuator_sim.params_yaml import all_scenarios
     low, high = DURATION_RANGE_S
     if not low <= args.duration <= high:
         return f'--duration {args.duration:g} out of range [{low:g}, {high:g}] s'
@@ -701,7 +701,7 @@ def check_args(args: argparse.Namespace) -> Optional[str]:
     known = all_scenarios()
     if args.scenario not in known:
         return f'unknown scenario {args.scenario!r}; known: {", ".join(sorted(known))}'
-    from actuator_bringup.bringup import scenario_file
+    from actuator_tools.bringup import scenario_file
     try:
         scenario_file(args.scenario)
     except SystemExit as exc:
@@ -717,8 +717,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     if problem:
         print(f'bench: error: {problem}', file=sys.stderr)
         return 2
-    from actuator_bringup.params_yaml import all_scenarios
-    from actuator_common.timing import period_ns as to_period_ns
+    from actuator_sim.params_yaml import all_scenarios
+    from actuator_core.timing import period_ns as to_period_ns
     period_ns = to_period_ns(all_scenarios()[args.scenario].common.dt_s)
     variants = make_variants(args.modes, args.rt_variants, args.rt_priority)
     base = args.out / dt.datetime.now(dt.timezone.utc).strftime('%Y%m%dT%H%M%SZ')

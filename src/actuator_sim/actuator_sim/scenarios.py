@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 
-from actuator_bringup.closed_loop import Scenario
+from actuator_sim.loop import Scenario
 from actuator_controller.laws import SmcGains
 from actuator_plant.model import PlantParameters, WorkingCondition
 
@@ -48,7 +48,7 @@ def case1(duration_s: float = 10.0) -> list[tuple[Scenario, float]]:
 
 def smc_substitute_gains() -> tuple[SmcGains, float]:
     """SMC-ESO gains k1, k2 scaled to reach ``SMC_TARGET_RADIUS`` at 1 kHz, and the factor used."""
-    from actuator_bringup.stability import largest_stable_scale
+    from actuator_sim.stability import largest_stable_scale
     printed = SmcGains()
     scale = largest_stable_scale('smc_eso', printed, ('k1_per_s', 'k2_per_s'), SMC_TARGET_RADIUS)
     if scale is None:

@@ -1,11 +1,11 @@
-"""Set-up of the ament_python package actuator_common."""
+"""Set-up of the ament_python package actuator_ros."""
 
 import os
 from glob import glob
 
 from setuptools import find_packages, setup
 
-package_name = 'actuator_common'
+package_name = 'actuator_ros'
 
 
 def share_files(folder, pattern):
@@ -28,10 +28,11 @@ setup(
     zip_safe=True,
     maintainer='Actuator control team',
     maintainer_email='actuator@example.com',
-    description='Shared ROS-free helpers: parameter specifications with ranges, sample-time arithmetic, ROS parameter declaration.',
+    description='rclpy helpers shared by the nodes.',
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={
-        'console_scripts': [],
+        'console_scripts': [
+        ],
     },
 )

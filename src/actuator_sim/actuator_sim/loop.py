@@ -15,7 +15,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from actuator_common.timing import period_ns, sample_time_s
+from actuator_core.limits import DIVERGENCE_ERROR_RAD
+from actuator_core.timing import period_ns, sample_time_s
 from actuator_controller.laws import CommonConfig, Controller, ControlOutput, make_controller
 from actuator_controller.reference import Reference, make_reference
 from actuator_eso.observer import EsoGains, ExtendedStateObserver
@@ -101,7 +102,7 @@ class ClosedLoop:
             rows.append(row)
             if stop_on_divergence and not np.all(np.isfinite(row['measured_position_rad'])):
                 break
-            if stop_on_divergence and np.any(np.abs(row['error_rad']) > 10.0):
+            if stop_on_divergence and np.any(np.abs(row['error_rad']) > DIVERGENCE_ERROR_RAD):
                 break
         return {name: np.array([r[name] for r in rows], dtype=float) for name in TRACE_FIELDS}
 

@@ -8,8 +8,8 @@ each of our loop nodes handles two or three of each. The benchmark (``bench``) r
 the closed loop, so its latency and CPU targets can be read against what the middleware alone
 costs here.
 
-    python -m actuator_bringup.floor echo   [--rt-priority N] [--ros-args ...]
-    python -m actuator_bringup.floor source [--rt-priority N] --ros-args -p duration_s:=10 -p output:=rtt.npz
+    python -m actuator_tools.floor echo   [--rt-priority N] [--ros-args ...]
+    python -m actuator_tools.floor source [--rt-priority N] --ros-args -p duration_s:=10 -p output:=rtt.npz
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ import time
 import numpy as np
 from rclpy.node import Node
 
-from actuator_common.ros import control_qos, declare_number, run_node
+from actuator_ros.runtime import control_qos, declare_number, run_node
 from actuator_msgs.msg import CurrentCommand
 
 PING, PONG = 'floor/ping', 'floor/pong'
@@ -121,12 +121,12 @@ def hop_figures(rtt_ns: np.ndarray, sent: int) -> dict[str, float | None]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m actuator_bringup.floor echo|source [run_node options]``."""
+    """``python -m actuator_tools.floor echo|source [run_node options]``."""
     args = sys.argv[1:] if argv is None else list(argv)
     roles = {'echo': ('floor echo', 'Echo node of the middleware floor benchmark.', EchoNode),
              'source': ('floor source', 'Source node of the middleware floor benchmark.', SourceNode)}
     if not args or args[0] not in roles:
-        print(f'usage: python -m actuator_bringup.floor {{{",".join(roles)}}} [options]', file=sys.stderr)
+        print(f'usage: python -m actuator_tools.floor {{{",".join(roles)}}} [options]', file=sys.stderr)
         return 2
     prog, description, factory = roles[args[0]]
     return run_node(prog, description, factory, args[1:])

@@ -24,7 +24,7 @@ from rclpy.signals import SignalHandlerOptions
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from actuator_common.params import build, iter_specs, range_text
+from actuator_core.params import build, iter_specs, range_text
 
 #: Run modes: wall-clock 1 kHz timers, or lockstep on the plant's /clock.
 MODES = ('realtime', 'sim')

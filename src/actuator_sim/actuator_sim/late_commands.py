@@ -1,4 +1,4 @@
-"""What late commands do to the loop, offline: ``python -m actuator_bringup.late_commands``.
+"""What late commands do to the loop, offline: ``python -m actuator_sim.late_commands``.
 
 In real time a command sometimes misses its sample, and the plant holds the previous current
 over it. The ESO can then integrate the current the controller commanded (what the ESO node
@@ -17,12 +17,11 @@ from typing import Sequence
 
 import numpy as np
 
-from actuator_bringup.closed_loop import ClosedLoop
-from actuator_bringup.scenarios import paper_scenario
-from actuator_common.metrics import STEADY_STATE_START_S
+from actuator_core.limits import FOLLOWING_ERROR_LIMIT_RAD
+from actuator_sim.loop import ClosedLoop
+from actuator_sim.scenarios import paper_scenario
+from actuator_core.metrics import STEADY_STATE_START_S
 
-#: The controller node's default following-error limit [rad]: beyond it the run is latched.
-FOLLOWING_ERROR_LIMIT_RAD = 0.5
 
 
 def late_mask(samples: int, fraction: float, burst: int, seed: int) -> np.ndarray:

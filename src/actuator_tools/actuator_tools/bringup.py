@@ -23,8 +23,8 @@ from typing import Sequence
 
 from ament_index_python.packages import PackageNotFoundError, get_package_prefix, get_package_share_directory
 
-from actuator_bringup.params_yaml import all_scenarios
-from actuator_common.ros import MODES
+from actuator_sim.params_yaml import all_scenarios
+from actuator_ros.runtime import MODES
 
 CLK_TCK = os.sysconf('SC_CLK_TCK')
 

@@ -17,10 +17,10 @@ from typing import Sequence
 import numpy as np
 
 from actuator_bag.analyze import analyze_run, draw_figures, format_table, load_run
-from actuator_bringup.bringup import RunResult, run_closed_loop
-from actuator_bringup.closed_loop import ClosedLoop
-from actuator_bringup.offline import trace_metrics
-from actuator_bringup.params_yaml import all_scenarios
+from actuator_tools.bringup import RunResult, run_closed_loop
+from actuator_sim.loop import ClosedLoop
+from actuator_sim.offline import trace_metrics
+from actuator_sim.params_yaml import all_scenarios
 
 SCENARIO = 'case2_pp_nftsmc_eso'
 

@@ -17,10 +17,10 @@ from typing import Sequence
 
 import numpy as np
 
-from actuator_bringup.closed_loop import ClosedLoop, Scenario
-from actuator_common.metrics import STEADY_STATE_START_S, RunMetrics, compute_run_metrics
-from actuator_bringup.scenarios import CONDITIONS, case1, case2, paper_scenario
-from actuator_bringup.stability import radius_along_envelope
+from actuator_sim.loop import ClosedLoop, Scenario
+from actuator_core.metrics import STEADY_STATE_START_S, RunMetrics, compute_run_metrics
+from actuator_sim.scenarios import CONDITIONS, case1, case2, paper_scenario
+from actuator_sim.stability import radius_along_envelope
 from actuator_controller.laws import CONTROLLER_NAMES
 from actuator_controller.ppf import PrescribedPerformance
 

@@ -1,1 +1,0 @@
-"""Bring-up of the actuator node suite: closed-loop core, offline simulation, runner, launch files."""

@@ -1,1 +1,0 @@
-"""ROS-free helpers shared by the actuator packages: parameter specifications and checks."""

@@ -1,0 +1,1 @@
+"""Process supervisor and runner, main job, benchmark and middleware-floor nodes."""
