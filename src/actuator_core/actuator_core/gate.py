@@ -1,0 +1,100 @@
+"""The drive's command gate: what current a drive (simulated joint or hardware driver) applies.
+
+One object per drive, held by the plant node, the CiA 402 driver and the offline loop alike.
+``offer`` checks each incoming ``current_command`` (finite, within the one current limit,
+``safe_stop`` honoured); ``hold`` says what to apply over the sample that starts at a given
+time: the newest accepted command, or 0 A with the holding brake engaged when the gate is not
+active, when the command asked for a safe stop, or when the newest command is older than the
+timeout (a drive's command watchdog). The brake is released again by the first valid command
+without ``safe_stop`` (ros2_control: "brakes released" on activation; here on the first
+command after it, so a node that is not active never moves the joint).
+
+Times are integer nanoseconds of one clock chosen by the caller: the system clock in real
+time, sim time (the sample stamps) in sim and offline.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple, Optional
+
+from actuator_core import limits
+
+
+class Held(NamedTuple):
+    """What the drive applies over one sample: current [A], the stamp of its command, brake, reason."""
+
+    current_a: float
+    command_stamp_ns: int      # stamp of the command applied; -1 when none is
+    brake: bool                # the holding brake is engaged
+    reason: str                # '' while a command is applied, else why 0 A is
+
+
+class CommandGate:
+    """Command checks, hold over the sample, timeout and brake of one drive."""
+
+    def __init__(self, current_limit_a: float = limits.CURRENT_LIMIT_A,
+                 timeout_s: float = limits.COMMAND_TIMEOUT_S):
+        """Refuse currents beyond +-``current_limit_a``; 0 A once commands are ``timeout_s`` old."""
+        if not (math.isfinite(current_limit_a) and current_limit_a > 0.0):
+            raise ValueError(f'current_limit_a must be finite and > 0, got {current_limit_a}')
+        if not (math.isfinite(timeout_s) and timeout_s > 0.0):
+            raise ValueError(f'timeout_s must be finite and > 0, got {timeout_s}')
+        self.current_limit_a = current_limit_a
+        self.timeout_ns = int(round(timeout_s * 1e9))
+        self.active = False
+        self.brake = True
+        self._current_a = 0.0
+        self._stamp_ns = -1
+        self._received_ns: Optional[int] = None
+        self._safe_stop = False
+        self.refused = 0
+        self.timeouts = 0
+        self._timed_out = False
+
+    def activate(self) -> None:
+        """Start accepting commands; the brake stays engaged until the first valid command."""
+        self.active = True
+        self._received_ns = None
+        self._current_a, self._stamp_ns, self._safe_stop = 0.0, -1, False
+
+    def deactivate(self) -> None:
+        """Stop: 0 A and the brake from now on, whatever arrives."""
+        self.active = False
+        self.brake = True
+        self._current_a, self._stamp_ns = 0.0, -1
+
+    def offer(self, current_a: float, stamp_ns: int, safe_stop: bool, received_ns: int) -> Optional[str]:
+        """Take a command received at ``received_ns``; returns None, or why it was refused (0 A then applies)."""
+        if not self.active:
+            return 'the drive is not active'
+        if not math.isfinite(current_a) or abs(current_a) > self.current_limit_a:
+            self.refused += 1
+            self._current_a, self._stamp_ns, self._safe_stop = 0.0, -1, True
+            self._received_ns = received_ns
+            self.brake = True
+            return f'command {current_a} A refused (valid: finite, |u| <= {self.current_limit_a:g} A); applying 0 A'
+        self._received_ns = received_ns
+        self._stamp_ns = stamp_ns
+        self._safe_stop = bool(safe_stop)
+        self._current_a = 0.0 if safe_stop else float(current_a)
+        self.brake = bool(safe_stop)
+        return None
+
+    def hold(self, now_ns: int) -> Held:
+        """What to apply over the sample starting at ``now_ns``."""
+        if not self.active:
+            self.brake = True
+            return Held(0.0, -1, True, 'inactive')
+        if self._received_ns is None:
+            return Held(0.0, -1, self.brake, 'no command yet')
+        if now_ns - self._received_ns > self.timeout_ns:
+            if not self._timed_out:
+                self.timeouts += 1
+                self._timed_out = True
+            self.brake = True
+            return Held(0.0, -1, True, 'command timeout')
+        self._timed_out = False
+        if self._safe_stop:
+            return Held(0.0, self._stamp_ns, True, 'safe stop')
+        return Held(self._current_a, self._stamp_ns, self.brake, '')
