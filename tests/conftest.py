@@ -99,3 +99,16 @@ def _no_orphan_processes():
     for proc in ros_helpers.live_processes():
         if proc not in before:
             proc.stop(sigint_timeout=3.0, sigterm_timeout=2.0)
+
+
+ROS_FIXTURES = {'ros_domain_id', 'ros_env', 'rclpy_context', 'ros_process'}
+
+
+def pytest_collection_modifyitems(config, items):
+    """Mark each test: ros when it uses a ROS fixture (or says so), realtime implies ros, else unit."""
+    for item in items:
+        marks = {m.name for m in item.iter_markers()}
+        if 'realtime' in marks or ROS_FIXTURES & set(getattr(item, 'fixturenames', ())):
+            item.add_marker(pytest.mark.ros)
+        elif 'ros' not in marks:
+            item.add_marker(pytest.mark.unit)

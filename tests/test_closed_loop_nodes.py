@@ -123,8 +123,9 @@ def test_launch_file_is_installed_and_starts_the_same_executables():
         assert os.access(executable_path(package, executable), os.X_OK)
 
 
+@pytest.mark.ros
 def test_offline_sim_cli_writes_json_and_refuses_bad_input(tmp_path):
-    exe = executable_path('actuator_bringup', 'offline_sim')
+    exe = executable_path('actuator_sim', 'offline_sim')
     out = tmp_path / 'run.json'
     proc = subprocess.run([exe, 'run', '--controller', 'pi', '--duration', '6', '--json', str(out),
                            '--traces', str(tmp_path / 'traces')], capture_output=True, text=True, timeout=120)
@@ -138,8 +139,9 @@ def test_offline_sim_cli_writes_json_and_refuses_bad_input(tmp_path):
     assert bad.returncode == 2 and 'duration' in bad.stderr and 'Traceback' not in bad.stderr
 
 
+@pytest.mark.ros
 def test_stability_check_cli_verdicts():
-    exe = executable_path('actuator_bringup', 'stability_check')
+    exe = executable_path('actuator_sim', 'stability_check')
     stable = subprocess.run([exe, '--controller', 'pp_nftsmc_eso'], capture_output=True, text=True, timeout=120)
     assert stable.returncode == 0 and 'STABLE' in stable.stdout
     late = subprocess.run([exe, '--controller', 'pp_nftsmc_eso', '--eso-delay', '1', '--json'],

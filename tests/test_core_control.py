@@ -21,7 +21,7 @@ def test_each_controller_holds_zero_error_with_zero_command_on_ideal_plant_at_re
     scenario = Scenario(name='rest', controller=name, reference='step', plant=PlantParameters().ideal(),
                         duration_s=0.5)
     loop = ClosedLoop(scenario)
-    loop.reference = type(loop.reference)(amplitude_rad=0.0)
+    loop.assembly.reference = type(loop.assembly.reference)(amplitude_rad=0.0)
     trace = loop.run()
     assert np.all(trace['current_a'] == 0.0)
     assert np.all(trace['error_rad'] == 0.0)
@@ -197,7 +197,7 @@ def test_loop_recovers_from_a_40_ms_current_dropout_only_with_envelope_restarts(
     for k in range(scenario.samples):
         if k == 5000:
             loop.last_current = 0.0        # the plant holds 0 A over the next 40 samples
-        errors.append(abs(float(loop.step(command_late=5000 <= k < 5040)['error_rad'])))
+        errors.append(abs(float(loop.step(command_lost=5000 <= k < 5040)['error_rad'])))
     worst_late = max(errors[7000:])
     assert max(errors[5000:5200]) > 0.05                     # the dropout did throw it out
     assert (worst_late < 2e-3) == recovers, worst_late

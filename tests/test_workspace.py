@@ -46,6 +46,7 @@ def _is_alive(pid: int) -> bool:
 
 
 # -- the workspace ------------------------------------------------------------------------------
+@pytest.mark.ros
 def test_workspace_builds_from_a_clean_clone(tmp_path):
     """`git clone` of HEAD, then `colcon build` of its src/ with the same tools, and the
     result works: messages import and packages resolve to the clone's install/."""
@@ -170,6 +171,7 @@ def test_isolated_domains_do_not_see_each_other(rclpy_context, ros_env, tmp_path
     assert theirs not in got
 
 
+@pytest.mark.ros
 def test_ros_process_escalates_and_leaves_no_orphans(tmp_path):
     """SIGINT ignored -> SIGTERM; a grandchild that ignores both still does not survive."""
     stubborn = (

@@ -9,6 +9,7 @@ timeout (a drive's command watchdog). The brake is released again by the first v
 without ``safe_stop`` (ros2_control: "brakes released" on activation; here on the first
 command after it, so a node that is not active never moves the joint).
 
+Currents may be numpy arrays (a batch of offline runs): refused elements then get 0 A.
 Times are integer nanoseconds of one clock chosen by the caller: the system clock in real
 time, sim time (the sample stamps) in sim and offline.
 """
@@ -18,7 +19,10 @@ from __future__ import annotations
 import math
 from typing import NamedTuple, Optional
 
+import numpy as np
+
 from actuator_core import limits
+from actuator_core import xmath as xm
 
 
 class Held(NamedTuple):
@@ -68,16 +72,20 @@ class CommandGate:
         """Take a command received at ``received_ns``; returns None, or why it was refused (0 A then applies)."""
         if not self.active:
             return 'the drive is not active'
-        if not math.isfinite(current_a) or abs(current_a) > self.current_limit_a:
+        finite = xm.isfinite(current_a)
+        valid = finite & (xm.fabs(xm.where(finite, current_a, 0.0)) <= self.current_limit_a)
+        if not xm.all_true(valid):
             self.refused += 1
-            self._current_a, self._stamp_ns, self._safe_stop = 0.0, -1, True
-            self._received_ns = received_ns
-            self.brake = True
-            return f'command {current_a} A refused (valid: finite, |u| <= {self.current_limit_a:g} A); applying 0 A'
+            if not isinstance(valid, np.ndarray):
+                self._current_a, self._stamp_ns, self._safe_stop = 0.0, -1, True
+                self._received_ns = received_ns
+                self.brake = True
+                return f'command {current_a} A refused (valid: finite, |u| <= {self.current_limit_a:g} A); applying 0 A'
+            current_a = xm.where(valid, current_a, 0.0)      # a batch: refused elements get 0 A
         self._received_ns = received_ns
         self._stamp_ns = stamp_ns
         self._safe_stop = bool(safe_stop)
-        self._current_a = 0.0 if safe_stop else float(current_a)
+        self._current_a = 0.0 if safe_stop else current_a
         self.brake = bool(safe_stop)
         return None
 

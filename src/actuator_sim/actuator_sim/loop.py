@@ -1,12 +1,16 @@
-"""The one closed-loop core: plant, ESO and controller stepped in the order the ROS nodes use.
+"""The closed loop: the objects the three nodes hold, called in the order the nodes call them.
 
-Sample k (see docs/architecture.md):
-  1. the plant is sampled: y(k) = q(t_k);
-  2. the controller computes u(k) from y(k), x_hat(k) and the reference at t_k;
-  3. the ESO integrates the pair (y(k), u(k)) to x_hat(k+1);
-  4. the plant integrates [t_k, t_k+1) with u(k) held.
-The nodes call exactly these functions in exactly this order, so a run in deterministic sim
-time reproduces an offline run sample by sample (``tests/test_sim_time_equivalence.py``).
+Sample k (see docs/architecture.md), each step the same call a node makes:
+  1. the plant samples y(k) = q(t_k)                      (plant node: ``JointPlant``);
+  2. the observer pairing takes y(k)                      (ESO node: ``ObserverInputPairing``);
+  3. the controller assembly takes x_hat(k) and y(k) and
+     runs the law for u(k)                                (controller node: ``ControlSampleAssembly``);
+  4. the drive's gate takes u(k) and holds it             (plant node: ``CommandGate``);
+  5. the pairing takes u(k): one observer step to x_hat(k+1);
+  6. the plant integrates [t_k, t_k+1) with the held current.
+The nodes hold these same classes (``actuator_core``), so a run in deterministic sim time
+reproduces this loop sample by sample by construction, and a test checks it bit for bit
+(``tests/test_closed_loop_nodes.py``). Stamps are integer nanoseconds from t_0 = 0.
 """
 
 from __future__ import annotations
@@ -15,10 +19,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from actuator_core.assembly import ControlSampleAssembly
+from actuator_core.gate import CommandGate
 from actuator_core.limits import DIVERGENCE_ERROR_RAD
+from actuator_core.pairing import SIM_PATIENCE_SAMPLES, ObserverInputPairing
 from actuator_core.timing import period_ns, sample_time_s
-from actuator_controller.laws import CommonConfig, Controller, ControlOutput, make_controller
-from actuator_controller.reference import Reference, make_reference
+from actuator_controller.laws import CommonConfig, ControlOutput, make_controller
+from actuator_controller.reference import make_reference
 from actuator_eso.observer import EsoGains, ExtendedStateObserver
 from actuator_plant.model import JointPlant, PlantParameters
 
@@ -49,7 +56,7 @@ class Scenario:
 
 
 class ClosedLoop:
-    """Plant + ESO + controller + reference, advanced one sample per ``step``."""
+    """Plant, observer, controller and drive gate, advanced one sample per ``step``."""
 
     def __init__(self, scenario: Scenario, batch: int | None = None):
         """Build the run; ``batch`` = n runs the same scenario n times at once (states are arrays)."""
@@ -59,41 +66,56 @@ class ClosedLoop:
         self.period_ns = period_ns(dt)
         self.plant = JointPlant(scenario.plant, dt, position_rad=zero, velocity_rad_s=zero)
         self.eso = ExtendedStateObserver(scenario.eso, dt, x_hat0=(zero, zero, zero))
-        self.controller: Controller = make_controller(scenario.controller, scenario.gains, scenario.common)
-        self.reference: Reference = make_reference(scenario.reference)
+        self.pairing = ObserverInputPairing(self.eso, self.period_ns, self.eso.correction, SIM_PATIENCE_SAMPLES)
+        law = make_controller(scenario.controller, scenario.gains, scenario.common)
+        self.assembly = ControlSampleAssembly(law, make_reference(scenario.reference), self.period_ns,
+                                              needs_estimate=scenario.controller != 'pi')
+        self.gate = CommandGate(scenario.common.current_limit_a)
+        self.gate.activate()
         self.sample_index = 0
-        self.last_current = zero
+        self.held_current = zero
+        self.estimate = None
 
-    def step(self, command_late: bool = False, eso_integrates_applied: bool = False) -> dict:
+    def step(self, command_lost: bool = False, eso_integrates_applied: bool = False) -> dict:
         """Run sample k in the node order; return every recorded quantity of that sample.
 
-        Fault injection for the real-time case (``late_commands``): ``command_late`` makes the
-        plant hold the previous current over this sample, as when a command misses its sample;
-        ``eso_integrates_applied`` makes the ESO integrate that held current instead of the
-        commanded one.
+        Fault injection for the real-time case (``late_commands``): ``command_lost`` keeps u(k)
+        from the drive (its gate holds the previous command until its timeout, then 0 A);
+        ``eso_integrates_applied`` makes the observer integrate the current the drive held
+        instead of the commanded one.
         """
-        t = sample_time_s(self.sample_index * self.period_ns)
+        stamp = self.sample_index * self.period_ns
+        t = sample_time_s(stamp)
         y, velocity = self.plant.position_rad, self.plant.velocity_rad_s
-        truth = self.plant.truth(self.last_current)
-        x1_hat, x2_hat, x3_hat = self.eso.state
-        ref = self.reference.sample(t)
-        out = self.controller.update(t, y, x2_hat, x3_hat, ref)
-        applied = self.last_current if command_late else out.current_a
-        self.eso.update(y, applied if eso_integrates_applied else out.current_a)
-        self.plant.step(applied)
-        self.last_current = applied
+        truth = self.plant.truth(self.held_current)
+        for estimate in self.pairing.add_measurement(stamp, y):
+            self.estimate = estimate
+            self.assembly.add_estimate(estimate.sample_ns, estimate.x_hat[1], estimate.x_hat[2], estimate.input_ns,
+                                       estimate.input_current_a, self.eso.dt_s * self.eso.gains.theta1n)
+        x1_hat, x2_hat, x3_hat = self.estimate.x_hat
+        sample = self.assembly.add_measurement(stamp, y)
+        if not command_lost:
+            self.gate.offer(sample.current_a, stamp, False, stamp)
+        held = self.gate.hold(stamp)
+        for estimate in self.pairing.add_command(stamp, held.current_a if eso_integrates_applied else sample.current_a):
+            self.estimate = estimate
+            self.assembly.add_estimate(estimate.sample_ns, estimate.x_hat[1], estimate.x_hat[2], estimate.input_ns,
+                                       estimate.input_current_a, self.eso.dt_s * self.eso.gains.theta1n)
+        self.plant.step(held.current_a)
+        self.held_current = held.current_a
         self.sample_index += 1
-        record = dict(zip(EXTRA_FIELDS, (t, ref.position_rad, ref.velocity_rad_s, ref.acceleration_rad_s2, y,
-                                         x1_hat, x2_hat, x3_hat, velocity,
+        record = dict(zip(EXTRA_FIELDS, (t, sample.reference.position_rad, sample.reference.velocity_rad_s,
+                                         sample.reference.acceleration_rad_s2, y, x1_hat, x2_hat, x3_hat, velocity,
                                          truth.disturbance_rad_s2)))
-        record.update(out._asdict())
+        record.update(sample.output._asdict())
+        record['current_a'] = sample.current_a
         return record
 
     def run(self, samples: int | None = None, stop_on_divergence: bool = True) -> dict[str, np.ndarray]:
         """Run ``samples`` samples (default: the scenario's) and return the trace as arrays.
 
-        A run whose state stops being finite is cut at that sample (``stop_on_divergence``);
-        the metrics then report it as diverged instead of a number.
+        A run whose state stops being finite or whose error passes ``DIVERGENCE_ERROR_RAD`` is
+        cut at that sample (``stop_on_divergence``); the metrics then report it as diverged.
         """
         n = self.scenario.samples if samples is None else samples
         rows = []
@@ -105,4 +127,3 @@ class ClosedLoop:
             if stop_on_divergence and np.any(np.abs(row['error_rad']) > DIVERGENCE_ERROR_RAD):
                 break
         return {name: np.array([r[name] for r in rows], dtype=float) for name in TRACE_FIELDS}
-

@@ -1,0 +1,161 @@
+"""The observer's input protocol: pair each measurement y(k) with the current u(k) commanded for it.
+
+Held by the ESO node and by the offline loop (``actuator_sim.loop``). The observer holds
+x_hat(k); once y(k) and u(k) with the same stamp t_k are both in, one step of (15) gives
+x_hat(k+1) (stamped t_k + dt), before y(k+1) exists (docs/architecture.md). Pairing is by
+stamp, never "the latest message": with the paper's gains the loop diverges when the observer
+integrates u(k-1) (docs/paper-resolutions.md, 16).
+
+A half of a pair that does not come in time is replaced: the step uses the last known current
+(or, without a measurement, no correction) and says so. "In time" is ``patience_samples``:
+1 in real time (a command later than a whole period missed its sample), longer in sim, where
+nothing is lost and a PI controller can run ahead of the observer. A command that arrives
+after its sample was stepped with a substitute repairs the state exactly, since (15) is
+linear (``correction(du, steps)`` gives the change of the state ``steps`` steps later).
+
+Work per call is bounded (``MAX_STEPS_PER_CALL``); a measurement further ahead than
+``RESYNC_GAP_SAMPLES`` (a restarted sensor, a new grid) is a discontinuity: the observer
+starts again from that measurement, as at start-up, and the caller is told.
+"""
+
+from __future__ import annotations
+
+from typing import Callable, NamedTuple, Optional, Protocol
+
+#: Unpaired samples kept of each kind; older ones are dropped.
+PENDING_LIMIT = 256
+#: Observer steps one incoming message may cause (a late half of a pair frees a few at most).
+MAX_STEPS_PER_CALL = 16
+#: A measurement this many samples beyond the observer's sample restarts the observer there.
+RESYNC_GAP_SAMPLES = 200
+#: Real time: wait one sample for the missing half; sim: up to this many (nothing is lost).
+REALTIME_PATIENCE_SAMPLES = 1
+SIM_PATIENCE_SAMPLES = 100
+
+
+class Observer(Protocol):
+    """What the pairing drives: ``actuator_eso.observer.ExtendedStateObserver``."""
+
+    def update(self, y, u) -> None:
+        """x_hat(k) -> x_hat(k+1) with the pair (y(k), u(k))."""
+
+    def reset(self, x_hat) -> None:
+        """Start again from ``x_hat``."""
+
+    def add(self, delta) -> None:
+        """Add ``delta`` to the state."""
+
+    @property
+    def state(self) -> tuple:
+        """(x1_hat, x2_hat, x3_hat)."""
+
+
+class Estimate(NamedTuple):
+    """x_hat for ``sample_ns`` and the pair it integrated (the fields of StateEstimate)."""
+
+    sample_ns: int
+    x_hat: tuple
+    input_ns: int           # stamp of the pair integrated; 0 for an initial estimate
+    input_position_rad: float
+    input_current_a: float
+    initial: bool           # x_hat(0) of a start or restart: integrated nothing yet
+    substituted: bool       # the current of the pair was not in time; the last one was used
+
+
+class ObserverInputPairing:
+    """Pairs (y(k), u(k)) by stamp for one observer and steps it; returns the estimates it produces."""
+
+    def __init__(self, observer: Observer, period_ns: int, correction: Callable[[float, int], tuple],
+                 patience_samples: int = REALTIME_PATIENCE_SAMPLES):
+        """``correction(du, steps)``: change of x_hat ``steps`` steps after u(k) changed by du (eq. 15)."""
+        self.observer = observer
+        self.period_ns = period_ns
+        self.correction = correction
+        self.patience_ns = period_ns * patience_samples
+        self.sample_ns: Optional[int] = None      # stamp x_hat is valid at
+        self.measurements: dict[int, object] = {}
+        self.currents: dict[int, object] = {}
+        self.substitutes: dict[int, object] = {}  # current used in place of each missing command
+        self.newest_measurement_ns = -1
+        self.last_current = 0.0
+        self.steps = self.substituted = self.repaired = self.restarts = 0
+        self.ignored = 0                          # duplicates and samples older than x_hat's
+
+    def add_measurement(self, stamp_ns: int, y) -> list[Estimate]:
+        """y(k); the first one, or one beyond the resync gap, (re)starts the observer there."""
+        if self.sample_ns is None or stamp_ns - self.sample_ns > RESYNC_GAP_SAMPLES * self.period_ns:
+            return [self._start(stamp_ns, y)]
+        if stamp_ns < self.sample_ns or stamp_ns in self.measurements:
+            self.ignored += 1
+            return []
+        self.measurements[stamp_ns] = y
+        self.newest_measurement_ns = max(self.newest_measurement_ns, stamp_ns)
+        return self._advance()
+
+    def add_command(self, stamp_ns: int, u) -> list[Estimate]:
+        """u(k), filed under the stamp of the sample it answers; a late one repairs the state."""
+        if self.sample_ns is None:
+            return []
+        if stamp_ns < self.sample_ns:
+            self._repair(stamp_ns, u)
+            return []
+        if stamp_ns in self.currents or stamp_ns - self.sample_ns > RESYNC_GAP_SAMPLES * self.period_ns:
+            self.ignored += 1
+            return []
+        self.currents[stamp_ns] = u
+        return self._advance()
+
+    def _start(self, stamp_ns: int, y) -> Estimate:
+        """(Re)start at sample ``stamp_ns`` from x_hat = (y, 0, 0): the paper's x_hat(0) = 0 at y(0) = 0."""
+        if self.sample_ns is not None:
+            self.restarts += 1
+        zero = 0.0 * y
+        self.observer.reset((y, zero, zero))
+        self.sample_ns = stamp_ns
+        self.measurements.clear()
+        self.currents.clear()
+        self.substitutes.clear()
+        self.newest_measurement_ns = stamp_ns
+        self.measurements[stamp_ns] = y
+        self.last_current = 0.0
+        return Estimate(stamp_ns, self.observer.state, 0, 0.0, 0.0, True, False)
+
+    def _repair(self, stamp_ns: int, u) -> None:
+        """A command for a sample already stepped with a substitute: correct x_hat to the true pair."""
+        used = self.substitutes.pop(stamp_ns, None)
+        if used is None:
+            return
+        steps_since = (self.sample_ns - stamp_ns) // self.period_ns - 1
+        self.observer.add(self.correction(u - used, steps_since))
+        if steps_since == 0:
+            self.last_current = u
+        self.repaired += 1
+
+    def _advance(self) -> list[Estimate]:
+        """Step while the pair of the held sample is complete, or provably never will be."""
+        out: list[Estimate] = []
+        while len(out) < MAX_STEPS_PER_CALL:
+            k = self.sample_ns
+            y = self.measurements.pop(k, None)
+            u = self.currents.pop(k, None)
+            if (y is None or u is None) and self.newest_measurement_ns < k + self.patience_ns:
+                if y is not None:
+                    self.measurements[k] = y
+                if u is not None:
+                    self.currents[k] = u
+                break
+            substituted = u is None
+            y_used = y if y is not None else self.observer.state[0]
+            u_used = u if u is not None else self.last_current
+            self.observer.update(y_used, u_used)
+            self.steps += 1
+            if substituted:
+                self.substituted += 1
+                self.substitutes[k] = u_used
+            self.last_current = u_used
+            self.sample_ns = k + self.period_ns
+            out.append(Estimate(self.sample_ns, self.observer.state, k, y_used, u_used, False, substituted))
+        for buffer in (self.measurements, self.currents, self.substitutes):
+            while len(buffer) > PENDING_LIMIT:
+                buffer.pop(min(buffer))
+        return out
