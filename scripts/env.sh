@@ -91,6 +91,8 @@ _actuator_env() {
         done
         _actuator_prepend LD_LIBRARY_PATH "$_venv/lib"
         export _ROS_WHEELS_BOOTSTRAP_COMPLETE=1
+        # What a Jazzy install's setup.bash sets for the tools (ros2 doctor, launch, rosdep).
+        export ROS_DISTRO=jazzy ROS_VERSION=2 ROS_PYTHON_VERSION=3
     fi
 
     if [[ -z ${ACTUATOR_ENV_NO_WORKSPACE:-} && -f $_root/install/setup.bash ]]; then

@@ -1,6 +1,6 @@
 """Fixtures shared by every test of the project (tooling in tests/ros_helpers.py).
 
-    ros_domain_id   a ROS domain id reserved for this test alone (see DomainReservation)
+    ros_domain_id   a ROS domain id reserved for this test alone (ros_helpers.reserve_domain)
     ros_env         environment dict for subprocesses: that domain, localhost-only discovery,
                     per-test ROS_LOG_DIR, unbuffered output, plus the project environment
     rclpy_context   rclpy initialised in this pytest process on the same isolated domain
@@ -42,8 +42,8 @@ def pytest_report_header(config):
 @pytest.fixture
 def ros_domain_id():
     _require_project_environment()
-    with ros_helpers.DomainReservation() as reservation:
-        yield reservation.domain_id
+    with ros_helpers.reserve_domain() as domain_id:
+        yield domain_id
 
 
 @pytest.fixture

@@ -143,7 +143,8 @@ def write_run_bag(
                 disturbance_rad_s2=run.truth_disturbance[k], parametric_rad_s2=0.0, stirring_rad_s2=0.0,
                 external_rad_s2=0.0, seal_rad_s2=0.0, stirring_torque_nm=0.0, external_torque_nm=0.0,
                 seal_torque_nm=0.0, inertia_kg_m2=0.0, torque_constant_nm_a=0.0,
-                viscous_coefficient_nm_s_rad=0.0, viscosity_pa_s=0.0, pressure_pa=0.0, temperature_degc=0.0))
+                viscous_coefficient_nm_s_rad=0.0, viscosity_pa_s=0.0, pressure_pa=0.0, temperature_degc=0.0,
+                brake_engaged=False))
         run.counts = writer.summary().counts
     return path
 

@@ -102,8 +102,8 @@ def test_coverage_of_the_controller_log():
 
 
 def test_log_figures(tmp_path):
-    (tmp_path / 'plant.log').write_text('[INFO] running under SCHED_FIFO priority 50\n')
-    (tmp_path / 'controller.log').write_text('[ERROR] |error| 0.501 rad beyond following_error_limit_rad 0.5: '
+    (tmp_path / 'plant.stderr').write_text('[INFO] running under SCHED_FIFO priority 50\n')
+    (tmp_path / 'controller.stderr').write_text('[ERROR] |error| 0.501 rad beyond following_error_limit_rad 0.5: '
                                              'safe stop latched (0 A) until restart\n')
     assert bench.log_figures(tmp_path) == {'fifo_nodes': 1.0, 'safe_stop': 1.0}
 

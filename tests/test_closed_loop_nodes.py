@@ -1,6 +1,5 @@
 """The closed loop across processes: sim time equals the offline core, real time runs, the main job reports."""
 
-import ast
 import json
 import os
 import subprocess
@@ -11,7 +10,7 @@ import numpy as np
 import pytest
 import yaml
 
-from ros_helpers import executable_path
+from actuator_tools.supervisor import executable_path, process_log
 
 
 @pytest.fixture
@@ -53,7 +52,7 @@ def test_realtime_loop_stays_stable_for_the_whole_fast_deep_sea_run(isolated):
     from actuator_tools.main import timing_figures
 
     result = run_closed_loop('case2_pp_nftsmc_eso', 'realtime', None, record=True, bag_root=isolated / 'bags',
-                             results_root=isolated / 'runs', quiet=True, rt_priority=50)
+                             results_root=isolated / 'runs', quiet=True, thread_priority=50)
     assert all(code == 0 for code in result.exit_codes.values()), result.exit_codes
     timing = timing_figures(result)
     assert timing['updates'] > 500                      # the loop closed
@@ -65,7 +64,7 @@ def test_realtime_loop_stays_stable_for_the_whole_fast_deep_sea_run(isolated):
     assert plant['stamp_ns'].size > 9000 and np.all(np.diff(plant['stamp_ns']) % 1_000_000 == 0)
     assert all(v is None or v < 400.0 for v in result.cpu_percent.values())
     assert all(0.0 < v < 1000.0 for v in result.peak_rss_mb.values())
-    logs = {key: (result.run_dir / f'{key}.log').read_text() for key in ('plant', 'eso', 'controller')}
+    logs = {key: process_log(result.run_dir, key) for key in ('plant', 'eso', 'controller')}
     if not all('running under SCHED_FIFO' in text for text in logs.values()):
         pytest.skip('SCHED_FIFO refused on this machine: real-time stability is only claimed under it '
                     '(normal scheduling latches; see README, Performance)')
@@ -73,7 +72,8 @@ def test_realtime_loop_stays_stable_for_the_whole_fast_deep_sea_run(isolated):
     # envelope (rho0 = 0.25 rad; 9 runs here: at most 4.6e-2 rad), and the observer integrated
     # the commanded current on time or by repair for nearly every sample.
     assert 'safe stop latched' not in logs['controller']
-    assert np.max(np.abs(run.error)) < 0.25, np.max(np.abs(run.error))
+    controlled = run.status == 0                       # safe-stop samples carry no error (NaN)
+    assert controlled.mean() > 0.9 and np.max(np.abs(run.error[controlled])) < 0.25, np.max(np.abs(run.error))
     eso = json.loads((result.run_dir / 'eso_stats.json').read_text())
     assert eso['exact_pairs'] + eso['repaired_pairs'] >= 0.9 * eso['steps'], eso
 
@@ -109,18 +109,53 @@ def test_installed_scenario_files_match_the_scenarios():
         assert yaml.safe_load((config / f'{name}.yaml').read_text()) == scenario_parameters(scenario), name
 
 
-def test_launch_file_is_installed_and_starts_the_same_executables():
-    from ament_index_python.packages import get_package_share_directory
+def test_closed_loop_description_is_one_for_runner_and_launch():
+    """graph.closed_loop: the processes, their parameters and real-time settings, as both starters use them."""
+    from actuator_tools.graph import closed_loop, ros_arguments
 
-    launch = Path(get_package_share_directory('actuator_bringup')) / 'launch' / 'closed_loop.launch.py'
-    tree = ast.parse(launch.read_text())
-    names = {n.name for n in ast.walk(tree) if isinstance(n, ast.FunctionDef)}
-    assert 'generate_launch_description' in names
-    text = launch.read_text()
-    for package, executable in (('actuator_plant', 'plant_node'), ('actuator_eso', 'eso_node'),
-                                ('actuator_controller', 'controller_node'), ('actuator_bag', 'recorder')):
-        assert f"package='{package}', executable='{executable}'" in text
-        assert os.access(executable_path(package, executable), os.X_OK)
+    specs = closed_loop('realtime', 5.0, record=True, thread_priority=50, cpus={'joint': '0'})
+    by_key = {s.key: s for s in specs}
+    assert list(by_key) == ['recorder', 'controller', 'eso', 'plant']         # the joint starts last
+    assert [s.key for s in specs if s.leader] == ['plant']
+    assert by_key['plant'].parameters['thread_priority'] == 51                # the sampling hardware, one above
+    assert by_key['eso'].parameters['thread_priority'] == by_key['controller'].parameters['thread_priority'] == 50
+    assert 'thread_priority' not in by_key['recorder'].parameters             # normal scheduling
+    assert by_key['plant'].parameters['cpu_affinity'] == '0' and by_key['plant'].parameters['stop_after_s'] == 5.0
+    assert by_key['plant'].parameters['wait_for_subscribers'] == 3
+    assert not by_key['recorder'].managed and all(s.managed for k, s in by_key.items() if k != 'recorder')
+    args = ros_arguments(by_key['eso'], Path('/x/case.yaml'))
+    assert args[:3] == ['--ros-args', '--params-file', '/x/case.yaml'] and '-p' in args and 'autostart:=true' in args
+    sim = {s.key: s for s in closed_loop('sim', 2.0, record=False)}
+    assert sim['controller'].parameters['use_sim_time'] is True and sim['plant'].parameters['wait_for_subscribers'] == 2
+    for spec in specs:
+        assert os.access(executable_path(spec.package, spec.executable), os.X_OK)
+
+
+def test_launch_description_builds_the_processes_of_the_description():
+    """The installed launch file, loaded through the launch API, starts exactly graph.closed_loop's processes."""
+    # launch_ros, not launch: the symlink install puts build/actuator_bringup (with its launch/ folder)
+    # on sys.path, where a bare `import launch` finds that folder as a namespace package.
+    pytest.importorskip('launch_ros', reason='launch and launch_ros are not on PyPI: this runs on a Jazzy install '
+                                             'or a checkout prepared as ../shared/real-ros2-tools.md says')
+    import launch
+    from ament_index_python.packages import get_package_share_directory
+    from launch.launch_description_sources import PythonLaunchDescriptionSource
+    from launch_ros.actions import Node
+
+    from actuator_tools.graph import closed_loop
+
+    path = Path(get_package_share_directory('actuator_bringup')) / 'launch' / 'closed_loop.launch.py'
+    description = PythonLaunchDescriptionSource(str(path)).get_launch_description(launch.LaunchContext())
+    context = launch.LaunchContext()
+    for entity in description.entities:
+        if isinstance(entity, launch.actions.DeclareLaunchArgument):
+            entity.execute(context)
+    context.launch_configurations.update({'duration': '5', 'mode': 'realtime', 'thread_priority': '50'})
+    (opaque,) = [e for e in description.entities if isinstance(e, launch.actions.OpaqueFunction)]
+    actions = opaque.execute(context)
+    nodes = [a for a in actions if isinstance(a, Node)]
+    expected = closed_loop('realtime', 5.0, thread_priority=50, autostart=False)
+    assert [(n.node_package, n.node_executable) for n in nodes] == [(s.package, s.executable) for s in expected]
 
 
 @pytest.mark.ros

@@ -67,6 +67,14 @@ def test_constants_survive_in_generated_code():
     assert codes['STATUS_OK'] == 0
 
 
+def test_status_codes_are_the_core_status_enum():
+    # One place says what each code means (actuator_core/status.py); the message carries the same numbers.
+    from actuator_core.status import Status
+    state = _class('ControllerState')
+    codes = {k[len('STATUS_'):]: getattr(state, k) for k in dir(state) if k.startswith('STATUS_')}
+    assert codes == {s.name: int(s) for s in Status}
+
+
 def test_every_type_crosses_between_two_processes(ros_env, tmp_path):
     names = _types()
     seed = 11

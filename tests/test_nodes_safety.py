@@ -5,9 +5,13 @@ import time
 
 import pytest
 
-from actuator_ros.runtime import ns_to_stamp
+from actuator_core.timing import stamp_to_ns
+from actuator_ros.conversions import ns_to_stamp
 
 pytestmark = pytest.mark.usefixtures('rclpy_context')
+
+#: Managed nodes configure and activate themselves, as `ros2 run ... --ros-args -p autostart:=true` does.
+AUTOSTART = ['--ros-args', '-p', 'autostart:=true']
 
 
 class Harness:
@@ -17,7 +21,7 @@ class Harness:
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.node import Node
 
-        from actuator_ros.runtime import control_qos
+        from actuator_ros.qos import control_qos
         from actuator_msgs.msg import ControllerState, CurrentCommand, PlantTruth, StateEstimate
         from sensor_msgs.msg import JointState
 
@@ -79,7 +83,8 @@ def _now_ns(harness) -> int:
 def test_controller_refuses_nan_and_goes_safe_on_stale_inputs(harness, ros_process):
     from actuator_msgs.msg import ControllerState
     ctrl = ros_process('actuator_controller', 'controller_node',
-                       ['--ros-args', '-p', 'measurement_timeout_s:=0.05', '-p', 'estimate_timeout_s:=0.05',
+                       ['--ros-args', '-p', 'autostart:=true', '-p', 'measurement_timeout_s:=0.05',
+                        '-p', 'estimate_timeout_s:=0.05',
                         '-p', 'controller:=nftsmc_eso'])
     harness.wait_for(lambda: harness.node.count_subscribers('joint_states') >= 1, what='controller subscription')
     harness.spin(0.5)
@@ -93,7 +98,7 @@ def test_controller_refuses_nan_and_goes_safe_on_stale_inputs(harness, ros_proce
     ok = [c for c in harness.got['command'] if not c.safe_stop]
     assert ok and all(math.isfinite(c.current_a) and abs(c.current_a) <= 20.0 for c in ok)
 
-    t = _now_ns(harness) + 1_000_000_000                   # later than every stamp sent so far
+    t += 40 * period                                       # the next sample, later than every stamp sent so far
     harness.send_sample(t, float('nan'))                   # NaN measurement: refused, 0 A
     harness.wait_for(lambda: any(s.status == ControllerState.STATUS_INVALID_INPUT for s in harness.got['state']),
                      what='invalid-input status')
@@ -109,7 +114,7 @@ def test_controller_refuses_nan_and_goes_safe_on_stale_inputs(harness, ros_proce
     assert all(c.current_a == 0.0 and c.safe_stop for c in harness.got['command'])
 
     harness.got['state'].clear()                           # measurements without estimates: stale estimate
-    t = _now_ns(harness) + 2_000_000_000
+    t = _now_ns(harness)                                   # fresh stamps (a new grid: the controller resyncs)
     for k in range(60):
         harness.send_sample(t + k * period, 0.0, estimate=False)
         harness.spin(0.004)
@@ -121,7 +126,8 @@ def test_controller_refuses_nan_and_goes_safe_on_stale_inputs(harness, ros_proce
 def test_controller_corrects_an_estimate_integrated_with_a_substituted_current(harness, ros_process):
     """x_hat(k) says it integrated 1 A less than the controller commanded for k-1: x2_hat gains 1 A * gain."""
     ctrl = ros_process('actuator_controller', 'controller_node',     # long timeouts: no watchdog command between
-                       ['--ros-args', '-p', 'controller:=nftsmc_eso', '-p', 'measurement_timeout_s:=5.0',
+                       ['--ros-args', '-p', 'autostart:=true', '-p', 'controller:=nftsmc_eso',
+                        '-p', 'measurement_timeout_s:=5.0',
                         '-p', 'estimate_timeout_s:=5.0'])
     harness.wait_for(lambda: harness.node.count_subscribers('joint_states') >= 1, what='controller subscription')
     harness.spin(0.5)
@@ -152,13 +158,14 @@ def test_controller_corrects_an_estimate_integrated_with_a_substituted_current(h
 def test_controller_latches_safe_stop_beyond_following_error(harness, ros_process):
     from actuator_msgs.msg import ControllerState
     ctrl = ros_process('actuator_controller', 'controller_node',
-                       ['--ros-args', '-p', 'following_error_limit_rad:=0.1', '-p', 'measurement_timeout_s:=0.05',
+                       ['--ros-args', '-p', 'autostart:=true', '-p', 'following_error_limit_rad:=0.1',
+                        '-p', 'measurement_timeout_s:=0.05',
                         '-p', 'estimate_timeout_s:=0.05'])
     harness.wait_for(lambda: harness.node.count_subscribers('joint_states') >= 1, what='controller subscription')
     harness.spin(0.5)
     t = _now_ns(harness)
     harness.send_sample(t, 0.5)                            # 0.5 rad off a reference that starts at 0
-    harness.wait_for(lambda: any(s.status == ControllerState.STATUS_DIVERGED for s in harness.got['state']),
+    harness.wait_for(lambda: any(s.status == ControllerState.STATUS_LATCHED for s in harness.got['state']),
                      what='latched safe stop')
     harness.send_sample(t + 5_000_000, 0.0)                # even a good sample stays at 0 A
     harness.wait_for(lambda: len(harness.got['command']) >= 2, what='second command')
@@ -168,7 +175,8 @@ def test_controller_latches_safe_stop_beyond_following_error(harness, ros_proces
 
 
 def test_plant_refuses_bad_commands_and_drops_to_zero_when_commands_stop(harness, ros_process):
-    plant = ros_process('actuator_plant', 'plant_node', ['--ros-args', '-p', 'command_timeout_s:=0.02',
+    plant = ros_process('actuator_plant', 'plant_node', ['--ros-args', '-p', 'autostart:=true',
+                                                         '-p', 'command_timeout_s:=0.02',
                                                          '-p', 'current_limit_a:=25.0'])
     harness.wait_for(lambda: len(harness.got['truth']) > 10, what='plant samples')
 
@@ -177,17 +185,20 @@ def test_plant_refuses_bad_commands_and_drops_to_zero_when_commands_stop(harness
         harness.wait_for(lambda: len(harness.got['truth']) > 3, what='truth')
         return harness.got['truth'][-1].current_a
 
+    def sample_ns():                                       # a command answers a sample the plant published
+        return stamp_to_ns(harness.got['truth'][-1].header.stamp)
+
     for _ in range(20):
-        harness.send_command(_now_ns(harness), 2.0)
+        harness.send_command(sample_ns(), 2.0)
         harness.spin(0.002)
     assert held_current() == 2.0
     harness.spin(0.1)                                      # commands stopped: 0 A after the timeout
     assert held_current() == 0.0
     for bad in (float('nan'), float('inf'), 1.0e6):
         for _ in range(5):
-            harness.send_command(_now_ns(harness), 2.0)
+            harness.send_command(sample_ns(), 2.0)
             harness.spin(0.002)
-        harness.send_command(_now_ns(harness), bad)
+        harness.send_command(sample_ns(), bad)
         harness.spin(0.003)
         assert held_current() == 0.0, bad                 # never integrated: zero instead
     assert 'refused' in plant.output
@@ -195,7 +206,7 @@ def test_plant_refuses_bad_commands_and_drops_to_zero_when_commands_stop(harness
 
 
 def test_eso_refuses_non_finite_measurements_and_commands(harness, ros_process):
-    eso = ros_process('actuator_eso', 'eso_node')
+    eso = ros_process('actuator_eso', 'eso_node', AUTOSTART)
     harness.wait_for(lambda: harness.node.count_subscribers('joint_states') >= 1, what='eso subscription')
     harness.spin(0.5)
     t = _now_ns(harness)
@@ -218,7 +229,7 @@ def test_eso_repairs_its_state_when_a_command_comes_late(harness, ros_process):
     """Sample 10's command comes after y(11): the step is substituted, then repaired to the exact pair."""
     from actuator_eso.observer import EsoGains, eso_step
 
-    eso = ros_process('actuator_eso', 'eso_node')
+    eso = ros_process('actuator_eso', 'eso_node', AUTOSTART)
     harness.wait_for(lambda: harness.node.count_subscribers('joint_states') >= 1
                      and harness.node.count_subscribers('current_command') >= 1, what='eso subscriptions')
     harness.spin(0.5)
@@ -257,7 +268,7 @@ def test_eso_repairs_its_state_when_a_command_comes_late(harness, ros_process):
 @pytest.mark.parametrize('package, executable, args, names', [
     ('actuator_controller', 'controller_node', ['-p', 'pp_nftsmc_eso.k0_per_s:=-5.0'], ['k0_per_s', '(0, 1e+06]']),
     ('actuator_controller', 'controller_node', ['-p', 'controller:=lqr'], ['controller', 'pp_nftsmc_eso']),
-    ('actuator_controller', 'controller_node', ['-p', 'common.current_limit_a:=0.0'], ['current_limit_a']),
+    ('actuator_controller', 'controller_node', ['-p', 'current_limit_a:=0.0'], ['current_limit_a']),
     ('actuator_plant', 'plant_node', ['-p', 'working_condition:=custom', '-p', 'condition.temperature_c:=500.0'],
      ['temperature_c', '[-10, 80] degC']),
     ('actuator_plant', 'plant_node', ['-p', 'drift.inertia_amplitude:=1.5'], ['inertia_amplitude', '[0, 0.99]']),
@@ -277,7 +288,7 @@ def test_invalid_parameter_is_refused_with_name_and_range(ros_process, package, 
 @pytest.mark.parametrize('signal_name', ['SIGINT', 'SIGTERM'])
 def test_nodes_stop_cleanly_on_signals(ros_process, package, executable, signal_name):
     import signal
-    proc = ros_process(package, executable)
+    proc = ros_process(package, executable, AUTOSTART)
     proc.wait_for_output(r'\]: ', timeout=20.0)
     time.sleep(0.5)
     proc.popen.send_signal(getattr(signal, signal_name))
@@ -292,7 +303,8 @@ def test_exit_waits_until_reliable_subscribers_have_everything(rclpy_context, ro
 
     from rclpy.node import Node
 
-    from actuator_ros.runtime import control_qos, wait_for_acknowledgements
+    from actuator_ros.qos import control_qos
+    from actuator_ros.runner import wait_for_acknowledgements
     from sensor_msgs.msg import JointState
 
     recorder = ros_process('actuator_bag', 'recorder', ['--ros-args', '-p', f'output:={tmp_path / "bag"}',

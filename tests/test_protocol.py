@@ -7,7 +7,8 @@ import pytest
 from actuator_core import limits
 from actuator_core.assembly import RESYNC_SAMPLES, ControlSampleAssembly
 from actuator_core.gate import CommandGate
-from actuator_core.pairing import MAX_STEPS_PER_CALL, RESYNC_GAP_SAMPLES, ObserverInputPairing
+from actuator_core.pairing import MAX_STEPS_PER_CALL, ObserverInputPairing
+from actuator_core.timebase import StampCheck, Verdict
 from actuator_core.status import Status
 from actuator_controller.laws import make_controller
 from actuator_controller.reference import make_reference
@@ -50,6 +51,13 @@ def test_pairing_substitutes_a_missing_command_and_repairs_it_exactly_when_it_co
     assert exact.observer.state == pytest.approx(eso.state, rel=1e-12, abs=1e-15)
 
 
+def test_pairing_keeps_a_command_that_comes_before_the_first_measurement():
+    pair, _ = pairing()
+    assert pair.add_command(0, 2.0) == []
+    out = pair.add_measurement(0, 0.0)
+    assert [e.initial for e in out] == [True, False] and out[1].input_current_a == 2.0
+
+
 def test_pairing_ignores_duplicates_and_stale_samples_and_bounds_its_work():
     pair, _ = pairing(patience=1000)
     pair.add_measurement(0, 0.0)
@@ -65,15 +73,35 @@ def test_pairing_ignores_duplicates_and_stale_samples_and_bounds_its_work():
     assert len(out) == MAX_STEPS_PER_CALL
 
 
-def test_pairing_restarts_the_observer_from_the_measurement_after_a_jump():
+def test_pairing_restart_starts_the_observer_from_the_measurement():
     pair, eso = pairing()
     pair.add_measurement(0, 0.0)
     pair.add_command(0, 1.0)
-    jump = (RESYNC_GAP_SAMPLES + 2) * P                     # beyond the gap from x_hat(1)
-    out = pair.add_measurement(jump, 0.7)
-    assert out[0].initial and out[0].sample_ns == jump and eso.state == (0.7, 0.0, 0.0)
-    assert pair.restarts == 1
-    assert pair.add_command(jump + 10 ** 12, 1.0) == []       # a command far ahead: refused, no steps
+    out, = pair.restart(10 ** 12, 0.7)
+    assert out.initial and out.sample_ns == 10 ** 12 and eso.state == (0.7, 0.0, 0.0) and pair.restarts == 1
+    assert pair.add_command(10 ** 12 + 10 ** 9, 1.0) == []    # a command far ahead of x_hat: ignored
+    assert pair.add_command(10 ** 12, 1.0)[0].sample_ns == 10 ** 12 + P
+
+
+def test_stamp_check_sorts_future_old_and_jumps_in_real_time():
+    c = StampCheck(P, sim=False, future_tolerance_ns=50 * P)
+    now = 10 ** 12
+    assert c.check(now, now) is Verdict.OK
+    assert c.check(now + 1000 * 10 ** 9, now) is Verdict.FUTURE          # 1000 s ahead: refused
+    assert c.check(now + 3 * P, now + 3 * P) is Verdict.OK               # two missed samples: fine
+    assert c.check(now + 2 * P, now + 3 * P) is Verdict.OLD              # late or duplicate
+    assert c.check(now + 3 * P + 1234, now + 4 * P) is Verdict.JUMP      # a new grid: restarted sensor
+    assert c.check(now + 4 * P + 1234, now + 5 * P) is Verdict.OK        # ... which is the grid from now on
+    assert c.check(now - 10 ** 10, now + 5 * P) is Verdict.JUMP          # 10 s back
+    assert (c.refused_future, c.ignored_old, c.jumps) == (1, 1, 2)
+
+
+def test_stamp_check_in_sim_allows_only_the_next_sample_and_treats_any_step_back_as_a_restart():
+    c = StampCheck(P, sim=True, future_tolerance_ns=0)
+    assert c.check(10 ** 9, 0) is Verdict.OK
+    assert c.check(10 ** 9 + P, 0) is Verdict.OK
+    assert c.check(10 ** 9 + 3 * P, 0) is Verdict.FUTURE
+    assert c.check(10 ** 9, 0) is Verdict.JUMP                           # a restarted plant starts again
 
 
 def assembly(controller='pp_nftsmc_eso', **kwargs):
@@ -112,9 +140,11 @@ def test_assembly_counts_unanswered_and_missed_samples():
 def test_assembly_latches_on_following_error_and_on_non_finite_output():
     a = assembly(following_error_limit_rad=0.1)
     a.add_estimate(0, 0.0, 0.0)
-    assert a.add_measurement(0, 0.2).status is Status.LATCHED
+    assert a.add_measurement(0, 0.0).status is Status.OK
     a.add_estimate(P, 0.0, 0.0)
-    later = a.add_measurement(P, 0.0)
+    assert a.add_measurement(P, 0.2).status is Status.LATCHED
+    a.add_estimate(2 * P, 0.0, 0.0)
+    later = a.add_measurement(2 * P, 0.0)
     assert later.status is Status.LATCHED and later.current_a == 0.0 and later.output is None
     b = assembly()
     b.add_estimate(0, float('inf'), 0.0)
@@ -144,6 +174,13 @@ def test_assembly_resync_holds_zero_then_restarts_the_reference_from_the_held_an
     s = a.add_measurement(after, 0.3)
     assert s.status is Status.OK and s.t_s == 0.0
     assert s.output.error_rad == pytest.approx(0.0)           # the reference starts where the joint is
+
+
+def test_assembly_started_away_from_the_reference_start_tracks_from_there():
+    a = assembly()
+    a.add_estimate(0, 0.0, 0.0)
+    s = a.add_measurement(0, 0.4)                              # a controller restarted at 0.4 rad
+    assert s.status is Status.OK and s.output.error_rad == pytest.approx(0.0)
 
 
 def test_gate_honours_safe_stop_limit_timeout_and_brake():

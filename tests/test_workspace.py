@@ -137,9 +137,9 @@ def test_isolated_domains_do_not_see_each_other(rclpy_context, ros_env, tmp_path
     theirs = ros_helpers.message_leaves(ros_helpers.fill_message(CurrentCommand(), 2))
     assert mine != theirs
 
-    with ros_helpers.DomainReservation(exclude=[int(ros_env['ROS_DOMAIN_ID'])]) as other:
-        assert other.domain_id != int(ros_env['ROS_DOMAIN_ID'])
-        other_env = ros_helpers.isolated_ros_env(other.domain_id, log_dir=tmp_path / 'other_log')
+    with ros_helpers.reserve_domain(exclude=[int(ros_env['ROS_DOMAIN_ID'])]) as other:
+        assert other != int(ros_env['ROS_DOMAIN_ID'])
+        other_env = ros_helpers.isolated_ros_env(other, log_dir=tmp_path / 'other_log')
         args = ['pub', '--types', 'CurrentCommand']
         with ros_helpers.RosProcess.python(script, [*args, '--seed', '1'], env=ros_env,
                                            log_dir=tmp_path, name='same_domain') as same, \

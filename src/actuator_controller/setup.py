@@ -33,7 +33,7 @@ setup(
     extras_require={'test': ['pytest']},
     entry_points={
         'console_scripts': [
-            'controller_node = actuator_controller.controller_node:main',
+            'controller_node = actuator_controller.entry:main',
         ],
     },
 )

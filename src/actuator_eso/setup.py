@@ -33,7 +33,7 @@ setup(
     extras_require={'test': ['pytest']},
     entry_points={
         'console_scripts': [
-            'eso_node = actuator_eso.eso_node:main',
+            'eso_node = actuator_eso.entry:main',
         ],
     },
 )

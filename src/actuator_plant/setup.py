@@ -33,7 +33,7 @@ setup(
     extras_require={'test': ['pytest']},
     entry_points={
         'console_scripts': [
-            'plant_node = actuator_plant.plant_node:main',
+            'plant_node = actuator_plant.entry:main',
         ],
     },
 )

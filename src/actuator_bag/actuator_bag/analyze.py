@@ -9,12 +9,13 @@ and loop timing from stamps: the joint_states sample period and the command late
 (the recorder's receive time of ``current_command`` minus its header.stamp).
 
 Time zero of a run is the header.stamp of its first controller/state sample that is not
-STATUS_WAITING; samples before it (controller waiting for inputs) are left out.
+Status.WAITING (actuator_core.status); samples before it (controller waiting for inputs) are left out.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import os
@@ -24,8 +25,10 @@ from typing import Any, Optional, Sequence
 
 import numpy as np
 import yaml
-from actuator_core.timing import stamp_to_ns
 from actuator_core.metrics import STEADY_STATE_START_S, RunMetrics, compute_run_metrics
+from actuator_core.stats import missed_samples
+from actuator_core.status import Status
+from actuator_core.timing import stamp_to_ns
 
 from .errors import AnalysisError, BagError, run_cli
 from .msgdefs import DefinitionSource, definition_roots
@@ -38,10 +41,6 @@ PLANT_TRUTH = 'actuator_msgs/msg/PlantTruth'
 CURRENT_COMMAND = 'actuator_msgs/msg/CurrentCommand'
 JOINT_STATE = 'sensor_msgs/msg/JointState'
 
-#: ControllerState.status of a sample in closed-loop control.
-STATUS_OK = 0
-#: ControllerState.status of a controller still waiting for its first inputs.
-STATUS_WAITING = 1
 
 
 @dataclass
@@ -93,7 +92,7 @@ class RunReport:
             'bag': str(self.run.path),
             'controller': self.run.controller,
             'has_envelope': self.run.has_envelope,
-            'status_not_ok_fraction': float(np.mean(self.run.status != STATUS_OK)),
+            'status_not_ok_fraction': float(np.mean(self.run.status != Status.OK)),
             'metrics': self.metrics.as_dict(),
             'timing': self.timing,
             'missed_samples': self.missed_samples,
@@ -171,9 +170,9 @@ def _extract(kind: str, msg: Any, log_ns: int) -> tuple:
 
 def _assemble(path: Path, rows: dict[str, list[tuple]]) -> RunData:
     """Turn message rows into time-aligned arrays."""
-    states = sorted((r for r in rows['state'] if r[2] != STATUS_WAITING), key=lambda r: r[0])
+    states = sorted((r for r in rows['state'] if r[2] != Status.WAITING), key=lambda r: r[0])
     if not states:
-        raise AnalysisError(f'{path}: controller/state has no samples past start-up (all STATUS_WAITING or none)')
+        raise AnalysisError(f'{path}: controller/state has no samples past start-up (all Status.WAITING or none)')
     t0 = states[0][0]
     names = sorted({r[1] for r in states if r[1]})
     cols = list(zip(*states))
@@ -228,24 +227,35 @@ def _stats(values: np.ndarray) -> Optional[dict[str, float]]:
 
 
 def analyze_run(run: RunData, steady_state_start_s: float = STEADY_STATE_START_S) -> RunReport:
-    """Metrics (shared compute_run_metrics) and timing of one run."""
+    """Metrics (shared compute_run_metrics) over the controlled samples, and timing of one run.
+
+    A safe-stop sample carries no error (NaN: the law did not run), so the error figures are
+    taken over the samples with status OK; a run that latched its safe stop is reported as
+    diverged, whatever its error was before.
+    """
+    ok = run.status == Status.OK
+    if not ok.any():
+        raise AnalysisError(f'{run.path}: no sample of controller/state has status OK')
     metrics = compute_run_metrics(
-        run.t,
-        run.error,
-        run.current,
-        lower_bound=run.lower if run.has_envelope else None,
-        upper_bound=run.upper if run.has_envelope else None,
-        saturated=run.saturated,
+        run.t[ok],
+        run.error[ok],
+        run.current[ok],
+        lower_bound=run.lower[ok] if run.has_envelope else None,
+        upper_bound=run.upper[ok] if run.has_envelope else None,
+        saturated=run.saturated[ok],
         velocity_estimate_error=run.velocity_error,
         disturbance_estimate_error=run.disturbance_error,
         steady_state_start_s=steady_state_start_s,
     )
+    if np.any(run.status == Status.LATCHED):
+        metrics = dataclasses.replace(metrics, diverged=True, bounds_kept=False)
     period = run.sample_period_s
     missed = 0
     if period.size:
-        nominal = float(np.median(period))
-        if nominal > 0:
-            missed = int(np.sum(np.maximum(np.round(period / nominal) - 1, 0)))
+        nominal_ns = int(round(float(np.median(period)) * 1e9))
+        if nominal_ns > 0:
+            missed = missed_samples(np.concatenate(([0], np.cumsum(np.rint(period * 1e9).astype(np.int64)))),
+                                    nominal_ns)
     timing = {'sample_period': _stats(period), 'command_latency': _stats(run.command_latency_s)}
     return RunReport(run=run, metrics=metrics, timing=timing, missed_samples=missed)
 
@@ -275,7 +285,7 @@ def format_table(reports: Sequence[RunReport]) -> str:
     add('controller', [r.run.controller for r in reports])
     add('samples / duration', [f'{r.metrics.samples} / {r.metrics.duration_s:.3f} s' for r in reports])
     add('diverged', ['YES' if r.metrics.diverged else 'no' for r in reports])
-    add('status not OK', [f'{100 * np.mean(r.run.status != STATUS_OK):.2f} % of samples' for r in reports])
+    add('status not OK', [f'{100 * np.mean(r.run.status != Status.OK):.2f} % of samples' for r in reports])
     add('steady window', ['{:.1f}-{:.3f} s'.format(*r.metrics.steady_window_s) for r in reports])
     add('max |e| in steady window', [_num(r.metrics.max_steady_error_rad, 'rad') for r in reports])
     add('RMS e in steady window', [_num(r.metrics.rms_steady_error_rad, 'rad') for r in reports])
@@ -298,7 +308,9 @@ def format_table(reports: Sequence[RunReport]) -> str:
     ])
     add('sample period p50/p99/max', [_timing(r.timing['sample_period']) for r in reports])
     add('missed samples', [str(r.missed_samples) if r.timing['sample_period'] else 'n/a' for r in reports])
-    add('cmd latency p50/p99/max', [_timing(r.timing['command_latency']) for r in reports])
+    # The recorder's receive time minus the stamp: the recorder's own delay (it runs at normal
+    # scheduling), not the loop's latency, which the controller measures (timing log).
+    add('recorder delay (log - stamp) p50/p99/max', [_timing(r.timing['command_latency']) for r in reports])
     width0 = max(len(label) for label, _ in rows)
     widths = [max(len(cells[i]) for _, cells in rows) for i in range(len(reports))]
     lines = []
@@ -342,15 +354,28 @@ def draw_figures(runs: Sequence[RunData], out: Path) -> list[Path]:
     ax.grid(True, alpha=0.3)
     save(fig, 'position.png')
 
-    fig, ax = plt.subplots(figsize=(8, 4.5))
+    # Two panels, as the paper's Figures 5b and 6b zoom: the whole run with the envelope, and the
+    # steady window at the error's own scale (the +-0.25 rad bounds flatten a 1e-3 rad error).
+    fig, (ax, zoom) = plt.subplots(2, 1, figsize=(8, 7))
+    steady_peak = 0.0
     for run, label in zip(runs, labels):
         line, = ax.plot(run.t, run.error, linewidth=0.9, label=label)
         if run.has_envelope:
             ax.plot(run.t, run.upper, ':', color=line.get_color(), linewidth=1.0)
             ax.plot(run.t, run.lower, ':', color=line.get_color(), linewidth=1.0, label=f'{label} bounds')
+        steady = (run.t >= STEADY_STATE_START_S) & np.isfinite(run.error)
+        zoom.plot(run.t[steady], run.error[steady], linewidth=0.9, color=line.get_color(), label=label)
+        if steady.any():
+            steady_peak = max(steady_peak, float(np.max(np.abs(run.error[steady]))))
     ax.set(xlabel='time [s]', ylabel='tracking error e [rad]', title='Tracking error and prescribed performance bounds')
     ax.legend(loc='best', fontsize='small')
     ax.grid(True, alpha=0.3)
+    if steady_peak > 0.0:
+        zoom.set_ylim(-1.2 * steady_peak, 1.2 * steady_peak)
+    zoom.set(xlabel='time [s]', ylabel='tracking error e [rad]',
+             title=f'Steady window (t >= {STEADY_STATE_START_S:g} s) at its own scale')
+    zoom.ticklabel_format(axis='y', style='sci', scilimits=(-2, 2))
+    zoom.grid(True, alpha=0.3)
     save(fig, 'tracking_error.png')
 
     for name, title, unit, est_attr, truth_attr in (

@@ -44,7 +44,7 @@ from rclpy.utilities import remove_ros_args
 from .bag_format import DEFAULT_CHUNK_SIZE, DEFAULT_FLUSH_INTERVAL_S, BagSummary, BagWriter, TopicSpec
 from .errors import BagError
 from .msgdefs import DefinitionSource, normalize_msgtype
-from actuator_ros.runtime import make_executor
+from actuator_ros.runner import make_executor
 
 from .ros_common import EXECUTORS, StopFlag, make_qos, message_class, to_bag_qos
 
@@ -170,6 +170,12 @@ class RecorderNode(Node):
             custom_data={
                 'recorder': 'actuator_bag recorder',
                 'log_time': 'receive time on the recorder node clock' + (' (sim time)' if self.sim_time else ''),
+                # rosbag2 stores the publisher's source timestamp; rclpy gives it only through message
+                # info, which rclpy 7.1.6's EventsExecutor cannot deliver (SystemError: null argument
+                # to internal routine, tested), so with the default executor it is the receive time.
+                'publish_time': ('publisher source timestamp (message info)'
+                                 if defaults.executor == 'single_threaded' and not self.sim_time
+                                 else 'receive time (no message info with this executor or in sim time)'),
             },
         )
         self.writer.open()

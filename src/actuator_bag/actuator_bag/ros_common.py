@@ -17,7 +17,7 @@ from .errors import BagError
 from .msgdefs import normalize_msgtype
 
 #: Executors a node can be run with.
-EXECUTORS = ('events', 'single_threaded')  # actuator_ros.runtime.make_executor's names
+EXECUTORS = ('events', 'single_threaded')  # actuator_ros.runner.make_executor's names
 
 
 def message_class(msgtype: str) -> Any:

@@ -1,63 +1,101 @@
-"""ros2 launch actuator_bringup closed_loop.launch.py [scenario:=...] [mode:=realtime|sim] [record:=true]
+"""ros2 launch actuator_bringup closed_loop.launch.py [scenario:=...] [mode:=realtime|sim] [duration:=S] ...
 
-The same bring-up as the ``bringup`` executable, for Jazzy installations with ``ros2 launch``:
-plant, ESO and controller as separate processes with the scenario's parameter file from
-share/actuator_bringup/config/, the recorder when record:=true. In sim mode the plant owns
-/clock and the other nodes use sim time. Swap the plant for a hardware driver with
-plant:=false and start the driver yourself: it must implement the topic contract of the README.
+One closed-loop run: the joint (simulated plant, or the CiA 402 driver), the ESO, the controller
+and the recorder as separate processes, built from ``actuator_tools.graph.closed_loop``, the
+same description the ``bringup`` runner uses, with the same real-time settings (node
+parameters thread_priority, cpu_affinity, executor). The managed nodes are driven through
+configure and activate by launch_ros's lifecycle events. The run ends when the joint process
+ends (``duration`` elapsed, or it failed): every other process is then stopped with SIGINT and
+the joint's exit code is reported. Booleans are launch conditions: true/false/1/0, anything
+else is refused.
 """
 
 import os
 
 from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument, OpaqueFunction
+from launch.actions import DeclareLaunchArgument, EmitEvent, LogInfo, OpaqueFunction, RegisterEventHandler
+from launch.conditions import evaluate_condition_expression
+from launch.event_handlers import OnProcessExit
+from launch.events import Shutdown, matches_action
 from launch.substitutions import LaunchConfiguration
-from launch_ros.actions import Node
+from launch_ros.actions import LifecycleNode, Node
+from launch_ros.event_handlers import OnStateTransition
+from launch_ros.events.lifecycle import ChangeState
+from lifecycle_msgs.msg import Transition
 
-from actuator_tools.bringup import recorder_parameters
+from actuator_tools.graph import JOINTS, closed_loop
 
 
-def _nodes(context):
+def _flag(context, name):
+    """A boolean launch argument through launch's own condition parser."""
+    return evaluate_condition_expression(context, [LaunchConfiguration(name)])
+
+
+def _drive_lifecycle(action):
+    """configure at start, activate once inactive (launch_ros lifecycle events)."""
+    configure = EmitEvent(event=ChangeState(lifecycle_node_matcher=matches_action(action),
+                                            transition_id=Transition.TRANSITION_CONFIGURE))
+    activate = RegisterEventHandler(OnStateTransition(
+        target_lifecycle_node=action, goal_state='inactive',
+        entities=[EmitEvent(event=ChangeState(lifecycle_node_matcher=matches_action(action),
+                                              transition_id=Transition.TRANSITION_ACTIVATE))]))
+    return [activate, configure]
+
+
+def _on_leader_exit(event, context):
+    """Report the joint's exit code and end the run."""
+    code = event.returncode
+    text = f'{event.action.name} exited with code {code}: ending the run'
+    return [LogInfo(msg=text if code == 0 else f'ERROR: {text}'), EmitEvent(event=Shutdown(reason=text))]
+
+
+def _processes(context):
     scenario = LaunchConfiguration('scenario').perform(context)
     mode = LaunchConfiguration('mode').perform(context)
-    record = LaunchConfiguration('record').perform(context).lower() == 'true'
-    with_plant = LaunchConfiguration('plant').perform(context).lower() == 'true'
+    joint = LaunchConfiguration('joint').perform(context)
     duration = float(LaunchConfiguration('duration').perform(context))
+    priority = int(LaunchConfiguration('thread_priority').perform(context))
+    if not _flag(context, 'plant'):
+        joint = 'none'
     params = os.path.join(get_package_share_directory('actuator_bringup'), 'config', f'{scenario}.yaml')
     if not os.path.isfile(params):
         raise RuntimeError(f'no scenario {scenario!r}: {params} does not exist')
-    sim = mode == 'sim'
-    common = {'mode': mode, 'use_sim_time': sim}
-    nodes = [
-        Node(package='actuator_controller', executable='controller_node', name='actuator_controller',
-             parameters=[params, common], output='screen'),
-        Node(package='actuator_eso', executable='eso_node', name='actuator_eso',
-             parameters=[params, common], output='screen'),
-    ]
-    if with_plant:
-        nodes.append(Node(package='actuator_plant', executable='plant_node', name='actuator_plant',
-                          parameters=[params, {'mode': mode, 'stop_after_s': duration,
-                                               'wait_for_subscribers': 3 if record else 2}],
-                          output='screen'))
-    if record:
-        nodes.append(Node(package='actuator_bag', executable='recorder', name='recorder',
-                          parameters=[{'use_sim_time': sim, **recorder_parameters(mode)}],
-                          output='screen'))
-    return nodes
+    bag = LaunchConfiguration('bag').perform(context)
+    specs = closed_loop(mode, duration, record=_flag(context, 'record'), bag=bag or None, joint=joint,
+                        thread_priority=priority, autostart=False)
+    actions = []
+    for spec in specs:
+        parameters = ([params] if spec.scenario_file else []) + [spec.parameters]
+        common = dict(package=spec.package, executable=spec.executable, name=spec.name, namespace='',
+                      parameters=parameters, output='screen')
+        action = LifecycleNode(**common) if spec.managed else Node(**common)
+        actions.append(action)
+        if spec.managed:
+            actions += _drive_lifecycle(action)
+        if spec.leader:
+            actions.append(RegisterEventHandler(OnProcessExit(target_action=action, on_exit=_on_leader_exit)))
+    return actions
 
 
 def generate_launch_description():
-    """Launch arguments and the nodes of one closed-loop run."""
+    """Launch arguments and the processes of one closed-loop run."""
     return LaunchDescription([
         DeclareLaunchArgument('scenario', default_value='case2_pp_nftsmc_eso',
                               description='parameter file share/actuator_bringup/config/<scenario>.yaml'),
         DeclareLaunchArgument('mode', default_value='realtime', choices=['realtime', 'sim'],
                               description='realtime: wall-clock 1 kHz; sim: lockstep on the plant\'s /clock'),
-        DeclareLaunchArgument('record', default_value='true', description='record all topics to bags/'),
-        DeclareLaunchArgument('plant', default_value='true',
-                              description='start the simulated plant (false: a hardware driver provides the joint)'),
         DeclareLaunchArgument('duration', default_value='0.0',
-                              description='simulated run length [s]; 0 runs until stopped'),
-        OpaqueFunction(function=_nodes),
+                              description='run length [s] of the whole run; 0 runs until Ctrl-C'),
+        DeclareLaunchArgument('joint', default_value='plant', choices=list(JOINTS),
+                              description='plant: simulated joint; cia402_sim: CANopen driver with its simulated '
+                                          'drive; cia402: the driver on a real bus; none: a driver started elsewhere'),
+        DeclareLaunchArgument('plant', default_value='true',
+                              description='false: start no joint (same as joint:=none)'),
+        DeclareLaunchArgument('record', default_value='true', description='record all topics to a bag'),
+        DeclareLaunchArgument('bag', default_value='', description='bag folder (default bags/<UTC time>)'),
+        DeclareLaunchArgument('thread_priority', default_value='0',
+                              description='SCHED_FIFO priority of the ESO and controller, the joint one above '
+                                          '(0: normal scheduling; the runner and the benchmark use 50)'),
+        OpaqueFunction(function=_processes),
     ])

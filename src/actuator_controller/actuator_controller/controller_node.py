@@ -1,21 +1,22 @@
-"""Joint controller node: PP-NFTSMC-ESO (or PI, SMC-ESO, NFTSMC-ESO) at the sensor's 1 kHz.
+"""Joint controller node (managed): PP-NFTSMC-ESO (or PI, SMC-ESO, NFTSMC-ESO) at the sensor's 1 kHz.
 
 subscribes joint_states (sensor_msgs/JointState), eso/estimate (actuator_msgs/StateEstimate)
 publishes  current_command (actuator_msgs/CurrentCommand), controller/state (actuator_msgs/ControllerState)
 
-The control update of sample k runs as soon as y(k) and x_hat(k) (same stamp) are both in,
-as ros2_control's update follows its read: the loop is clocked by the sensor's 1 kHz
-sampling, and the sensor-to-command latency is one message hop plus the update. A timer on
-the node clock (the ROS clock: wall time, or /clock in sim mode) at half the staleness
-timeout is the watchdog:
-when the newest measurement or estimate is older than its timeout, the node commands 0 A
-with safe_stop set and says why. Invalid inputs (NaN, Inf, out of range) are refused and
-answered with 0 A for that sample; a non-finite control output or an error beyond
-following_error_limit_rad latches a safe stop until restart.
+The node holds the control law and its ``ControlSampleAssembly`` (actuator_core), the same
+objects as the offline loop: sample k is controlled as soon as y(k) and x_hat(k) are both in
+(clocked by the sensor, as ros2_control's update follows its read). The node checks what
+comes in, publishes what the assembly decides, and measures the timing.
 
-Timing is measured, not assumed: update period, sensor-to-command latency (wall clock minus
-measurement stamp, realtime mode), compute time, late and missed samples. A summary is
-logged at shutdown, and ``timing_log`` saves the raw samples (.npz).
+Safety (statuses: actuator_core/status.py): every field of every input is checked against the
+physical ranges of actuator_core.limits; stamps pass a ``StampCheck`` (a stamp from the future
+is refused; a jump of the sensor's time base, or an observer restart, starts the resync
+policy: 0 A with the brake while the observer converges, then the reference restarts from the
+joint's angle). A watchdog timer at half the staleness timeout commands 0 A with safe_stop when
+an input is stale; more than one publisher on an input stops control (0 A) until one is left.
+A non-finite output or a following error beyond the limit latches 0 A until the node is
+cleaned up and configured again. Not active: no command at all; deactivate sends one 0 A
+safe-stop command so the drive brakes at once.
 """
 
 from __future__ import annotations
@@ -23,288 +24,284 @@ from __future__ import annotations
 import math
 import time
 
-import numpy as np
-from rclpy.node import Node
-
 from actuator_core import limits
-from actuator_ros.runtime import RateLimitedLog, MODES, ParameterError, control_qos, declare_choice, declare_number, \
-    declare_spec_parameters, joint_position, ns_to_stamp, run_node
+from actuator_core.assembly import ControlSample, ControlSampleAssembly
 from actuator_core.sample_log import SampleLog
-from actuator_core.timing import period_ns, sample_time_s, stamp_to_ns
-from actuator_controller.laws import CONTROLLER_NAMES, GAINS_BY_NAME, CommonConfig, ControlOutput, make_controller
+from actuator_core.stats import percentiles
+from actuator_core.status import Status
+from actuator_core.timebase import StampCheck, Verdict
+from actuator_core.timing import period_ns, stamp_to_ns
+from actuator_controller.laws import CONTROLLER_NAMES, GAINS_BY_NAME, CommonConfig, make_controller
 from actuator_controller.reference import make_reference
 from actuator_msgs.msg import ControllerState, CurrentCommand, StateEstimate
+from actuator_ros.conversions import joint_position, ns_to_stamp
+from actuator_ros.node import ManagedNode
+from actuator_ros.parameters import (ParameterError, declare_choice, declare_number, declare_output_path,
+                                     declare_spec_parameters, declare_text)
+from actuator_ros.qos import MODES, control_qos
+from actuator_ros.runner import run_node
 from sensor_msgs.msg import JointState
 
-#: Estimates kept while waiting for their measurement.
-PENDING_LIMIT = 64
+NODE_NAME = 'actuator_controller'
+WATCHED_TOPICS = ('joint_states', 'eso/estimate')
+NAN = float('nan')
+#: ControllerState fields only a control update computes: NaN on a safe-stop sample.
+LAW_FIELDS = ('reference_position_rad', 'reference_velocity_rad_s', 'reference_acceleration_rad_s2',
+              'estimated_velocity_rad_s', 'estimated_disturbance_rad_s2', 'error_rad', 'rho_rad',
+              'lower_bound_rad', 'upper_bound_rad', 'z1', 'z2_rad_s', 'alpha_rad_s', 'alpha_dot_rad_s2',
+              'sigma_rad_s', 'u_eq_rad_s2', 'u_sw_rad_s2', 'u_b_rad_s2', 'proportional_a', 'integral_a',
+              'current_unlimited_a')
+OUTPUT_FIELDS = ('error_rad', 'rho_rad', 'lower_bound_rad', 'upper_bound_rad', 'z1', 'z2_rad_s', 'alpha_rad_s',
+                 'alpha_dot_rad_s2', 'sigma_rad_s', 'u_eq_rad_s2', 'u_sw_rad_s2', 'u_b_rad_s2', 'proportional_a',
+                 'integral_a', 'current_unlimited_a')
 
 
-
-
-class ControllerNode(Node):
+class ControllerNode(ManagedNode):
     """Runs one of the four control laws on the sensor/estimate streams."""
 
-    def __init__(self) -> None:
-        """Declare and check parameters, build the control law and the reference."""
-        super().__init__('actuator_controller')
-        self.log = RateLimitedLog(self.get_logger())
+    def __init__(self, settings=None) -> None:
+        """Declare and check every parameter; nothing is built before configure."""
+        super().__init__(NODE_NAME, **({'settings': settings} if settings else {}))
+
+    def load_parameters(self) -> None:
+        """Declare (or read again at configure) and check every parameter."""
         self.mode = declare_choice(self, 'mode', 'realtime', MODES, 'realtime: wall clock; sim: /clock lockstep')
-        name = declare_choice(self, 'controller', 'pp_nftsmc_eso', CONTROLLER_NAMES, 'control law')
-        gains = declare_spec_parameters(self, GAINS_BY_NAME[name], prefix=f'{name}.')
-        common = declare_spec_parameters(self, CommonConfig, prefix='common.')
-        kind = declare_choice(self, 'reference', 'fast', ('slow', 'fast', 'step', 'sine'), 'reference trajectory')
-        amplitude = declare_number(self, 'reference_amplitude_rad', 0.1, -10.0, 10.0, 'rad', 'step/sine amplitude')
-        frequency = declare_number(self, 'reference_frequency_rad_s', 2.0 * math.pi, 0.0, 1.0e3, 'rad/s',
-                                   'sine angular frequency')
+        self.name = declare_choice(self, 'controller', 'pp_nftsmc_eso', CONTROLLER_NAMES, 'control law')
+        self.gains = declare_spec_parameters(self, GAINS_BY_NAME[self.name], prefix=f'{self.name}.')
+        dt_s = declare_number(self, 'sample_time_s', limits.SAMPLE_TIME_S, *limits.SAMPLE_TIME_RANGE_S, 's',
+                              'sample period of the sensor and of the control law')
+        limit = declare_number(self, 'current_limit_a', limits.CURRENT_LIMIT_A, *limits.CURRENT_LIMIT_RANGE_A, 'A',
+                               'the commanded current is limited to +-this value')
+        self.common = declare_spec_parameters(self, CommonConfig, prefix='common.', exclude=('dt_s', 'current_limit_a'),
+                                              dt_s=dt_s, current_limit_a=limit)
+        self.kind = declare_choice(self, 'reference', 'fast', ('slow', 'fast', 'step', 'sine'), 'reference trajectory')
+        self.amplitude = declare_number(self, 'reference_amplitude_rad', 0.1, -10.0, 10.0, 'rad', 'step/sine amplitude')
+        self.frequency = declare_number(self, 'reference_frequency_rad_s', 2.0 * math.pi, 0.0, 1.0e3, 'rad/s',
+                                        'sine angular frequency')
         self.measurement_timeout_ns = int(1e9 * declare_number(
-            self, 'measurement_timeout_s', limits.MEASUREMENT_TIMEOUT_S, *limits.TIMEOUT_RANGE_S, 's', 'older measurement: safe stop (0 A)'))
+            self, 'measurement_timeout_s', limits.MEASUREMENT_TIMEOUT_S, *limits.TIMEOUT_RANGE_S, 's',
+            'older measurement: safe stop (0 A)'))
         self.estimate_timeout_ns = int(1e9 * declare_number(
-            self, 'estimate_timeout_s', limits.ESTIMATE_TIMEOUT_S, *limits.TIMEOUT_RANGE_S, 's', 'older estimate: safe stop (0 A)'))
+            self, 'estimate_timeout_s', limits.ESTIMATE_TIMEOUT_S, *limits.TIMEOUT_RANGE_S, 's',
+            'older estimate: safe stop (0 A)'))
         self.following_error_limit_rad = declare_number(
-            self, 'following_error_limit_rad', limits.FOLLOWING_ERROR_LIMIT_RAD, 1.0e-4, 100.0, 'rad', '|e| beyond latches a safe stop')
-        self.max_abs_position_rad = declare_number(self, 'max_abs_position_rad', limits.POSITION_LIMIT_RAD, 0.0, 1.0e4, 'rad',
-                                                   'measurements beyond are refused')
-        self.joint_name = self.declare_parameter('joint_name', 'joint').value
-        self.timing_log = self.declare_parameter('timing_log', '').value
+            self, 'following_error_limit_rad', limits.FOLLOWING_ERROR_LIMIT_RAD, 1.0e-4, 100.0, 'rad',
+            '|e| beyond latches a safe stop')
+        self.future_tolerance_s = declare_number(
+            self, 'future_stamp_tolerance_s', 0.05, 0.0, 10.0, 's',
+            'realtime: inputs stamped later than now plus this are refused (clock offset between hosts)')
+        self.joint_name = declare_text(self, 'joint_name', 'joint', 'name of the joint in joint_states')
+        self.timing_log = declare_output_path(self, 'timing_log', 'per-update timing (.npz) written at shutdown')
         if self.mode == 'sim' and not self.get_parameter('use_sim_time').value:
             raise ParameterError("parameter 'use_sim_time' must be true in sim mode (the plant owns /clock)")
-        self.law = make_controller(name, gains, common)
-        self.needs_estimate = name != 'pi'
-        self.reference = make_reference(kind, amplitude, frequency)
-        self.period_ns = period_ns(common.dt_s)
+
+    # --- lifecycle --------------------------------------------------------------------------------
+    def build(self) -> None:
+        """Law, reference, assembly, stamp checks, topics and the watchdog."""
+        self.period_ns = period_ns(self.common.dt_s)
+        law = make_controller(self.name, self.gains, self.common)
+        reference = make_reference(self.kind, self.amplitude, self.frequency)
+        self.assembly = ControlSampleAssembly(law, reference, self.period_ns, self.name != 'pi',
+                                              self.following_error_limit_rad)
+        tolerance = int(self.future_tolerance_s * 1e9)
+        self.measurement_check = StampCheck(self.period_ns, self.mode == 'sim', tolerance)
+        self.estimate_check = StampCheck(self.period_ns, self.mode == 'sim', tolerance + self.period_ns)
         qos = control_qos(self.mode)
-        self.cmd_pub = self.create_publisher(CurrentCommand, 'current_command', qos)
-        self.state_pub = self.create_publisher(ControllerState, 'controller/state', qos)
-        self.create_subscription(JointState, 'joint_states', self.on_measurement, qos)
-        self.create_subscription(StateEstimate, 'eso/estimate', self.on_estimate, qos)
+        self.cmd_pub = self.create_lifecycle_publisher(CurrentCommand, 'current_command', qos)
+        self.state_pub = self.create_lifecycle_publisher(ControllerState, 'controller/state', qos)
+        self.subs = [self.create_subscription(JointState, 'joint_states', self.on_measurement, qos),
+                     self.create_subscription(StateEstimate, 'eso/estimate', self.on_estimate, qos)]
         # Half the shortest timeout is enough to notice staleness in time; a 1 kHz watchdog would
         # add a Python callback to every sample for nothing.
         self.watchdog = self.create_timer(min(self.measurement_timeout_ns, self.estimate_timeout_ns) * 0.5e-9,
                                           self.on_watchdog)
-        # x_hat(k) by stamp: (x2_hat, x3_hat, input stamp, input current, input current gain).
-        self.estimates: dict[int, tuple[float, float, int, float, float]] = {}
-        self.commanded: tuple[int, float] = (-1, 0.0)   # (stamp, current) of the newest command
-        self.corrected_estimates = 0
+        self.graph_timer = self.create_timer(0.1, self.on_graph_check)
+        self.conflict = ''
+        self.status = Status.WAITING
+        self.late = self.refused = self.stale_events = 0
+        self.measurements_in = self.estimates_in = 0
         self.envelope_restarts = 0
-        self.newest_estimate_ns = None
-        self.pending = None              # (stamp_ns, y) waiting for its estimate
-        self.start_ns = None             # stamp of the first controlled sample (reference t = 0)
-        self.last_measurement_ns = None
-        self.latched = None              # status code of a latched safe stop
-        self.status = ControllerState.STATUS_WAITING
-        self.late = 0
-        self.missed = 0
-        self.stale_events = 0
-        self.refused = 0
-        self.unanswered = 0              # samples dropped while waiting for their estimate
-        self.measurements_in = 0
-        self.estimates_in = 0
+        self.received_ns = 0
         self.cmd = CurrentCommand()
-        self.state = ControllerState(controller_name=name)
+        self.state = ControllerState(controller_name=self.name)
         self.timing = SampleLog(('received_wall_ns', 'stamp_ns', 'latency_ns', 'compute_ns'))
-        self.get_logger().info(f'{name} on the {kind} reference, {self.mode} mode, current limit '
-                               f'{common.current_limit_a} A')
+        self.get_logger().info(f'{self.name} on the {self.kind} reference, {self.mode} mode, current limit '
+                               f'{self.common.current_limit_a} A')
 
-    # --- inputs ---------------------------------------------------------------------------
+    def stop(self) -> None:
+        """One safe-stop command so the drive brakes now; the timing summary."""
+        stamp = self.measurement_check.last_ns
+        if stamp is not None:   # the command only: controller/state keeps one entry per sample
+            self._publish(self.assembly.safe_sample(stamp, Status.INACTIVE), 0, state=False)
+        self.close_log()
+
+    def drop(self) -> None:
+        """Destroy topics and timers."""
+        for timer in (self.watchdog, self.graph_timer):
+            self.destroy_timer(timer)
+        for sub in self.subs:
+            self.destroy_subscription(sub)
+        for pub in (self.cmd_pub, self.state_pub):
+            self.destroy_lifecycle_publisher(pub)
+
+    # --- inputs -----------------------------------------------------------------------------------
+    def _refuse(self, key: str, stamp: int, why) -> None:
+        """Count and log a refused input; answer its sample with 0 A."""
+        self.refused += 1
+        self.log.error(key, why)
+        if stamp is not None:
+            self._publish(self.assembly.safe_sample(stamp, Status.INVALID_INPUT), 0)
+
     def on_measurement(self, msg: JointState) -> None:
-        """y(k): check it, then control sample k as soon as x_hat(k) is in."""
-        received_ns = time.time_ns()
+        """y(k): checked, then the assembly; control sample k as soon as x_hat(k) is in."""
+        if not self.active:
+            return
+        self.received_ns = time.time_ns()
         self.measurements_in += 1
         stamp = stamp_to_ns(msg.header.stamp)
-        if self.last_measurement_ns is not None and stamp <= self.last_measurement_ns:
+        verdict = self.measurement_check.check(stamp, self.received_ns)
+        if verdict is Verdict.FUTURE:
+            self._refuse('future', None, lambda: f'measurement stamped {stamp} ns refused: beyond the sample clock')
             return
-        if self.last_measurement_ns is not None and stamp - self.last_measurement_ns > self.period_ns * 3 // 2:
-            self.missed += (stamp - self.last_measurement_ns) // self.period_ns - 1
-        self.last_measurement_ns = stamp
+        if verdict is Verdict.OLD:
+            return
+        if self.conflict:
+            self._publish(self.assembly.safe_sample(stamp, Status.CONFLICT), 0)
+            return
         y = joint_position(msg, self.joint_name)
-        if y is None or not math.isfinite(y) or abs(y) > self.max_abs_position_rad:
-            self.refused += 1
-            self.log.error('bad_measurement', lambda: f'measurement refused (joint {self.joint_name!r} missing, non-finite or beyond '
-                                    f'{self.max_abs_position_rad} rad): {list(msg.position)}; 0 A')
-            self._safe_command(stamp, ControllerState.STATUS_INVALID_INPUT)
+        if y is None or not math.isfinite(y) or abs(y) > limits.POSITION_LIMIT_RAD:
+            self._refuse('bad_measurement', stamp, lambda: f'measurement refused (joint {self.joint_name!r} missing, '
+                         f'non-finite or beyond {limits.POSITION_LIMIT_RAD} rad): {list(msg.position)}; 0 A')
             return
-        if self.pending is not None:
-            self.unanswered += 1         # the previous sample's estimate never came in time
-        self.pending = (stamp, y, received_ns)
-        self._try_control()
+        if verdict is Verdict.JUMP:
+            self.get_logger().warning(f'joint_states time base jumped to {stamp} ns (a restarted sensor?): 0 A and '
+                                      'brake until the observer has converged, then the reference restarts here')
+            self.assembly.resync(stamp)
+        self._control(self.assembly.add_measurement(stamp, y))
 
     def on_estimate(self, msg: StateEstimate) -> None:
-        """x_hat(k): check it and keep it until its measurement is in."""
-        x2, x3 = msg.velocity_rad_s, msg.disturbance_rad_s2
+        """x_hat(k): every field checked against its physical range, then the assembly."""
+        if not self.active:
+            return
         self.estimates_in += 1
         stamp = stamp_to_ns(msg.header.stamp)
-        if not (math.isfinite(x2) and math.isfinite(x3)):
-            self.refused += 1
-            self.log.error('bad_estimate', lambda: f'estimate refused (non-finite: {x2}, {x3})')
+        x2, x3, u, gain = msg.velocity_rad_s, msg.disturbance_rad_s2, msg.input_current_a, msg.input_current_gain
+        problem = _estimate_problem(x2, x3, u, gain, self.common.current_limit_a)
+        if problem:
+            self._refuse('bad_estimate', None, lambda: f'estimate for {stamp} ns refused: {problem}')
             return
-        self.estimates[stamp] = (x2, x3, stamp_to_ns(msg.input_stamp), msg.input_current_a, msg.input_current_gain)
-        self.newest_estimate_ns = stamp if self.newest_estimate_ns is None else max(self.newest_estimate_ns, stamp)
-        while len(self.estimates) > PENDING_LIMIT:
-            self.estimates.pop(min(self.estimates))
-        self._try_control()
-
-    # --- control --------------------------------------------------------------------------
-    def _try_control(self) -> None:
-        """Control the pending sample when its estimate is in (PI needs none)."""
-        if self.pending is None:
+        verdict = self.estimate_check.check(stamp, time.time_ns())
+        if verdict is Verdict.FUTURE:
+            self._refuse('future_estimate', None, lambda: f'estimate stamped {stamp} ns refused: beyond the sample clock')
             return
-        stamp, y, received_ns = self.pending
-        if self.needs_estimate:
-            entry = self.estimates.pop(stamp, None)
-            if entry is None:
-                return
-            for old in [s for s in self.estimates if s < stamp]:
-                del self.estimates[old]
-            estimate = self._exact_estimate(*entry)
-        else:
-            estimate = (0.0, 0.0)
-        self.pending = None
-        self._control(stamp, y, estimate, received_ns)
-
-    def _exact_estimate(self, x2: float, x3: float, input_ns: int, input_current: float,
-                        gain: float) -> tuple[float, float]:
-        """x_hat(k) as if the ESO had integrated the current this node commanded for sample k-1.
-
-        When that command reached the observer too late, it stepped with a substitute; (15) is
-        linear, so the exact estimate is x2_hat + (commanded - substitute) * input_current_gain
-        (x1_hat and x3_hat do not depend on u(k-1) after one Euler step).
-        """
-        stamp, current = self.commanded
-        if input_ns == stamp and current != input_current:
-            self.corrected_estimates += 1
-            return x2 + (current - input_current) * gain, x3
-        return x2, x3
-
-    def _control(self, stamp: int, y: float, estimate: tuple[float, float], received_ns: int) -> None:
-        """Run the control law for sample ``stamp`` and publish the command and the state."""
-        start = time.perf_counter_ns()
-        if self.latched is not None:
-            self._safe_command(stamp, self.latched)
+        if verdict is Verdict.OLD:
             return
-        if self.start_ns is None:
-            self.start_ns = stamp
-        t = sample_time_s(stamp - self.start_ns)
-        ref = self.reference.sample(t)
-        out = self.law.update(t, y, estimate[0], estimate[1], ref)
-        if getattr(self.law, 'envelope_restarts', 0) != self.envelope_restarts:
-            self.envelope_restarts = self.law.envelope_restarts
-            self.log.warn('envelope', lambda: f'error {float(out.error_rad):.3g} rad left the prescribed envelope: '
-                                              f'restarted it with rho0 = {float(out.rho_rad):.3g} rad '
-                                              f'(restart {self.envelope_restarts})')
-        status = ControllerState.STATUS_OK
-        if not bool(out.finite):
-            status = self.latched = ControllerState.STATUS_DIVERGED
-            self.get_logger().error('control output not finite: safe stop latched (0 A) until restart')
-        elif abs(float(out.error_rad)) > self.following_error_limit_rad:
-            status = self.latched = ControllerState.STATUS_DIVERGED
-            self.get_logger().error(f'|error| {abs(float(out.error_rad)):.3f} rad beyond following_error_limit_rad '
-                                    f'{self.following_error_limit_rad}: safe stop latched (0 A) until restart')
-        current = float(out.current_a) if status == ControllerState.STATUS_OK else 0.0
-        self._publish_command(stamp, current, status != ControllerState.STATUS_OK)
-        compute_ns = time.perf_counter_ns() - start
-        wall_ns = time.time_ns()
-        latency_ns = wall_ns - stamp if self.mode == 'realtime' else 0
-        if self.mode == 'realtime' and latency_ns > self.period_ns:
-            self.late += 1
-            self.log.warn('late', lambda: f'late sample: command {latency_ns / 1e3:.0f} us after its measurement '
-                                          f'(late {self.late}, missed {self.missed})')
-        self.timing.append((received_ns, stamp, latency_ns, compute_ns))
-        self.status = status
-        self._publish_state(stamp, y, estimate, ref, out, current, compute_ns)
+        if msg.initial and self.assembly.start_ns is not None and self.assembly.needs_estimate:
+            self.get_logger().warning('the observer restarted: 0 A and brake until it has converged')
+        self._control(self.assembly.add_estimate(stamp, x2, x3, stamp_to_ns(msg.input_stamp), u, gain, msg.initial))
 
-    def _publish_command(self, stamp: int, current: float, safe_stop: bool) -> None:
-        """current_command answering sample ``stamp``."""
-        self.cmd.header.stamp = ns_to_stamp(stamp)
-        self.cmd.current_a = current
-        self.cmd.safe_stop = safe_stop
-        self.cmd_pub.publish(self.cmd)
-        self.commanded = (stamp, current)
+    def on_graph_check(self) -> None:
+        """10 Hz: more than one publisher on an input stops control until one is left."""
+        crowded = [f'{n} publishers on {t}' for t in WATCHED_TOPICS if (n := self.count_publishers(t)) > 1]
+        conflict = ', '.join(crowded)
+        if conflict != self.conflict:
+            if conflict:
+                self.get_logger().error(f'{conflict}: commanding 0 A until one publisher is left')
+            else:
+                self.get_logger().warning('one publisher per input again: control resumes')
+            self.conflict = conflict
 
-    def _safe_command(self, stamp: int, status: int) -> None:
-        """Command 0 A with safe_stop for sample ``stamp`` and report why."""
-        self._publish_command(stamp, 0.0, True)
-        self.status = status
-        s = self.state
-        s.header.stamp = ns_to_stamp(stamp)
-        s.status = status
-        s.current_a = 0.0
-        s.current_unlimited_a = float('nan')
-        s.late_samples, s.missed_samples = self.late, self.missed
-        self.state_pub.publish(s)
-
-    def _publish_state(self, stamp: int, y: float, estimate, ref, out: ControlOutput, current: float,
-                       compute_ns: int) -> None:
-        """controller/state for sample ``stamp``."""
-        s = self.state
-        s.header.stamp = ns_to_stamp(stamp)
-        s.reference_position_rad = float(ref.position_rad)
-        s.reference_velocity_rad_s = float(ref.velocity_rad_s)
-        s.reference_acceleration_rad_s2 = float(ref.acceleration_rad_s2)
-        s.measured_position_rad = float(y)
-        s.estimated_velocity_rad_s, s.estimated_disturbance_rad_s2 = (float(v) for v in estimate)
-        s.error_rad = float(out.error_rad)
-        s.rho_rad = float(out.rho_rad)
-        s.lower_bound_rad = float(out.lower_bound_rad)
-        s.upper_bound_rad = float(out.upper_bound_rad)
-        s.bounds_kept = bool(out.bounds_kept)
-        s.z1 = float(out.z1)
-        s.z2_rad_s = float(out.z2_rad_s)
-        s.alpha_rad_s = float(out.alpha_rad_s)
-        s.alpha_dot_rad_s2 = float(out.alpha_dot_rad_s2)
-        s.sigma_rad_s = float(out.sigma_rad_s)
-        s.u_eq_rad_s2 = float(out.u_eq_rad_s2)
-        s.u_sw_rad_s2 = float(out.u_sw_rad_s2)
-        s.u_b_rad_s2 = float(out.u_b_rad_s2)
-        s.proportional_a = float(out.proportional_a)
-        s.integral_a = float(out.integral_a)
-        s.current_unlimited_a = float(out.current_unlimited_a)
-        s.current_a = current
-        s.saturated = bool(out.saturated)
-        s.status = self.status
-        s.compute_time_s = compute_ns * 1e-9
-        s.late_samples, s.missed_samples = self.late, self.missed
-        self.state_pub.publish(s)
-
-    # --- watchdog -------------------------------------------------------------------------
     def on_watchdog(self) -> None:
-        """Stale measurement or estimate: command 0 A and say so (throttled)."""
-        if self.start_ns is None or self.latched is not None:
+        """Stale measurement or estimate: command 0 A and say so (rate-limited)."""
+        if not self.active:
             return
         now = self.get_clock().now().nanoseconds
-        if now - self.last_measurement_ns > self.measurement_timeout_ns:
-            reason, status, age_ns = 'measurement', ControllerState.STATUS_STALE_MEASUREMENT, now - self.last_measurement_ns
-        elif self.needs_estimate and now - self.newest_estimate_ns > self.estimate_timeout_ns:
-            reason, status, age_ns = 'estimate', ControllerState.STATUS_STALE_ESTIMATE, now - self.newest_estimate_ns
-        else:
+        status = self.assembly.watchdog(now, self.measurement_timeout_ns, self.estimate_timeout_ns)
+        if status is None:
             return
         if self.status != status:
             self.stale_events += 1
-        self.log.warn('stale', lambda: f'stale {reason} ({age_ns / 1e6:.1f} ms old): commanding 0 A')
-        self._safe_command(now, status)
+        self.log.warn('stale', lambda: f'{status.name.lower().replace("_", " ")}: commanding 0 A')
+        self._publish(self.assembly.safe_sample(now, status), 0)
 
-    # --- shutdown -------------------------------------------------------------------------
+    # --- output -----------------------------------------------------------------------------------
+    def _control(self, sample: ControlSample | None) -> None:
+        """Publish a control update the assembly produced; log the latch, restarts, late samples."""
+        if sample is None:
+            return
+        start = time.perf_counter_ns()
+        law = self.assembly.law
+        if getattr(law, 'envelope_restarts', 0) != self.envelope_restarts:
+            self.envelope_restarts = law.envelope_restarts
+            self.log.warn('envelope', lambda: f'error {float(sample.output.error_rad):.3g} rad left the prescribed '
+                                              f'envelope: restarted it (restart {self.envelope_restarts})')
+        if sample.status is Status.LATCHED and self.status is not Status.LATCHED:
+            self.get_logger().error('control output not finite or |error| beyond following_error_limit_rad '
+                                    f'{self.following_error_limit_rad}: safe stop latched (0 A) until cleanup')
+        compute_ns = time.perf_counter_ns() - start
+        self._publish(sample, compute_ns)
+        if sample.output is None:
+            return
+        wall_ns = time.time_ns()
+        latency_ns = wall_ns - sample.stamp_ns if self.mode == 'realtime' else 0
+        if self.mode == 'realtime' and latency_ns > self.period_ns:
+            self.late += 1
+            self.log.warn('late', lambda: f'late sample: command {latency_ns / 1e3:.0f} us after its measurement '
+                                          f'(late {self.late}, missed {self.assembly.missed})')
+        self.timing.append((self.received_ns, sample.stamp_ns, latency_ns, compute_ns))
+
+    def _publish(self, sample: ControlSample, compute_ns: int, state: bool = True) -> None:
+        """current_command and controller/state for one sample (NaN where the law did not run)."""
+        stamp = ns_to_stamp(sample.stamp_ns)
+        self.status = Status(sample.status)
+        self.cmd.header.stamp = stamp
+        self.cmd.current_a = float(sample.current_a)
+        self.cmd.safe_stop = self.status.safe_stop
+        self.cmd_pub.publish(self.cmd)
+        if not state:
+            return
+        s = self.state
+        s.header.stamp = stamp
+        s.status = int(self.status)
+        s.measured_position_rad = float(sample.y)
+        s.current_a = float(sample.current_a)
+        s.compute_time_s = compute_ns * 1e-9
+        s.late_samples, s.missed_samples = self.late, self.assembly.missed
+        out = sample.output
+        if out is None:
+            for name in LAW_FIELDS:
+                setattr(s, name, NAN)
+            s.bounds_kept = s.saturated = False
+        else:
+            ref = sample.reference
+            s.reference_position_rad = float(ref.position_rad)
+            s.reference_velocity_rad_s = float(ref.velocity_rad_s)
+            s.reference_acceleration_rad_s2 = float(ref.acceleration_rad_s2)
+            s.estimated_velocity_rad_s, s.estimated_disturbance_rad_s2 = (float(v) for v in sample.estimate)
+            for name in OUTPUT_FIELDS:
+                setattr(s, name, float(getattr(out, name)))
+            s.bounds_kept = bool(out.bounds_kept)
+            s.saturated = bool(out.saturated)
+        self.state_pub.publish(s)
+
+    # --- shutdown ---------------------------------------------------------------------------------
     def timing_summary(self) -> dict:
         """Period, latency and compute-time percentiles of the control updates so far."""
         rows = self.timing.array()
+        a = self.assembly
         summary = {'updates': self.timing.rows, 'measurements_in': self.measurements_in,
-                   'estimates_in': self.estimates_in, 'late': self.late, 'missed': self.missed,
-                   'unanswered': self.unanswered, 'stale_events': self.stale_events, 'refused_inputs': self.refused,
-                   'corrected_estimates': self.corrected_estimates, 'envelope_restarts': self.envelope_restarts}
+                   'estimates_in': self.estimates_in, 'late': self.late, 'missed': a.missed,
+                   'unanswered': a.unanswered, 'stale_events': self.stale_events, 'refused_inputs': self.refused,
+                   'corrected_estimates': a.corrected, 'envelope_restarts': self.envelope_restarts,
+                   'resyncs': a.resyncs}
         if len(rows) > 2:
-            period = np.diff(rows[:, 0]) / 1e3
-            summary.update({
-                'period_us_mean': float(period.mean()), 'period_us_p50': float(np.percentile(period, 50)),
-                'period_us_p99': float(np.percentile(period, 99)), 'period_us_max': float(period.max()),
-                'compute_us_p50': float(np.percentile(rows[:, 3], 50) / 1e3),
-                'compute_us_p99': float(np.percentile(rows[:, 3], 99) / 1e3)})
+            summary.update(percentiles((rows[1:, 0] - rows[:-1, 0]) / 1e3, 'period_us', mean=True))
+            summary.update(percentiles(rows[:, 3] / 1e3, 'compute_us'))
             if self.mode == 'realtime':
-                summary.update({'latency_us_p50': float(np.percentile(rows[:, 2], 50) / 1e3),
-                                'latency_us_p99': float(np.percentile(rows[:, 2], 99) / 1e3),
-                                'latency_us_max': float(rows[:, 2].max() / 1e3)})
+                summary.update(percentiles(rows[:, 2] / 1e3, 'latency_us'))
         return summary
 
-    def close(self) -> None:
+    def close_log(self) -> None:
         """Log the timing summary; write the raw timing samples if asked."""
         summary = self.timing_summary()
         self.get_logger().info('timing ' + ' '.join(f'{k}={v:.1f}' if isinstance(v, float) else f'{k}={v}'
@@ -313,11 +310,23 @@ class ControllerNode(Node):
             self.timing.save(self.timing_log)
 
 
+def _estimate_problem(x2, x3, u, gain, current_limit_a: float) -> str:
+    """Why an estimate's fields are not physical, or '' (ranges: actuator_core.limits)."""
+    checks = (('velocity_rad_s', x2, limits.VELOCITY_LIMIT_RAD_S), ('disturbance_rad_s2', x3,
+                                                                    limits.DISTURBANCE_LIMIT_RAD_S2),
+              ('input_current_a', u, current_limit_a), ('input_current_gain', gain, limits.INPUT_CURRENT_GAIN_LIMIT))
+    for name, value, bound in checks:
+        if not math.isfinite(value) or abs(value) > bound:
+            return f'{name} = {value} is not finite or beyond +-{bound:g}'
+    if gain < 0.0:
+        return f'input_current_gain = {gain} is negative'
+    return ''
+
 
 def main(argv=None) -> int:
     """Entry point of ``ros2 run actuator_controller controller_node``."""
     return run_node('controller_node', 'PP-NFTSMC-ESO joint controller (PI, SMC-ESO, NFTSMC-ESO by parameter).',
-                    ControllerNode, argv)
+                    ControllerNode, NODE_NAME, argv)
 
 
 if __name__ == '__main__':

@@ -11,7 +11,8 @@ following-error limit latches 0 A until ``reset``; ``watchdog`` answers stale in
 0 A; after ``resync`` (the sensor's time base jumped, or the observer restarted) the command
 is 0 A with safe stop (the drive's brake holds the joint) for ``resync_samples``, while the
 observer converges on the new samples, and then the reference and the law restart from the
-joint's angle: y_d(t - t_r) + q(t_r), so the run goes on as it would from a standstill.
+joint's angle: y_d(t - t_r) + q(t_r), so the run goes on as it would from a standstill. A
+controller (re)started while the joint is away from y_d(0) starts its reference there too.
 
 Scalars take the node's path; numpy arrays (a batch of offline runs) go through the same
 arithmetic elementwise, the latch included.
@@ -73,8 +74,8 @@ class ControlSampleAssembly:
     # --- inputs ---------------------------------------------------------------------------------
     def add_estimate(self, stamp_ns: int, x2_hat, x3_hat, input_ns: int = 0, input_current_a=0.0,
                      input_current_gain=0.0, initial: bool = False) -> Optional[ControlSample]:
-        """x_hat(k); an ``initial`` one after the start means the observer restarted: resync."""
-        if initial and self.start_ns is not None:
+        """x_hat(k); an ``initial`` one after the start means the observer restarted: resync (PI uses none)."""
+        if initial and self.start_ns is not None and self.needs_estimate:
             self.resync(stamp_ns)
         self.estimates[stamp_ns] = (x2_hat, x3_hat, input_ns, input_current_a, input_current_gain)
         self.newest_estimate_ns = stamp_ns if self.newest_estimate_ns is None else max(self.newest_estimate_ns,
@@ -143,8 +144,11 @@ class ControlSampleAssembly:
             self.reference_offset_rad = y - self.reference.sample(0.0).position_rad
             self.law.reset()
             self.start_ns = stamp
-        if self.start_ns is None:
+        if self.start_ns is None:           # the first sample: the reference starts from the joint's angle
             self.start_ns = stamp
+            offset = y - self.reference.sample(0.0).position_rad
+            if xm.any_true(offset != 0.0):  # a restarted controller; the paper's runs start at 0 = y_d(0)
+                self.reference_offset_rad = offset
         t = sample_time_s(stamp - self.start_ns)
         ref = self.reference.sample(t)
         if self.reference_offset_rad is not None:

@@ -13,9 +13,9 @@ nothing is lost and a PI controller can run ahead of the observer. A command tha
 after its sample was stepped with a substitute repairs the state exactly, since (15) is
 linear (``correction(du, steps)`` gives the change of the state ``steps`` steps later).
 
-Work per call is bounded (``MAX_STEPS_PER_CALL``); a measurement further ahead than
-``RESYNC_GAP_SAMPLES`` (a restarted sensor, a new grid) is a discontinuity: the observer
-starts again from that measurement, as at start-up, and the caller is told.
+Work per call is bounded (``MAX_STEPS_PER_CALL``). Stamps are checked before they get here
+(``actuator_core.timebase``); on a discontinuity (a restarted sensor, a new grid) the caller
+calls ``restart``: the observer starts again from that measurement, as at start-up.
 """
 
 from __future__ import annotations
@@ -26,8 +26,6 @@ from typing import Callable, NamedTuple, Optional, Protocol
 PENDING_LIMIT = 256
 #: Observer steps one incoming message may cause (a late half of a pair frees a few at most).
 MAX_STEPS_PER_CALL = 16
-#: A measurement this many samples beyond the observer's sample restarts the observer there.
-RESYNC_GAP_SAMPLES = 200
 #: Real time: wait one sample for the missing half; sim: up to this many (nothing is lost).
 REALTIME_PATIENCE_SAMPLES = 1
 SIM_PATIENCE_SAMPLES = 100
@@ -82,9 +80,9 @@ class ObserverInputPairing:
         self.ignored = 0                          # duplicates and samples older than x_hat's
 
     def add_measurement(self, stamp_ns: int, y) -> list[Estimate]:
-        """y(k); the first one, or one beyond the resync gap, (re)starts the observer there."""
-        if self.sample_ns is None or stamp_ns - self.sample_ns > RESYNC_GAP_SAMPLES * self.period_ns:
-            return [self._start(stamp_ns, y)]
+        """y(k); the first one starts the observer there."""
+        if self.sample_ns is None:
+            return self.restart(stamp_ns, y)
         if stamp_ns < self.sample_ns or stamp_ns in self.measurements:
             self.ignored += 1
             return []
@@ -94,31 +92,35 @@ class ObserverInputPairing:
 
     def add_command(self, stamp_ns: int, u) -> list[Estimate]:
         """u(k), filed under the stamp of the sample it answers; a late one repairs the state."""
-        if self.sample_ns is None:
+        if self.sample_ns is None:           # before the first measurement: kept for the start
+            self.currents[stamp_ns] = u
+            while len(self.currents) > PENDING_LIMIT:
+                self.currents.pop(min(self.currents))
             return []
         if stamp_ns < self.sample_ns:
             self._repair(stamp_ns, u)
             return []
-        if stamp_ns in self.currents or stamp_ns - self.sample_ns > RESYNC_GAP_SAMPLES * self.period_ns:
+        if stamp_ns in self.currents or stamp_ns - self.sample_ns > PENDING_LIMIT * self.period_ns:
             self.ignored += 1
             return []
         self.currents[stamp_ns] = u
         return self._advance()
 
-    def _start(self, stamp_ns: int, y) -> Estimate:
-        """(Re)start at sample ``stamp_ns`` from x_hat = (y, 0, 0): the paper's x_hat(0) = 0 at y(0) = 0."""
+    def restart(self, stamp_ns: int, y) -> list[Estimate]:
+        """(Re)start at sample ``stamp_ns`` from x_hat = (y, 0, 0) (the paper's x_hat(0) = 0 at y(0) = 0),
+        then step at once if that sample's command is already in."""
         if self.sample_ns is not None:
             self.restarts += 1
         zero = 0.0 * y
         self.observer.reset((y, zero, zero))
         self.sample_ns = stamp_ns
         self.measurements.clear()
-        self.currents.clear()
+        self.currents = {s: u for s, u in self.currents.items() if s >= stamp_ns}
         self.substitutes.clear()
         self.newest_measurement_ns = stamp_ns
         self.measurements[stamp_ns] = y
         self.last_current = 0.0
-        return Estimate(stamp_ns, self.observer.state, 0, 0.0, 0.0, True, False)
+        return [Estimate(stamp_ns, self.observer.state, 0, 0.0, 0.0, True, False)] + self._advance()
 
     def _repair(self, stamp_ns: int, u) -> None:
         """A command for a sample already stepped with a substitute: correct x_hat to the true pair."""

@@ -76,6 +76,11 @@ def all_true(x) -> bool:
     return bool(np.all(x)) if isinstance(x, _ndarray) else bool(x)
 
 
+def any_true(x) -> bool:
+    """``x`` (a bool or a bool array) is true somewhere."""
+    return bool(np.any(x)) if isinstance(x, _ndarray) else bool(x)
+
+
 def logical_not(x):
     """Elementwise not of a boolean (``~`` is wrong on a Python bool)."""
     return np.logical_not(x) if isinstance(x, _ndarray) else not x

@@ -145,6 +145,8 @@ class PlantParameters:
     with_seal_friction: bool = spec(True, 'apply the seal friction of eq. (42)')
     with_stirring: bool = spec(True, 'apply the oil stirring loss of eq. (6)-(7)')
     substeps: int = spec(4, 'Runge-Kutta sub-intervals per sample', '', 1, 100)
+    brake_holding_torque_nm: float = spec(50.0, 'holding brake at the output shaft: the largest torque it holds '
+                                          'the joint against (above the 30 N m peak of eq. (40))', 'N m', 0.0, 1.0e4)
 
     def __post_init__(self) -> None:
         """Refuse a substep count outside 1..100."""
@@ -274,6 +276,32 @@ def rk4_step(t: float, position_rad, velocity_rad_s, current_a, dt: float, c: Pl
     return x1, x2
 
 
+def braked_step(t: float, position_rad, velocity_rad_s, current_a, dt: float, c: PlantConstants):
+    """Advance (q, q') by ``dt`` with the holding brake engaged (beyond the paper; README "Safety").
+
+    The brake is a friction torque of up to T_h at the output shaft: it opposes motion with
+    T_h until the joint stops, and holds it at rest while the other torques stay below T_h.
+    Semi-implicit Euler on ``substeps`` sub-intervals; a sub-interval in which the velocity
+    would change sign ends at rest. Elementwise on arrays.
+    """
+    n_sub = c.params.substeps
+    h = dt / n_sub
+    gear = c.params.nominal.gear_ratio
+    x1, x2 = position_rad, velocity_rad_s
+    for i in range(n_sub):
+        ts = t + i * h
+        a_free = joint_acceleration(ts, x2, current_a, c)
+        a_hold = c.params.brake_holding_torque_nm / (joint_forces(ts, x2, c).inertia_kg_m2 * gear * gear)
+        moving = x2 != 0.0
+        a_rest = xm.where(xm.fabs(a_free) <= a_hold, 0.0 * a_free, a_free - xm.sign(a_free) * a_hold)
+        a = xm.where(moving, a_free - xm.sign(x2) * a_hold, a_rest)
+        v = x2 + h * a
+        v = xm.where(moving & (xm.sign(v) != xm.sign(x2)), 0.0 * v, v)
+        x1 = x1 + 0.5 * h * (x2 + v)
+        x2 = v
+    return x1, x2
+
+
 class JointPlant:
     """The simulated joint as a sampled system: state (q, q') at sample k, t_k = k * dt."""
 
@@ -298,10 +326,14 @@ class JointPlant:
         """t_k of the current sample [s]."""
         return sample_time_s(self.sample_index * self.period_ns)
 
-    def step(self, current_a) -> None:
-        """Integrate eq. (1) over [t_k, t_k+1] with ``current_a`` held; k -> k + 1."""
-        self.position_rad, self.velocity_rad_s = rk4_step(
-            self.time_s, self.position_rad, self.velocity_rad_s, current_a, self.dt_s, self.constants)
+    def step(self, current_a, brake=False) -> None:
+        """Integrate eq. (1) over [t_k, t_k+1] with ``current_a`` held (and the brake where engaged); k -> k + 1."""
+        free = rk4_step(self.time_s, self.position_rad, self.velocity_rad_s, current_a, self.dt_s, self.constants)
+        if xm.any_true(brake):
+            held = braked_step(self.time_s, self.position_rad, self.velocity_rad_s, current_a, self.dt_s,
+                               self.constants)
+            free = (xm.where(brake, held[0], free[0]), xm.where(brake, held[1], free[1]))
+        self.position_rad, self.velocity_rad_s = free
         self.sample_index += 1
 
     def truth(self, current_a) -> DisturbanceParts:

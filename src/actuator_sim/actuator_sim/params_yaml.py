@@ -27,21 +27,24 @@ def _nested(obj) -> dict:
 def scenario_parameters(scenario: Scenario) -> dict:
     """The three nodes' ROS parameters of a scenario.
 
-    Mode and run length are left to the launcher: a node-specific entry in a parameter file
-    takes precedence over a global ``-p`` on the command line (measured with rcl here), so
-    anything a launcher must be able to override stays out of these files.
+    ``/**`` holds what every loop node declares and must agree on: the sample time and the one
+    current limit. Mode and run length are left to the launcher: a node-specific entry in a
+    parameter file takes precedence over a global ``-p`` on the command line (measured with rcl
+    here), so anything a launcher must be able to override stays out of these files.
     """
     gains = scenario.gains if scenario.gains is not None else GAINS_BY_NAME[scenario.controller]()
     condition = scenario.plant.condition
+    common = {k: v for k, v in _nested(scenario.common).items() if k not in ('dt_s', 'current_limit_a')}
     return {
-        '/**': {'ros__parameters': {'sample_time_s': scenario.common.dt_s}},
+        '/**': {'ros__parameters': {'sample_time_s': scenario.common.dt_s,
+                                    'current_limit_a': scenario.common.current_limit_a}},
         'actuator_plant': {'ros__parameters': {
             'working_condition': 'custom',
             'condition': {'pressure_pa': float(condition.pressure_pa), 'temperature_c': float(condition.temperature_c)}}},
         'actuator_eso': {'ros__parameters': _nested(scenario.eso)},
         'actuator_controller': {'ros__parameters': {
             'controller': scenario.controller, 'reference': scenario.reference,
-            scenario.controller: _nested(gains), 'common': _nested(scenario.common)}},
+            scenario.controller: _nested(gains), 'common': common}},
     }
 
 

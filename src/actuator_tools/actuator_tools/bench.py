@@ -31,6 +31,8 @@ from typing import Iterator, Optional, Sequence
 
 import numpy as np
 
+from actuator_tools.supervisor import process_log
+
 DEFAULT_SCENARIO = 'case2_pp_nftsmc_eso'
 NODES = ('plant', 'eso', 'controller', 'recorder')
 RT_VARIANTS = ('normal', 'fifo', 'pinned', 'fifo-pinned')
@@ -167,8 +169,7 @@ def process_figures(cpu_percent: dict, peak_rss_mb: dict) -> Figures:
 
 def log_figures(run_dir: Path) -> Figures:
     """From the node logs: how many of plant, ESO, controller got SCHED_FIFO; 1 if the controller latched safe stop."""
-    texts = {node: (run_dir / f'{node}.log').read_text(errors='replace') if (run_dir / f'{node}.log').is_file() else ''
-             for node in ('plant', 'eso', 'controller')}
+    texts = {node: process_log(run_dir, node) for node in ('plant', 'eso', 'controller')}
     return {'fifo_nodes': float(sum('running under SCHED_FIFO' in t for t in texts.values())),
             'safe_stop': float('safe stop latched' in texts['controller'])}
 
@@ -519,7 +520,8 @@ def steal_percent(before: tuple[int, int], after: tuple[int, int]) -> Optional[f
 
 def run_one(variant: Variant, repeat: int, args: argparse.Namespace, base: Path, period_ns: int) -> RunRecord:
     """One recorded run of ``variant``; figures from its files and bag, or the error."""
-    from actuator_tools.bringup import PINNING, run_closed_loop
+    from actuator_tools.bringup import run_closed_loop
+    from actuator_tools.graph import PINNING
     record = RunRecord(variant.slug, repeat)
     where = f'{variant.slug}_rep{repeat}'
     label = f'{variant.slug} repeat {repeat}/{args.repeats}'
@@ -528,7 +530,7 @@ def run_one(variant: Variant, repeat: int, args: argparse.Namespace, base: Path,
         with progress(label, expected_wall_s(variant, args.duration), args.quiet):
             result = run_closed_loop(args.scenario, variant.mode, args.duration, record=True,
                                      bag_root=base / 'bags' / where, results_root=base / 'runs' / where,
-                                     quiet=True, rt_priority=variant.rt_priority,
+                                     quiet=True, thread_priority=variant.rt_priority,
                                      cpus=PINNING if variant.pinned else None)
     except SystemExit as exc:
         record.error = str(exc)
@@ -549,30 +551,30 @@ def run_one(variant: Variant, repeat: int, args: argparse.Namespace, base: Path,
 
 def floor_run(args: argparse.Namespace, base: Path, repeat: int, rt_priority: int) -> Figures:
     """One middleware-floor run (actuator_tools.floor): echo and source as processes for --floor-s seconds."""
-    from actuator_tools.bringup import NodeProcess, wait_for_leader
+    from actuator_tools.bringup import wait_for_leader
     from actuator_tools.floor import hop_figures
+    from actuator_tools.supervisor import ProcessFigures, RosProcess
     run_dir = base / 'floor' / f'rep{repeat}'
     run_dir.mkdir(parents=True, exist_ok=True)
     output = run_dir / 'rtt.npz'
-    priority = ['--rt-priority', str(rt_priority)] if rt_priority else []
+    priority = ['-p', f'thread_priority:={rt_priority}'] if rt_priority else []
     roles = {'echo': [], 'source': ['-p', f'duration_s:={args.floor_s}', '-p', f'output:={output}']}
-    procs: dict[str, NodeProcess] = {}
+    procs: dict[str, RosProcess] = {}
+    figures_of: dict[str, ProcessFigures] = {}
     times_before = cpu_times()
     try:
         for role, params in roles.items():
-            log = run_dir / f'{role}.log'
-            popen = subprocess.Popen([sys.executable, '-m', 'actuator_tools.floor', role, *priority, '--ros-args',
-                                      *params], stdout=log.open('w'), stderr=subprocess.STDOUT,
-                                     stdin=subprocess.DEVNULL, start_new_session=True)
-            procs[role] = NodeProcess(role, popen, log)
-        wait_for_leader(procs, args.floor_s, quiet=True, leader='source')
+            procs[role] = RosProcess([sys.executable, '-m', 'actuator_tools.floor', role, '--ros-args', *priority,
+                                      *params], log_dir=run_dir, name=role)
+            figures_of[role] = ProcessFigures(procs[role].pid)
+        wait_for_leader(procs, figures_of, args.floor_s, quiet=True, leader='source')
     finally:
         codes = {role: proc.stop() for role, proc in procs.items()}
     if any(codes.values()) or not output.is_file():
         raise SystemExit(f'floor run failed (exit codes {codes}); logs in {run_dir}')
     with np.load(output) as rtt:
         figures = hop_figures(rtt['rtt_ns'], int(rtt['sent']))
-    figures.update({f'cpu_{role}_pct': proc.cpu_percent() for role, proc in procs.items()})
+    figures.update({f'cpu_{role}_pct': f.cpu_percent() for role, f in figures_of.items()})
     figures['steal_pct'] = steal_percent(times_before, cpu_times())
     return figures
 

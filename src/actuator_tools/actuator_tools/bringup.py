@@ -1,10 +1,12 @@
-"""Bring up plant, ESO, controller (and the recorder) as separate processes: ``bringup``.
+"""Bring up a closed-loop run as separate processes: ``bringup`` (the runner).
 
-Where ``ros2 launch`` exists (a Jazzy installation), ``launch/closed_loop.launch.py`` does
-the same. Here, without launch, this starts the same installed executables, found through
-the ament index as ``ros2 run`` finds them, with the scenario's parameter file, waits for
-the plant to finish the run, stops the rest with SIGINT (escalating to SIGTERM, SIGKILL),
-and measures each process' CPU and peak memory from /proc.
+The processes and their parameters come from ``actuator_tools.graph.closed_loop``, the same
+description the launch file uses (``ros2 launch actuator_bringup closed_loop.launch.py`` on a
+Jazzy installation). Here, without launch, the runner starts the installed executables (found
+as ``ros2 run`` finds them) with the scenario's parameter file and ``autostart:=true``, waits
+for the joint (plant or driver) to finish the run, stops the rest with SIGINT (escalating to
+SIGTERM, SIGKILL), and reads each process' CPU and peak memory. SIGINT or SIGTERM to the
+runner stops every node it started before it exits.
 """
 
 from __future__ import annotations
@@ -12,32 +14,20 @@ from __future__ import annotations
 import argparse
 import datetime as dt
 import json
-import os
 import signal
-import subprocess
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Sequence
+from typing import Optional, Sequence
 
-from ament_index_python.packages import PackageNotFoundError, get_package_prefix, get_package_share_directory
+from ament_index_python.packages import get_package_share_directory
 
 from actuator_sim.params_yaml import all_scenarios
-from actuator_ros.runtime import MODES
+from actuator_tools.graph import JOINTS, PINNING, closed_loop, ros_arguments
+from actuator_tools.supervisor import ProcessFigures, RosProcess
 
-CLK_TCK = os.sysconf('SC_CLK_TCK')
-
-
-def executable(package: str, name: str) -> Path:
-    """<prefix>/lib/<package>/<name> through the ament index, as ``ros2 run`` resolves it."""
-    try:
-        path = Path(get_package_prefix(package)) / 'lib' / package / name
-    except PackageNotFoundError:
-        raise SystemExit(f'bringup: package {package!r} is not installed (build the workspace first)') from None
-    if not os.access(path, os.X_OK):
-        raise SystemExit(f'bringup: {path} is missing or not executable')
-    return path
+MODES = ('realtime', 'sim')
 
 
 def scenario_file(scenario: str) -> Path:
@@ -49,67 +39,10 @@ def scenario_file(scenario: str) -> Path:
     return path
 
 
-#: CPU layout of ``--pin`` on a 2-core machine: the ESO and the controller work in strict
-#: sequence each sample (command -> estimate -> command), so they share a core; the plant
-#: (and, unpinned, the recorder) use the other.
-PINNING = {'plant': '0', 'eso': '1', 'controller': '1'}
-
-
 def scenario_duration(scenario: str) -> float:
     """The paper scenario's run length [s] (10 s for any other parameter file)."""
     known = all_scenarios().get(scenario)
     return known.duration_s if known is not None else 10.0
-
-
-@dataclass
-class NodeProcess:
-    """One node process with its log and /proc readings."""
-
-    name: str
-    popen: subprocess.Popen
-    log: Path
-    started_wall: float = field(default_factory=time.monotonic)
-    cpu_ticks_at_mark: int | None = None
-    wall_at_mark: float | None = None
-    cpu_ticks_last: int = 0
-    wall_last: float = 0.0
-    peak_rss_kb: int = 0
-
-    def sample(self) -> None:
-        """Read CPU ticks and peak RSS from /proc while the process lives."""
-        try:
-            stat = Path(f'/proc/{self.popen.pid}/stat').read_text().rsplit(')', 1)[1].split()
-            self.cpu_ticks_last = int(stat[11]) + int(stat[12])
-            self.wall_last = time.monotonic()
-            for line in Path(f'/proc/{self.popen.pid}/status').read_text().splitlines():
-                if line.startswith('VmHWM:'):
-                    self.peak_rss_kb = int(line.split()[1])
-        except (OSError, IndexError, ValueError):
-            pass
-
-    def mark(self) -> None:
-        """Start of the measured interval (after start-up and imports)."""
-        self.sample()
-        self.cpu_ticks_at_mark, self.wall_at_mark = self.cpu_ticks_last, self.wall_last
-
-    def cpu_percent(self) -> float | None:
-        """CPU use since ``mark`` in % of one core."""
-        if self.wall_at_mark is None or self.wall_last <= self.wall_at_mark:
-            return None
-        return 100.0 * (self.cpu_ticks_last - self.cpu_ticks_at_mark) / CLK_TCK / (self.wall_last - self.wall_at_mark)
-
-    def stop(self, timeout_s: float = 10.0) -> int:
-        """SIGINT, then SIGTERM, then SIGKILL; returns the exit code."""
-        for sig, wait in ((signal.SIGINT, timeout_s), (signal.SIGTERM, 3.0), (signal.SIGKILL, 3.0)):
-            if self.popen.poll() is not None:
-                break
-            self.sample()
-            self.popen.send_signal(sig)
-            try:
-                self.popen.wait(wait)
-            except subprocess.TimeoutExpired:
-                continue
-        return self.popen.wait()
 
 
 @dataclass
@@ -118,47 +51,34 @@ class RunResult:
 
     name: str
     mode: str
-    bag: Path | None
+    bag: Optional[Path]
     run_dir: Path
     timing_log: Path
-    exit_codes: dict[str, int]
-    cpu_percent: dict[str, float | None]
-    peak_rss_mb: dict[str, float]
+    exit_codes: dict
+    cpu_percent: dict
+    peak_rss_mb: dict
     wall_s: float
 
 
-def recorder_parameters(mode: str) -> dict[str, str | int]:
-    """The recorder's queue for a closed-loop run in ``mode`` (bringup and the launch file both use it).
+class _Stopped(Exception):
+    """SIGTERM (or SIGINT) reached the runner."""
 
-    realtime: BEST_EFFORT, 5 s of queue per topic. The recorder keeps normal scheduling, and the
-    queue rides out the bursts in which the SCHED_FIFO loop leaves it no CPU. Under SCHED_FIFO as
-    well, the real-time threads used ~90 % of both cores, past the kernel's default budget
-    (sched_rt_runtime_us = 950000 per second), and the kernel then stopped every one of them for
-    the rest of the second: gaps of 27-63 ms in the plant's sampling. Measured, 3 runs each way:
-    longest gap 17-43 ms -> 5-18 ms, latency p99 1.4-2.5 -> 0.9-1.9 ms; one of those runs
-    overflowed the 1 s queue it had then (8 % of messages reported lost by the middleware).
-    sim: RELIABLE like the publishers, and 10 s of queue. The lockstep runs as fast as the CPU
-    allows and does not wait for the recorder, which then falls behind by more than a 1 s queue:
-    2 s PI runs lost 68-669 of 2000 samples in 12 of 94 runs (best effort or reliable, several
-    middleware settings), 0 of 32 with 10 s.
-    """
-    if mode == 'sim':
-        return {'reliability': 'reliable', 'queue_depth': 10000}
-    return {'reliability': 'best_effort', 'queue_depth': 5000}
+
+def _raise_stopped(*_) -> None:
+    raise _Stopped()
 
 
 def run_closed_loop(scenario: str, mode: str, duration_s: float | None = None, record: bool = True,
                     bag_root: Path = Path('bags'), results_root: Path = Path('results/runs'),
                     executor: str = 'events', extra_params: Sequence[str] = (), quiet: bool = False,
-                    rt_priority: int = 0, cpus: dict[str, str] | None = None) -> RunResult:
-    """Start the nodes for ``scenario`` in ``mode``, run to the end, stop everything, return the result.
+                    thread_priority: int = 0, cpus: dict | None = None, joint: str = 'plant',
+                    joint_parameters: dict | None = None) -> RunResult:
+    """Start the nodes of ``scenario`` in ``mode``, run to the end, stop everything, return the result.
 
     ``duration_s`` None runs the scenario's own length (10 s for the paper's cases), never forever.
-    ``rt_priority`` > 0 runs the ESO and controller under SCHED_FIFO at that priority and the plant
-    one level above; the recorder keeps normal scheduling. ``cpus`` pins nodes to
-    CPUs by key ('plant', 'eso', 'controller'), e.g. {'plant': '0', 'eso': '1', 'controller': '1'}.
+    ``thread_priority`` > 0: SCHED_FIFO for the ESO and controller, one level above for the joint
+    (graph.closed_loop). ``cpus`` pins by key ('joint', 'eso', 'controller').
     """
-    cpus = cpus or {}
     if duration_s is None:
         duration_s = scenario_duration(scenario)
     if mode not in MODES:
@@ -169,73 +89,61 @@ def run_closed_loop(scenario: str, mode: str, duration_s: float | None = None, r
     run_dir = results_root / name
     run_dir.mkdir(parents=True, exist_ok=True)
     bag = bag_root / name if record else None
-    sim = mode == 'sim'
-    timing_log = run_dir / 'controller_timing.npz'
-    def node_args(priority: int) -> list[str]:
-        return ['--executor', executor, *(['--rt-priority', str(priority)] if priority else []),
-                '--ros-args', '--params-file', str(params), '-p', f'mode:={mode}']
-    clocked = ['-p', f'use_sim_time:={"true" if sim else "false"}']
-    plan = []
     if bag is not None:
         bag_root.mkdir(parents=True, exist_ok=True)
-        recorder = [a for k, v in recorder_parameters(mode).items() for a in ('-p', f'{k}:={v}')]
-        plan.append(('recorder', 'actuator_bag', 'recorder', ['--ros-args', '-p', f'output:={bag}', *recorder, *clocked]))
-    def pinned(key: str) -> list[str]:
-        # The plant is the sampling hardware: it runs one level above the ESO and controller, so
-        # its tick is not queued behind their callbacks (measured, 3 runs of 20 s each way: latency
-        # p99 1.51 -> 0.94 ms, plant tick late p99 1.35 -> 0.42 ms, latched runs 1/3 -> 0/3).
-        priority = min(rt_priority + 1, 99) if key == 'plant' and rt_priority else rt_priority
-        return (['--cpus', cpus[key]] if key in cpus else []) + node_args(priority)
-
-    plan += [('controller', 'actuator_controller', 'controller_node',
-              pinned('controller') + clocked + ['-p', f'timing_log:={timing_log}', *extra_params]),
-             ('eso', 'actuator_eso', 'eso_node',
-              pinned('eso') + clocked + ['-p', f'stats_log:={run_dir / "eso_stats.json"}', *extra_params])]
-    plant_args = pinned('plant') + ['-p', f'wait_for_subscribers:={3 if bag else 2}',
-                                    '-p', f'timing_log:={run_dir / "plant_samples.npz"}']
-    if duration_s is not None:
-        plant_args += ['-p', f'stop_after_s:={duration_s}']
-    plan.append(('plant', 'actuator_plant', 'plant_node', plant_args))
-    procs: dict[str, NodeProcess] = {}
+    specs = closed_loop(mode, duration_s, record=record, bag=bag, joint=joint, thread_priority=thread_priority,
+                        cpus=cpus, executor=executor, logs=run_dir, joint_parameters=joint_parameters)
+    procs: dict[str, RosProcess] = {}
+    figures: dict[str, ProcessFigures] = {}
+    previous = {s: signal.signal(s, _raise_stopped) for s in (signal.SIGTERM, signal.SIGINT)}
     start = time.monotonic()
+    codes: dict = {}
     try:
-        for key, package, exe, args in plan:
-            log = run_dir / f'{key}.log'
-            popen = subprocess.Popen([str(executable(package, exe)), *args], stdout=log.open('w'),
-                                     stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, start_new_session=True)
-            procs[key] = NodeProcess(key, popen, log)
+        for spec in specs:
+            extra = list(extra_params) if spec.key in ('controller', 'eso') else []
+            args = ros_arguments(spec, params)
+            procs[spec.key] = RosProcess.installed(spec.package, spec.executable, args + extra, log_dir=run_dir,
+                                                   name=spec.key)
+            figures[spec.key] = ProcessFigures(procs[spec.key].pid)
         if not quiet:
             print(f'[bringup] {scenario} in {mode} mode: {", ".join(procs)} started; logs in {run_dir}', flush=True)
-        wait_for_leader(procs, duration_s, quiet)
+        leader = next(s.key for s in specs if s.leader) if any(s.leader for s in specs) else None
+        wait_for_leader(procs, figures, duration_s, quiet, leader)
+    except _Stopped:
+        print('[bringup] stopped by a signal: stopping every node', file=sys.stderr, flush=True)
+        codes['bringup'] = 130
     finally:
-        codes = {key: proc.stop() for key, proc in reversed(list(procs.items()))}
+        for key, proc in reversed(list(procs.items())):
+            figures[key].sample()
+            codes[key] = proc.stop()
+        for s, handler in previous.items():
+            signal.signal(s, handler)
     wall = time.monotonic() - start
-    return RunResult(name, mode, bag, run_dir, timing_log, codes,
-                     {k: p.cpu_percent() for k, p in procs.items()},
-                     {k: p.peak_rss_kb / 1024.0 for k, p in procs.items()}, wall)
+    return RunResult(name, mode, bag, run_dir, run_dir / 'controller_timing.npz', codes,
+                     {k: f.cpu_percent() for k, f in figures.items()},
+                     {k: f.peak_rss_mb for k, f in figures.items()}, wall)
 
 
-def wait_for_leader(procs: dict[str, NodeProcess], duration_s: float | None, quiet: bool,
-                    leader: str = 'plant') -> None:
-    """Poll until the leader (the plant) exits at the end of the run; mark CPU baselines when it logs 'sampling started'."""
-    plant = procs[leader]
+def wait_for_leader(procs: dict[str, RosProcess], figures: dict[str, ProcessFigures], duration_s: float | None,
+                    quiet: bool, leader: Optional[str]) -> None:
+    """Poll until the leader exits at the end of the run; mark CPU baselines once it logs 'sampling started'."""
     marked = False
     deadline = time.monotonic() + (max(120.0, 30.0 * duration_s) if duration_s else float('inf'))
-    last_note = time.monotonic()
-    while plant.popen.poll() is None:
-        for proc in procs.values():
-            proc.sample()
-        if not marked and 'sampling started' in plant.log.read_text(errors='replace'):
-            for proc in procs.values():
-                proc.mark()
+    last_note = started = time.monotonic()
+    while leader is None or procs[leader].running:
+        for f in figures.values():
+            f.sample()
+        if not marked and (leader is None or 'sampling started' in procs[leader].output):
+            for f in figures.values():
+                f.mark()
             marked = True
         for key, proc in procs.items():
-            if key != leader and proc.popen.poll() is not None:
-                raise SystemExit(f'bringup: {key} exited early with code {proc.popen.returncode}; see {proc.log}')
+            if key != leader and not proc.running:
+                raise SystemExit(f'bringup: {key} exited early with code {proc.returncode}; see {proc.stderr_path}')
         if time.monotonic() > deadline:
             raise SystemExit('bringup: the run did not finish in time; see the logs')
         if not quiet and time.monotonic() - last_note > 5.0:
-            print(f'[bringup] running ({time.monotonic() - plant.started_wall:.0f} s)', flush=True)
+            print(f'[bringup] running ({time.monotonic() - started:.0f} s)', flush=True)
             last_note = time.monotonic()
         time.sleep(0.2)
 
@@ -248,20 +156,25 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument('--mode', choices=MODES, default='realtime')
     parser.add_argument('--duration', type=float, default=None,
                         help='run length [s] (default: the paper scenario\'s, 10 s)')
+    parser.add_argument('--joint', choices=JOINTS, default='plant',
+                        help='plant (simulated joint), cia402_sim (CANopen driver + simulated drive), cia402 '
+                             '(driver on a real bus), none (a driver started elsewhere)')
     parser.add_argument('--no-record', action='store_true', help='do not start the recorder')
     parser.add_argument('--bags', type=Path, default=Path('bags'), help='folder for bags (default bags/)')
     parser.add_argument('--executor', choices=('events', 'single_threaded'), default='events')
-    parser.add_argument('--rt-priority', type=int, default=0, metavar='N',
-                        help='SCHED_FIFO priority of plant, ESO and controller (0 = normal scheduling)')
+    parser.add_argument('--thread-priority', type=int, default=0, metavar='N',
+                        help='SCHED_FIFO priority of the ESO and controller, the joint one above (0 = normal)')
     parser.add_argument('--pin', action='store_true',
-                        help='pin the plant to CPU 0 and the ESO and controller (which run in sequence) to CPU 1')
+                        help='pin the joint to CPU 0 and the ESO and controller (which run in sequence) to CPU 1')
     args = parser.parse_args(argv)
     if args.duration is not None and not 0.0 < args.duration <= 3600.0:
         parser.error('--duration must be in (0, 3600] s')
+    if not 0 <= args.thread_priority <= 99:
+        parser.error('--thread-priority must be in [0, 99]')
     duration = args.duration if args.duration is not None else scenario_duration(args.scenario)
     result = run_closed_loop(args.scenario, args.mode, duration, not args.no_record, args.bags,
-                             executor=args.executor, rt_priority=args.rt_priority,
-                             cpus=PINNING if args.pin else None)
+                             executor=args.executor, thread_priority=args.thread_priority,
+                             cpus=PINNING if args.pin else None, joint=args.joint)
     print(json.dumps({'bag': str(result.bag), 'exit_codes': result.exit_codes, 'cpu_percent': result.cpu_percent,
                       'peak_rss_mb': result.peak_rss_mb}, indent=1))
     return 0 if all(code == 0 for code in result.exit_codes.values()) else 1

@@ -8,8 +8,8 @@ each of our loop nodes handles two or three of each. The benchmark (``bench``) r
 the closed loop, so its latency and CPU targets can be read against what the middleware alone
 costs here.
 
-    python -m actuator_tools.floor echo   [--rt-priority N] [--ros-args ...]
-    python -m actuator_tools.floor source [--rt-priority N] --ros-args -p duration_s:=10 -p output:=rtt.npz
+    python -m actuator_tools.floor echo   [--ros-args -p thread_priority:=N ...]
+    python -m actuator_tools.floor source --ros-args -p thread_priority:=N -p duration_s:=10 -p output:=rtt.npz
 """
 
 from __future__ import annotations
@@ -21,7 +21,10 @@ import time
 import numpy as np
 from rclpy.node import Node
 
-from actuator_ros.runtime import control_qos, declare_number, run_node
+from actuator_ros.parameters import declare_number, declare_text
+from actuator_ros.qos import control_qos
+from actuator_ros.runner import run_node
+from actuator_core.stats import percentiles
 from actuator_msgs.msg import CurrentCommand
 
 PING, PONG = 'floor/ping', 'floor/pong'
@@ -47,7 +50,7 @@ class SourceNode(Node):
         self.period_ns = int(round(1e9 / declare_number(self, 'rate_hz', 1000.0, 1.0, 1.0e4, 'Hz',
                                                          'messages per second')))
         self.duration_s = declare_number(self, 'duration_s', 10.0, 0.1, 3600.0, 's', 'measured span')
-        self.output = self.declare_parameter('output', '').value
+        self.output = declare_text(self, 'output', '', 'file (.npz) for the round-trip times')
         qos = control_qos('realtime')
         self.pub = self.create_publisher(CurrentCommand, PING, qos)
         self.create_subscription(CurrentCommand, PONG, self.on_echo, qos)
@@ -115,21 +118,20 @@ def hop_figures(rtt_ns: np.ndarray, sent: int) -> dict[str, float | None]:
     out: dict[str, float | None] = {'floor_lost_pct': 100.0 * (sent - rtt_ns.size) / sent}
     if rtt_ns.size:
         hop_us = rtt_ns / 2e3
-        out.update(floor_hop_p50_us=float(np.percentile(hop_us, 50)), floor_hop_p99_us=float(np.percentile(hop_us, 99)),
-                   floor_hop_max_us=float(hop_us.max()))
+        out.update({f'floor_hop_{k.split("_")[-1]}_us': v for k, v in percentiles(hop_us, 'hop').items()})
     return out
 
 
 def main(argv: list[str] | None = None) -> int:
     """``python -m actuator_tools.floor echo|source [run_node options]``."""
     args = sys.argv[1:] if argv is None else list(argv)
-    roles = {'echo': ('floor echo', 'Echo node of the middleware floor benchmark.', EchoNode),
-             'source': ('floor source', 'Source node of the middleware floor benchmark.', SourceNode)}
+    roles = {'echo': ('floor echo', 'Echo node of the middleware floor benchmark.', EchoNode, 'floor_echo'),
+             'source': ('floor source', 'Source node of the middleware floor benchmark.', SourceNode, 'floor_source')}
     if not args or args[0] not in roles:
         print(f'usage: python -m actuator_tools.floor {{{",".join(roles)}}} [options]', file=sys.stderr)
         return 2
-    prog, description, factory = roles[args[0]]
-    return run_node(prog, description, factory, args[1:])
+    prog, description, node_class, name = roles[args[0]]
+    return run_node(prog, description, lambda settings: node_class(), name, args[1:])
 
 
 if __name__ == '__main__':

@@ -77,7 +77,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f'\n== {mode} mode: plant, ESO, controller and recorder as separate processes', flush=True)
         # realtime: SCHED_FIFO 50 for plant, ESO and controller (ros2_control's default thread
         # priority); where the machine refuses, the nodes say so and run with normal scheduling.
-        result = run_closed_loop(SCENARIO, mode, args.duration, rt_priority=50 if mode == 'realtime' else 0)
+        result = run_closed_loop(SCENARIO, mode, args.duration, thread_priority=50 if mode == 'realtime' else 0)
         if any(code != 0 for code in result.exit_codes.values()):
             print(f'main: a node exited with an error: {result.exit_codes}; logs in {result.run_dir}', file=sys.stderr)
             return 1

@@ -1,0 +1,71 @@
+"""The time base of one input stream: every stamp checked against the receiver's clock and the sample grid.
+
+Held by each node for each 1 kHz input. ``check`` sorts a stamp into:
+  OK       the next sample, or a later one on the same grid (missed samples are not an error);
+  FUTURE   real time: beyond the receiver's clock plus ``future_tolerance_ns``; sim: beyond the
+           next expected sample. Refused, never integrated: one stamp 1000 s ahead used to end
+           control for good;
+  OLD      a duplicate or an out-of-order sample a little in the past: ignored;
+  JUMP     a discontinuity (a restarted sensor or driver): off the grid, or back in time (by
+           more than ``jump_samples`` in real time, by any amount in sim, where nothing comes
+           late), or ahead by more than ``jump_samples``. The stamp becomes the new grid origin and the
+           receiver applies its restart policy (README "Safety").
+"""
+
+from __future__ import annotations
+
+from enum import Enum
+from typing import Optional
+
+#: Samples back (or, in real time, ahead) that count as a restarted time base, not jitter.
+JUMP_SAMPLES = 1000
+
+
+class Verdict(Enum):
+    """What a stamp is."""
+
+    OK = 'ok'
+    FUTURE = 'future'
+    OLD = 'old'
+    JUMP = 'jump'
+
+
+class StampCheck:
+    """One stream's stamps: grid, clock, discontinuities; counts what it refused."""
+
+    def __init__(self, period_ns: int, sim: bool, future_tolerance_ns: int, jump_samples: int = JUMP_SAMPLES):
+        """``sim``: the next expected sample bounds the future; else the receiver's clock does."""
+        self.period_ns = period_ns
+        self.sim = sim
+        self.future_tolerance_ns = future_tolerance_ns
+        self.jump_ns = jump_samples * period_ns
+        self.last_ns: Optional[int] = None
+        self.refused_future = self.ignored_old = self.jumps = 0
+
+    def check(self, stamp_ns: int, now_ns: int) -> Verdict:
+        """The verdict on ``stamp_ns`` received when the receiver's clock read ``now_ns``."""
+        if not self.sim and stamp_ns > now_ns + self.future_tolerance_ns:
+            self.refused_future += 1
+            return Verdict.FUTURE
+        last = self.last_ns
+        if last is None:
+            self.last_ns = stamp_ns
+            return Verdict.OK
+        if self.sim and stamp_ns > last + self.period_ns:
+            self.refused_future += 1
+            return Verdict.FUTURE
+        ahead = stamp_ns - last
+        back = -self.period_ns if self.sim else -self.jump_ns   # sim: nothing is late or duplicated
+        if (ahead % self.period_ns != 0) or ahead <= back or ahead > self.jump_ns:
+            self.jumps += 1
+            self.last_ns = stamp_ns
+            return Verdict.JUMP
+        if ahead <= 0:
+            self.ignored_old += 1
+            return Verdict.OLD
+        self.last_ns = stamp_ns
+        return Verdict.OK
+
+    def reset(self) -> None:
+        """Forget the grid (lifecycle cleanup)."""
+        self.last_ns = None

@@ -1,0 +1,141 @@
+"""ManagedNode: the lifecycle base of the plant, ESO and controller nodes (rclpy.lifecycle).
+
+States as in ros2_control's hardware lifecycle:
+  unconfigured  parameters declared and checked, nothing built;
+  configure     parameters read again and checked, the core objects built, topics created,
+                nothing published;
+  activate      sampling / estimating / commanding starts;
+  deactivate    the node stops acting: a drive's gate goes to 0 A with the brake, the
+                controller sends one safe-stop command, the observer stops stepping;
+  cleanup       back to unconfigured (topics and core objects dropped);
+  shutdown      from any state; error processing on an exception in a callback: deactivate and
+                clean up, back to unconfigured.
+A node that is not active never commands current. ``autostart:=true`` runs configure and
+activate at start-up, so ``ros2 run`` alone gives a running node; otherwise ``ros2 lifecycle
+set`` (or the launch file) drives the transitions.
+"""
+
+from __future__ import annotations
+
+import traceback
+
+from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
+
+from actuator_ros.log import RateLimitedLog
+from actuator_ros.parameters import (ParameterError, check_unknown_parameters, declare_choice, declare_common,
+                                     declare_number, declare_text, only_while_unconfigured)
+from actuator_ros.realtime import EXECUTORS, RealtimeSettings
+
+
+class ManagedNode(LifecycleNode):
+    """Lifecycle plumbing; subclasses write load_parameters, build, start, stop, drop."""
+
+    def __init__(self, node_name: str, settings: RealtimeSettings = RealtimeSettings(), **kwargs) -> None:
+        """Declare and check every parameter (ParameterError: the process exits 2 with one line)."""
+        super().__init__(node_name, **kwargs)
+        self.log = RateLimitedLog(self.get_logger())
+        self.configured = False
+        self.active = False
+        self.finished = False          # read by run_node: the run is over
+        self.error: str | None = None  # read by run_node: the run failed
+        declare_common(self)
+        self.settings = RealtimeSettings(
+            thread_priority=declare_number(self, 'thread_priority', settings.thread_priority, 0, 99, '',
+                                           'SCHED_FIFO priority of every thread of the process, applied before the '
+                                           'middleware starts (0: normal scheduling)'),
+            cpu_affinity=declare_text(self, 'cpu_affinity', settings.cpu_affinity,
+                                      'CPUs the process may run on, e.g. "1" or "0,1" (empty: any)'),
+            executor=declare_choice(self, 'executor', settings.executor, EXECUTORS,
+                                    'rclpy executor: events (EventsExecutor, lower latency) or single_threaded'))
+        self.load_parameters()
+        unknown = check_unknown_parameters(self)
+        if unknown:
+            self.get_logger().warning(f'ignoring parameters this node does not have: {", ".join(unknown)}')
+        only_while_unconfigured(self)
+
+    # --- what a node implements ---------------------------------------------------------------
+    def load_parameters(self) -> None:
+        """Declare (first call) or read (at configure) and check every parameter; raise ParameterError."""
+
+    def build(self) -> None:
+        """Build the core objects and create the topics; publish nothing."""
+
+    def start(self) -> None:
+        """Begin acting (sampling, estimating, commanding)."""
+
+    def stop(self) -> None:
+        """Stop acting; leave the joint safe."""
+
+    def drop(self) -> None:
+        """Destroy what ``build`` created."""
+
+    # --- transitions ----------------------------------------------------------------------------
+    def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Parameters read and checked, core built; a refusal is logged and the node stays unconfigured."""
+        try:
+            self.load_parameters()
+            self.build()
+        except ParameterError as exc:
+            self.get_logger().error(f'configure refused: {exc}')
+            return TransitionCallbackReturn.FAILURE
+        self.configured = True
+        self.get_logger().info('configured')
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Enable the lifecycle publishers, then start acting."""
+        result = super().on_activate(state)
+        self.active = True
+        self.start()
+        self.get_logger().info('active')
+        return result
+
+    def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Stop acting, then disable the publishers."""
+        self._stop()
+        self.get_logger().info('inactive')
+        return super().on_deactivate(state)
+
+    def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Back to unconfigured."""
+        self._drop()
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_shutdown(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """From any state: stop and drop."""
+        self._stop()
+        self._drop()
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_error(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """An exception in a transition: leave the joint safe, back to unconfigured."""
+        self.get_logger().error(f'error processing: {traceback.format_exc(limit=1).strip().splitlines()[-1]}')
+        self._stop()
+        self._drop()
+        return TransitionCallbackReturn.SUCCESS
+
+    def halt(self) -> None:
+        """Stop acting now (at exit, before the last messages are acknowledged); idempotent."""
+        self._stop()
+
+    def _stop(self) -> None:
+        """stop() once, if active."""
+        if self.active:
+            self.active = False
+            self.stop()
+
+    def _drop(self) -> None:
+        """drop() once, if configured."""
+        if self.configured:
+            self.configured = False
+            self.drop()
+
+    def autostart(self) -> bool:
+        """configure and activate when the autostart parameter says so; False when a transition failed."""
+        if not self.get_parameter('autostart').value:
+            return True
+        self.trigger_configure()
+        if not self.configured:
+            return False
+        self.trigger_activate()
+        return self.active

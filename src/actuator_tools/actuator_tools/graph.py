@@ -1,0 +1,120 @@
+"""The one description of a closed-loop run: which nodes, with which parameters and real-time settings.
+
+Both the runner (``bringup``, actuator_tools.bringup) and the launch file
+(``actuator_bringup closed_loop.launch.py``) build their processes from ``closed_loop``, so the
+two cannot drift apart. Pure data, no launch import: the runner has no launch here.
+
+Real-time settings are node parameters (actuator_ros.realtime), as ros2_control makes them:
+``thread_priority`` (the ESO and controller at the given SCHED_FIFO priority, the plant or
+driver one level above: it is the sampling hardware, and below them its tick queued behind
+their callbacks: latency p99 1.51 -> 0.94 ms, 3 runs each way), ``cpu_affinity`` and
+``executor``. The recorder keeps normal scheduling: under SCHED_FIFO the real-time threads
+exceeded the kernel's RT budget (sched_rt_runtime_us) and were stopped for 27-63 ms.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Optional
+
+#: What plays the joint: the simulated plant, the CiA 402 driver with its simulated drive on
+#: a virtual CAN bus, the driver on a real bus, or nothing (a driver started elsewhere).
+JOINTS = ('plant', 'cia402_sim', 'cia402', 'none')
+#: ``bringup --pin`` on a 2-core machine: the ESO and the controller work in strict sequence
+#: each sample (command -> estimate -> command), so they share a core; the joint uses the other.
+PINNING = {'joint': '0', 'eso': '1', 'controller': '1'}
+
+
+@dataclass(frozen=True)
+class NodeSpec:
+    """One process of the run."""
+
+    key: str                      # plant | driver | eso | controller | recorder
+    package: str
+    executable: str
+    name: str                     # node name (parameter file sections are keyed by it)
+    parameters: dict = field(default_factory=dict)
+    scenario_file: bool = True    # gets the scenario's parameter file
+    leader: bool = False          # the run ends when this process ends
+    managed: bool = True          # a lifecycle node
+
+
+def recorder_parameters(mode: str) -> dict:
+    """The recorder's queue for a closed-loop run in ``mode``.
+
+    realtime: BEST_EFFORT, 5 s of queue per topic: the recorder keeps normal scheduling, and the
+    queue rides out the bursts in which the SCHED_FIFO loop leaves it no CPU (measured, 3 runs
+    each way: longest plant gap 17-43 ms -> 5-18 ms; a 1 s queue overflowed once, 8 % lost).
+    sim: RELIABLE like the publishers, and 10 s of queue: the lockstep runs as fast as the CPU
+    allows and does not wait for the recorder (2 s PI runs lost 68-669 of 2000 samples in 12
+    of 94 runs with 1 s; 0 of 32 with 10 s).
+    """
+    if mode == 'sim':
+        return {'reliability': 'reliable', 'queue_depth': 10000}
+    return {'reliability': 'best_effort', 'queue_depth': 5000}
+
+
+def closed_loop(mode: str, duration_s: float, *, record: bool = True, bag: Optional[Path] = None,
+                joint: str = 'plant', thread_priority: int = 0, cpus: Optional[dict] = None,
+                executor: str = 'events', logs: Optional[Path] = None, joint_parameters: Optional[dict] = None,
+                autostart: bool = True) -> list[NodeSpec]:
+    """The processes of one run in start order (the joint last: it starts sampling when all are there).
+
+    ``logs``: folder for the per-node timing files the benchmark reads (controller_timing.npz,
+    eso_stats.json, plant_samples.npz). ``autostart``: the nodes configure and activate
+    themselves (the runner); the launch file drives the transitions instead.
+    """
+    if joint not in JOINTS:
+        raise ValueError(f'joint must be one of {", ".join(JOINTS)}, got {joint!r}')
+    cpus = cpus or {}
+    sim = mode == 'sim'
+
+    def settings(key: str, priority: int) -> dict:
+        out = {'executor': executor, 'autostart': autostart}
+        if priority:
+            out['thread_priority'] = priority
+        if key in cpus:
+            out['cpu_affinity'] = cpus[key]
+        return out
+
+    loop_params = {'mode': mode, 'use_sim_time': sim}
+    specs = []
+    if record:
+        specs.append(NodeSpec('recorder', 'actuator_bag', 'recorder', 'recorder',
+                              {'use_sim_time': sim, **recorder_parameters(mode), **({'output': str(bag)} if bag else {})},
+                              scenario_file=False, managed=False))
+    logged = (lambda name: {} if logs is None else {name[0]: str(logs / name[1])})
+    specs.append(NodeSpec('controller', 'actuator_controller', 'controller_node', 'actuator_controller',
+                          {**loop_params, **settings('controller', thread_priority),
+                           **logged(('timing_log', 'controller_timing.npz'))}))
+    specs.append(NodeSpec('eso', 'actuator_eso', 'eso_node', 'actuator_eso',
+                          {**loop_params, **settings('eso', thread_priority),
+                           **logged(('stats_log', 'eso_stats.json'))}))
+    joint_priority = min(thread_priority + 1, 99) if thread_priority else 0
+    subscribers = 3 if record else 2
+    if joint == 'plant':
+        specs.append(NodeSpec('plant', 'actuator_plant', 'plant_node', 'actuator_plant',
+                              {'mode': mode, 'stop_after_s': float(duration_s), 'wait_for_subscribers': subscribers,
+                               **settings('joint', joint_priority), **logged(('timing_log', 'plant_samples.npz'))},
+                              leader=True))
+    elif joint in ('cia402_sim', 'cia402'):
+        if sim:
+            raise ValueError('the CiA 402 driver runs in real time only (mode realtime)')
+        specs.append(NodeSpec('driver', 'actuator_cia402', 'cia402_driver', 'actuator_cia402_driver',
+                              {'simulated_drive': joint == 'cia402_sim', 'stop_after_s': float(duration_s),
+                               'wait_for_subscribers': subscribers, **settings('joint', joint_priority),
+                               **(joint_parameters or {})},
+                              scenario_file=False, leader=True))
+    return specs
+
+
+def ros_arguments(spec: NodeSpec, scenario_file: Optional[Path]) -> list[str]:
+    """``--ros-args`` of a process started directly (the runner): the file, then the node's parameters."""
+    args = ['--ros-args']
+    if spec.scenario_file and scenario_file is not None:
+        args += ['--params-file', str(scenario_file)]
+    for name, value in spec.parameters.items():
+        text = ('true' if value else 'false') if isinstance(value, bool) else str(value)
+        args += ['-p', f'{name}:={text}']
+    return args
