@@ -176,6 +176,17 @@ def test_assembly_resync_holds_zero_then_restarts_the_reference_from_the_held_an
     assert s.output.error_rad == pytest.approx(0.0)           # the reference starts where the joint is
 
 
+def test_assembly_resyncs_when_estimates_resume_after_a_long_gap():
+    a = assembly()
+    a.add_estimate(0, 0.0, 0.0)
+    a.add_measurement(0, 0.0)
+    for k in range(1, 300):                                   # the observer is gone; measurements go on
+        a.add_measurement(k * P, 0.0)
+    a.add_measurement(300 * P, 0.2)
+    s = a.add_estimate(300 * P, 0.0, 0.0)                     # a new observer, its initial estimate lost
+    assert s.status is Status.RESYNC and a.resyncs == 1
+
+
 def test_assembly_started_away_from_the_reference_start_tracks_from_there():
     a = assembly()
     a.add_estimate(0, 0.0, 0.0)

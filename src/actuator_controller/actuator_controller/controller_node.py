@@ -13,7 +13,8 @@ physical ranges of actuator_core.limits; stamps pass a ``StampCheck`` (a stamp f
 is refused; a jump of the sensor's time base, or an observer restart, starts the resync
 policy: 0 A with the brake while the observer converges, then the reference restarts from the
 joint's angle). A watchdog timer at half the staleness timeout commands 0 A with safe_stop when
-an input is stale; more than one publisher on an input stops control (0 A) until one is left.
+an input is stale; more than one publisher on an input, or another one on current_command,
+stops control (0 A) until one is left, and control then restarts as after a resync.
 A non-finite output or a following error beyond the limit latches 0 A until the node is
 cleaned up and configured again. Not active: no command at all; deactivate sends one 0 A
 safe-stop command so the drive brakes at once.
@@ -43,7 +44,8 @@ from actuator_ros.runner import run_node
 from sensor_msgs.msg import JointState
 
 NODE_NAME = 'actuator_controller'
-WATCHED_TOPICS = ('joint_states', 'eso/estimate')
+#: Inputs, and the output: another publisher on current_command drives the joint beside this node.
+WATCHED_TOPICS = ('joint_states', 'eso/estimate', 'current_command')
 NAN = float('nan')
 #: ControllerState fields only a control update computes: NaN on a safe-stop sample.
 LAW_FIELDS = ('reference_position_rad', 'reference_velocity_rad_s', 'reference_acceleration_rad_s2',
@@ -177,7 +179,11 @@ class ControllerNode(ManagedNode):
             self.get_logger().warning(f'joint_states time base jumped to {stamp} ns (a restarted sensor?): 0 A and '
                                       'brake until the observer has converged, then the reference restarts here')
             self.assembly.resync(stamp)
+        resyncs = self.assembly.resyncs
         self._control(self.assembly.add_measurement(stamp, y))
+        if self.assembly.resyncs != resyncs:
+            self.get_logger().warning('measurements resumed after a gap: 0 A and brake while the observer converges, '
+                                      'then the reference restarts from the joint\'s angle')
 
     def on_estimate(self, msg: StateEstimate) -> None:
         """x_hat(k): every field checked against its physical range, then the assembly."""
@@ -186,9 +192,9 @@ class ControllerNode(ManagedNode):
         self.estimates_in += 1
         stamp = stamp_to_ns(msg.header.stamp)
         x2, x3, u, gain = msg.velocity_rad_s, msg.disturbance_rad_s2, msg.input_current_a, msg.input_current_gain
-        problem = _estimate_problem(x2, x3, u, gain, self.common.current_limit_a)
-        if problem:
-            self._refuse('bad_estimate', None, lambda: f'estimate for {stamp} ns refused: {problem}')
+        field, problem = _estimate_problem(x2, x3, u, gain, self.common.current_limit_a)
+        if problem:     # rate-limited per field, so each kind of refusal is reported
+            self._refuse(f'bad_estimate {field}', None, lambda: f'estimate for {stamp} ns refused: {problem}')
             return
         verdict = self.estimate_check.check(stamp, time.time_ns())
         if verdict is Verdict.FUTURE:
@@ -196,19 +202,24 @@ class ControllerNode(ManagedNode):
             return
         if verdict is Verdict.OLD:
             return
-        if msg.initial and self.assembly.start_ns is not None and self.assembly.needs_estimate:
-            self.get_logger().warning('the observer restarted: 0 A and brake until it has converged')
+        resyncs = self.assembly.resyncs
         self._control(self.assembly.add_estimate(stamp, x2, x3, stamp_to_ns(msg.input_stamp), u, gain, msg.initial))
+        if self.assembly.resyncs != resyncs:
+            self.get_logger().warning('the observer restarted (or its estimates resumed after a gap): 0 A and brake '
+                                      'until it has converged, then the reference restarts from the joint\'s angle')
 
     def on_graph_check(self) -> None:
-        """10 Hz: more than one publisher on an input stops control until one is left."""
+        """10 Hz: more than one publisher on a watched topic stops control until one is left, then resync."""
         crowded = [f'{n} publishers on {t}' for t in WATCHED_TOPICS if (n := self.count_publishers(t)) > 1]
         conflict = ', '.join(crowded)
         if conflict != self.conflict:
             if conflict:
                 self.get_logger().error(f'{conflict}: commanding 0 A until one publisher is left')
             else:
-                self.get_logger().warning('one publisher per input again: control resumes')
+                self.get_logger().warning('one publisher per topic again: 0 A while the observer converges, then '
+                                          'the reference restarts from the joint\'s angle')
+                if self.measurement_check.last_ns is not None:
+                    self.assembly.resync(self.measurement_check.last_ns)
             self.conflict = conflict
 
     def on_watchdog(self) -> None:
@@ -310,17 +321,17 @@ class ControllerNode(ManagedNode):
             self.timing.save(self.timing_log)
 
 
-def _estimate_problem(x2, x3, u, gain, current_limit_a: float) -> str:
-    """Why an estimate's fields are not physical, or '' (ranges: actuator_core.limits)."""
+def _estimate_problem(x2, x3, u, gain, current_limit_a: float) -> tuple[str, str]:
+    """(field, why) when an estimate's field is not physical, else ('', '') (ranges: actuator_core.limits)."""
     checks = (('velocity_rad_s', x2, limits.VELOCITY_LIMIT_RAD_S), ('disturbance_rad_s2', x3,
                                                                     limits.DISTURBANCE_LIMIT_RAD_S2),
               ('input_current_a', u, current_limit_a), ('input_current_gain', gain, limits.INPUT_CURRENT_GAIN_LIMIT))
     for name, value, bound in checks:
         if not math.isfinite(value) or abs(value) > bound:
-            return f'{name} = {value} is not finite or beyond +-{bound:g}'
+            return name, f'{name} = {value} is not finite or beyond +-{bound:g}'
     if gain < 0.0:
-        return f'input_current_gain = {gain} is negative'
-    return ''
+        return 'input_current_gain', f'input_current_gain = {gain} is negative'
+    return '', ''
 
 
 def main(argv=None) -> int:

@@ -8,7 +8,8 @@ of the true pair (after one Euler step only x2_hat depends on u(k-1)).
 
 Safety (statuses: ``actuator_core.status``): a non-finite output or |e| beyond the
 following-error limit latches 0 A until ``reset``; ``watchdog`` answers stale inputs with
-0 A; after ``resync`` (the sensor's time base jumped, or the observer restarted) the command
+0 A; after ``resync`` (the sensor's time base jumped, the observer restarted, or an input
+was silent for more than ``RESYNC_GAP_SAMPLES``) the command
 is 0 A with safe stop (the drive's brake holds the joint) for ``resync_samples``, while the
 observer converges on the new samples, and then the reference and the law restart from the
 joint's angle: y_d(t - t_r) + q(t_r), so the run goes on as it would from a standstill. A
@@ -29,6 +30,10 @@ from actuator_core.timing import sample_time_s
 
 #: Estimates kept while waiting for their measurement.
 PENDING_LIMIT = 64
+#: A gap in an input stream this long (an observer or sensor restart whose first message was
+#: lost, a cable drop) is handled as a resync: the joint was braked meanwhile, so the reference
+#: restarts from where it is. Machine stalls (2-9 ms here) stay far below it.
+RESYNC_GAP_SAMPLES = 100
 #: Samples of 0 A after a resync: five time constants of the observer's poles at -c w0 = -300
 #: rad/s (17 ms) and margin, so x2_hat and x3_hat have converged before control restarts.
 RESYNC_SAMPLES = 50
@@ -75,7 +80,8 @@ class ControlSampleAssembly:
     def add_estimate(self, stamp_ns: int, x2_hat, x3_hat, input_ns: int = 0, input_current_a=0.0,
                      input_current_gain=0.0, initial: bool = False) -> Optional[ControlSample]:
         """x_hat(k); an ``initial`` one after the start means the observer restarted: resync (PI uses none)."""
-        if initial and self.start_ns is not None and self.needs_estimate:
+        if self.start_ns is not None and self.needs_estimate and (initial or self._gap(self.newest_estimate_ns,
+                                                                                         stamp_ns)):
             self.resync(stamp_ns)
         self.estimates[stamp_ns] = (x2_hat, x3_hat, input_ns, input_current_a, input_current_gain)
         self.newest_estimate_ns = stamp_ns if self.newest_estimate_ns is None else max(self.newest_estimate_ns,
@@ -86,6 +92,8 @@ class ControlSampleAssembly:
 
     def add_measurement(self, stamp_ns: int, y) -> Optional[ControlSample]:
         """y(k): control sample k now, or as soon as x_hat(k) is in."""
+        if self.start_ns is not None and self._gap(self.newest_measurement_ns, stamp_ns):
+            self.resync(stamp_ns)
         if self.newest_measurement_ns is not None and stamp_ns - self.newest_measurement_ns > self.period_ns * 3 // 2:
             self.missed += (stamp_ns - self.newest_measurement_ns) // self.period_ns - 1
         self.newest_measurement_ns = stamp_ns
@@ -94,13 +102,19 @@ class ControlSampleAssembly:
         self.pending = (stamp_ns, y)
         return self._try_control()
 
+    def _gap(self, newest_ns: Optional[int], stamp_ns: int) -> bool:
+        """A gap of more than RESYNC_GAP_SAMPLES since ``newest_ns``."""
+        return newest_ns is not None and stamp_ns - newest_ns > RESYNC_GAP_SAMPLES * self.period_ns
+
     def resync(self, stamp_ns: int) -> None:
         """The time base jumped at ``stamp_ns``: 0 A and brake while the observer converges, then restart."""
+        if self.resync_until_ns is not None and stamp_ns < self.resync_until_ns:
+            return                           # already resyncing
         self.resyncs += 1
         self.resync_until_ns = stamp_ns + self.resync_samples * self.period_ns
         self.estimates = {s: e for s, e in self.estimates.items() if s >= stamp_ns}
-        self.pending = None
-        self.newest_measurement_ns = None
+        if self.pending is not None and self.pending[0] < stamp_ns:
+            self.pending = None
 
     def reset(self) -> None:
         """Clear the latch and start over (lifecycle: cleanup and configure)."""

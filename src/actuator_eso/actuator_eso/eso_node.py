@@ -15,7 +15,8 @@ the controller to hold 0 A until the observer has converged. A command stamped
 from the future (real time) is refused; one far ahead of the observer is ignored by the
 pairing (bounded work). Values beyond the physical ranges of actuator_core.limits are refused.
 While more than one node publishes on joint_states or current_command, the observer does not
-step (the controller, without estimates, stops safely) and says so.
+step (the controller, without estimates, stops safely) and says so; once one publisher is left
+it restarts from the next measurement.
 """
 
 from __future__ import annotations
@@ -76,6 +77,7 @@ class EsoNode(ManagedNode):
         self.input_current_gain = self.dt_s * self.gains.theta1n
         self.refused = 0
         self.conflict = ''
+        self.restart_next = False
         qos = control_qos(self.mode)
         self.pub = self.create_lifecycle_publisher(StateEstimate, 'eso/estimate', qos)
         self.subs = [self.create_subscription(JointState, 'joint_states', self.on_measurement, qos),
@@ -106,7 +108,9 @@ class EsoNode(ManagedNode):
             if conflict:
                 self.get_logger().error(f'{conflict}: not estimating until one publisher is left')
             else:
-                self.get_logger().warning('one publisher per control input again: estimating')
+                self.get_logger().warning('one publisher per control input again: the observer restarts from the '
+                                          'next measurement')
+                self.restart_next = True
             self.conflict = conflict
 
     def _refuse(self, key: str, why) -> None:
@@ -116,7 +120,7 @@ class EsoNode(ManagedNode):
 
     def on_measurement(self, msg: JointState) -> None:
         """y(k): stamp and value checked, then the pairing; publish what it produced."""
-        if not self.active or self.conflict:
+        if not self.active:
             return
         y = joint_position(msg, self.joint_name)
         if y is None or not math.isfinite(y) or abs(y) > limits.POSITION_LIMIT_RAD:
@@ -127,9 +131,12 @@ class EsoNode(ManagedNode):
         verdict = self.measurement_check.check(stamp, time.time_ns())
         if verdict is Verdict.FUTURE:
             self._refuse('future', lambda: f'measurement stamped {stamp} ns refused: beyond the sample clock')
-        elif verdict is Verdict.JUMP:
-            self.get_logger().warning(f'joint_states time base jumped to {stamp} ns (a restarted sensor?): '
-                                      'observer restarted from the new measurement')
+        elif self.conflict:
+            return
+        elif verdict is Verdict.JUMP or (self.restart_next and verdict is Verdict.OK):
+            self.restart_next = False
+            self.get_logger().warning(f'observer restarted from the measurement at {stamp} ns (a jump of the '
+                                      'time base: a restarted sensor?, or the end of a publisher conflict)')
             for estimate in self.pairing.restart(stamp, y):
                 self._publish(estimate)
         elif verdict is Verdict.OK:
@@ -138,7 +145,7 @@ class EsoNode(ManagedNode):
 
     def on_command(self, msg: CurrentCommand) -> None:
         """u(k): not from the future, finite and within the current limit; then the pairing."""
-        if not self.active or self.conflict:
+        if not self.active:
             return
         u = msg.current_a
         if not math.isfinite(u) or abs(u) > self.current_limit_a:
@@ -147,6 +154,8 @@ class EsoNode(ManagedNode):
         stamp = stamp_to_ns(msg.header.stamp)
         if self.mode == 'realtime' and stamp > time.time_ns() + self.measurement_check.future_tolerance_ns:
             self._refuse('future_command', lambda: f'command stamped {stamp} ns refused: beyond the sample clock')
+            return
+        if self.conflict:
             return
         for estimate in self.pairing.add_command(stamp, u):
             self._publish(estimate)

@@ -293,12 +293,12 @@ class PlantNode(ManagedNode):
         if not self.active or self.start_ns is None:
             return
         stamp_ns = stamp_to_ns(msg.header.stamp)
-        if self.conflict:
-            self.log.error('conflict', lambda: 'command refused: more than one publisher on current_command')
-            return
         if stamp_ns > self.published_ns:
             self.log.error('future_command', lambda: f'command stamped {stamp_ns} ns refused: it answers no sample '
                                                      f'taken yet (newest {self.published_ns} ns)')
+            return
+        if self.conflict:
+            self.log.error('conflict', lambda: 'command refused: more than one publisher on current_command')
             return
         refusal = self.gate.offer(msg.current_a, stamp_ns, msg.safe_stop, self._now_ns())
         if refusal:
