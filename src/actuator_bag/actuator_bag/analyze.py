@@ -25,6 +25,7 @@ from typing import Any, Optional, Sequence
 
 import numpy as np
 import yaml
+from tabulate import tabulate
 from actuator_core.metrics import STEADY_STATE_START_S, RunMetrics, compute_run_metrics
 from actuator_core.stats import missed_samples
 from actuator_core.status import Status
@@ -311,14 +312,9 @@ def format_table(reports: Sequence[RunReport]) -> str:
     # The recorder's receive time minus the stamp: the recorder's own delay (it runs at normal
     # scheduling), not the loop's latency, which the controller measures (timing log).
     add('recorder delay (log - stamp) p50/p99/max', [_timing(r.timing['command_latency']) for r in reports])
-    width0 = max(len(label) for label, _ in rows)
-    widths = [max(len(cells[i]) for _, cells in rows) for i in range(len(reports))]
-    lines = []
-    for n, (label, cells) in enumerate(rows):
-        lines.append('  '.join([label.ljust(width0), *(c.ljust(w) for c, w in zip(cells, widths))]).rstrip())
-        if n == 0:
-            lines.append('  '.join(['-' * width0, *('-' * w for w in widths)]))
-    return '\n'.join(lines)
+    (_, names), body = rows[0], rows[1:]
+    return tabulate([(label, *cells) for label, cells in body], headers=('bag', *names), tablefmt='simple',
+                    disable_numparse=True)
 
 
 def _labels(runs: Sequence[RunData]) -> list[str]:

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Sequence
 
 import numpy as np
+from tabulate import tabulate
 
 from actuator_sim.loop import ClosedLoop, Scenario
 from actuator_core.metrics import STEADY_STATE_START_S, RunMetrics, compute_run_metrics
@@ -67,21 +68,20 @@ def verdict(metrics: RunMetrics, radius: float) -> str:
 
 
 def print_table(title: str, rows: list[dict]) -> None:
-    """One line per run: the paper's number, ours, their ratio and the other figures."""
-    print(title)
-    header = (f'{"run":28s} {"max ss err":>10s} {"paper":>10s} {"ratio":>6s} {"RMS err":>10s} '
-              f'{"max|u| A":>8s} {"PPF kept":>8s} {"sat %":>6s} {"radius":>8s}  verdict')
-    print(header)
-    print('-' * len(header))
+    """One line per run: the paper's number, ours, their ratio and the other figures (tabulate)."""
+    lines = []
     for r in rows:
         m = r['metrics']
         ours = m['max_steady_error_rad']
         no_ratio = m['diverged'] or r['verdict'].startswith('NOT') or math.isnan(r['paper_rad'])
-        ratio = '—' if no_ratio else f'{ours / r["paper_rad"]:.2f}'
-        shown = '—' if r['verdict'].startswith(('DIVERGED', 'NOT')) else _fmt(ours)
-        print(f'{r["name"]:28s} {shown:>10s} {_fmt(r["paper_rad"]):>10s} {ratio:>6s} {_fmt(m["rms_error_rad"]):>10s} '
-              f'{m["max_abs_current_a"]:8.2f} {str(m["bounds_kept"]):>8s} {100 * m["saturated_fraction"]:6.1f} '
-              f'{r["spectral_radius"]:8.4f}  {r["verdict"]}')
+        lines.append((r['name'], '—' if r['verdict'].startswith(('DIVERGED', 'NOT')) else _fmt(ours),
+                      _fmt(r['paper_rad']), '—' if no_ratio else f'{ours / r["paper_rad"]:.2f}',
+                      _fmt(m['rms_error_rad']), f'{m["max_abs_current_a"]:.2f}', str(m['bounds_kept']),
+                      f'{100 * m["saturated_fraction"]:.1f}', f'{r["spectral_radius"]:.4f}', r['verdict']))
+    print(title)
+    print(tabulate(lines, headers=('run', 'max ss err', 'paper', 'ratio', 'RMS err', 'max|u| A', 'PPF kept', 'sat %',
+                                   'radius', 'verdict'), tablefmt='simple', disable_numparse=True,
+                   colalign=('left',) + ('right',) * 8 + ('left',)))
 
 
 def run_case(runs: list[tuple[Scenario, float]], traces_dir: Path | None) -> list[dict]:

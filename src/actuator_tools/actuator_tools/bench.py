@@ -30,7 +30,10 @@ from pathlib import Path
 from typing import Iterator, Optional, Sequence
 
 import numpy as np
+import psutil
+from tabulate import tabulate
 
+from actuator_core.stats import missed_samples, percentiles
 from actuator_tools.supervisor import process_log
 
 DEFAULT_SCENARIO = 'case2_pp_nftsmc_eso'
@@ -46,11 +49,8 @@ Figures = dict[str, Optional[float]]
 
 def _percentiles_us(values_ns: np.ndarray, prefix: str) -> Figures:
     """p50, p99 and max of a nanosecond array, in microseconds, keyed ``<prefix>_p50_us`` etc."""
-    if values_ns.size == 0:
-        return {f'{prefix}_p50_us': None, f'{prefix}_p99_us': None, f'{prefix}_max_us': None}
-    us = np.asarray(values_ns, dtype=float) / 1e3
-    return {f'{prefix}_p50_us': float(np.percentile(us, 50)), f'{prefix}_p99_us': float(np.percentile(us, 99)),
-            f'{prefix}_max_us': float(us.max())}
+    return {f'{prefix}_{k.rsplit("_", 1)[1]}_us': v
+            for k, v in percentiles(np.asarray(values_ns, dtype=float) / 1e3, prefix).items()}
 
 
 def period_figures(received_wall_ns: np.ndarray, period_ns: int) -> Figures:
@@ -64,12 +64,6 @@ def period_figures(received_wall_ns: np.ndarray, period_ns: int) -> Figures:
     figures['period_dev_p99_us'] = float(np.percentile(np.abs(periods_ns - period_ns), 99) / 1e3)
     figures['periods_over_2x'] = float(np.count_nonzero(periods_ns > 2 * period_ns))
     return figures
-
-
-def missed_samples(stamp_ns: np.ndarray, period_ns: int) -> int:
-    """Samples the controller never answered: the sum of the gaps between consecutive stamps, in periods minus one."""
-    gaps = np.diff(np.asarray(stamp_ns, dtype=np.int64)) // period_ns - 1
-    return int(gaps[gaps > 0].sum()) if gaps.size else 0
 
 
 def latency_figures(latency_ns: np.ndarray, period_ns: int) -> Figures:
@@ -405,20 +399,20 @@ def _cell(value: Optional[float], fmt: str) -> str:
 
 
 def format_table(sections: Sequence[tuple[str, list[Row], list[Figures]]]) -> str:
-    """Fixed-width table: per section (title, rows, per-run figures) one line per figure present in any run."""
-    header = f'{"figure":38s} {"unit":>12s} {"median":>11s} {"min":>11s} {"max":>11s}  {"target":14s} verdict'
-    lines = [header, '-' * len(header)]
+    """The table (tabulate): per section (title, rows, per-run figures) one line per figure present in any run."""
+    lines = []
     for title, rows, runs in sections:
-        lines.append(f'{title} ({len(runs)} run{"s" if len(runs) != 1 else ""})')
+        lines.append((f'{title} ({len(runs)} run{"s" if len(runs) != 1 else ""})', '', '', '', '', '', ''))
         for row in rows:
             values = [r.get(row.key) for r in runs]
             if all(v is None for v in values) and row.target is None:
                 continue
             s = spread(values)
-            lines.append(f'  {row.label:36s} {row.unit:>12s} {_cell(s.median, row.fmt):>11s} '
-                         f'{_cell(s.low, row.fmt):>11s} {_cell(s.high, row.fmt):>11s}  '
-                         f'{row.target.text if row.target else "":14s} {verdict(row.target, values)}'.rstrip())
-    return '\n'.join(lines)
+            lines.append((f'  {row.label}', row.unit, _cell(s.median, row.fmt), _cell(s.low, row.fmt),
+                          _cell(s.high, row.fmt), row.target.text if row.target else '', verdict(row.target, values)))
+    return tabulate(lines, headers=('figure', 'unit', 'median', 'min', 'max', 'target', 'verdict'),
+                    tablefmt='simple', disable_numparse=True, colalign=('left', 'right', 'right', 'right', 'right',
+                                                                         'left', 'left'))
 
 
 def section_summary(rows: list[Row], runs: list[Figures]) -> dict:
@@ -503,16 +497,13 @@ def expected_wall_s(variant: Variant, duration_s: float) -> float:
     return duration_s * (2.0 if variant.mode == 'sim' else 1.0) + 5.0
 
 
-def cpu_times() -> tuple[int, int]:
-    """(steal, total) jiffies of all CPUs from /proc/stat; (0, 0) where it cannot be read."""
-    try:
-        fields = [int(v) for v in Path('/proc/stat').read_text().splitlines()[0].split()[1:]]
-    except (OSError, ValueError, IndexError):
-        return 0, 0
-    return (fields[7] if len(fields) > 7 else 0), sum(fields)
+def cpu_times() -> tuple[float, float]:
+    """(steal, total) CPU seconds of all CPUs (psutil; steal is 0 where the kernel does not report it)."""
+    times = psutil.cpu_times()
+    return getattr(times, 'steal', 0.0), sum(times)
 
 
-def steal_percent(before: tuple[int, int], after: tuple[int, int]) -> Optional[float]:
+def steal_percent(before: tuple[float, float], after: tuple[float, float]) -> Optional[float]:
     """Share of CPU time the hypervisor gave to other guests between two cpu_times() readings [%]."""
     total = after[1] - before[1]
     return 100.0 * (after[0] - before[0]) / total if total > 0 else None

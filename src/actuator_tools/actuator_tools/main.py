@@ -16,6 +16,10 @@ from typing import Sequence
 
 import numpy as np
 
+from actuator_core import limits
+from actuator_core.stats import missed_samples, percentiles
+from actuator_core.timing import period_ns
+
 from actuator_bag.analyze import analyze_run, draw_figures, format_table, load_run
 from actuator_tools.bringup import RunResult, run_closed_loop
 from actuator_sim.loop import ClosedLoop
@@ -31,17 +35,15 @@ def timing_figures(result: RunResult) -> dict:
         return {}
     log = np.load(result.timing_log)
     period_us = np.diff(log['received_wall_ns']) / 1e3
+
+    def table(values, **kw) -> dict:
+        return {k.rsplit('_', 1)[1]: v for k, v in percentiles(values, 'x', **kw).items()}
     figures = {'updates': int(log['stamp_ns'].size)}
     if period_us.size:
-        figures['period_us'] = {q: float(np.percentile(period_us, p)) for q, p in (('p50', 50), ('p99', 99))}
-        figures['period_us']['mean'] = float(period_us.mean())
-        figures['period_us']['max'] = float(period_us.max())
+        figures['period_us'] = table(period_us, mean=True)
     if result.mode == 'realtime' and log['latency_ns'].size:
-        lat = log['latency_ns'] / 1e3
-        figures['latency_us'] = {'p50': float(np.percentile(lat, 50)), 'p99': float(np.percentile(lat, 99)),
-                                 'max': float(lat.max())}
-    gaps = np.diff(log['stamp_ns']) // 1_000_000 - 1
-    figures['missed_samples'] = int(gaps[gaps > 0].sum()) if gaps.size else 0
+        figures['latency_us'] = table(log['latency_ns'] / 1e3)
+    figures['missed_samples'] = missed_samples(log['stamp_ns'], period_ns(limits.SAMPLE_TIME_S))
     return figures
 
 
