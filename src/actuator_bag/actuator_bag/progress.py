@@ -9,7 +9,8 @@ from tqdm import tqdm
 
 
 class Progress:
-    """``<label>: NN % (done/total unit, elapsed)`` on stderr, refreshed at most every ``min_interval_s``."""
+    """``<label>: NN % (done/total unit, elapsed)`` on stderr: first after ``min_interval_s``, then at most that often,
+    and once at the end, so a failing operation prints its one error line and nothing else."""
 
     def __init__(self, label: str, total: float, *, unit: str = '', min_interval_s: float = 0.5,
                  stream: Optional[IO[str]] = None, enabled: bool = True) -> None:
@@ -17,7 +18,8 @@ class Progress:
         self.total = float(total)
         self.done = 0.0
         self.bar = tqdm(total=self.total, desc=label, unit=unit, file=stream if stream is not None else sys.stderr,
-                        disable=not (enabled and self.total > 0), mininterval=min_interval_s, dynamic_ncols=False,
+                        disable=not (enabled and self.total > 0), mininterval=min_interval_s, delay=min_interval_s,
+                        dynamic_ncols=False,
                         bar_format='{desc}: {percentage:3.0f} % ({n:.0f}/{total:.0f} {unit}, {elapsed})')
 
     def update(self, done: float) -> None:
@@ -26,5 +28,10 @@ class Progress:
         if done > self.done:
             self.bar.update(done - self.done)
             self.done = done
-        if self.done >= self.total:
-            self.bar.close()
+        if self.done >= self.total and not self.bar.disable:
+            # The final line, also when the work took less than the display delay, ended by a newline
+            # so that whatever is printed next starts a line of its own.
+            text = self.bar.format_meter(**self.bar.format_dict)
+            self.bar.disable = True
+            self.bar.fp.write(f'\r{text}\n')
+            self.bar.fp.flush()
