@@ -31,7 +31,8 @@ class Progress:
         if self.done >= self.total and not self.bar.disable:
             # The final line, also when the work took less than the display delay, ended by a newline
             # so that whatever is printed next starts a line of its own.
-            text = self.bar.format_meter(**self.bar.format_dict)
+            meter = self.bar.format_dict
+            shown = meter['elapsed'] >= self.bar.delay          # tqdm drew a line already: overwrite it
             self.bar.disable = True
-            self.bar.fp.write(f'\r{text}\n')
+            self.bar.fp.write(('\r' if shown else '') + self.bar.format_meter(**meter) + '\n')
             self.bar.fp.flush()
