@@ -20,7 +20,9 @@ from actuator_core.timing import period_ns, sample_time_s
 from actuator_controller.laws import CommonConfig, Controller, ControlOutput, make_controller
 from actuator_controller.reference import Reference, make_reference
 from actuator_eso.observer import EsoGains, ExtendedStateObserver
+from actuator_plant.encoder import Encoder, EncoderParameters
 from actuator_plant.model import JointPlant, PlantParameters
+from actuator_sim.delay import CommandDelay
 
 #: Per-sample quantities recorded besides the controller's own ControlOutput fields.
 EXTRA_FIELDS = ('t_s', 'reference_position_rad', 'reference_velocity_rad_s', 'reference_acceleration_rad_s2',
@@ -41,6 +43,10 @@ class Scenario:
     gains: object = None
     common: CommonConfig = field(default_factory=CommonConfig)
     duration_s: float = 10.0
+    #: Encoder between the joint and the controller/ESO (None: the exact angle, as in the paper).
+    encoder: EncoderParameters | None = None
+    #: Samples between a command and its application by the plant (0: the paper's loop).
+    command_delay_samples: int = 0
 
     @property
     def samples(self) -> int:
@@ -63,6 +69,9 @@ class ClosedLoop:
         self.reference: Reference = make_reference(scenario.reference)
         self.sample_index = 0
         self.last_current = zero
+        self.encoder = None if scenario.encoder is None else Encoder.from_parameters(scenario.encoder)
+        self.command_delay = CommandDelay(scenario.command_delay_samples, zero) \
+            if np.any(np.asarray(scenario.command_delay_samples) != 0) else None
 
     def step(self, command_late: bool = False, eso_integrates_applied: bool = False) -> dict:
         """Run sample k in the node order; return every recorded quantity of that sample.
@@ -74,11 +83,15 @@ class ClosedLoop:
         """
         t = sample_time_s(self.sample_index * self.period_ns)
         y, velocity = self.plant.position_rad, self.plant.velocity_rad_s
+        if self.encoder is not None:
+            y = self.encoder.measure(y)
         truth = self.plant.truth(self.last_current)
         x1_hat, x2_hat, x3_hat = self.eso.state
         ref = self.reference.sample(t)
         out = self.controller.update(t, y, x2_hat, x3_hat, ref)
         applied = self.last_current if command_late else out.current_a
+        if self.command_delay is not None:
+            applied = self.command_delay.apply(applied)
         self.eso.update(y, applied if eso_integrates_applied else out.current_a)
         self.plant.step(applied)
         self.last_current = applied
