@@ -45,7 +45,7 @@ class _OneLineParser(argparse.ArgumentParser):
 
 def sweep_main(argv: Sequence[str] | None = None) -> int:
     """``sweep``: grid, Monte Carlo or Latin hypercube study of the closed loop."""
-    from actuator_studies.distributed import InjectedFailure
+    from actuator_studies.distributed import ChunkFailed, InjectedFailure
     from actuator_studies.sweep import SweepRequest, run_sweep
     p = _OneLineParser(prog='sweep', description='Sweep scenario quantities through the vectorised closed loop.')
     p.add_argument('--vary', action='append', default=[], metavar='NAME=LOW:HIGH[:N]|V1,V2,...',
@@ -76,6 +76,9 @@ def sweep_main(argv: Sequence[str] | None = None) -> int:
                             progress=not a.no_progress)
     except StudyInputError as exc:
         return _fail('sweep', str(exc))
+    except ChunkFailed as exc:
+        print(f'sweep: {exc}; the finished chunks are kept, rerun with --resume', file=sys.stderr)
+        return 1
     err = summary['max_steady_error_rad']
     print(f"sweep: {summary['runs']} runs ({summary['chunks']} chunks, {summary['chunks_resumed']} resumed), "
           f"{summary['diverged']} diverged, {summary['saturated_runs']} saturated, "

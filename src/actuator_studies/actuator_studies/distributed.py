@@ -42,11 +42,13 @@ class InjectedFailure:
 
     chunk: int
     marker: str            # file created by the failing attempt; later attempts find it and run
-    mode: str = 'raise'    # raise | exit
+    mode: str = 'raise'    # raise | exit (first attempt only) | always (every attempt raises)
 
 
 def attempt_chunk(spec: SweepSpec, chunk: int, inject: InjectedFailure | None = None) -> dict:
     """Run one chunk (the injected failure, if any, strikes the first attempt only)."""
+    if inject is not None and inject.chunk == chunk and inject.mode == 'always':
+        raise RuntimeError(f'injected failure of chunk {chunk} (every attempt)')
     if inject is not None and inject.chunk == chunk and not os.path.exists(inject.marker):
         Path(inject.marker).write_text(f'chunk {chunk} failed on purpose in process {os.getpid()}\n')
         if inject.mode == 'exit':

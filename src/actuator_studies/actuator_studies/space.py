@@ -95,7 +95,8 @@ def lookup(name: str, controller: str) -> Quantity:
     if other:
         raise StudyInputError(f'{name!r} is a gain of {other[0]}, but this study runs {controller} '
                               f'(use --controller {other[0]})')
-    near = difflib.get_close_matches(name, list(table), n=1, cutoff=0.5)
+    near = sorted((n for n in table if n.startswith(name)), key=len)[:1] or \
+        difflib.get_close_matches(name, list(table), n=1, cutoff=0.5)     # a unit suffix left off, else a typo
     hint = f"; did you mean {near[0]!r}?" if near else ''
     raise StudyInputError(f'unknown quantity {name!r}{hint}')
 

@@ -68,10 +68,13 @@ def build_spec(req: SweepRequest) -> tuple[SweepSpec, list[str]]:
 
 
 def execute(spec: SweepSpec, out: Path, pending: list[int], ray_target: str = '', inject=None,
-            progress: bool = True) -> dict:
-    """Run the pending chunks (locally or on Ray), writing each as it finishes; return run statistics."""
+            progress: bool = True, ray_session=None) -> dict:
+    """Run the pending chunks (locally or on Ray), writing each as it finishes; return run statistics.
+
+    ``ray_session``: an already started ray module to use (and leave running), e.g. a test fixture's.
+    """
     start = time.perf_counter()
-    ray = distributed.start_ray(ray_target) if ray_target else None
+    ray = ray_session or (distributed.start_ray(ray_target) if ray_target else None)
     workers = distributed.ray_workers(ray) if ray else 1
     ray_start_s = time.perf_counter() - start
     runs = sum(len(spec.chunk_indices(c)) for c in pending)
@@ -86,15 +89,15 @@ def execute(spec: SweepSpec, out: Path, pending: list[int], ray_target: str = ''
     finally:
         bar.close()
         wall = time.perf_counter() - run_start
-        if ray is not None:
+        if ray is not None and ray_session is None:
             ray.shutdown()
-    return {'executor': f'ray {ray_target}' if ray_target else 'local', 'workers': workers,
-            'ray_start_s': ray_start_s if ray else 0.0, 'runs_this_call': runs, 'wall_s': wall,
+    return {'executor': f'ray {ray_target or "session"}' if ray else 'local', 'workers': workers,
+            'ray_start_s': ray_start_s if ray_session is None else 0.0, 'runs_this_call': runs, 'wall_s': wall,
             'runs_per_s': runs / wall if wall > 0 else float('nan'), 'load_average': list(os.getloadavg())}
 
 
 def run_sweep(req: SweepRequest, out: Path, resume: bool = False, ray_target: str = '', plot: tuple = (),
-              inject=None, progress: bool = True) -> dict:
+              inject=None, progress: bool = True, ray_session=None) -> dict:
     """The whole command: check, (re)start the folder, run what is missing, join, summarise, draw."""
     spec, names = build_spec(req)
     if ray_target:
@@ -109,7 +112,7 @@ def run_sweep(req: SweepRequest, out: Path, resume: bool = False, ray_target: st
     results.prepare_folder(out, req.as_dict(), resume)
     done = results.finished_chunks(out, spec.chunks)
     pending = [c for c in range(spec.chunks) if c not in done]
-    stats = execute(spec, out, pending, ray_target, inject, progress) if pending else \
+    stats = execute(spec, out, pending, ray_target, inject, progress, ray_session) if pending else \
         {'executor': 'none (all chunks were finished)', 'runs_this_call': 0}
     table = results.join_chunks(out, spec.chunks)
     summary = results.summarise(table, names, {
