@@ -135,8 +135,7 @@ def search(evaluator: Evaluator, req: DesignRequest, target: float, log=print) -
     """Optuna TPE with constraints; returns (best feasible values or None, every trial's record)."""
     import optuna
     optuna.logging.set_verbosity(optuna.logging.WARNING)
-    sampler = optuna.samplers.TPESampler(seed=req.seed, constant_liar=True, n_startup_trials=min(16, req.trials),
-                                         constraints_func=lambda t: t.user_attrs['constraint'])
+    sampler = optuna.samplers.TPESampler(seed=req.seed, constant_liar=True, n_startup_trials=min(16, req.trials))
     study = optuna.create_study(direction='minimize', sampler=sampler)
     paper_gains, paper_eso = PpNftsmcGains(), EsoGains()
     study.enqueue_trial({'pp_nftsmc_eso.k0_per_s': paper_gains.k0_per_s, 'pp_nftsmc_eso.k1': paper_gains.k1,
@@ -157,7 +156,8 @@ def search(evaluator: Evaluator, req: DesignRequest, target: float, log=print) -
                 saturation = float(np.max(o['saturated_fraction'])) - limits.SATURATED_FRACTION_LIMIT
             else:
                 value, saturation = DIVERGED_ERROR_RAD, 1.0
-            trial.set_user_attr('constraint', [margin, saturation])
+            trial.set_constraint('margin', margin)          # feasible when <= 0 (Optuna 5 constrained TPE)
+            trial.set_constraint('saturation', saturation)
             study.tell(trial, value)
             records.append({'trial': trial.number, **v, 'radius': {str(d): x for d, x in r.items()},
                             'objective_rad': value, 'feasible': margin <= 0 and saturation <= 0,

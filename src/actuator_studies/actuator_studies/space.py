@@ -138,7 +138,7 @@ def parse_axis(text: str, controller: str) -> Axis:
     if not eq or not spec_text:
         raise StudyInputError(f'{text!r}: expected NAME=LOW:HIGH[:N] or NAME=V1,V2,...')
     q = lookup(name, controller)
-    if ',' in spec_text:
+    if ',' in spec_text or ':' not in spec_text:          # a list, or one value
         values = tuple(_number(v, name) for v in spec_text.split(',') if v.strip())
         if not values:
             raise StudyInputError(f'{name}: empty list of values')
