@@ -10,6 +10,8 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
+from actuator_studies.results import tables_identical
+
 from actuator_core.metrics import RunMetrics
 from actuator_plant.encoder import Encoder, EncoderParameters
 from actuator_plant.model import WorkingCondition
@@ -115,7 +117,7 @@ def test_an_interrupted_sweep_resumes_to_the_same_table(tmp_path):
     assert sweep_main(args + ['--out', str(tmp_path / 'cut'), '--resume']) == 0
     summary = json.loads((tmp_path / 'cut' / 'summary.json').read_text())
     assert summary['chunks_resumed'] == 1 and summary['execution']['runs_this_call'] == 4
-    assert pq.read_table(tmp_path / 'cut' / 'runs.parquet').equals(pq.read_table(tmp_path / 'full' / 'runs.parquet'))
+    assert tables_identical(pq.read_table(tmp_path / 'cut' / 'runs.parquet'), pq.read_table(tmp_path / 'full' / 'runs.parquet'))
     assert (tmp_path / 'cut' / 'figures' / 'cdf.png').exists()
     # A resume that asks a different study is refused.
     assert sweep_main([a.replace('0:40', '0:50') for a in args] + ['--out', str(tmp_path / 'cut'), '--resume']) == 2
@@ -155,3 +157,11 @@ def test_the_installed_sweep_executable_reports_bad_input_with_exit_2(tmp_path):
                            '--out', str(tmp_path / 'x')], capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2 and proc.stderr.strip().count('\n') == 0
     assert "did you mean 'condition.temperature_c'" in proc.stderr
+
+
+def test_tables_identical_takes_nan_as_equal_and_finds_a_one_ulp_difference():
+    import pyarrow as pa
+    a = pa.table({'x': [1.0, float('nan')], 'run': [0, 1]})
+    assert not a.equals(a) and tables_identical(a, a)
+    b = pa.table({'x': [np.nextafter(1.0, 2.0), float('nan')], 'run': [0, 1]})
+    assert not tables_identical(a, b)

@@ -24,6 +24,7 @@ setup(
             'sweep = actuator_studies.cli:sweep_main',
             'sweep-bench = actuator_studies.cli:bench_main',
             'design_gains = actuator_studies.cli:design_main',
+            'sweep-compare = actuator_studies.cli:compare_main',
         ],
     },
 )

@@ -1,4 +1,4 @@
-"""Command lines: ``sweep``, ``sweep-bench`` and ``design_gains``.
+"""Command lines: ``sweep``, ``sweep-bench``, ``design_gains`` and ``sweep-compare``.
 
 Bad input (an unknown quantity, an empty or inverted range, a sample count of 0, an
 unreachable Ray address, an existing output folder without --resume, ...) ends the command
@@ -142,3 +142,21 @@ def design_main(argv: Sequence[str] | None = None) -> int:
     print(json.dumps(report['comparison'], indent=2))
     print(f"design_gains: {report['gains_yaml']}, {a.out}/design.json")
     return 0
+
+
+def compare_main(argv: Sequence[str] | None = None) -> int:
+    """``sweep-compare A B``: exit 0 when two studies' runs.parquet are identical cell for cell (NaN == NaN)."""
+    import pyarrow.parquet as pq
+    from actuator_studies.results import tables_identical
+    p = _OneLineParser(prog='sweep-compare', description='Are two studies identical row for row?')
+    p.add_argument('a', type=Path)
+    p.add_argument('b', type=Path)
+    args = p.parse_args(argv)
+    try:
+        a, b = (pq.read_table(x / 'runs.parquet') for x in (args.a, args.b))
+    except OSError as exc:
+        return _fail('sweep-compare', str(exc))
+    same = tables_identical(a, b)
+    print(f'sweep-compare: {a.num_rows} and {b.num_rows} rows, {len(a.column_names)} columns: '
+          f'{"identical" if same else "DIFFERENT"}')
+    return 0 if same else 1

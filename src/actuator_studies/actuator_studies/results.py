@@ -103,3 +103,15 @@ def write_summary(out: Path, summary: dict) -> Path:
     path = out / 'summary.json'
     path.write_text(json.dumps(summary, indent=2))
     return path
+
+
+def tables_identical(a: pa.Table, b: pa.Table) -> bool:
+    """Same schema and the same value in every cell, NaN equal to NaN (pyarrow's equals says NaN != NaN)."""
+    if a.schema != b.schema or a.num_rows != b.num_rows:
+        return False
+    for name in a.column_names:
+        x, y = a.column(name).to_numpy(zero_copy_only=False), b.column(name).to_numpy(zero_copy_only=False)
+        same = np.array_equal(x, y, equal_nan=True) if x.dtype.kind == 'f' else np.array_equal(x, y)
+        if not same:
+            return False
+    return True
