@@ -68,7 +68,7 @@ def test_design_batches_on_ray_equal_the_local_batch(ray_session):
     import numpy as np
     from actuator_studies.design import Evaluator, corner_table
     from actuator_studies.space import BaseScenario
-    corners = corner_table(['depth_m=0,1000', 'condition.temperature_c=2'], 'pp_nftsmc_eso')
+    corners = corner_table(['depth_m=0,1000', 'encoder.noise_std_rad=1e-4'], 'pp_nftsmc_eso')
     sets = [{'pp_nftsmc_eso.k0_per_s': k0, 'pp_nftsmc_eso.k1': 1000.0, 'pp_nftsmc_eso.k2': 20.0,
              'pp_nftsmc_eso.k3_per_s': 200.0, 'eso.omega0_rad_s': 60.0} for k0 in (60.0, 100.0)]
     base = BaseScenario(duration_s=SHORT_S)

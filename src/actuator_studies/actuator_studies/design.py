@@ -10,7 +10,8 @@ constrained TPE, a trial is feasible when every value is <= 0):
      the target radius;
   2. current: at most SATURATED_FRACTION_LIMIT of the samples at the current limit, every corner.
 Trials are asked ``parallel`` at a time (constant liar) and their corners run as one
-vectorised batch (gains are per-run arrays), locally or split into Ray tasks. A trial that
+vectorised batch (gains are per-run arrays), locally or split into one Ray task per
+worker (retried like a sweep's chunks); corner i has the same encoder noise seed in every trial. A trial that
 fails the margin is not simulated. The paper's Table 4 gains are the first trial.
 
 python-control is not used: the margin is the eigenvalues of the Jacobian that
@@ -38,8 +39,8 @@ from actuator_plant.model import PlantParameters
 from actuator_sim.stability import radius_along_envelope
 from actuator_studies import distributed
 from actuator_studies.gains_yaml import write_gains_yaml
-from actuator_studies.runner import SweepSpec, run_batch
-from actuator_studies.space import BaseScenario, StudyInputError, build_scenario, parse_axis, parse_setting
+from actuator_studies.runner import run_batch
+from actuator_studies.space import BaseScenario, StudyInputError, build_scenario, parse_axis, parse_setting, run_seeds
 
 #: Searched gains: (quantity name, low, high), sampled log-uniformly.
 SEARCH_SPACE = (('pp_nftsmc_eso.k0_per_s', 20.0, 400.0), ('pp_nftsmc_eso.k1', 100.0, 10000.0),
@@ -103,27 +104,38 @@ class Evaluator:
                        for i in range(self.n_corners)]
 
     def run(self, gain_sets: list[dict[str, float]]) -> list[dict[str, np.ndarray]]:
-        """Per gain set: arrays over the corners of max ss error (diverged -> DIVERGED_ERROR_RAD) and saturation."""
+        """Per gain set: arrays over the corners of max ss error (diverged -> DIVERGED_ERROR_RAD) and saturation.
+
+        Corner i draws its encoder noise from seed run_seeds(0, [i]) for every gain set, so trials
+        are compared on the same noise; the runs are split into one slice per worker.
+        """
         if not gain_sets:
             return []
         table = {name: np.repeat([g[name] for g in gain_sets], self.n_corners) for name in gain_sets[0]}
         table.update({k: np.tile(v, len(gain_sets)) for k, v in self.corners.items()})
-        n = len(gain_sets) * self.n_corners
+        seeds = np.tile(run_seeds(0, np.arange(self.n_corners)), len(gain_sets))
+        n = len(seeds)
+        size = -(-n // self.workers)
+        slices = [slice(i, min(i + size, n)) for i in range(0, n, size)]
+        parts = [({k: v[s] for k, v in table.items()}, seeds[s]) for s in slices]
         if self.ray is None:
-            rows = [m for m, _ in run_batch(self.base, table, np.zeros(n, dtype=np.uint64))]
-            err = np.array([DIVERGED_ERROR_RAD if m.diverged else m.max_steady_error_rad for m in rows])
-            sat = np.array([m.saturated_fraction for m in rows])
+            outcome = [evaluate_slice(self.base, values, part_seeds) for values, part_seeds in parts]
         else:
-            spec = SweepSpec(self.base, table, batch=-(-n // self.workers), seed=0)
-            cols: dict[int, dict] = dict(distributed.run_ray(self.ray, spec, range(spec.chunks)))
-            joined = {k: sum((cols[c][k] for c in sorted(cols)), []) for k in ('diverged', 'max_steady_error_rad',
-                                                                                'saturated_fraction')}
-            err = np.where(joined['diverged'], DIVERGED_ERROR_RAD, joined['max_steady_error_rad'])
-            sat = np.asarray(joined['saturated_fraction'], dtype=float)
-        err = np.where(np.isfinite(err), err, DIVERGED_ERROR_RAD)
+            task = self.ray.remote(num_cpus=1, max_retries=distributed.MAX_RETRIES,
+                                   retry_exceptions=True)(evaluate_slice)
+            outcome = self.ray.get([task.remote(self.base, values, part_seeds) for values, part_seeds in parts])
+        err = np.concatenate([o[0] for o in outcome])
+        sat = np.concatenate([o[1] for o in outcome])
         return [{'error_rad': err[i * self.n_corners:(i + 1) * self.n_corners],
                  'saturated_fraction': sat[i * self.n_corners:(i + 1) * self.n_corners]}
                 for i in range(len(gain_sets))]
+
+
+def evaluate_slice(base: BaseScenario, values: dict[str, np.ndarray], seeds: np.ndarray):
+    """(max ss error with diverged as DIVERGED_ERROR_RAD, saturated fraction) of one vectorised batch."""
+    rows = [m for m, _ in run_batch(base, values, seeds)]
+    err = np.array([DIVERGED_ERROR_RAD if m.diverged else m.max_steady_error_rad for m in rows])
+    return np.where(np.isfinite(err), err, DIVERGED_ERROR_RAD), np.array([m.saturated_fraction for m in rows])
 
 
 def _objective(errors: np.ndarray, percentile: float) -> float:

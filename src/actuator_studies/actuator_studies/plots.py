@@ -3,7 +3,8 @@
 Map: three panels over (x, y): max steady-state error (log10, rad), fraction of samples at
 the current limit, fraction of samples outside the PPF envelope (8) as
 prescribed from t = 0 (the controller's restarts of resolution 22 are not counted as a new envelope). A grid study is drawn
-cell by cell, each cell the worst over every other varied quantity; a random study as a
+cell by cell (one cell per grid point, labelled with its values, whatever their spacing),
+each cell the worst over every other varied quantity; a random study as a
 scatter. Diverged runs are drawn in black and counted in the panel title.
 CDF: empirical distribution of the same three figures over all runs; a diverged run counts
 as an infinite error, so the error CDF ends below 1 by the diverged fraction.
@@ -44,6 +45,15 @@ def _worst_grid(x, y, z, diverged):
     return xs, ys, grid, bad
 
 
+def _label_cells(ax, xs: np.ndarray, ys: np.ndarray, most: int = 8) -> None:
+    """Tick labels with the grid values at the cell centres (at most ``most`` per axis)."""
+    for values, set_ticks, set_labels in ((xs, ax.set_xticks, ax.set_xticklabels),
+                                          (ys, ax.set_yticks, ax.set_yticklabels)):
+        keep = np.arange(0, values.size, max(1, -(-values.size // most)))
+        set_ticks(keep + 0.5)
+        set_labels([f'{v:g}' for v in values[keep]], fontsize=7)
+
+
 def draw_maps(table, x_name: str, y_name: str, path: Path, grid: bool, title: str = '') -> Path:
     """Three maps over (x_name, y_name) into ``path`` (PNG)."""
     c = _columns(table)
@@ -54,9 +64,10 @@ def draw_maps(table, x_name: str, y_name: str, path: Path, grid: bool, title: st
         z = np.log10(np.where(z > 0, z, np.nan)) if log else z
         if grid:
             xs, ys, cells, bad = _worst_grid(x, y, z, diverged)
-            mesh = ax.pcolormesh(xs, ys, cells, shading='nearest', cmap='viridis')
+            mesh = ax.pcolormesh(cells, cmap='viridis')          # one cell per grid point, any spacing
             if bad.any():
-                ax.pcolormesh(xs, ys, np.where(bad, 1.0, np.nan), shading='nearest', cmap='gray', vmin=2, vmax=3)
+                ax.pcolormesh(np.where(bad, 1.0, np.nan), cmap='gray', vmin=2, vmax=3)
+            _label_cells(ax, xs, ys)
         else:
             mesh = ax.scatter(x[~diverged], y[~diverged], c=z[~diverged], s=14, cmap='viridis')
             ax.scatter(x[diverged], y[diverged], c='k', s=14, marker='x')

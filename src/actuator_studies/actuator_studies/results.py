@@ -98,6 +98,12 @@ def summarise(table: pa.Table, varied: list[str], extra: dict) -> dict:
     return summary
 
 
+def read_summary(out: Path) -> dict:
+    """summary.json of an earlier call on ``out`` ({} when there is none)."""
+    path = out / 'summary.json'
+    return json.loads(path.read_text()) if path.exists() else {}
+
+
 def write_summary(out: Path, summary: dict) -> Path:
     """summary.json in ``out``."""
     path = out / 'summary.json'

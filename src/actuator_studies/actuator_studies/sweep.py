@@ -115,11 +115,12 @@ def run_sweep(req: SweepRequest, out: Path, resume: bool = False, ray_target: st
     stats = execute(spec, out, pending, ray_target, inject, progress, ray_session) if pending else \
         {'executor': 'none (all chunks were finished)', 'runs_this_call': 0}
     table = results.join_chunks(out, spec.chunks)
+    earlier = results.read_summary(out).get('executions', [])      # a resumed study keeps its history
     summary = results.summarise(table, names, {
         'method': req.method, 'varied': names, 'fixed': dict(spec.base.fixed), 'seed': req.seed,
         'batch': req.batch, 'chunks': spec.chunks, 'chunks_resumed': len(done), 'controller': spec.base.controller,
         'reference': req.reference, 'condition': req.condition, 'duration_s': req.duration_s,
-        'gains_file': req.gains, 'execution': stats})
+        'gains_file': req.gains, 'execution': stats, 'executions': earlier + [stats]})
     figures = []
     x_y = list(plot) if len(plot) == 2 else names[:2]
     if len(x_y) == 2:
