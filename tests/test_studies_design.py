@@ -95,3 +95,14 @@ def test_design_bad_input_is_one_line_exit_2(tmp_path, capsys, args, expected):
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and expected in err
     assert not (tmp_path / 'd').exists()
+
+
+def test_the_committed_designed_gains_keep_their_margin_at_two_samples_of_delay():
+    from actuator_studies.design import Evaluator, corner_table, worst_radius
+    from actuator_studies.space import BaseScenario
+    name, gains, eso = read_gains_yaml(ROOT / 'src' / 'actuator_studies' / 'config' / 'pp_nftsmc_eso_designed.yaml')
+    plants = Evaluator(BaseScenario(), corner_table(['depth_m=0,2000', 'condition.temperature_c=-2,30'], name)).plants
+    designed = worst_radius(gains, eso, plants)
+    paper = worst_radius(PpNftsmcGains(), EsoGains(), plants)
+    assert name == 'pp_nftsmc_eso' and max(designed.values()) <= limits.DESIGN_TARGET_RADIUS
+    assert paper[2] > 1.0 > paper[0]
