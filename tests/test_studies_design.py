@@ -89,6 +89,7 @@ def test_a_designed_yaml_drives_a_sweep(design, tmp_path):
     (['--target-radius', '1.2'], 'target radius'),
     (['--corner', 'depth_m=0,20000'], 'valid range'),
     (['--corner', 'eso.omega0_rad_s=20,30'], 'is searched'),
+    (['--ray', '127.0.0.1:9'], 'unreachable'),
 ])
 def test_design_bad_input_is_one_line_exit_2(tmp_path, capsys, args, expected):
     assert design_main(args + ['--out', str(tmp_path / 'd')]) == 2

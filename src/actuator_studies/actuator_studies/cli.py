@@ -118,7 +118,7 @@ def bench_main(argv: Sequence[str] | None = None) -> int:
 
 def design_main(argv: Sequence[str] | None = None) -> int:
     """``design_gains``: robust PP-NFTSMC-ESO gains over an envelope, under a stability margin."""
-    from actuator_studies.design import DesignRequest, run_design
+    from actuator_studies.design import DEFAULT_CORNERS, DesignRequest, run_design
     p = _OneLineParser(prog='design_gains', description='Robust PP-NFTSMC-ESO gain design (Optuna TPE).')
     p.add_argument('--trials', type=int, default=48)
     p.add_argument('--parallel', type=int, default=8, help='trials asked at once and run as one batch')
@@ -126,7 +126,7 @@ def design_main(argv: Sequence[str] | None = None) -> int:
     p.add_argument('--percentile', type=float, default=100.0, help='of the max ss error over the corners (100: worst)')
     p.add_argument('--target-radius', type=float, default=None, help='spectral radius bound at 0, 1, 2 delays')
     p.add_argument('--corner', action='append', default=[], metavar='NAME=V1,V2',
-                   help='envelope corners (product of all; default depth_m=0,11000 x temperature -2,30)')
+                   help='envelope corners, the product of all (default: ' + ' x '.join(DEFAULT_CORNERS) + ')')
     p.add_argument('--set', action='append', default=[], metavar='NAME=VALUE', help='a fixed quantity')
     _scenario_arguments(p)
     p.add_argument('--out', type=Path, required=True, help='output folder (must not exist)')

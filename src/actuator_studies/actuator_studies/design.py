@@ -52,9 +52,10 @@ DIVERGED_ERROR_RAD = limits.DIVERGENCE_ERROR_RAD
 DELAYS = (0, 1, 2)
 #: Frozen times [s] along the PPF envelope where the radius is evaluated.
 ENVELOPE_TIMES_S = (0.0, 2.0, 5.0, 10.0)
-#: Default corners: the depth range the joint can drive at all (see README: beyond about
-#: 3000 m the seal friction of eq. (42) exceeds the motor's torque at the current limit).
-DEFAULT_CORNERS = ('depth_m=0,2000', 'condition.temperature_c=-2,30')
+#: Default corners: the depth range the joint can drive at all (README, section 1: beyond about
+#: 2500 m the seal friction of eq. (42) takes the motor's torque at the current limit), both
+#: ends of the temperature range, and no and two samples of command delay.
+DEFAULT_CORNERS = ('depth_m=0,1000,2000', 'condition.temperature_c=-2,30', 'command_delay_samples=0,2')
 
 
 @dataclass
@@ -79,6 +80,13 @@ def corner_table(corners: list[str], controller: str) -> dict[str, np.ndarray]:
     axes = [parse_axis(text, controller) for text in (corners or DEFAULT_CORNERS)]
     columns = list(zip(*itertools.product(*(a.grid_values() for a in axes))))
     return {a.name: np.asarray(c, dtype=float) for a, c in zip(axes, columns)}
+
+
+def paper_values() -> dict[str, float]:
+    """Table 4's values of the searched gains."""
+    g, eso = PpNftsmcGains(), EsoGains()
+    return {'pp_nftsmc_eso.k0_per_s': g.k0_per_s, 'pp_nftsmc_eso.k1': g.k1, 'pp_nftsmc_eso.k2': g.k2,
+            'pp_nftsmc_eso.k3_per_s': g.k3_per_s, 'eso.omega0_rad_s': eso.omega0_rad_s}
 
 
 def split_gains(values: dict[str, float]) -> tuple[PpNftsmcGains, EsoGains]:
@@ -149,10 +157,7 @@ def search(evaluator: Evaluator, req: DesignRequest, target: float, log=print) -
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     sampler = optuna.samplers.TPESampler(seed=req.seed, constant_liar=True, n_startup_trials=min(16, req.trials))
     study = optuna.create_study(direction='minimize', sampler=sampler)
-    paper_gains, paper_eso = PpNftsmcGains(), EsoGains()
-    study.enqueue_trial({'pp_nftsmc_eso.k0_per_s': paper_gains.k0_per_s, 'pp_nftsmc_eso.k1': paper_gains.k1,
-                         'pp_nftsmc_eso.k2': paper_gains.k2, 'pp_nftsmc_eso.k3_per_s': paper_gains.k3_per_s,
-                         'eso.omega0_rad_s': paper_eso.omega0_rad_s})
+    study.enqueue_trial(paper_values())
     records = []
     while len(records) < req.trials:
         trials = [study.ask() for _ in range(min(req.parallel, req.trials - len(records)))]
@@ -231,9 +236,7 @@ def run_design(req: DesignRequest, out: Path, ray_target: str = '', log=print) -
     try:
         evaluator = Evaluator(base, corners, ray, distributed.ray_workers(ray) if ray else 1)
         best, records = search(evaluator, req, target, log)
-        paper = {'pp_nftsmc_eso.k0_per_s': PpNftsmcGains().k0_per_s, 'pp_nftsmc_eso.k1': PpNftsmcGains().k1,
-                 'pp_nftsmc_eso.k2': PpNftsmcGains().k2, 'pp_nftsmc_eso.k3_per_s': PpNftsmcGains().k3_per_s,
-                 'eso.omega0_rad_s': EsoGains().omega0_rad_s}
+        paper = paper_values()
         sets = {'paper (Table 4)': paper, **({'designed': best} if best else {})}
         comparison = compare(evaluator, sets, req.percentile)
     finally:
