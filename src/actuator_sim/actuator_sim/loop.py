@@ -27,7 +27,9 @@ from actuator_core.timing import period_ns, sample_time_s
 from actuator_controller.laws import CommonConfig, ControlOutput, make_controller
 from actuator_controller.reference import make_reference
 from actuator_eso.observer import EsoGains, ExtendedStateObserver
+from actuator_plant.encoder import Encoder, EncoderParameters
 from actuator_plant.model import JointPlant, PlantParameters
+from actuator_sim.delay import CommandDelay
 
 #: Per-sample quantities recorded besides the controller's own ControlOutput fields.
 EXTRA_FIELDS = ('t_s', 'reference_position_rad', 'reference_velocity_rad_s', 'reference_acceleration_rad_s2',
@@ -48,6 +50,10 @@ class Scenario:
     gains: object = None
     common: CommonConfig = field(default_factory=CommonConfig)
     duration_s: float = 10.0
+    #: Encoder between the joint and the controller/ESO (None: the exact angle, as in the paper).
+    encoder: EncoderParameters | None = None
+    #: Samples between a command and its application by the plant (0: the paper's loop).
+    command_delay_samples: int = 0
 
     @property
     def samples(self) -> int:
@@ -75,6 +81,9 @@ class ClosedLoop:
         self.sample_index = 0
         self.held_current = zero
         self.estimate = None
+        self.encoder = None if scenario.encoder is None else Encoder.from_parameters(scenario.encoder)
+        self.command_delay = CommandDelay(scenario.command_delay_samples, zero) \
+            if np.any(np.asarray(scenario.command_delay_samples) != 0) else None
 
     def step(self, command_lost: bool = False, eso_integrates_applied: bool = False) -> dict:
         """Run sample k in the node order; return every recorded quantity of that sample.
@@ -87,6 +96,8 @@ class ClosedLoop:
         stamp = self.sample_index * self.period_ns
         t = sample_time_s(stamp)
         y, velocity = self.plant.position_rad, self.plant.velocity_rad_s
+        if self.encoder is not None:
+            y = self.encoder.measure(y)
         truth = self.plant.truth(self.held_current)
         for estimate in self.pairing.add_measurement(stamp, y):
             self.estimate = estimate
@@ -96,13 +107,15 @@ class ClosedLoop:
         sample = self.assembly.add_measurement(stamp, y)
         if not command_lost:
             self.gate.offer(sample.current_a, stamp, False, stamp)
-        held = self.gate.hold(stamp)
-        for estimate in self.pairing.add_command(stamp, held.current_a if eso_integrates_applied else sample.current_a):
+        applied = self.gate.hold(stamp).current_a
+        if self.command_delay is not None:
+            applied = self.command_delay.apply(applied)
+        for estimate in self.pairing.add_command(stamp, applied if eso_integrates_applied else sample.current_a):
             self.estimate = estimate
             self.assembly.add_estimate(estimate.sample_ns, estimate.x_hat[1], estimate.x_hat[2], estimate.input_ns,
                                        estimate.input_current_a, self.eso.dt_s * self.eso.gains.theta1n)
-        self.plant.step(held.current_a)
-        self.held_current = held.current_a
+        self.plant.step(applied)
+        self.held_current = applied
         self.sample_index += 1
         record = dict(zip(EXTRA_FIELDS, (t, sample.reference.position_rad, sample.reference.velocity_rad_s,
                                          sample.reference.acceleration_rad_s2, y, x1_hat, x2_hat, x3_hat, velocity,

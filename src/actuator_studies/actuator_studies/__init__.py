@@ -1,0 +1,1 @@
+"""Envelope sweeps, Monte Carlo studies and robust gain design over the offline closed loop."""

@@ -1,0 +1,159 @@
+"""Batched runs of a study: the design table cut into chunks, each chunk one vectorised ClosedLoop.
+
+A chunk is ``batch`` consecutive runs of the table, run as ClosedLoop(scenario, batch=n) with
+every varied quantity an array (the model, observer and controller work elementwise).
+Quantities that cannot differ inside one batch (``Quantity.vector`` False, e.g. the
+envelope's ppf.* or dt) split a chunk into groups of equal values, each its own batch.
+
+Each run is judged exactly as ``offline_sim`` judges a single run: the trace is cut after the
+first sample whose angle is not finite or whose error exceeds DIVERGENCE_ERROR_RAD (as
+``ClosedLoop.run`` cuts it), a cut run counts as diverged, and ``trace_metrics`` gives every
+figure of RunMetrics. One row per run: the run index, its seed, every varied quantity, the
+metrics, and the saturated and out-of-envelope sample counts.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from actuator_core.limits import DIVERGENCE_ERROR_RAD
+from actuator_core.metrics import RunMetrics
+from actuator_controller.ppf import PrescribedPerformance
+from actuator_sim.loop import ClosedLoop
+from actuator_sim.offline import trace_metrics
+from actuator_studies.space import BaseScenario, build_scenario, quantities, run_seeds
+
+#: Per-sample fields a run's metrics need (trace_metrics).
+RECORDED = ('error_rad', 'current_a', 'lower_bound_rad', 'upper_bound_rad', 'saturated', 'x2_hat_rad_s',
+            'true_velocity_rad_s', 'x3_hat_rad_s2', 'true_disturbance_rad_s2')
+#: Metric columns of a row, in order (steady_window_s becomes two columns).
+METRIC_COLUMNS = tuple(f.name for f in dataclasses.fields(RunMetrics) if f.name != 'steady_window_s') + (
+    'steady_window_start_s', 'steady_window_end_s', 'saturated_samples', 'bounds_violation_fraction',
+    'paper_envelope_violations', 'paper_envelope_violation_fraction')
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    """A whole study: base scenario, the design table (name -> one value per run), batch size and seed."""
+
+    base: BaseScenario
+    table: dict
+    batch: int
+    seed: int
+
+    @property
+    def runs(self) -> int:
+        """Number of runs in the table."""
+        return len(next(iter(self.table.values()))) if self.table else 1
+
+    @property
+    def chunks(self) -> int:
+        """Number of chunks of ``batch`` runs."""
+        return -(-self.runs // self.batch)
+
+    def chunk_indices(self, chunk: int) -> np.ndarray:
+        """Run indices of chunk ``chunk``."""
+        return np.arange(chunk * self.batch, min((chunk + 1) * self.batch, self.runs))
+
+
+def run_batch(base: BaseScenario, values: dict[str, np.ndarray], seeds: np.ndarray) -> list[tuple[RunMetrics, int]]:
+    """(metrics, paper-envelope violations) of n runs at once: ``values`` holds n values per varied quantity."""
+    n = len(seeds)
+    scenario = build_scenario(base, values, seeds=seeds, name='batch')
+    loop = ClosedLoop(scenario, batch=n)
+    samples = scenario.samples
+    t = np.empty(samples)
+    traces = {k: np.empty((samples, n)) for k in RECORDED}
+    measured_bad = np.zeros(n, dtype=bool)
+    cut = np.full(n, samples)
+    with np.errstate(all='ignore'):
+        for k in range(samples):
+            row = loop.step()
+            t[k] = row['t_s']
+            for name in RECORDED:
+                traces[name][k] = row[name]
+            bad = ~np.isfinite(row['measured_position_rad']) | (np.abs(row['error_rad']) > DIVERGENCE_ERROR_RAD)
+            newly = bad & ~measured_bad
+            cut[newly] = k + 1
+            measured_bad |= bad
+            if measured_bad.all():
+                break
+        out = []
+        for i in range(n):
+            m = int(cut[i])
+            trace = {'t_s': t[:m], **{name: traces[name][:m, i] for name in RECORDED}}
+            metrics = trace_metrics(trace)
+            if m < samples:
+                metrics = dataclasses.replace(metrics, diverged=True)
+            out.append((metrics, paper_envelope_violations(trace['t_s'], trace['error_rad'], scenario.gains)))
+    return out
+
+
+def paper_envelope_violations(t_s: np.ndarray, error_rad: np.ndarray, gains) -> int:
+    """Samples with e outside (-l rho(t), h rho(t)) of (8) from t = 0, restarts ignored (Table 4's PPF without one)."""
+    ppf = getattr(gains, 'ppf', None) or PrescribedPerformance()
+    lower, upper = ppf.bounds(t_s)
+    return int(np.count_nonzero(~((error_rad > lower) & (error_rad < upper))))
+
+
+def metrics_row(metrics: RunMetrics, paper_violations: int = 0) -> dict[str, Any]:
+    """The metric columns of one run."""
+    row = {k: v for k, v in metrics.as_dict().items() if k != 'steady_window_s'}
+    row['steady_window_start_s'], row['steady_window_end_s'] = metrics.steady_window_s
+    row['saturated_samples'] = int(round(metrics.saturated_fraction * metrics.samples))
+    row['bounds_violation_fraction'] = metrics.bounds_violations / metrics.samples
+    row['paper_envelope_violations'] = paper_violations
+    row['paper_envelope_violation_fraction'] = paper_violations / metrics.samples
+    for key in ('rms_velocity_estimate_error_rad_s', 'rms_disturbance_estimate_error_rad_s2'):
+        row[key] = float('nan') if row[key] is None else row[key]
+    return row
+
+
+def _groups(spec: SweepSpec, indices: np.ndarray) -> list[np.ndarray]:
+    """Positions within ``indices`` sharing the values of every quantity that cannot vary inside a batch."""
+    table = quantities(spec.base.controller)
+    scalar_names = [n for n in spec.table if not table[n].vector]
+    if not scalar_names:
+        return [np.arange(len(indices))]
+    keys = np.stack([spec.table[n][indices] for n in scalar_names], axis=1)
+    _, inverse = np.unique(keys, axis=0, return_inverse=True)
+    return [np.flatnonzero(inverse.ravel() == g) for g in range(inverse.max() + 1)]
+
+
+def run_chunk(spec: SweepSpec, chunk: int) -> dict[str, list]:
+    """Columns (name -> list, one entry per run) of chunk ``chunk`` of the study."""
+    indices = spec.chunk_indices(chunk)
+    seeds = run_seeds(spec.seed, indices)
+    table = quantities(spec.base.controller)
+    rows: list[dict] = [dict() for _ in indices]
+    for group in _groups(spec, indices):
+        values = {}
+        for name, column in spec.table.items():
+            part = column[indices[group]]
+            values[name] = float(part[0]) if not table[name].vector else part
+        for pos, (metrics, paper) in zip(group, run_batch(spec.base, values, seeds[group])):
+            rows[pos] = metrics_row(metrics, paper)
+    columns: dict[str, list] = {'run': [int(i) for i in indices], 'chunk': [chunk] * len(indices),
+                                'seed': [int(s) for s in seeds]}
+    for name, column in spec.table.items():
+        columns[name] = [float(v) for v in column[indices]]
+    for key in METRIC_COLUMNS:
+        columns[key] = [r[key] for r in rows]
+    return columns
+
+
+def run_single(spec: SweepSpec, run: int) -> dict[str, Any]:
+    """Metric columns of run ``run`` of the study as one scalar ClosedLoop run (a reference for tests)."""
+    seed = run_seeds(spec.seed, np.array([run]))
+    values = {name: float(column[run]) for name, column in spec.table.items()}
+    scenario = build_scenario(spec.base, values, seeds=seed, name=f'run{run}')
+    with np.errstate(all='ignore'):
+        trace = ClosedLoop(scenario).run()
+        metrics = trace_metrics(trace)
+    if len(trace['t_s']) < scenario.samples:
+        metrics = dataclasses.replace(metrics, diverged=True)
+    return metrics_row(metrics, paper_envelope_violations(trace['t_s'], trace['error_rad'], scenario.gains))
