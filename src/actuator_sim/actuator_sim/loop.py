@@ -23,6 +23,7 @@ from actuator_core.assembly import ControlSampleAssembly
 from actuator_core.gate import CommandGate
 from actuator_core.limits import DIVERGENCE_ERROR_RAD
 from actuator_core.pairing import SIM_PATIENCE_SAMPLES, ObserverInputPairing
+from actuator_core.status import Status
 from actuator_core.timing import period_ns, sample_time_s
 from actuator_controller.laws import CommonConfig, ControlOutput, make_controller
 from actuator_controller.reference import make_reference
@@ -35,7 +36,8 @@ from actuator_sim.delay import CommandDelay
 EXTRA_FIELDS = ('t_s', 'reference_position_rad', 'reference_velocity_rad_s', 'reference_acceleration_rad_s2',
                 'measured_position_rad', 'x1_hat_rad', 'x2_hat_rad_s', 'x3_hat_rad_s2',
                 'true_velocity_rad_s', 'true_disturbance_rad_s2')
-TRACE_FIELDS = EXTRA_FIELDS + ControlOutput._fields
+TRACE_FIELDS = EXTRA_FIELDS + ControlOutput._fields + ('status',)
+NAN = float('nan')
 
 
 @dataclass
@@ -117,18 +119,23 @@ class ClosedLoop:
         self.plant.step(applied)
         self.held_current = applied
         self.sample_index += 1
-        record = dict(zip(EXTRA_FIELDS, (t, sample.reference.position_rad, sample.reference.velocity_rad_s,
-                                         sample.reference.acceleration_rad_s2, y, x1_hat, x2_hat, x3_hat, velocity,
-                                         truth.disturbance_rad_s2)))
-        record.update(sample.output._asdict())
+        ref = sample.reference
+        record = dict(zip(EXTRA_FIELDS, (t, NAN if ref is None else ref.position_rad,
+                                         NAN if ref is None else ref.velocity_rad_s,
+                                         NAN if ref is None else ref.acceleration_rad_s2, y, x1_hat, x2_hat, x3_hat,
+                                         velocity, truth.disturbance_rad_s2)))
+        # A latched sample (the law did not run) records NaN, as the controller node publishes it.
+        record.update(dict.fromkeys(ControlOutput._fields, NAN) if sample.output is None else sample.output._asdict())
         record['current_a'] = sample.current_a
+        record['status'] = sample.status
         return record
 
     def run(self, samples: int | None = None, stop_on_divergence: bool = True) -> dict[str, np.ndarray]:
         """Run ``samples`` samples (default: the scenario's) and return the trace as arrays.
 
-        A run whose state stops being finite or whose error passes ``DIVERGENCE_ERROR_RAD`` is
-        cut at that sample (``stop_on_divergence``); the metrics then report it as diverged.
+        A run whose state stops being finite, whose error passes ``DIVERGENCE_ERROR_RAD``, or
+        whose controller latched its safe stop (every run of a batch) is cut at that sample
+        (``stop_on_divergence``); the metrics then report it as diverged.
         """
         n = self.scenario.samples if samples is None else samples
         rows = []
@@ -136,6 +143,8 @@ class ClosedLoop:
             row = self.step()
             rows.append(row)
             if stop_on_divergence and not np.all(np.isfinite(row['measured_position_rad'])):
+                break
+            if stop_on_divergence and np.all(np.asarray(row['status']) == Status.LATCHED):
                 break
             if stop_on_divergence and np.any(np.abs(row['error_rad']) > DIVERGENCE_ERROR_RAD):
                 break

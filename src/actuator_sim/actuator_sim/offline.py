@@ -19,6 +19,7 @@ import numpy as np
 from tabulate import tabulate
 
 from actuator_sim.loop import ClosedLoop, Scenario
+from actuator_core.status import Status
 from actuator_core.metrics import STEADY_STATE_START_S, RunMetrics, compute_run_metrics
 from actuator_sim.scenarios import CONDITIONS, case1, case2, paper_scenario
 from actuator_sim.stability import radius_along_envelope
@@ -27,12 +28,19 @@ from actuator_controller.ppf import PrescribedPerformance
 
 
 def trace_metrics(trace: dict[str, np.ndarray], steady_state_start_s: float = STEADY_STATE_START_S) -> RunMetrics:
-    """Metrics of a trace; runs without an envelope of their own are judged against Table 4's PPF."""
+    """Metrics of a trace; runs without an envelope of their own are judged against Table 4's PPF.
+
+    A sample on which the controller latched its safe stop counts as a non-finite error: the run
+    is reported as diverged, never with the numbers it had before the stop.
+    """
     t = trace['t_s']
+    error = trace['error_rad']
+    if 'status' in trace:
+        error = np.where(np.asarray(trace['status']) == Status.LATCHED, np.nan, error)
     lower, upper = trace['lower_bound_rad'], trace['upper_bound_rad']
     if not np.all(np.isfinite(lower)):
         lower, upper = PrescribedPerformance().bounds(t)
-    return compute_run_metrics(t, trace['error_rad'], trace['current_a'], lower, upper, trace['saturated'],
+    return compute_run_metrics(t, error, trace['current_a'], lower, upper, trace['saturated'],
                                trace['x2_hat_rad_s'] - trace['true_velocity_rad_s'],
                                trace['x3_hat_rad_s2'] - trace['true_disturbance_rad_s2'], steady_state_start_s)
 

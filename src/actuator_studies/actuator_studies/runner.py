@@ -23,13 +23,14 @@ import numpy as np
 from actuator_core.limits import DIVERGENCE_ERROR_RAD
 from actuator_core.metrics import RunMetrics
 from actuator_controller.ppf import PrescribedPerformance
+from actuator_core.status import Status
 from actuator_sim.loop import ClosedLoop
 from actuator_sim.offline import trace_metrics
 from actuator_studies.space import BaseScenario, build_scenario, quantities, run_seeds
 
 #: Per-sample fields a run's metrics need (trace_metrics).
 RECORDED = ('error_rad', 'current_a', 'lower_bound_rad', 'upper_bound_rad', 'saturated', 'x2_hat_rad_s',
-            'true_velocity_rad_s', 'x3_hat_rad_s2', 'true_disturbance_rad_s2')
+            'true_velocity_rad_s', 'x3_hat_rad_s2', 'true_disturbance_rad_s2', 'status')
 #: Metric columns of a row, in order (steady_window_s becomes two columns).
 METRIC_COLUMNS = tuple(f.name for f in dataclasses.fields(RunMetrics) if f.name != 'steady_window_s') + (
     'steady_window_start_s', 'steady_window_end_s', 'saturated_samples', 'bounds_violation_fraction',
@@ -76,7 +77,8 @@ def run_batch(base: BaseScenario, values: dict[str, np.ndarray], seeds: np.ndarr
             t[k] = row['t_s']
             for name in RECORDED:
                 traces[name][k] = row[name]
-            bad = ~np.isfinite(row['measured_position_rad']) | (np.abs(row['error_rad']) > DIVERGENCE_ERROR_RAD)
+            bad = (~np.isfinite(row['measured_position_rad']) | (np.abs(row['error_rad']) > DIVERGENCE_ERROR_RAD)
+                   | (np.asarray(row['status']) == Status.LATCHED))
             newly = bad & ~measured_bad
             cut[newly] = k + 1
             measured_bad |= bad
