@@ -194,6 +194,10 @@ class Cia402Master:
         self.command(p.Command.ENABLE_OPERATION, (p.State.OPERATION_ENABLED,))
         self.feedback = None
         self.node.nmt.state = 'OPERATIONAL'
+        # NMT has no answer; an SDO round trip after it (same bus, in order) shows the drive took it.
+        statusword, state = self.read_state()
+        if state is not p.State.OPERATION_ENABLED:
+            raise Cia402Error(f'the drive left operation enabled on NMT start (statusword 0x{statusword:04X})')
         return notes
 
     def deactivate(self) -> None:
@@ -204,6 +208,7 @@ class Cia402Master:
             self.command(p.Command.DISABLE_VOLTAGE, (p.State.SWITCH_ON_DISABLED, p.State.FAULT))
         finally:
             self.node.nmt.state = 'PRE-OPERATIONAL'
+        self.read_state()                          # NMT taken (see activate)
 
     def read_error(self) -> tuple[int, str]:
         """The drive's error code 0x603F over SDO, with its text."""
