@@ -79,6 +79,8 @@ class DriverParameters:
                                   *limits.CURRENT_LIMIT_RANGE_A, low_open=True)
     command_timeout_s: float = spec(limits.COMMAND_TIMEOUT_S, '0 A and brake once the newest command is older', 's',
                                     *limits.TIMEOUT_RANGE_S)
+    brake_delay_s: float = spec(0.1, 'a safe stop or command timeout lasting this long disables operation '
+                                '(holding brake); shorter ones apply 0 A in operation', 's', 0.0, 10.0)
     feedback_timeout_s: float = spec(0.05, 'error when no TPDO arrived for this long', 's', *limits.TIMEOUT_RANGE_S)
     tpdo_wait_fraction: float = spec(0.5, 'how long a cycle waits for TPDO1 after SYNC, in sync periods', '',
                                      0.05, 0.9)

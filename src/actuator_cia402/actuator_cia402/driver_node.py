@@ -58,6 +58,9 @@ class Cia402DriverNode(LifecycleNode):
         self.eds = self.cfg.eds_path()
         self.bus_load = cycle_load(self.cfg.bitrate, self.cfg.sync_period_s)
         self.gate = CommandGate(self.cfg.current_limit_a, self.cfg.command_timeout_s)
+        self.brake_delay_ns = int(round(self.cfg.brake_delay_s * 1e9))
+        self._brake_since_ns: Optional[int] = None
+        self.brake_commanded = True
         qos = control_qos('realtime')
         self.state_pub = self.create_publisher(JointState, 'joint_states', qos)
         self.diag_pub = self.create_publisher(DiagnosticArray, 'diagnostics', 10)
@@ -96,7 +99,7 @@ class Cia402DriverNode(LifecycleNode):
         """Bus up (+ simulated drive), OD checks, PDO mapping, CST; FAILURE with the reason otherwise."""
         cfg = self.cfg
         try:
-            if cfg.simulated_drive:
+            if cfg.simulated_drive and self.drive is None:   # the drive outlives configure/cleanup, as hardware does
                 self.drive = SimulatedDrive(
                     self.eds, cfg.node_id, self.scaling, cfg.sync_period_s, cfg.channel, 'virtual',
                     plant_parameters(cfg.sim.working_condition), cfg.sim.torque_time_constant_s,
@@ -190,32 +193,42 @@ class Cia402DriverNode(LifecycleNode):
         self.cycle = None
         return fault
 
-    def _bus_down(self) -> None:
-        """Disconnect the master's network and stop the simulated drive."""
-        for thing in (self.network, self.drive):
+    def _bus_down(self, drive_too: bool = False) -> None:
+        """Disconnect the master's network; with ``drive_too`` also stop the simulated drive (node exit)."""
+        things = [self.network] + ([self.drive] if drive_too else [])
+        for thing in things:
             if thing is not None:
                 try:
                     (thing.disconnect if thing is self.network else thing.stop)()
                 except Exception as exc:  # noqa: BLE001 - shutting down: report, go on
                     self.get_logger().warning(f'bus down: {exc!r}')
-        self.network = self.drive = self.master = None
+        self.network = self.master = None
+        if drive_too:
+            self.drive = None
 
     def _safe_shutdown(self) -> None:
-        """Active or inactive: quick stop and disable if the drive answers; then bus down."""
+        """Active or inactive: quick stop and disable if the drive answers; then bus and simulated drive down."""
         fault = self._stop_cycle()
         if self.master is not None and fault is None:
             try:
                 self.master.deactivate()
             except (Cia402Error, canopen.SdoAbortedError, canopen.SdoCommunicationError) as exc:
                 self.get_logger().warning(f'shutdown: {exc}')
-        self._bus_down()
+        self._bus_down(drive_too=True)
 
     # --- cycle callbacks (cycle thread) -----------------------------------------------------
     def _command(self, t_ns: int) -> tuple[int, float]:
-        """Controlword and current of this SYNC: enable operation with the gate's current, or disable (brake)."""
-        held = self.gate.hold(time.time_ns())
-        controlword = (p.Command.SWITCH_ON if held.brake else p.Command.ENABLE_OPERATION).value
-        return controlword, held.current_a
+        """Controlword and current of this SYNC; 'disable operation' (brake) before a command or after brake_delay_s."""
+        now = time.time_ns()
+        held = self.gate.hold(now)
+        if not held.brake:
+            self._brake_since_ns = None
+        elif self._brake_since_ns is None:
+            self._brake_since_ns = now
+        engage = held.brake and (held.reason in ('no command yet', 'inactive')
+                                 or now - self._brake_since_ns >= self.brake_delay_ns)
+        self.brake_commanded = engage
+        return (p.Command.SWITCH_ON if engage else p.Command.ENABLE_OPERATION).value, held.current_a
 
     def _publish_sample(self, stamp_ns: int, feedback: Feedback) -> None:
         """joint_states stamped t_k (the SYNC instant) with the angle of TPDO1."""
@@ -287,7 +300,7 @@ class Cia402DriverNode(LifecycleNode):
         values = {'lifecycle_state': self.lifecycle_state, 'drive_state': state.value if state else 'unknown',
                   'statusword': f'0x{fb.statusword:04X}' if fb else '', 'error_code': f'0x{fault.code:04X}' if fault
                   else (f'0x{fb.error_code:04X}' if fb else ''), 'error_text': fault.text if fault else '',
-                  'brake': str(self.gate.brake), 'bus_load_percent': f'{100 * self.bus_load.fraction:.1f}',
+                  'brake': str(self.brake_commanded or self.lifecycle_state != 'active'), 'bus_load_percent': f'{100 * self.bus_load.fraction:.1f}',
                   'refused_commands': str(self.refused), 'command_timeouts': str(self.gate.timeouts)}
         if cycle is not None:
             stats = cycle.stats

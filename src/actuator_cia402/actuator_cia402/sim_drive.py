@@ -146,7 +146,8 @@ class SimulatedDrive:
             self.node.rpdo.read()
             self.node.tpdo.read()
             self._rpdo_map = self.node.rpdo[1]
-            self._rpdo_map.add_callback(self._on_rpdo)
+            if self._on_rpdo not in self._rpdo_map.callbacks:
+                self._rpdo_map.add_callback(self._on_rpdo)
             self._rpdo_cw, self._rpdo_torque = self._rpdo_map[p.CONTROLWORD], self._rpdo_map[p.TARGET_TORQUE]
             self._tpdo1, self._tpdo2 = self.node.tpdo[1], self.node.tpdo[2]
             self._pdo_ready = True
