@@ -236,3 +236,14 @@ def test_end_to_end_fast_deep_sea_case_tracks_within_a_factor_of_the_offline_cor
     assert rms_run < 10.0 * rms_offline
     assert max_run < 0.05                                       # rho_inf of the prescribed envelope
     assert analyze_run(run).metrics.bounds_kept
+
+
+def test_benchmark_prints_cpu_per_cycle_and_timing_with_the_load(ros_env):
+    proc = subprocess.run([executable_path('actuator_cia402', 'cia402_bench'), '--duration', '0.5', '--rates', '500',
+                           '--json'], env=ros_env, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    import json
+    (figures,) = json.loads(proc.stdout)
+    assert figures['rate_hz'] == 500 and figures['cycles'] > 100 and len(figures['load_average_1_5_15']) == 3
+    assert 0 < figures['cpu_p50_us'] < 2000 and 0 < figures['process_cpu_per_cycle_us'] < 2000
+    assert figures['cycle_wall_p50_us'] >= figures['cpu_p50_us'] * 0.5

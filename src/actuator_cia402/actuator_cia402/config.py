@@ -33,6 +33,8 @@ class SimDriveSettings:
     fault_at_s: float = spec(-1.0, 'drive time of the injected fault (negative: never)', 's', -1.0, 1.0e6)
     emcy_code: int = spec(0xFF00, 'code of an extra EMCY frame (error register 0: a warning)', '', 1, 0xFFFF)
     emcy_at_s: float = spec(-1.0, 'drive time of the extra EMCY frame (negative: never)', 's', -1.0, 1.0e6)
+    over_current_a: float = spec(1.25 * limits.CURRENT_LIMIT_A, 'the drive faults (0x2310) beyond this motor current',
+                                 'A', 0.0, 1.0e3, low_open=True)
     drop_tpdo_fraction: float = spec(0.0, 'share of SYNCs the drive answers without TPDOs', '', 0.0, 1.0)
     silent_at_s: float = spec(-1.0, 'drive time from which the drive is silent (negative: never)', 's', -1.0, 1.0e6)
     seed: int = spec(1, 'seed of the dropped-TPDO draw', '', 0, 2**31 - 1)
@@ -81,6 +83,9 @@ class DriverParameters:
                                     *limits.TIMEOUT_RANGE_S)
     brake_delay_s: float = spec(0.1, 'a safe stop or command timeout lasting this long disables operation '
                                 '(holding brake); shorter ones apply 0 A in operation', 's', 0.0, 10.0)
+    state_timeout_s: float = spec(1.0, 'longest wait for the drive to reach a CiA 402 state in a transition', 's',
+                                  0.01, 60.0)
+    sdo_timeout_s: float = spec(0.3, 'SDO response timeout (configure, activate, deactivate only)', 's', 0.001, 10.0)
     feedback_timeout_s: float = spec(0.05, 'error when no TPDO arrived for this long', 's', *limits.TIMEOUT_RANGE_S)
     tpdo_wait_fraction: float = spec(0.5, 'how long a cycle waits for TPDO1 after SYNC, in sync periods', '',
                                      0.05, 0.9)

@@ -33,22 +33,23 @@ class CycleStats:
         self.skipped_cycles = 0
         self.cpu_ns = np.zeros(HISTORY, dtype=np.int64)
         self.late_ns = np.zeros(HISTORY, dtype=np.int64)
+        self.wall_ns = np.zeros(HISTORY, dtype=np.int64)
 
-    def record(self, cpu_ns: int, late_ns: int) -> None:
-        """Keep one cycle's CPU time and wake-up lateness."""
+    def record(self, cpu_ns: int, late_ns: int, wall_ns: int) -> None:
+        """Keep one cycle's CPU time, wake-up lateness and wall time (SYNC to TPDO1 handled)."""
         i = self.cycles % HISTORY
-        self.cpu_ns[i], self.late_ns[i] = cpu_ns, late_ns
+        self.cpu_ns[i], self.late_ns[i], self.wall_ns[i] = cpu_ns, late_ns, wall_ns
         self.cycles += 1
 
     def medians_us(self) -> dict[str, float]:
-        """Median and 99th percentile of CPU per cycle and lateness over the kept cycles [us]."""
+        """Median and 99th percentile of CPU per cycle, lateness and cycle wall time over the kept cycles [us]."""
         n = min(self.cycles, HISTORY)
-        if n == 0:
-            return {'cpu_p50_us': float('nan'), 'cpu_p99_us': float('nan'), 'late_p50_us': float('nan'),
-                    'late_p99_us': float('nan')}
-        cpu, late = self.cpu_ns[:n] / 1e3, self.late_ns[:n] / 1e3
-        return {'cpu_p50_us': float(np.median(cpu)), 'cpu_p99_us': float(np.percentile(cpu, 99)),
-                'late_p50_us': float(np.median(late)), 'late_p99_us': float(np.percentile(late, 99))}
+        out = {}
+        for name, values in (('cpu', self.cpu_ns), ('late', self.late_ns), ('cycle_wall', self.wall_ns)):
+            kept = values[:n] / 1e3
+            out[f'{name}_p50_us'] = float(np.median(kept)) if n else float('nan')
+            out[f'{name}_p99_us'] = float(np.percentile(kept, 99)) if n else float('nan')
+        return out
 
 
 class SyncCycle:
@@ -116,7 +117,7 @@ class SyncCycle:
                 k += int(skipped)
                 t_k = self.start_ns + k * self.period_ns
                 late = now - t_k
-            cpu0 = time.thread_time_ns()
+            cpu0, wall0 = time.thread_time_ns(), time.perf_counter_ns()
             controlword, current_a = self.command(t_k)
             feedback = master.cycle(controlword, current_a, self.wait_s)
             if feedback is not None:
@@ -124,7 +125,7 @@ class SyncCycle:
                 self.on_sample(t_k, feedback)
             else:
                 stats.missed_feedback += 1
-            stats.record(time.thread_time_ns() - cpu0, late)
+            stats.record(time.thread_time_ns() - cpu0, late, time.perf_counter_ns() - wall0)
             if master.fault is not None:
                 self.fault, self.ended = master.fault, 'fault'
                 return

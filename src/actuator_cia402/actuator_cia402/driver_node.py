@@ -46,9 +46,9 @@ NOTIFIER_CYCLE_S = 0.1
 class Cia402DriverNode(LifecycleNode):
     """The hardware driver behind the joint_states / current_command contract."""
 
-    def __init__(self) -> None:
+    def __init__(self, **node_kwargs) -> None:
         """Declare and check every parameter (a refusal exits 2); create topics; nothing on the bus yet."""
-        super().__init__(NODE_NAME)
+        super().__init__(NODE_NAME, **node_kwargs)
         if self.get_parameter('use_sim_time').value:
             raise ParameterError("parameter 'use_sim_time' must be false for the driver: the drive's SYNC "
                                  'grid runs on the system clock')
@@ -104,13 +104,13 @@ class Cia402DriverNode(LifecycleNode):
                     self.eds, cfg.node_id, self.scaling, cfg.sync_period_s, cfg.channel, 'virtual',
                     plant_parameters(cfg.sim.working_condition), cfg.sim.torque_time_constant_s,
                     cfg.sim.fault_plan(), cfg.current_limit_a, cfg.command_timeout_s,
-                    initial_position_rad=cfg.sim.initial_position_rad).start()
+                    cfg.sim.over_current_a, cfg.sim.initial_position_rad).start()
             self.network = canopen.Network()
             self.network.NOTIFIER_CYCLE = NOTIFIER_CYCLE_S
             kwargs = {'receive_own_messages': False} if cfg.interface == 'virtual' else {'bitrate': cfg.bitrate}
             self.network.connect(interface=cfg.interface, channel=cfg.channel, **kwargs)
             self.master = Cia402Master(self.network, cfg.node_id, self.eds, self.scaling, cfg.sync_period_s,
-                                       *cfg.cob_ids, cfg.current_limit_a)
+                                       *cfg.cob_ids, cfg.current_limit_a, cfg.state_timeout_s, cfg.sdo_timeout_s)
             for note in self.master.configure():
                 self.get_logger().warning(note)
         except (Cia402Error, OSError, ValueError, canopen.SdoAbortedError, canopen.SdoCommunicationError) as exc:

@@ -63,11 +63,13 @@ class Cia402Master:
 
     def __init__(self, network: canopen.Network, node_id: int, eds_path: str, scaling: Scaling,
                  sync_period_s: float, rpdo_cob_id: int, tpdo1_cob_id: int, tpdo2_cob_id: int,
-                 max_current_a: float):
+                 max_current_a: float, state_timeout_s: float = STATE_TIMEOUT_S, sdo_timeout_s: float = 0.3):
         """Attach a RemoteNode built from the drive's EDS to ``network`` (already connected)."""
         self.network = network
         self.node = canopen.RemoteNode(node_id, eds_path)
         network.add_node(self.node)
+        self.node.sdo.RESPONSE_TIMEOUT = sdo_timeout_s
+        self.state_timeout_s = state_timeout_s
         self.scaling = scaling
         self.sync_period_s = sync_period_s
         self.cob_ids = (rpdo_cob_id, tpdo1_cob_id, tpdo2_cob_id)
@@ -159,8 +161,9 @@ class Cia402Master:
         statusword = self._sdo(p.STATUSWORD).raw
         return statusword, p.decode_state(statusword)
 
-    def command(self, command: p.Command, wanted: tuple[p.State, ...], timeout_s: float = STATE_TIMEOUT_S) -> p.State:
-        """Write a controlword command and wait until the statusword shows one of ``wanted``."""
+    def command(self, command: p.Command, wanted: tuple[p.State, ...]) -> p.State:
+        """Write a controlword command and wait (state_timeout_s) until the statusword shows one of ``wanted``."""
+        timeout_s = self.state_timeout_s
         self._sdo(p.CONTROLWORD).raw = command.value
         deadline = time.monotonic() + timeout_s
         while True:
