@@ -153,3 +153,28 @@ def test_launch_spec_gives_checked_parameters_for_a_closed_loop_run():
         driver_parameters(simulated=True, bitrate=125_000)
     with pytest.raises(ValueError, match='unknown'):
         driver_parameters(simulated=True, gain=3)
+
+
+# --- PDO codec -------------------------------------------------------------------------------
+def test_pdo_codec_packs_the_eds_tpdo1_layout_like_canopen_and_refuses_unaligned_maps():
+    from pathlib import Path
+
+    import canopen
+
+    from actuator_cia402.pdo_codec import PdoCodec
+
+    eds = Path(__file__).resolve().parent.parent / 'src' / 'actuator_cia402' / 'eds' / 'sim_joint_drive.eds'
+    node = canopen.LocalNode(1, str(eds))
+    tpdo1 = node.tpdo[1]
+    for index in (p.STATUSWORD, p.POSITION_ACTUAL, p.TORQUE_ACTUAL):    # the EDS default mapping of TPDO1
+        tpdo1.add_variable(index)
+    tpdo1.cob_id = 0x181
+    codec = PdoCodec.compile(tpdo1)
+    assert codec is not None and codec.cob_id == 0x181 and codec.struct.size == 8
+    data = codec.pack((0x0237, -123456, -42))
+    tpdo1.data = bytearray(data)
+    assert (tpdo1[p.STATUSWORD].raw, tpdo1[p.POSITION_ACTUAL].raw, tpdo1[p.TORQUE_ACTUAL].raw) == (0x0237, -123456, -42)
+    assert codec.unpack(data) == (0x0237, -123456, -42)
+    tpdo1.clear()
+    tpdo1.add_variable(p.STATUSWORD, length=12)                 # a 12-bit field: not byte aligned
+    assert PdoCodec.compile(tpdo1) is None

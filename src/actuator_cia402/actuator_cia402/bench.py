@@ -22,9 +22,10 @@ import rclpy
 from rclpy.executors import SingleThreadedExecutor
 
 from actuator_cia402.launch_spec import driver_arguments, driver_parameters
+from actuator_ros.runtime import set_realtime_priority
 
 
-def run_rate(rate_hz: float, duration_s: float, priority: int = 0) -> dict:
+def run_rate(rate_hz: float, duration_s: float) -> dict:
     """One run of the driver at ``rate_hz`` for ``duration_s``; returns its figures."""
     from actuator_cia402.driver_node import Cia402DriverNode
     params = driver_parameters(simulated=True, sync_period_s=1.0 / rate_hz, stop_after_s=duration_s,
@@ -65,9 +66,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument('--duration', type=float, default=5.0, help='seconds per rate (default 5)')
     parser.add_argument('--rates', type=float, nargs='+', default=[1000.0, 500.0], help='SYNC rates [Hz]')
     parser.add_argument('--json', action='store_true', help='print JSON instead of a table')
+    parser.add_argument('--rt-priority', type=int, default=0, metavar='N',
+                        help='run under SCHED_FIFO at priority N (1-99; 0 = normal scheduling)')
     args = parser.parse_args(argv)
     if not 0.5 <= args.duration <= 600.0:
         parser.error('--duration must be in [0.5, 600] s')
+    if not 0 <= args.rt_priority <= 99:
+        parser.error('--rt-priority must be in [0, 99]')
+    scheduling = 'normal scheduling'
+    if args.rt_priority:
+        refused = set_realtime_priority(args.rt_priority)
+        scheduling = refused or f'SCHED_FIFO priority {args.rt_priority}'
     results = []
     for rate in args.rates:
         load = os.getloadavg()
@@ -77,7 +86,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.json:
         print(json.dumps(results, indent=1))
         return 0
-    print(f'cia402 driver benchmark, {args.duration:g} s per rate, simulated drive, {os.cpu_count()} CPUs')
+    print(f'cia402 driver benchmark, {args.duration:g} s per rate, simulated drive, {os.cpu_count()} CPUs, {scheduling}')
     for r in results:
         print(f"{r['rate_hz']:6.0f} Hz  load {r['load_average_1_5_15']}: cycles {r['cycles']} "
               f"({r['cycles_held_percent']:.1f} % of the grid), missed TPDO {r['missed_tpdo']}, overruns {r['overruns']}")

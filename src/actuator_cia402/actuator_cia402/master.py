@@ -27,6 +27,7 @@ from typing import NamedTuple, Optional
 import canopen
 
 from actuator_cia402 import profile as p
+from actuator_cia402.pdo_codec import PdoCodec
 from actuator_cia402.scaling import Scaling
 
 
@@ -147,13 +148,14 @@ class Cia402Master:
                     pdo_map.cob_id = pdo_map.predefined_cob_id or (0x100 * (number + 1) + self.node.id)
                     pdo_map.trans_type, pdo_map.enabled = SYNCHRONOUS, False
                     pdo_map.save()
-        self._rpdo = self.node.rpdo[1]
-        self._rpdo_cw, self._rpdo_torque = self._rpdo[p.CONTROLWORD], self._rpdo[p.TARGET_TORQUE]
-        tpdo1, tpdo2 = self.node.tpdo[1], self.node.tpdo[2]
-        self._t1 = (tpdo1[p.STATUSWORD], tpdo1[p.POSITION_ACTUAL], tpdo1[p.TORQUE_ACTUAL])
-        self._t2 = (tpdo2[p.CURRENT_ACTUAL], tpdo2[p.ERROR_CODE])
-        tpdo1.add_callback(self._on_tpdo1)
-        tpdo2.add_callback(self._on_tpdo2)
+        # The layouts just written, compiled once: the cycle packs and unpacks whole frames.
+        self._rpdo = PdoCodec.compile(self.node.rpdo[1])
+        self._t1 = PdoCodec.compile(self.node.tpdo[1])
+        self._t2 = PdoCodec.compile(self.node.tpdo[2])
+        if None in (self._rpdo, self._t1, self._t2):
+            raise Cia402Error('the EDS gives a PDO layout that is not byte aligned')
+        self.node.tpdo[1].add_callback(self._on_tpdo1)
+        self.node.tpdo[2].add_callback(self._on_tpdo2)
 
     # --- state machine over SDO (transitions only) ------------------------------------------
     def read_state(self) -> tuple[int, p.State | None]:
@@ -221,10 +223,9 @@ class Cia402Master:
     # --- cycle (never blocks beyond ``wait_s``) ---------------------------------------------
     def cycle(self, controlword: int, current_a: float, wait_s: float) -> Optional[Feedback]:
         """RPDO1 with the command, SYNC, then TPDO1 of this SYNC (None when it missed ``wait_s``)."""
-        self._rpdo_cw.raw = controlword
-        self._rpdo_torque.raw = self.scaling.current_to_torque_permille(current_a)
-        self._rpdo.transmit()
+        rpdo = self._rpdo
         self._fresh.clear()
+        self.network.send_message(rpdo.cob_id, rpdo.pack((controlword, self.scaling.current_to_torque_permille(current_a))))
         self.network.sync.transmit()
         if self._fresh.wait(wait_s):
             return self.feedback
@@ -232,7 +233,7 @@ class Cia402Master:
 
     def _on_tpdo1(self, pdo_map) -> None:
         """TPDO1 received (bus thread): statusword, position, torque; the fault bit sets ``fault``."""
-        statusword, counts, torque = (v.raw for v in self._t1)
+        statusword, counts, torque = self._t1.unpack(pdo_map.data)
         s = self.scaling
         self.feedback = Feedback(s.counts_to_rad(counts), s.torque_permille_to_nm(torque),
                                  self.current_actual_a, statusword, self.error_code, pdo_map.timestamp)
@@ -244,7 +245,7 @@ class Cia402Master:
 
     def _on_tpdo2(self, pdo_map) -> None:
         """TPDO2 received (bus thread): current actual and error code."""
-        current, code = (v.raw for v in self._t2)
+        current, code = self._t2.unpack(pdo_map.data)
         self.current_actual_a = self.scaling.permille_to_current(current)
         self.error_code = code
         if self.fault is not None and self.fault.code == 0 and code:

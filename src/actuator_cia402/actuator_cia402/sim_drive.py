@@ -32,6 +32,7 @@ from actuator_core import limits
 from actuator_core.gate import CommandGate
 from actuator_plant.model import JointPlant, PlantParameters, WorkingCondition
 from actuator_cia402 import profile as p
+from actuator_cia402.pdo_codec import PdoCodec
 from actuator_cia402.scaling import Scaling
 
 #: Error register 0x1001 bits (CiA 301): generic error, current.
@@ -150,6 +151,7 @@ class SimulatedDrive:
                 self._rpdo_map.add_callback(self._on_rpdo)
             self._rpdo_cw, self._rpdo_torque = self._rpdo_map[p.CONTROLWORD], self._rpdo_map[p.TARGET_TORQUE]
             self._tpdo1, self._tpdo2 = self.node.tpdo[1], self.node.tpdo[2]
+            self._tpdo_codecs = [(m, PdoCodec.compile(m), [v.index for v in m.map]) for m in (self._tpdo1, self._tpdo2)]
             self._pdo_ready = True
         elif self.node.nmt.state != 'OPERATIONAL':
             self._pdo_ready = False
@@ -271,19 +273,22 @@ class SimulatedDrive:
             self._raise_fault(FAULT_CODES['over_current'])
 
     def _send_tpdos(self) -> None:
-        """TPDO1 (statusword, position actual, torque actual) and TPDO2 (current actual, error code)."""
+        """TPDO1/TPDO2 with the objects the master mapped (statusword, position, torque; current, error code)."""
         if f_drop := self.faults.drop_tpdo_fraction:
             if self.rng.random() < f_drop:
                 self.tpdos_dropped += 1
                 return
-        t1, t2 = self._tpdo1, self._tpdo2
-        t1[p.STATUSWORD].raw = self.statusword
-        t1[p.POSITION_ACTUAL].raw = self.position_counts
-        t1[p.TORQUE_ACTUAL].raw = self.torque_permille
-        t1.transmit()
-        t2[p.CURRENT_ACTUAL].raw = self.scaling.current_to_permille(self.current_a)
-        t2[p.ERROR_CODE].raw = self.error_code
-        t2.transmit()
+        live = {p.STATUSWORD: self.statusword, p.POSITION_ACTUAL: self.position_counts,
+                p.TORQUE_ACTUAL: self.torque_permille, p.CURRENT_ACTUAL: self.scaling.current_to_permille(self.current_a),
+                p.ERROR_CODE: self.error_code, p.MODES_OF_OPERATION_DISPLAY: self.mode}
+        for pdo_map, codec, indices in self._tpdo_codecs:
+            values = [live[i] for i in indices]
+            if codec is not None:
+                self.network.send_message(codec.cob_id, codec.pack(values))
+            else:                                  # a mapping the codec does not compile: canopen's accessors
+                for index, value in zip(indices, values):
+                    pdo_map[index].raw = value
+                pdo_map.transmit()
 
     def _integrate(self) -> None:
         """Joint over one sync period: the torque loop's mean current held (or the brake holding the joint)."""
