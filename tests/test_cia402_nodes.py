@@ -108,6 +108,8 @@ def harness(rclpy_context):
     (['-p', 'sim.fault_kind:=meltdown'], 'fault_kind'),
     (['-p', 'current_limit_a:=-1.0'], 'current_limit_a'),
     (['-p', 'use_sim_time:=true'], 'use_sim_time'),
+    (['-p', 'mode:=sim'], 'real time only'),
+    (['-p', 'sample_time_s:=0.002'], 'sync_period_s'),
 ])
 def test_every_parameter_refusal_is_one_line_and_exit_2(ros_env, params, word):
     proc = subprocess.run([executable_path(*DRIVER), '--ros-args', *params], env=ros_env, capture_output=True,
@@ -179,8 +181,9 @@ def _closed_loop(ros_process, tmp_path, driver_params, record=True, rt_priority=
     procs['controller'] = ros_process('actuator_controller', 'controller_node', rt + params)
     procs['eso'] = ros_process('actuator_eso', 'eso_node', rt + params)
     # The driver samples: one priority level above the ESO and controller, as bringup runs the plant.
-    procs['driver'] = ros_process(*DRIVER, (['--rt-priority', str(rt_priority + 1)] if rt_priority else []) + driver_args(autostart=True, wait_for_subscribers=3 if record else 2,
-                                                       **driver_params))
+    procs['driver'] = ros_process(*DRIVER, (['--rt-priority', str(rt_priority + 1)] if rt_priority else []) + [
+        *driver_args(autostart=True, wait_for_subscribers=3 if record else 2, timing_log=tmp_path / 'samples.npz',
+                     **driver_params), '--params-file', str(scenario_file())])
     return procs
 
 
@@ -215,6 +218,13 @@ def test_end_to_end_fast_deep_sea_case_tracks_within_a_factor_of_the_offline_cor
     assert controlled.sum() > 0.8 * duration * 1000
     grid_ms = run.t[controlled] * 1e3
     assert np.allclose(grid_ms, np.round(grid_ms), atol=1e-6)   # measurement stamps on the 1 ms SYNC grid
+    samples = np.load(tmp_path / 'samples.npz')                 # the driver's own log, as the plant's
+    assert samples['stamp_ns'].size > 0.8 * duration * 1000 and np.all(samples['stamp_ns'] % 1_000_000 == 0)
+    answered = samples['held_command_stamp_ns'] > 0
+    assert answered.mean() > 0.8                                # a command was applied on most SYNCs
+    # the command applied over [t_k-1, t_k) answers a sample at most a few SYNCs older (one SYNC of bus delay)
+    lag_ms = (samples['stamp_ns'][answered] - samples['held_command_stamp_ns'][answered]) / 1e6
+    assert np.median(lag_ms) <= 3.0, np.median(lag_ms)
     assert np.all(np.isfinite(run.current)) and np.max(np.abs(run.current)) <= 20.0 + 1e-9
     assert 'safe stop latched' not in procs['controller'].output
     scenario = all_scenarios()['case2_pp_nftsmc_eso']

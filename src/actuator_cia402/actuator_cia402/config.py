@@ -98,6 +98,11 @@ class DriverParameters:
     wait_for_subscribers: int = spec(0, 'autostart: activate once joint_states has this many subscribers', '', 0, 100)
     stop_after_s: float = spec(0.0, 'deactivate and exit 0 after this long active; 0 = run until stopped', 's',
                                0.0, 1.0e6)
+    timing_log: str = spec('', 'at exit write per-sample stamps (.npz: stamp_ns, published_wall_ns, '
+                                'held_command_stamp_ns), as the plant node does')
+    mode: str = spec('realtime', "run mode of the suite; 'sim' (lockstep /clock) is refused: a drive runs in real time")
+    sample_time_s: float = spec(0.0, "the scenario's sample time (its '/**' block); when set it must equal "
+                                'sync_period_s (0: not set)', 's', 0.0, 0.1)
     diagnostics_period_s: float = spec(0.5, 'period of the diagnostics message', 's', 0.05, 60.0)
     sim: SimDriveSettings = field(default_factory=SimDriveSettings)
 
@@ -109,6 +114,12 @@ class DriverParameters:
         if self.simulated_drive and self.interface != 'virtual':
             raise ValueError('simulated_drive = true needs interface = virtual (the simulated drive shares this '
                              'process; this kernel has no vcan)')
+        if self.mode != 'realtime':
+            raise ValueError(f"mode = {self.mode!r} refused: the CiA 402 driver runs in real time only (SYNC on "
+                             'the system clock); use the simulated plant for sim mode')
+        if self.sample_time_s and abs(self.sample_time_s - self.sync_period_s) > 1e-12:
+            raise ValueError(f'sample_time_s = {self.sample_time_s} differs from sync_period_s = {self.sync_period_s}: '
+                             'the drive samples once per SYNC')
         check_bus_load(self.bitrate, self.sync_period_s, limit=self.bus_load_limit)
 
     @property

@@ -27,6 +27,7 @@ from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackRet
 from sensor_msgs.msg import JointState
 
 from actuator_core.gate import CommandGate
+from actuator_core.sample_log import SampleLog
 from actuator_core.timing import stamp_to_ns
 from actuator_msgs.msg import CurrentCommand
 from actuator_ros.runtime import ParameterError, RateLimitedLog, control_qos, declare_spec_parameters, ns_to_stamp, \
@@ -61,6 +62,10 @@ class Cia402DriverNode(LifecycleNode):
         self.brake_delay_ns = int(round(self.cfg.brake_delay_s * 1e9))
         self._brake_since_ns: Optional[int] = None
         self.brake_commanded = True
+        # Per published sample, as the plant node logs it: stamp, wall time of publication, stamp of the
+        # command held over the preceding SYNC interval (-1: none).
+        self.samples_log = SampleLog(('stamp_ns', 'published_wall_ns', 'held_command_stamp_ns'))
+        self._held_stamps = [-1, -1]              # command stamps written in the previous and this cycle
         qos = control_qos('realtime')
         self.state_pub = self.create_publisher(JointState, 'joint_states', qos)
         self.diag_pub = self.create_publisher(DiagnosticArray, 'diagnostics', 10)
@@ -228,6 +233,7 @@ class Cia402DriverNode(LifecycleNode):
         engage = held.brake and (held.reason in ('no command yet', 'inactive')
                                  or now - self._brake_since_ns >= self.brake_delay_ns)
         self.brake_commanded = engage
+        self._held_stamps = [self._held_stamps[1], held.command_stamp_ns]
         return (p.Command.SWITCH_ON if engage else p.Command.ENABLE_OPERATION).value, held.current_a
 
     def _publish_sample(self, stamp_ns: int, feedback: Feedback) -> None:
@@ -236,6 +242,7 @@ class Cia402DriverNode(LifecycleNode):
         self.joint_state.header.stamp = ns_to_stamp(stamp_ns)
         self.joint_state.position[0] = feedback.position_rad
         self.state_pub.publish(self.joint_state)
+        self.samples_log.append((stamp_ns, time.time_ns(), self._held_stamps[0]))
 
     # --- commands ---------------------------------------------------------------------------
     def on_command(self, msg: CurrentCommand) -> None:
@@ -320,6 +327,8 @@ class Cia402DriverNode(LifecycleNode):
         """At exit (run_node): stop the cycle, quick stop and disable the drive, bus down, summary."""
         stats = self.cycle.stats if self.cycle is not None else getattr(self, '_last_stats', None)
         self._safe_shutdown()
+        if self.cfg.timing_log:
+            self.samples_log.save(self.cfg.timing_log)
         if stats is not None:
             m = stats.medians_us()
             self.get_logger().info(f'stopped after {stats.cycles} cycles: missed TPDOs {stats.missed_feedback}, '
