@@ -234,26 +234,19 @@ def test_end_to_end_fast_deep_sea_case_tracks_within_a_factor_of_the_offline_cor
     max_run, max_offline = np.max(np.abs(run.error[window])), np.max(np.abs(offline['error_rad'][offline_window]))
     rms_run = np.sqrt(np.mean(run.error[window] ** 2))
     rms_offline = np.sqrt(np.mean(offline['error_rad'][offline_window] ** 2))
-    print(f'end to end, t in [1, {duration:g}) s: max |e| {max_run:.2e} rad (offline {max_offline:.2e}), '
-          f'RMS {rms_run:.2e} rad (offline {rms_offline:.2e})')
+    from actuator_cia402.offline import run as offline_drive, window_errors
+    max_model, rms_model = window_errors(offline_drive(duration_s=duration))
+    print(f'end to end, t in [1, {duration:g}) s: max |e| {max_run:.2e} rad (offline core {max_offline:.2e}, '
+          f'offline with the drive model {max_model:.2e}), RMS {rms_run:.2e} rad (offline {rms_offline:.2e}, '
+          f'drive model {rms_model:.2e})')
     assert max_run < 0.25                                       # inside the initial envelope rho0, always
     if 'running under SCHED_FIFO' not in procs['driver'].output:
         pytest.skip('SCHED_FIFO refused: tracking is only claimed under it (as for the simulated plant)')
-    # Measured here under SCHED_FIFO, load 2.5: max 8.9e-3 vs 9.7e-4 rad, RMS 5.2e-4 vs 3.7e-4 rad
-    # (the simulated plant in real time: max 6.5e-3, RMS 4.9e-4). The drive adds encoder
-    # quantisation (1.5e-5 rad), a 0.2 ms torque loop and one SYNC of command delay (RPDO applied
-    # at the next SYNC); the bounds leave room for this loaded 2-core machine.
-    assert rms_run < 10.0 * rms_offline
-    assert max_run < 0.05                                       # rho_inf of the prescribed envelope
+    # Measured here under SCHED_FIFO (load 2): max 1.21e-3 rad against 9.7e-4 for the offline core and
+    # the simulated plant in real time, and 1.20e-3 for the offline core with the drive model
+    # (actuator_cia402.offline: encoder quantisation 1.5e-5 rad, a 0.2 ms torque loop, and one SYNC
+    # of command delay, the RPDO being applied at the next SYNC, which costs most); RMS 3.74e-4
+    # against 3.68e-4. Under heavier load (other jobs on the 2 cores) late commands add to it.
     assert analyze_run(run).metrics.bounds_kept
-
-
-def test_benchmark_prints_cpu_per_cycle_and_timing_with_the_load(ros_env):
-    proc = subprocess.run([executable_path('actuator_cia402', 'cia402_bench'), '--duration', '0.5', '--rates', '500',
-                           '--json'], env=ros_env, capture_output=True, text=True, timeout=120)
-    assert proc.returncode == 0, proc.stderr
-    import json
-    (figures,) = json.loads(proc.stdout)
-    assert figures['rate_hz'] == 500 and figures['cycles'] > 100 and len(figures['load_average_1_5_15']) == 3
-    assert 0 < figures['cpu_p50_us'] < 2000 and 0 < figures['process_cpu_per_cycle_us'] < 2000
-    assert figures['cycle_wall_p50_us'] >= figures['cpu_p50_us'] * 0.5
+    assert rms_run < 3.0 * rms_offline
+    assert max_run < 8.0 * max_model                            # generous: a loaded 2-core machine

@@ -178,3 +178,24 @@ def test_pdo_codec_packs_the_eds_tpdo1_layout_like_canopen_and_refuses_unaligned
     tpdo1.clear()
     tpdo1.add_variable(p.STATUSWORD, length=12)                 # a 12-bit field: not byte aligned
     assert PdoCodec.compile(tpdo1) is None
+
+
+# --- offline drive model ---------------------------------------------------------------------
+def test_offline_drive_model_without_effects_is_the_offline_core_and_the_sync_delay_costs_most():
+    import numpy as np
+
+    from actuator_cia402.offline import run, window_errors
+    from actuator_sim.loop import ClosedLoop
+    from actuator_sim.params_yaml import all_scenarios
+
+    scenario = all_scenarios()['case2_pp_nftsmc_eso']
+    scenario.duration_s = 2.0
+    core = ClosedLoop(scenario).run()
+    bare = run(duration_s=2.0, delay_syncs=0, tau_s=0.0, quantise=False)
+    assert np.array_equal(core['error_rad'], bare['error_rad'])
+    quantised = window_errors(run(duration_s=2.0, delay_syncs=0, tau_s=0.0))
+    drive = window_errors(run(duration_s=2.0))
+    late = window_errors(run(duration_s=2.0, delay_syncs=2))
+    assert window_errors(bare)[0] < drive[0] < late[0]            # the bus delay, not quantisation, costs
+    assert abs(quantised[1] - window_errors(bare)[1]) < 0.05 * window_errors(bare)[1]
+    assert late[0] > 5 * drive[0]                                  # two SYNCs of delay: a limit cycle

@@ -69,6 +69,15 @@ def plant_parameters(working_condition: str) -> PlantParameters:
     return PlantParameters(condition=conditions[working_condition]())
 
 
+def torque_loop(current_a: float, target_a: float, dt_s: float, tau_s: float) -> tuple[float, float]:
+    """First-order torque loop over one period: (mean current, end current); i = i* + (i0 - i*) exp(-t/tau)."""
+    if tau_s <= 0.0:
+        return target_a, target_a
+    decay = math.exp(-dt_s / tau_s)
+    mean = target_a + (current_a - target_a) * (tau_s / dt_s) * (1.0 - decay)
+    return mean, target_a + (current_a - target_a) * decay
+
+
 class SimulatedDrive:
     """CiA 402 drive in CST mode on a (virtual) CAN bus, with the joint model as motor and load."""
 
@@ -298,11 +307,5 @@ class SimulatedDrive:
             self.plant.velocity_rad_s = 0.0
             self.plant.sample_index += 1
             return
-        if self.tau_s > 0.0:
-            decay = math.exp(-self.dt_s / self.tau_s)
-            start = self.current_a
-            mean = target + (start - target) * (self.tau_s / self.dt_s) * (1.0 - decay)
-            self.current_a = target + (start - target) * decay
-        else:
-            mean = self.current_a = target
+        mean, self.current_a = torque_loop(self.current_a, target, self.dt_s, self.tau_s)
         self.plant.step(mean)
