@@ -31,6 +31,7 @@ def bus():
     made = []
 
     def make(faults=FaultPlan(), scaling=SCALING, **drive_kwargs):
+        """A drive and a master on their own virtual bus channel."""
         channel = f'test_cia402_{next(_channels)}'
         drive = SimulatedDrive(EDS, NODE, SCALING, DT, channel, faults=faults, **drive_kwargs).start()
         network = canopen.Network()
@@ -52,6 +53,7 @@ def run_cycles(master, n, current_a=0.0, controlword=ENABLE, wait_s=0.02):
 
 
 def test_configure_maps_pdos_and_sets_cst_then_enable_and_disable_sequences(bus):
+    """configure maps PDOs (0x1600/0x1A00) and sets 0x6060 = 10; activate enables; deactivate quick-stops."""
     master, drive = bus()
     assert master.configure() == []
     assert drive.mode == p.MODE_CST and master.read_state()[1] is p.State.SWITCH_ON_DISABLED
@@ -71,6 +73,7 @@ def test_configure_maps_pdos_and_sets_cst_then_enable_and_disable_sequences(bus)
 
 
 def test_enable_is_refused_without_cst_mode(bus):
+    """The drive stays switched on when 0x6060 is not CST; activate says which state it reached."""
     master, drive = bus()
     master.configure()
     master._sdo(p.MODES_OF_OPERATION).raw = 0
@@ -80,6 +83,7 @@ def test_enable_is_refused_without_cst_mode(bus):
 
 
 def test_cycle_drives_the_joint_through_the_torque_loop_with_quantised_position(bus):
+    """RPDO 0x6071 acts at the next SYNC through the first-order torque loop; 0x6064 comes in whole counts."""
     master, drive = bus(torque_time_constant_s=2e-4)
     master.configure()
     master.activate()
@@ -97,6 +101,7 @@ def test_cycle_drives_the_joint_through_the_torque_loop_with_quantised_position(
 
 
 def test_gate_of_the_drive_goes_to_zero_and_brake_when_rpdos_stop(bus):
+    """SYNCs without RPDO beyond command_timeout_s: the drive's own gate applies 0 A and the brake."""
     master, drive = bus(command_timeout_s=0.005)
     master.configure()
     master.activate()
@@ -114,6 +119,7 @@ def test_gate_of_the_drive_goes_to_zero_and_brake_when_rpdos_stop(bus):
 @pytest.mark.parametrize('kind, code, text', [('over_current', 0x2310, 'continuous over-current'),
                                               ('following_error', 0x8611, 'following error')])
 def test_injected_fault_mid_run_gives_the_error_code_then_fault_reset_recovers(bus, kind, code, text):
+    """Fault bit, EMCY and 0x603F carry the code; activate resets the fault (controlword bit 7) and re-enables."""
     master, drive = bus(faults=FaultPlan(fault_kind=kind, fault_at_s=0.05))
     master.configure()
     master.activate()
@@ -132,6 +138,7 @@ def test_injected_fault_mid_run_gives_the_error_code_then_fault_reset_recovers(b
 
 
 def test_real_over_current_faults_the_drive(bus):
+    """A current above over_current_a faults the drive with 0x2310."""
     master, drive = bus(over_current_a=4.0)
     master.configure()
     master.activate()
@@ -140,6 +147,7 @@ def test_real_over_current_faults_the_drive(bus):
 
 
 def test_emcy_without_error_register_is_a_warning_not_a_fault(bus):
+    """An EMCY with error register 0 is kept as a warning; operation goes on."""
     master, drive = bus(faults=FaultPlan(emcy_code=0x4210, emcy_at_s=0.01))
     master.configure()
     master.activate()
@@ -152,6 +160,7 @@ def test_emcy_without_error_register_is_a_warning_not_a_fault(bus):
 
 
 def test_dropped_tpdos_are_missed_cycles_not_faults(bus):
+    """Each dropped TPDO1 is one missed cycle (None), nothing more."""
     master, drive = bus(faults=FaultPlan(drop_tpdo_fraction=0.3, seed=7))
     master.configure()
     master.activate()
@@ -162,6 +171,7 @@ def test_dropped_tpdos_are_missed_cycles_not_faults(bus):
 
 
 def test_silent_bus_gives_no_feedback_and_no_sdo_answer(bus):
+    """From silent_at_s on: no TPDO, and SDO times out."""
     master, drive = bus(faults=FaultPlan(silent_at_s=0.02))
     master.configure()
     master.activate()
@@ -173,6 +183,7 @@ def test_silent_bus_gives_no_feedback_and_no_sdo_answer(bus):
 
 
 def test_configure_refuses_a_drive_that_does_not_match_the_parameters(bus):
+    """0x6075 or 0x608F differing from the parameters: configure refuses, naming both values."""
     master, _ = bus(scaling=Scaling(4096, 100.0, 1.05, 8.0, 0.105))
     with pytest.raises(Cia402Error, match='rated current 0x6075 .* 10000 mA, configured 8000 mA'):
         master.configure()
@@ -182,6 +193,7 @@ def test_configure_refuses_a_drive_that_does_not_match_the_parameters(bus):
 
 
 def test_configure_without_a_drive_says_so(bus):
+    """No SDO answer at all: configure says the node does not answer."""
     master, drive = bus(faults=FaultPlan(silent_at_s=0.0))
     drive.silent = True
     with pytest.raises(Cia402Error, match='does not answer SDO'):
@@ -189,6 +201,7 @@ def test_configure_without_a_drive_says_so(bus):
 
 
 def test_lab_and_deep_sea_drives_differ_by_the_oil():
+    """The drive model takes the paper's two working conditions and refuses others."""
     deep, lab = plant_parameters('deep_sea'), plant_parameters('lab')
     assert deep.condition.pressure_pa == 10e6 and lab.condition.pressure_pa == 0.0
     with pytest.raises(ValueError, match='working_condition'):

@@ -36,6 +36,7 @@ class Harness:
     """Test-side node: lifecycle service client, joint_states / diagnostics / current_command recorder."""
 
     def __init__(self, context):
+        """Subscriptions and lifecycle service clients on the test's rclpy context."""
         from diagnostic_msgs.msg import DiagnosticArray
         from lifecycle_msgs.srv import ChangeState, GetState
         from rclpy.executors import SingleThreadedExecutor
@@ -58,11 +59,13 @@ class Harness:
         self.executor.add_node(self.node)
 
     def spin(self, seconds):
+        """Run the harness's callbacks for ``seconds``."""
         end = time.monotonic() + seconds
         while time.monotonic() < end:
             self.executor.spin_once(timeout_sec=0.01)
 
     def wait_for(self, predicate, timeout=20.0, what=''):
+        """Spin until ``predicate()`` holds; fail after ``timeout`` seconds."""
         end = time.monotonic() + timeout
         while time.monotonic() < end:
             if predicate():
@@ -71,6 +74,7 @@ class Harness:
         raise AssertionError(f'timed out waiting for {what}')
 
     def call(self, client, request, timeout=20.0):
+        """Call a service and return its response."""
         assert client.wait_for_service(timeout_sec=timeout), 'lifecycle service not available'
         future = client.call_async(request)
         self.executor.spin_until_future_complete(future, timeout_sec=timeout)
@@ -78,20 +82,24 @@ class Harness:
         return future.result()
 
     def transition(self, label):
+        """Request a lifecycle transition by label (what ``ros2 lifecycle set`` does); True on success."""
         from lifecycle_msgs.msg import Transition
         ids = {'configure': Transition.TRANSITION_CONFIGURE, 'activate': Transition.TRANSITION_ACTIVATE,
                'deactivate': Transition.TRANSITION_DEACTIVATE, 'cleanup': Transition.TRANSITION_CLEANUP}
         return self.call(self.change, self.types[0].Request(transition=Transition(id=ids[label]))).success
 
     def state(self):
+        """The driver's lifecycle state label (``ros2 lifecycle get``)."""
         return self.call(self.get, self.types[1].Request()).current_state.label
 
     def diag_values(self):
+        """Key/values of the newest diagnostics status."""
         return {kv.key: kv.value for kv in self.diag[-1].status[0].values} if self.diag else {}
 
 
 @pytest.fixture
 def harness(rclpy_context):
+    """A Harness for the test, destroyed at its end."""
     h = Harness(rclpy_context)
     yield h
     h.executor.shutdown()
@@ -112,6 +120,7 @@ def harness(rclpy_context):
     (['-p', 'sample_time_s:=0.002'], 'sync_period_s'),
 ])
 def test_every_parameter_refusal_is_one_line_and_exit_2(ros_env, params, word):
+    """Bad values and combinations: exit 2, one line on stderr naming the parameter, no traceback."""
     proc = subprocess.run([executable_path(*DRIVER), '--ros-args', *params], env=ros_env, capture_output=True,
                           text=True, timeout=60)
     lines = proc.stderr.strip().splitlines()
@@ -121,6 +130,7 @@ def test_every_parameter_refusal_is_one_line_and_exit_2(ros_env, params, word):
 
 
 def test_lifecycle_configure_activate_deactivate_through_the_services(harness, ros_process):
+    """No joint_states until active; stamps on the 1 ms grid while active; none after deactivate; cleanup and again."""
     from actuator_core.timing import stamp_to_ns
     driver = ros_process(*DRIVER, driver_args())
     harness.wait_for(lambda: harness.get.service_is_ready(), what='lifecycle services')
@@ -150,6 +160,7 @@ def test_lifecycle_configure_activate_deactivate_through_the_services(harness, r
 
 
 def test_drive_fault_mid_run_goes_to_error_processing_with_the_drive_error_code(harness, ros_process):
+    """Over-current mid-run: 0x2310 logged, error processing to unconfigured, recovery by configure + activate."""
     driver = ros_process(*DRIVER, driver_args(autostart=True, **{'sim.fault_kind': 'over_current',
                                                                   'sim.fault_at_s': 1.0}))
     driver.wait_for_output(r'error code 0x2310 continuous over-current', timeout=30)
@@ -188,6 +199,7 @@ def _closed_loop(ros_process, tmp_path, driver_params, record=True, rt_priority=
 
 
 def test_silent_bus_gives_the_stale_measurement_stop_of_the_controller(harness, ros_process, tmp_path):
+    """Silent drive: the controller commands 0 A with safe_stop (stale measurement); the driver errors."""
     procs = _closed_loop(ros_process, tmp_path, {'sim.silent_at_s': 1.5}, record=False)
     procs['driver'].wait_for_output(r'no TPDO from the drive', timeout=40)
     procs['controller'].wait_for_output(r'stale measurement', timeout=10)

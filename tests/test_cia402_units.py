@@ -18,24 +18,28 @@ SCALING = Scaling(encoder_counts_per_rev=4096, gear_ratio=100.0, rated_torque_nm
 # --- scaling ---------------------------------------------------------------------------------
 @pytest.mark.parametrize('angle_rad', [0.0, 1.4, -1.4, 0.123456, 37.0])
 def test_position_round_trip_is_within_half_a_count(angle_rad):
+    """0x6064: rad -> counts -> rad is within half a count, counts -> rad -> counts exact."""
     counts = SCALING.rad_to_counts(angle_rad)
     assert abs(SCALING.counts_to_rad(counts) - angle_rad) <= 0.5 * SCALING.rad_per_count + 1e-15
     assert SCALING.rad_to_counts(SCALING.counts_to_rad(counts)) == counts
 
 
 def test_one_joint_revolution_is_counts_times_gear_ratio():
+    """One joint revolution is cpr * N counts."""
     assert SCALING.rad_to_counts(2 * math.pi) == 4096 * 100
     assert SCALING.rad_per_count == pytest.approx(2 * math.pi / 409600)
 
 
 @pytest.mark.parametrize('current_a', [0.0, 0.01, 1.0, -7.3, 20.0, -20.0])
 def test_current_torque_round_trip_is_within_one_per_mille(current_a):
+    """0x6071/0x6078: A -> per mille -> A is within half a per mille."""
     permille = SCALING.current_to_torque_permille(current_a)
     assert abs(SCALING.torque_permille_to_current(permille) - current_a) <= 0.5 * SCALING.current_resolution_a + 1e-12
     assert SCALING.permille_to_current(SCALING.current_to_permille(current_a)) == pytest.approx(current_a, abs=0.005)
 
 
 def test_rated_current_is_one_thousand_per_mille_of_rated_torque():
+    """k_t I_rated = T_rated is 1000 per mille; INTEGER16 clipping."""
     assert SCALING.current_to_torque_permille(10.0) == 1000      # k_t * 10 A = 1.05 N m = T_rated
     assert SCALING.current_to_torque_permille(limits.CURRENT_LIMIT_A) == 2000
     assert SCALING.torque_permille_to_nm(1000) == pytest.approx(1.05)
@@ -43,6 +47,7 @@ def test_rated_current_is_one_thousand_per_mille_of_rated_torque():
 
 
 def test_scaling_refuses_nonphysical_constants():
+    """Zero gear ratio refused; an angle beyond INTEGER32 counts overflows."""
     with pytest.raises(ValueError, match='gear_ratio'):
         Scaling(4096, 0.0, 1.0, 1.0, 0.1)
     with pytest.raises(OverflowError):
@@ -52,11 +57,13 @@ def test_scaling_refuses_nonphysical_constants():
 # --- state machine ---------------------------------------------------------------------------
 @pytest.mark.parametrize('state', list(p.State))
 def test_statusword_encoding_decodes_to_the_same_state(state):
+    """encode_statusword and decode_state are inverse for every state."""
     assert p.decode_state(p.encode_statusword(state)) is state
     assert p.decode_state(p.encode_statusword(state, warning=True)) is state
 
 
 def test_statusword_bits_of_cia402_examples():
+    """Statusword values as drives report them (remote bit 9, voltage bit 4) decode to their states."""
     assert p.decode_state(0x0250) is p.State.SWITCH_ON_DISABLED
     assert p.decode_state(0x0231) is p.State.READY_TO_SWITCH_ON
     assert p.decode_state(0x0233) is p.State.SWITCHED_ON
@@ -72,10 +79,12 @@ def test_statusword_bits_of_cia402_examples():
                                                   (0x02, p.Command.QUICK_STOP), (0x80, p.Command.FAULT_RESET),
                                                   (0x1F, p.Command.ENABLE_OPERATION), (0x0B, p.Command.QUICK_STOP)])
 def test_controlword_decoding(controlword, command):
+    """Controlword bit patterns to CiA 402 commands, extra bits ignored."""
     assert p.decode_command(controlword) is command
 
 
 def test_enable_sequence_reaches_operation_enabled_and_quick_stop_and_fault_reset_leave_it():
+    """Transitions 2-4 enable; 5, 9, 11 leave operation; fault is left only by fault reset (15)."""
     state = p.State.SWITCH_ON_DISABLED
     for command in p.ENABLE_SEQUENCE:
         state = p.next_state(state, command)
@@ -89,6 +98,7 @@ def test_enable_sequence_reaches_operation_enabled_and_quick_stop_and_fault_rese
 
 
 def test_error_texts_by_code_and_by_class():
+    """Error codes to texts, by code and by class."""
     assert p.error_text(0x2310) == 'continuous over-current'
     assert p.error_text(0x8611) == 'following error'
     assert p.error_text(0x3333).startswith('voltage')
@@ -96,6 +106,7 @@ def test_error_texts_by_code_and_by_class():
 
 # --- bus load --------------------------------------------------------------------------------
 def test_frame_bits_with_worst_case_stuffing():
+    """Frame lengths: 47 + 8 n bits plus worst-case stuffing."""
     assert frame_bits(0) == 55 and frame_bits(4) == 95 and frame_bits(8) == 135
     assert frame_bits(8, worst_case_stuffing=False) == 111
     with pytest.raises(ValueError):
@@ -103,6 +114,7 @@ def test_frame_bits_with_worst_case_stuffing():
 
 
 def test_one_joint_at_1_khz_is_38_percent_of_1_mbit_and_76_percent_of_500_kbit():
+    """The documented bus-load figures."""
     assert cycle_load(1_000_000, 1e-3).fraction == pytest.approx(0.38)
     assert check_bus_load(1_000_000, 1e-3) is None
     warning = check_bus_load(500_000, 1e-3)
@@ -112,6 +124,7 @@ def test_one_joint_at_1_khz_is_38_percent_of_1_mbit_and_76_percent_of_500_kbit()
 
 
 def test_impossible_bus_load_is_refused_with_the_figure_in_one_line():
+    """1 kHz at 125 kbit/s: refused, with the figure, in one line."""
     with pytest.raises(BusLoadError) as info:
         check_bus_load(125_000, 1e-3)
     text = str(info.value)
@@ -120,6 +133,7 @@ def test_impossible_bus_load_is_refused_with_the_figure_in_one_line():
 
 # --- parameters ------------------------------------------------------------------------------
 def test_driver_defaults_are_the_project_limits():
+    """Defaults come from actuator_core.limits; COB-IDs from the pre-defined connection set."""
     cfg = DriverParameters()
     assert cfg.current_limit_a == limits.CURRENT_LIMIT_A and cfg.command_timeout_s == limits.COMMAND_TIMEOUT_S
     assert cfg.sync_period_s == limits.SAMPLE_TIME_S
@@ -137,11 +151,13 @@ def test_driver_defaults_are_the_project_limits():
     (lambda: SimDriveSettings(fault_kind='meltdown'), 'fault_kind'),
 ])
 def test_driver_parameter_values_and_combinations_are_refused(build, words):
+    """Out-of-range values and impossible combinations raise ValueError naming them."""
     with pytest.raises(ValueError, match=words):
         build()
 
 
 def test_launch_spec_gives_checked_parameters_for_a_closed_loop_run():
+    """driver_parameters for the lead: simulated or socketcan, checked, as command-line arguments."""
     params = driver_parameters(simulated=True, working_condition='lab', stop_after_s=3.0)
     assert params['simulated_drive'] is True and params['interface'] == 'virtual'
     assert params['sim.working_condition'] == 'lab' and params['autostart'] is True
@@ -157,6 +173,7 @@ def test_launch_spec_gives_checked_parameters_for_a_closed_loop_run():
 
 # --- PDO codec -------------------------------------------------------------------------------
 def test_pdo_codec_packs_the_eds_tpdo1_layout_like_canopen_and_refuses_unaligned_maps():
+    """PdoCodec agrees with canopen on the TPDO1 layout and refuses a bit-packed one."""
     from pathlib import Path
 
     import canopen
@@ -182,6 +199,7 @@ def test_pdo_codec_packs_the_eds_tpdo1_layout_like_canopen_and_refuses_unaligned
 
 # --- offline drive model ---------------------------------------------------------------------
 def test_offline_drive_model_without_effects_is_the_offline_core_and_the_sync_delay_costs_most():
+    """The drive model reduces to the offline core; one SYNC of delay costs most, two give a limit cycle."""
     import numpy as np
 
     from actuator_cia402.offline import run, window_errors
