@@ -17,6 +17,7 @@ which logs the drive's error code and text, to unconfigured.
 
 from __future__ import annotations
 
+import threading
 import time
 from typing import Optional
 
@@ -59,6 +60,8 @@ class Cia402DriverNode(LifecycleNode):
         self.eds = self.cfg.eds_path()
         self.bus_load = cycle_load(self.cfg.bitrate, self.cfg.sync_period_s)
         self.gate = CommandGate(self.cfg.current_limit_a, self.cfg.command_timeout_s)
+        # offer (executor thread) and hold (cycle thread) never interleave: one command's current with another's stamp.
+        self.gate_lock = threading.Lock()
         self.brake_delay_ns = int(round(self.cfg.brake_delay_s * 1e9))
         self._brake_since_ns: Optional[int] = None
         self.brake_commanded = True
@@ -135,7 +138,8 @@ class Cia402DriverNode(LifecycleNode):
             self.get_logger().error(f'activate failed: {exc}')
             return TransitionCallbackReturn.FAILURE
         self.last_fault = None
-        self.gate.activate()
+        with self.gate_lock:
+            self.gate.activate()
         cfg = self.cfg
         self.cycle = SyncCycle(self.master, cfg.sync_period_s, cfg.tpdo_wait_fraction * cfg.sync_period_s,
                                cfg.feedback_timeout_s, self._command, self._publish_sample, cfg.stop_after_s)
@@ -189,7 +193,8 @@ class Cia402DriverNode(LifecycleNode):
 
     def _stop_cycle(self) -> Optional[DriveFault]:
         """Stop the cycle thread and close the gate; returns the fault that ended it, if any."""
-        self.gate.deactivate()
+        with self.gate_lock:
+            self.gate.deactivate()
         if self.cycle is None:
             return None
         self.cycle.stop()
@@ -225,7 +230,8 @@ class Cia402DriverNode(LifecycleNode):
     def _command(self, t_ns: int) -> tuple[int, float]:
         """Controlword and current of this SYNC; 'disable operation' (brake) before a command or after brake_delay_s."""
         now = time.time_ns()
-        held = self.gate.hold(now)
+        with self.gate_lock:
+            held = self.gate.hold(now)
         if not held.brake:
             self._brake_since_ns = None
         elif self._brake_since_ns is None:
@@ -247,7 +253,8 @@ class Cia402DriverNode(LifecycleNode):
     # --- commands ---------------------------------------------------------------------------
     def on_command(self, msg: CurrentCommand) -> None:
         """Offer a command to the gate (refused: logged, 0 A and brake)."""
-        reason = self.gate.offer(msg.current_a, stamp_to_ns(msg.header.stamp), msg.safe_stop, time.time_ns())
+        with self.gate_lock:
+            reason = self.gate.offer(msg.current_a, stamp_to_ns(msg.header.stamp), msg.safe_stop, time.time_ns())
         if reason is not None and self.gate.active:
             self.refused += 1
             self.log.error('bad_command', lambda: reason)
