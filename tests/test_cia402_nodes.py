@@ -262,3 +262,12 @@ def test_end_to_end_fast_deep_sea_case_tracks_within_a_factor_of_the_offline_cor
     assert analyze_run(run).metrics.bounds_kept
     assert rms_run < 3.0 * rms_offline
     assert max_run < 8.0 * max_model                            # generous: a loaded 2-core machine
+
+
+def test_socketcan_without_a_can_interface_fails_configure_with_the_set_up_hint(ros_env):
+    """interface:=socketcan where no CAN interface exists: configure fails naming the ip link command; exit 1."""
+    proc = subprocess.run([executable_path(*DRIVER), '--ros-args', '-p', 'interface:=socketcan', '-p', 'channel:=can7',
+                           '-p', 'autostart:=true'], env=ros_env, capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 1, proc.stdout + proc.stderr
+    assert "cannot open socketcan channel 'can7'" in proc.stderr
+    assert 'ip link set can7 up type can bitrate 1000000' in proc.stderr and 'Traceback' not in proc.stderr

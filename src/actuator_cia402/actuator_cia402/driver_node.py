@@ -21,6 +21,7 @@ import threading
 import time
 from typing import Optional
 
+import can
 import canopen
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.clock import Clock, ClockType
@@ -116,7 +117,11 @@ class Cia402DriverNode(LifecycleNode):
             self.network = canopen.Network()
             self.network.NOTIFIER_CYCLE = NOTIFIER_CYCLE_S
             kwargs = {'receive_own_messages': False} if cfg.interface == 'virtual' else {'bitrate': cfg.bitrate}
-            self.network.connect(interface=cfg.interface, channel=cfg.channel, **kwargs)
+            try:
+                self.network.connect(interface=cfg.interface, channel=cfg.channel, **kwargs)
+            except (OSError, can.CanError) as exc:
+                raise Cia402Error(f'cannot open {cfg.interface} channel {cfg.channel!r} ({exc}); is the interface up? '
+                                  f'ip link set {cfg.channel} up type can bitrate {cfg.bitrate}') from None
             self.master = Cia402Master(self.network, cfg.node_id, self.eds, self.scaling, cfg.sync_period_s,
                                        *cfg.cob_ids, cfg.current_limit_a, cfg.state_timeout_s, cfg.sdo_timeout_s)
             for note in self.master.configure():
