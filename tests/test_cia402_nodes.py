@@ -198,17 +198,23 @@ def _closed_loop(ros_process, tmp_path, driver_params, record=True, rt_priority=
     return procs
 
 
-def test_silent_bus_gives_the_stale_measurement_stop_of_the_controller(harness, ros_process, tmp_path):
-    """Silent drive: the controller commands 0 A with safe_stop (stale measurement); the driver errors."""
-    procs = _closed_loop(ros_process, tmp_path, {'sim.silent_at_s': 1.5}, record=False)
-    procs['driver'].wait_for_output(r'no TPDO from the drive', timeout=40)
-    procs['controller'].wait_for_output(r'stale measurement', timeout=10)
+@pytest.mark.parametrize('fault, driver_says', [
+    ({'sim.silent_at_s': 1.5}, r'drive fault \(feedback timeout\).*no TPDO from the drive'),
+    ({'sim.fault_kind': 'following_error', 'sim.fault_at_s': 1.5}, r'drive fault \(emcy\): error code 0x8611 following error'),
+])
+def test_silent_bus_or_drive_fault_gives_the_stale_measurement_stop_of_the_controller(harness, ros_process, tmp_path,
+                                                                                      fault, driver_says):
+    """Silent or faulted drive in closed loop: the controller commands 0 A with safe_stop; the driver logs why."""
+    procs = _closed_loop(ros_process, tmp_path, fault, record=False)
+    procs['driver'].wait_for_output(driver_says, timeout=40)
+    harness.command.clear()
+    harness.wait_for(lambda: any(c.safe_stop for c in harness.command), timeout=20, what='a safe-stop command')
     harness.command.clear()
     harness.spin(0.5)
     assert harness.command, 'the controller keeps commanding while stale'
-    assert all(c.current_a == 0.0 and c.safe_stop for c in harness.command)
+    assert all(c.current_a == 0.0 and c.safe_stop for c in harness.command)   # no measurement comes back
+    assert 'stale measurement' in procs['controller'].output
     assert 'safe stop latched' not in procs['controller'].output
-    assert 'drive fault (feedback timeout)' in procs['driver'].output
     for proc in procs.values():
         assert proc.stop() == 0 and 'Traceback' not in proc.output
 
