@@ -116,6 +116,23 @@ def test_gate_of_the_drive_goes_to_zero_and_brake_when_rpdos_stop(bus):
     assert drive.target_current_a == 0.0 and drive.brake and drive.gate.timeouts == 1
 
 
+def test_a_late_sync_lets_the_skipped_periods_pass_for_the_joint(bus):
+    """A master stall of 30 ms: the drive integrates the 30 periods (its watchdog applying 0 A and brake after 10 ms)."""
+    master, drive = bus()
+    master.configure()
+    master.activate()
+    start = time.monotonic()
+    for k in range(20):                                # paced on the 1 ms grid
+        master.cycle(ENABLE, 2.0, 0.01)
+        time.sleep(max(0.0, start + (k + 1) * DT - time.monotonic()))
+    assert drive.idle_periods <= 3 and not drive.brake
+    periods = drive.syncs
+    time.sleep(0.030)
+    master.cycle(ENABLE, 2.0, 0.01)
+    assert 25 <= drive.syncs - periods <= 45 and drive.idle_periods >= 25
+    assert drive.gate.timeouts == 1                    # the stall outlasted command_timeout_s
+
+
 @pytest.mark.parametrize('kind, code, text', [('over_current', 0x2310, 'continuous over-current'),
                                               ('following_error', 0x8611, 'following error')])
 def test_injected_fault_mid_run_gives_the_error_code_then_fault_reset_recovers(bus, kind, code, text):

@@ -4,6 +4,9 @@ The drive answers SDO and NMT like a real one, runs the CiA 402 power state mach
 (profile.TRANSITIONS), and in cyclic synchronous torque mode (0x6060 = 10) steps once per
 SYNC, as a synchronous drive does (CiA 301: a synchronous RPDO takes effect at the next SYNC):
 
+  0. when the SYNC comes late (the master overran and skipped cycles), the skipped periods pass
+     first with the command held by the gate (0 A and brake once it timed out): the joint's
+     time goes on as the wall clock's, as for a real drive and as the plant node does;
   1. latch the RPDO received since the last SYNC (controlword 0x6040, target torque 0x6071)
      and offer the target to its own CommandGate (0 A and brake when not enabled, on quick
      stop or when RPDOs stop for command_timeout_s: the drive's RPDO watchdog);
@@ -24,6 +27,7 @@ from __future__ import annotations
 import math
 import random
 import threading
+import time
 from dataclasses import dataclass
 
 import canopen
@@ -39,6 +43,8 @@ from actuator_cia402.scaling import Scaling
 ERROR_REGISTER_GENERIC = 0x01
 ERROR_REGISTER_CURRENT = 0x02
 FAULT_CODES = {'over_current': 0x2310, 'following_error': 0x8611}
+#: Longest gap a late SYNC is caught up over [periods]; beyond it the joint model's time is lost.
+MAX_CATCH_UP_PERIODS = 1000
 
 
 @dataclass(frozen=True)
@@ -119,7 +125,8 @@ class SimulatedDrive:
         self._pdo_ready = False
         self._fault_injected = False
         self._emcy_injected = False
-        self._stop_reason = ''
+        self._sync_t0_ns: int | None = None  # wall time of drive time 0 (set on the first SYNC in operational)
+        self.idle_periods = 0                # periods integrated without a SYNC (the master was late)
 
     # --- bus --------------------------------------------------------------------------------
     def start(self) -> 'SimulatedDrive':
@@ -153,6 +160,7 @@ class SimulatedDrive:
             return
         self.node.nmt.on_command(can_id, data, timestamp)
         if self.node.nmt.state == 'OPERATIONAL' and not self._pdo_ready:
+            self._sync_t0_ns = None
             self.node.rpdo.read()
             self.node.tpdo.read()
             self._rpdo_map = self.node.rpdo[1]
@@ -246,14 +254,24 @@ class SimulatedDrive:
 
     # --- the cycle --------------------------------------------------------------------------
     def _on_sync(self, can_id, data, timestamp) -> None:
-        """SYNC: one drive cycle (only in NMT operational, and not when silent)."""
+        """SYNC: the periods a late SYNC skipped pass first (time goes on for the joint), then one drive cycle."""
         if self.silent or not self._pdo_ready:
             return
+        now = time.monotonic_ns()
         with self.lock:
-            self.step()
+            if self._sync_t0_ns is None:              # first SYNC in operational: drive time meets wall time
+                self._sync_t0_ns = now - self.syncs * self.period_ns
+            due = (now - self._sync_t0_ns + self.period_ns // 2) // self.period_ns
+            for _ in range(min(MAX_CATCH_UP_PERIODS, due - self.syncs)):
+                self._advance(cycle=False)
+            self._advance(cycle=True)
 
     def step(self) -> None:
-        """Latch the RPDO, inject planned faults, sample and send TPDOs, integrate one sync period."""
+        """One drive cycle as on a SYNC: latch the RPDO, faults, sample and send TPDOs, integrate one period."""
+        self._advance(cycle=True)
+
+    def _advance(self, cycle: bool) -> None:
+        """One sync period of drive time; ``cycle``: with the RPDO latched and TPDOs sent (a SYNC), else idle."""
         t_s = self.syncs * self.dt_s
         now_ns = self.syncs * self.period_ns
         self.syncs += 1
@@ -261,7 +279,7 @@ class SimulatedDrive:
         if 0.0 <= f.silent_at_s <= t_s:
             self.silent = True
             return
-        if self._rpdo_new:
+        if cycle and self._rpdo_new:
             self._rpdo_new = False
             self.apply_controlword(self._rpdo_cw.raw)
             current = self.scaling.torque_permille_to_current(self._rpdo_torque.raw)
@@ -276,7 +294,10 @@ class SimulatedDrive:
             self.state = p.State.SWITCH_ON_DISABLED
         held = self.gate.hold(now_ns)
         self.target_current_a, self.brake = held.current_a, held.brake
-        self._send_tpdos()
+        if cycle:
+            self._send_tpdos()
+        else:
+            self.idle_periods += 1
         self._integrate()
         if abs(self.current_a) > self.over_current_a and self.state is not p.State.FAULT:
             self._raise_fault(FAULT_CODES['over_current'])
