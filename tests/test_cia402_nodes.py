@@ -129,6 +129,13 @@ def test_every_parameter_refusal_is_one_line_and_exit_2(ros_env, params, word):
     assert 'Traceback' not in proc.stderr + proc.stdout
 
 
+def test_500_kbit_at_1_khz_starts_with_the_bus_load_warning(ros_process):
+    """76 % of 500 kbit/s is accepted with a warning that names the figure."""
+    driver = ros_process(*DRIVER, driver_args(bitrate=500000))
+    driver.wait_for_output(r'bus load 76\.0 % of 500 kbit/s .* is above 60 %', timeout=30)
+    assert driver.stop() == 0
+
+
 def test_lifecycle_configure_activate_deactivate_through_the_services(harness, ros_process):
     """No joint_states until active; stamps on the 1 ms grid while active; none after deactivate; cleanup and again."""
     from actuator_core.timing import stamp_to_ns
