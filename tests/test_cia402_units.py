@@ -217,3 +217,20 @@ def test_offline_drive_model_without_effects_is_the_offline_core_and_the_sync_de
     assert window_errors(bare)[0] < drive[0] < late[0]            # the bus delay, not quantisation, costs
     assert abs(quantised[1] - window_errors(bare)[1]) < 0.05 * window_errors(bare)[1]
     assert late[0] > 5 * drive[0]                                  # two SYNCs of delay: a limit cycle
+
+
+def test_every_driver_parameter_is_a_spec_with_description_and_numeric_range():
+    """Each field of DriverParameters (and sim.*) declares a description; numbers a finite range and a unit or none."""
+    import dataclasses
+    import math as m
+
+    from actuator_core.params import iter_specs
+
+    names = [name for name, _ in iter_specs(DriverParameters)]
+    top = [f.name for f in dataclasses.fields(DriverParameters) if f.name != 'sim']
+    sim = [f'sim.{f.name}' for f in dataclasses.fields(SimDriveSettings)]
+    assert sorted(names) == sorted(top + sim)
+    for name, f in iter_specs(DriverParameters):
+        assert f.metadata['description'], name
+        if isinstance(f.default, (int, float)) and not isinstance(f.default, bool):
+            assert m.isfinite(f.metadata['low']) and m.isfinite(f.metadata['high']), name
