@@ -142,6 +142,13 @@ def test_lifecycle_configure_activate_deactivate_through_the_services(harness, r
     driver = ros_process(*DRIVER, driver_args())
     harness.wait_for(lambda: harness.get.service_is_ready(), what='lifecycle services')
     assert harness.state() == 'unconfigured'
+    from rcl_interfaces.srv import DescribeParameters
+    describe = harness.node.create_client(DescribeParameters, f'/{NODE}/describe_parameters')
+    answer = harness.call(describe, DescribeParameters.Request(names=['sync_period_s', 'node_id', 'sim.fault_kind']))
+    sync, node_id, fault = answer.descriptors
+    assert 'SYNC period' in sync.description and '[s]' in sync.description and sync.read_only
+    assert sync.floating_point_range[0].from_value == 2.5e-4 and node_id.integer_range[0].to_value == 127
+    assert 'over_current' in fault.description
     assert harness.transition('configure') and harness.state() == 'inactive'
     harness.spin(0.5)
     assert harness.joint == []                                  # configured: no joint_states
