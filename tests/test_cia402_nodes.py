@@ -5,6 +5,8 @@ calls), a drive fault in mid-run, a silent bus against the real controller, and 
 closed loop: driver (with the simulated drive) + ESO + controller + recorder in real time.
 """
 
+import os
+import signal
 import subprocess
 import time
 from pathlib import Path
@@ -16,6 +18,17 @@ from ros_helpers import executable_path
 
 DRIVER = ('actuator_cia402', 'cia402_driver')
 NODE = 'actuator_cia402_driver'
+
+
+def wait_for_output(proc, pattern, timeout):
+    """proc.wait_for_output; on a timeout the process first dumps its threads' stacks (SIGUSR1) into the report."""
+    try:
+        return proc.wait_for_output(pattern, timeout=timeout)
+    except TimeoutError:
+        if proc.running:
+            os.kill(proc.pid, signal.SIGUSR1)
+            time.sleep(1.0)
+        raise AssertionError(f'{proc.name} did not print {pattern!r} within {timeout} s\n{proc.describe(tail=120)}') from None
 
 
 def scenario_file() -> Path:
@@ -177,7 +190,7 @@ def test_drive_fault_mid_run_goes_to_error_processing_with_the_drive_error_code(
     """Over-current mid-run: 0x2310 logged, error processing to unconfigured, recovery by configure + activate."""
     driver = ros_process(*DRIVER, driver_args(autostart=True, **{'sim.fault_kind': 'over_current',
                                                                   'sim.fault_at_s': 1.0}))
-    driver.wait_for_output(r'error code 0x2310 continuous over-current', timeout=30)
+    wait_for_output(driver, r'error code 0x2310 continuous over-current', timeout=30)
     harness.wait_for(lambda: harness.get.service_is_ready(), what='lifecycle services')
     assert harness.state() == 'unconfigured'                    # error processing -> unconfigured
     from diagnostic_msgs.msg import DiagnosticStatus
@@ -220,7 +233,7 @@ def test_silent_bus_or_drive_fault_gives_the_stale_measurement_stop_of_the_contr
                                                                                       fault, driver_says):
     """Silent or faulted drive in closed loop: the controller commands 0 A with safe_stop; the driver logs why."""
     procs = _closed_loop(ros_process, tmp_path, fault, record=False, rt_priority=50)
-    procs['driver'].wait_for_output(driver_says, timeout=40)
+    wait_for_output(procs['driver'], driver_says, timeout=40)
     harness.command.clear()
     harness.wait_for(lambda: any(c.safe_stop for c in harness.command), timeout=20, what='a safe-stop command')
     harness.command.clear()

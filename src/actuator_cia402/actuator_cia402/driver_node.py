@@ -17,6 +17,8 @@ which logs the drive's error code and text, to unconfigured.
 
 from __future__ import annotations
 
+import faulthandler
+import signal
 import threading
 import time
 from typing import Optional
@@ -349,7 +351,8 @@ class Cia402DriverNode(LifecycleNode):
 
 
 def main(argv=None) -> int:
-    """Entry point of ``ros2 run actuator_cia402 cia402_driver``."""
+    """Entry point of ``ros2 run actuator_cia402 cia402_driver``; ``kill -USR1 <pid>`` dumps every thread's stack."""
+    faulthandler.register(signal.SIGUSR1, all_threads=True)
     return run_node('cia402_driver', 'CiA 402 (CANopen) joint drive driver, lifecycle node.', Cia402DriverNode, argv)
 
 
