@@ -130,6 +130,7 @@ def harness(rclpy_context):
     (['-p', 'current_limit_a:=-1.0'], 'current_limit_a'),
     (['-p', 'use_sim_time:=true'], 'use_sim_time'),
     (['-p', 'mode:=sim'], 'real time only'),
+    (['-p', 'eds_file:=/nonexistent/drive.eds'], 'eds_file'),
     (['-p', 'sample_time_s:=0.002'], 'sync_period_s'),
 ])
 def test_every_parameter_refusal_is_one_line_and_exit_2(ros_env, params, word):

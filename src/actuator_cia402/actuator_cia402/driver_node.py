@@ -18,6 +18,7 @@ which logs the drive's error code and text, to unconfigured.
 from __future__ import annotations
 
 import faulthandler
+import os
 import signal
 import threading
 import time
@@ -61,6 +62,8 @@ class Cia402DriverNode(LifecycleNode):
         self.log = RateLimitedLog(self.get_logger())
         self.scaling = self.cfg.scaling
         self.eds = self.cfg.eds_path()
+        if not os.path.isfile(self.eds):
+            raise ParameterError(f"parameter 'eds_file' = {self.eds!r} refused: no such file (the drive's EDS)")
         self.bus_load = cycle_load(self.cfg.bitrate, self.cfg.sync_period_s)
         self.gate = CommandGate(self.cfg.current_limit_a, self.cfg.command_timeout_s)
         # offer (executor thread) and hold (cycle thread) never interleave: one command's current with another's stamp.
@@ -128,7 +131,7 @@ class Cia402DriverNode(LifecycleNode):
                                        *cfg.cob_ids, cfg.current_limit_a, cfg.state_timeout_s, cfg.sdo_timeout_s)
             for note in self.master.configure():
                 self.get_logger().warning(note)
-        except (Cia402Error, OSError, ValueError, canopen.SdoAbortedError, canopen.SdoCommunicationError) as exc:
+        except Exception as exc:  # noqa: BLE001 - any failure of the bus or drive is a failed configure, said in one line
             self.get_logger().error(f'configure failed: {exc}')
             self._bus_down()
             return TransitionCallbackReturn.FAILURE
@@ -141,7 +144,7 @@ class Cia402DriverNode(LifecycleNode):
         try:
             for note in self.master.activate():
                 self.get_logger().warning(note)
-        except (Cia402Error, canopen.SdoAbortedError, canopen.SdoCommunicationError) as exc:
+        except Exception as exc:  # noqa: BLE001 - any failure of the enable sequence is a failed activate
             self.get_logger().error(f'activate failed: {exc}')
             return TransitionCallbackReturn.FAILURE
         self.last_fault = None
