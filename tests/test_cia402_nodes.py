@@ -57,7 +57,7 @@ class Harness:
         from sensor_msgs.msg import JointState
 
         from actuator_msgs.msg import CurrentCommand
-        from actuator_ros.runtime import control_qos
+        from actuator_ros.qos import control_qos
 
         self.node = Node('cia402_harness', context=context)
         qos = control_qos('realtime')
@@ -209,20 +209,16 @@ def test_drive_fault_mid_run_goes_to_error_processing_with_the_drive_error_code(
 
 
 def _closed_loop(ros_process, tmp_path, driver_params, record=True, rt_priority=0):
-    """Recorder (optional), controller, ESO from the scenario file, then the driver (autostart)."""
-    rt = ['--rt-priority', str(rt_priority)] if rt_priority else []
-    params = ['--ros-args', '--params-file', str(scenario_file()), '-p', 'mode:=realtime']
+    """The run as graph.closed_loop describes it with the driver as the joint (what bringup --joint cia402_sim starts)."""
+    from actuator_tools.graph import closed_loop, ros_arguments
+
+    params = dict(driver_params)
+    specs = closed_loop('realtime', float(params.pop('stop_after_s', 0.0)), record=record, bag=tmp_path / 'bag',
+                        joint='cia402_sim', thread_priority=rt_priority, joint_parameters=params)
     procs = {}
-    if record:
-        procs['recorder'] = ros_process('actuator_bag', 'recorder', [
-            '--ros-args', '-p', f'output:={tmp_path / "bag"}', '-p', 'reliability:=best_effort',
-            '-p', 'queue_depth:=5000'])
-    procs['controller'] = ros_process('actuator_controller', 'controller_node', rt + params)
-    procs['eso'] = ros_process('actuator_eso', 'eso_node', rt + params)
-    # The driver samples: one priority level above the ESO and controller, as bringup runs the plant.
-    procs['driver'] = ros_process(*DRIVER, (['--rt-priority', str(rt_priority + 1)] if rt_priority else []) + [
-        *driver_args(autostart=True, wait_for_subscribers=3 if record else 2, timing_log=tmp_path / 'samples.npz',
-                     **driver_params), '--params-file', str(scenario_file())])
+    for spec in specs:
+        extra = ['-p', f'timing_log:={tmp_path / "samples.npz"}'] if spec.key == 'driver' else []
+        procs[spec.key] = ros_process(spec.package, spec.executable, ros_arguments(spec, scenario_file()) + extra)
     return procs
 
 

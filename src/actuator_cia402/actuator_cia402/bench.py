@@ -22,7 +22,7 @@ import rclpy
 from rclpy.executors import SingleThreadedExecutor
 
 from actuator_cia402.launch_spec import driver_arguments, driver_parameters
-from actuator_ros.runtime import set_realtime_priority
+from actuator_ros.realtime import RealtimeSettings
 
 
 def run_rate(rate_hz: float, duration_s: float) -> dict:
@@ -75,7 +75,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error('--rt-priority must be in [0, 99]')
     scheduling = 'normal scheduling'
     if args.rt_priority:
-        refused = set_realtime_priority(args.rt_priority)
+        refused = RealtimeSettings(thread_priority=args.rt_priority).apply()
         scheduling = refused or f'SCHED_FIFO priority {args.rt_priority}'
     results = []
     for rate in args.rates:

@@ -1,6 +1,6 @@
 """The driver's parameters as specs (unit, valid range, description): one declaration for ROS and docs.
 
-ROS-free: the driver node declares them with actuator_ros.runtime.declare_spec_parameters,
+ROS-free: the driver node declares them with actuator_ros.parameters.declare_spec_parameters,
 launch_spec builds them for a closed-loop run, the README lists them.
 """
 

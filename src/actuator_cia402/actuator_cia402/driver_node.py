@@ -35,8 +35,13 @@ from actuator_core.gate import CommandGate
 from actuator_core.sample_log import SampleLog
 from actuator_core.timing import stamp_to_ns
 from actuator_msgs.msg import CurrentCommand
-from actuator_ros.runtime import ParameterError, RateLimitedLog, control_qos, declare_spec_parameters, ns_to_stamp, \
-    run_node
+from actuator_ros.conversions import ns_to_stamp
+from actuator_ros.log import RateLimitedLog
+from actuator_ros.node import declare_realtime
+from actuator_ros.parameters import ParameterError, check_unknown_parameters, declare_flag, declare_spec_parameters
+from actuator_ros.realtime import RealtimeSettings
+from actuator_ros.qos import control_qos
+from actuator_ros.runner import run_node
 from actuator_cia402 import profile as p
 from actuator_cia402.busload import check_bus_load, cycle_load
 from actuator_cia402.config import DriverParameters
@@ -52,13 +57,16 @@ NOTIFIER_CYCLE_S = 0.1
 class Cia402DriverNode(LifecycleNode):
     """The hardware driver behind the joint_states / current_command contract."""
 
-    def __init__(self, **node_kwargs) -> None:
+    def __init__(self, settings: Optional[RealtimeSettings] = None, **node_kwargs) -> None:
         """Declare and check every parameter (a refusal exits 2); create topics; nothing on the bus yet."""
         super().__init__(NODE_NAME, **node_kwargs)
         if self.get_parameter('use_sim_time').value:
             raise ParameterError("parameter 'use_sim_time' must be false for the driver: the drive's SYNC "
                                  'grid runs on the system clock')
-        self.cfg: DriverParameters = declare_spec_parameters(self, DriverParameters)
+        self.cfg: DriverParameters = declare_spec_parameters(self, DriverParameters, read_only=True)
+        declare_flag(self, 'allow_unknown_parameters', False, 'accept names this node does not declare, with a '
+                     'warning (a /** section shared by several nodes)')
+        self.settings = declare_realtime(self, settings or RealtimeSettings())
         self.log = RateLimitedLog(self.get_logger())
         self.scaling = self.cfg.scaling
         self.eds = self.cfg.eds_path()
@@ -102,6 +110,9 @@ class Cia402DriverNode(LifecycleNode):
         if note:
             self.get_logger().warning(note)
         self.create_timer(0.02, self.on_supervise, clock=self.wall)
+        unknown = check_unknown_parameters(self)
+        if unknown:
+            self.get_logger().warning(f'ignoring parameters this node does not have: {", ".join(unknown)}')
 
     # --- lifecycle --------------------------------------------------------------------------
     @property
@@ -356,7 +367,8 @@ class Cia402DriverNode(LifecycleNode):
 def main(argv=None) -> int:
     """Entry point of ``ros2 run actuator_cia402 cia402_driver``; ``kill -USR1 <pid>`` dumps every thread's stack."""
     faulthandler.register(signal.SIGUSR1, all_threads=True)
-    return run_node('cia402_driver', 'CiA 402 (CANopen) joint drive driver, lifecycle node.', Cia402DriverNode, argv)
+    return run_node('cia402_driver', 'CiA 402 (CANopen) joint drive driver, lifecycle node.',
+                    lambda settings: Cia402DriverNode(settings), NODE_NAME, argv)
 
 
 if __name__ == '__main__':

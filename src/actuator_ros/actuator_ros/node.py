@@ -27,6 +27,18 @@ from actuator_ros.parameters import (ParameterError, check_unknown_parameters, d
 from actuator_ros.realtime import EXECUTORS, RealtimeSettings
 
 
+def declare_realtime(node, settings: RealtimeSettings) -> RealtimeSettings:
+    """Declare thread_priority, cpu_affinity and executor (applied before rclpy.init, see realtime)."""
+    return RealtimeSettings(
+        thread_priority=declare_number(node, 'thread_priority', settings.thread_priority, 0, 99, '',
+                                       'SCHED_FIFO priority of every thread of the process, applied before the '
+                                       'middleware starts (0: normal scheduling)'),
+        cpu_affinity=declare_text(node, 'cpu_affinity', settings.cpu_affinity,
+                                  'CPUs the process may run on, e.g. "1" or "0,1" (empty: any)'),
+        executor=declare_choice(node, 'executor', settings.executor, EXECUTORS,
+                                'rclpy executor: events (EventsExecutor, lower latency) or single_threaded'))
+
+
 class ManagedNode(LifecycleNode):
     """Lifecycle plumbing; subclasses write load_parameters, build, start, stop, drop."""
 
@@ -39,14 +51,7 @@ class ManagedNode(LifecycleNode):
         self.finished = False          # read by run_node: the run is over
         self.error: str | None = None  # read by run_node: the run failed
         declare_common(self)
-        self.settings = RealtimeSettings(
-            thread_priority=declare_number(self, 'thread_priority', settings.thread_priority, 0, 99, '',
-                                           'SCHED_FIFO priority of every thread of the process, applied before the '
-                                           'middleware starts (0: normal scheduling)'),
-            cpu_affinity=declare_text(self, 'cpu_affinity', settings.cpu_affinity,
-                                      'CPUs the process may run on, e.g. "1" or "0,1" (empty: any)'),
-            executor=declare_choice(self, 'executor', settings.executor, EXECUTORS,
-                                    'rclpy executor: events (EventsExecutor, lower latency) or single_threaded'))
+        self.settings = declare_realtime(self, settings)
         self.load_parameters()
         unknown = check_unknown_parameters(self)
         if unknown:

@@ -26,12 +26,12 @@ class ParameterError(ValueError):
     """A parameter value was refused; the message names the parameter and what is valid."""
 
 
-def _descriptor(name: str, meta: dict, default: Any) -> ParameterDescriptor:
+def _descriptor(name: str, meta: dict, default: Any, read_only: bool = False) -> ParameterDescriptor:
     """Descriptor with description, unit, valid range and, where finite, an enforced range."""
     text = meta['description']
     if not isinstance(default, (bool, str)):
         text += f' [{meta["unit"] or "-"}], valid {range_text(meta)}'
-    descriptor = ParameterDescriptor(name=name, description=text)
+    descriptor = ParameterDescriptor(name=name, description=text, read_only=read_only)
     low, high = meta['low'], meta['high']
     if isinstance(default, (bool, str)):
         return descriptor
@@ -58,10 +58,11 @@ def _declare(node: Node, name: str, default: Any, descriptor: ParameterDescripto
 
 
 def declare_spec_parameters(node: Node, cls: type, prefix: str = '', exclude: Iterable[str] = (),
-                            **fixed: Any) -> Any:
+                            read_only: bool = False, **fixed: Any) -> Any:
     """Declare every spec'd field of dataclass ``cls`` as ``prefix + dotted name`` and build ``cls``.
 
-    ``exclude`` names fields not declared (their value comes from ``fixed`` or the default).
+    ``exclude`` names fields not declared (their value comes from ``fixed`` or the default);
+    ``read_only`` for a node that reads its parameters once, at start-up (the CiA 402 driver).
     """
     values: dict[str, Any] = dict(fixed)
     skip = set(exclude)
@@ -69,7 +70,7 @@ def declare_spec_parameters(node: Node, cls: type, prefix: str = '', exclude: It
         if name in skip:
             continue
         full = prefix + name
-        values[name] = _declare(node, full, f.default, _descriptor(full, f.metadata, f.default),
+        values[name] = _declare(node, full, f.default, _descriptor(full, f.metadata, f.default, read_only),
                                 f'in {range_text(f.metadata)}')
     try:
         return build(cls, values)

@@ -101,11 +101,12 @@ def closed_loop(mode: str, duration_s: float, *, record: bool = True, bag: Optio
     elif joint in ('cia402_sim', 'cia402'):
         if sim:
             raise ValueError('the CiA 402 driver runs in real time only (mode realtime)')
-        specs.append(NodeSpec('driver', 'actuator_cia402', 'cia402_driver', 'actuator_cia402_driver',
-                              {'simulated_drive': joint == 'cia402_sim', 'stop_after_s': float(duration_s),
-                               'wait_for_subscribers': subscribers, **settings('joint', joint_priority),
-                               **(joint_parameters or {})},
-                              scenario_file=False, leader=True))
+        from actuator_cia402.launch_spec import DRIVER_EXECUTABLE, DRIVER_NODE_NAME, DRIVER_PACKAGE, driver_parameters
+        params = driver_parameters(simulated=joint == 'cia402_sim', stop_after_s=float(duration_s),
+                                   wait_for_subscribers=subscribers, autostart=autostart, **(joint_parameters or {}))
+        params.update(logged(('timing_log', 'plant_samples.npz')))
+        specs.append(NodeSpec('driver', DRIVER_PACKAGE, DRIVER_EXECUTABLE, DRIVER_NODE_NAME,
+                              {**params, **settings('joint', joint_priority)}, leader=True))
     return specs
 
 
