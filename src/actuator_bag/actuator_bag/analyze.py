@@ -74,8 +74,9 @@ class RunData:
 
     @property
     def has_envelope(self) -> bool:
-        """True when the prescribed-performance bounds are finite at every sample."""
-        return bool(self.t.size and np.all(np.isfinite(self.lower)) and np.all(np.isfinite(self.upper)))
+        """True when the prescribed-performance bounds are finite at every controlled sample (status OK)."""
+        ok = self.status == Status.OK
+        return bool(ok.any() and np.all(np.isfinite(self.lower[ok])) and np.all(np.isfinite(self.upper[ok])))
 
 
 @dataclass
