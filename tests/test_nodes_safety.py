@@ -29,7 +29,8 @@ class Harness:
         qos = control_qos('realtime')
         self.joint = self.node.create_publisher(JointState, 'joint_states', qos)
         self.estimate = self.node.create_publisher(StateEstimate, 'eso/estimate', qos)
-        self.command = self.node.create_publisher(CurrentCommand, 'current_command', qos)
+        self.qos = qos
+        self.command = None    # created by the first send_command: another publisher on it stops a controller
         self.got = {'command': [], 'state': [], 'estimate': [], 'truth': []}
         self.node.create_subscription(CurrentCommand, 'current_command', self.got['command'].append, qos)
         self.node.create_subscription(ControllerState, 'controller/state', self.got['state'].append, qos)
@@ -63,6 +64,9 @@ class Harness:
         self.joint.publish(js)
 
     def send_command(self, stamp_ns: int, current: float) -> None:
+        if self.command is None:
+            self.command = self.node.create_publisher(self.types['CurrentCommand'], 'current_command', self.qos)
+            self.spin(0.3)                                  # discovery before the first command
         cmd = self.types['CurrentCommand'](current_a=current)
         cmd.header.stamp = ns_to_stamp(stamp_ns)
         self.command.publish(cmd)
@@ -164,12 +168,13 @@ def test_controller_latches_safe_stop_beyond_following_error(harness, ros_proces
     harness.wait_for(lambda: harness.node.count_subscribers('joint_states') >= 1, what='controller subscription')
     harness.spin(0.5)
     t = _now_ns(harness)
-    harness.send_sample(t, 0.5)                            # 0.5 rad off a reference that starts at 0
+    harness.send_sample(t, 0.0)                            # the reference starts where the joint is
+    harness.send_sample(t + 5_000_000, 0.5)                # 0.5 rad off the reference 5 ms later
     harness.wait_for(lambda: any(s.status == ControllerState.STATUS_LATCHED for s in harness.got['state']),
                      what='latched safe stop')
-    harness.send_sample(t + 5_000_000, 0.0)                # even a good sample stays at 0 A
-    harness.wait_for(lambda: len(harness.got['command']) >= 2, what='second command')
-    assert all(c.current_a == 0.0 and c.safe_stop for c in harness.got['command'])
+    harness.send_sample(t + 10_000_000, 0.0)               # even a good sample stays at 0 A
+    harness.wait_for(lambda: len(harness.got['command']) >= 3, what='third command')
+    assert all(c.current_a == 0.0 and c.safe_stop for c in harness.got['command'][1:])
     assert 'following_error_limit_rad' in ctrl.output
     assert ctrl.stop() == 0
 
@@ -335,3 +340,103 @@ def test_exit_waits_until_reliable_subscribers_have_everything(rclpy_context, ro
         node.destroy_node()
     recorder.stop()
     assert 'Traceback' not in recorder.output
+
+
+@pytest.mark.parametrize('package, executable, args, file_text, names', [
+    ('actuator_controller', 'controller_node', ['-p', 'mode:=5'], None, ['mode', 'str']),
+    ('actuator_plant', 'plant_node', ['-p', 'joint_name:=5'], None, ['joint_name']),
+    ('actuator_controller', 'controller_node', [], 'actuator_controller:\n  ros__parameters:\n    controler: pi\n',
+     ["'controler' is not a parameter", "did you mean 'controller'"]),
+    ('actuator_plant', 'plant_node', [], 'actuator_plant:\n  ros__parameters:\n    current_limt_a: 5.0\n',
+     ["'current_limt_a'", "did you mean 'current_limit_a'"]),
+    ('actuator_eso', 'eso_node', [], 'actuator_eso: [this is: not, valid\n', ['ROS arguments refused']),
+    ('actuator_controller', 'controller_node', ['-p', 'timing_log:=/no/such/folder/t.npz'], None,
+     ['timing_log', 'does not exist']),
+    ('actuator_plant', 'plant_node', ['-p', 'thread_priority:=500'], None, ['thread_priority', '[0, 99]']),
+])
+def test_every_parameter_refusal_is_one_line_and_exit_2(ros_process, tmp_path, package, executable, args, file_text,
+                                                        names):
+    extra = []
+    if file_text is not None:
+        path = tmp_path / 'params.yaml'
+        path.write_text(file_text)
+        extra = ['--params-file', str(path)]
+    proc = ros_process(package, executable, ['--ros-args', *args, *extra])
+    assert proc.wait(20.0) == 2
+    lines = [line for line in proc.stderr.splitlines() if line.strip() and not line.startswith('[')]
+    assert len(lines) == 1, proc.stderr
+    for name in names:
+        assert name in lines[0], lines[0]
+    assert 'Traceback' not in proc.output
+
+
+def test_a_shared_parameter_file_is_accepted_with_allow_unknown_parameters(ros_process, tmp_path):
+    path = tmp_path / 'shared.yaml'
+    path.write_text('/**:\n  ros__parameters:\n    sample_time_s: 0.001\n    only_the_plant_has_this: 1.0\n')
+    proc = ros_process('actuator_eso', 'eso_node', ['--ros-args', '--params-file', str(path), '-p', 'autostart:=true',
+                                                    '-p', 'allow_unknown_parameters:=true'])
+    proc.wait_for_output('ignoring parameters this node does not have: only_the_plant_has_this', timeout=20.0)
+    proc.wait_for_output(r'\]: active', timeout=20.0)
+    assert proc.stop() == 0
+
+
+def test_lifecycle_transitions_and_parameters_read_at_configure(harness, ros_process):
+    """configure -> activate -> deactivate -> cleanup -> shutdown through the lifecycle services; no command
+    unless active; parameters can be set only while unconfigured."""
+    from lifecycle_msgs.msg import Transition
+    from lifecycle_msgs.srv import ChangeState, GetState
+    from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+    from rcl_interfaces.srv import SetParameters
+
+    ctrl = ros_process('actuator_controller', 'controller_node',
+                       ['--ros-args', '-p', 'controller:=nftsmc_eso', '-p', 'measurement_timeout_s:=5.0',
+                        '-p', 'estimate_timeout_s:=5.0'])
+    node = harness.node
+    clients = {name: node.create_client(srv, f'/actuator_controller/{name}')
+               for name, srv in (('get_state', GetState), ('change_state', ChangeState),
+                                 ('set_parameters', SetParameters))}
+    for client in clients.values():
+        harness.wait_for(client.service_is_ready, what=f'{client.srv_name}')
+
+    def call(name, request):
+        future = clients[name].call_async(request)
+        harness.wait_for(future.done, what=f'{name} answer')
+        return future.result()
+
+    def state():
+        return call('get_state', GetState.Request()).current_state.label
+
+    def change(transition):
+        return call('change_state', ChangeState.Request(transition=Transition(id=transition))).success
+
+    def set_gain(value):
+        p = Parameter(name='nftsmc_eso.k1', value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE,
+                                                                 double_value=value))
+        return call('set_parameters', SetParameters.Request(parameters=[p])).results[0]
+
+    def samples(n, start):
+        for k in range(n):
+            harness.send_sample(start + k * 1_000_000, 0.0)
+            harness.spin(0.002)
+
+    t = _now_ns(harness)
+    assert state() == 'unconfigured'
+    samples(20, t)
+    assert change(Transition.TRANSITION_CONFIGURE) and state() == 'inactive'
+    samples(20, t + 20_000_000)
+    harness.spin(0.2)
+    assert harness.got['command'] == []                   # not active: no command at all
+    refused = set_gain(500.0)
+    assert not refused.successful and 'read at configure' in refused.reason
+    assert change(Transition.TRANSITION_ACTIVATE) and state() == 'active'
+    samples(20, t + 40_000_000)
+    harness.wait_for(lambda: any(not c.safe_stop for c in harness.got['command']), what='commands while active')
+    harness.got['command'].clear()
+    assert change(Transition.TRANSITION_DEACTIVATE) and state() == 'inactive'
+    harness.wait_for(lambda: harness.got['command'], what='the safe-stop command of deactivate')
+    assert all(c.safe_stop and c.current_a == 0.0 for c in harness.got['command'])
+    assert change(Transition.TRANSITION_CLEANUP) and state() == 'unconfigured'
+    assert set_gain(500.0).successful                      # unconfigured: accepted, read at the next configure
+    assert change(Transition.TRANSITION_CONFIGURE) and state() == 'inactive'
+    assert change(Transition.TRANSITION_INACTIVE_SHUTDOWN) and state() == 'finalized'
+    assert ctrl.stop() == 0 and 'Traceback' not in ctrl.output

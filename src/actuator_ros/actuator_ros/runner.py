@@ -56,10 +56,15 @@ def run_node(prog: str, description: str, node_factory: Callable[[RealtimeSettin
              argv: Sequence[str] | None = None) -> int:
     """Start a node the way ``ros2 run`` does and run it until a signal or its own end."""
     args = sys.argv[1:] if argv is None else list(argv)
+    try:
+        own_args = rclpy.utilities.remove_ros_args(args)
+    except Exception as exc:  # rcl's RCLInvalidROSArgsError: an unparsable parameter file, a bad --ros-args
+        print(f'{prog}: ROS arguments refused: {str(exc).splitlines()[0]}', file=sys.stderr)
+        return 2
     argparse.ArgumentParser(prog=prog, description=description,
                             epilog='ROS arguments: --ros-args -p name:=value --params-file file.yaml; '
                                    'real-time: -p thread_priority:=50 -p cpu_affinity:=1 -p executor:=events'
-                            ).parse_args(rclpy.utilities.remove_ros_args(args))
+                            ).parse_args(own_args)
     settings = pre_init_settings(args, node_name)
     problems = settings.problems()
     if problems:
