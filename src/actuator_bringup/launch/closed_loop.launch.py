@@ -44,7 +44,9 @@ def _drive_lifecycle(action):
 
 
 def _on_leader_exit(event, context):
-    """Report the joint's exit code and end the run."""
+    """Report the joint's exit code and end the run (unless launch is ending already: Ctrl-C)."""
+    if context.is_shutdown:
+        return None
     code = event.returncode
     text = f'{event.action.name} exited with code {code}: ending the run'
     return [LogInfo(msg=text if code == 0 else f'ERROR: {text}'), EmitEvent(event=Shutdown(reason=text))]

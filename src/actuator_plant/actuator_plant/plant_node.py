@@ -293,7 +293,7 @@ class PlantNode(ManagedNode):
         if not self.active or self.start_ns is None:
             return
         stamp_ns = stamp_to_ns(msg.header.stamp)
-        if stamp_ns > self.published_ns:
+        if stamp_ns > self.published_ns and not msg.safe_stop:   # a safe stop is taken whatever its stamp
             self.log.error('future_command', lambda: f'command stamped {stamp_ns} ns refused: it answers no sample '
                                                      f'taken yet (newest {self.published_ns} ns)')
             return

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import traceback
 
+from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 
 from actuator_ros.log import RateLimitedLog
@@ -51,6 +52,9 @@ class ManagedNode(LifecycleNode):
         self.finished = False          # read by run_node: the run is over
         self.error: str | None = None  # read by run_node: the run failed
         declare_common(self)
+        self.set_descriptor('use_sim_time', ParameterDescriptor(
+            name='use_sim_time', description='true: time from /clock (sim mode, the plant publishes it); '
+                                             'false: the system clock'))
         self.settings = declare_realtime(self, settings)
         self.load_parameters()
         unknown = check_unknown_parameters(self)
