@@ -31,7 +31,10 @@ EXECUTABLES = ('plant_node', 'eso_node', 'controller_node', 'recorder')
 
 
 def ros2(env, *args, timeout=60.0) -> subprocess.CompletedProcess:
-    """One ros2 command, its output captured."""
+    """One ros2 command, its output captured; no daemon (one left from another test's domain answers stale)."""
+    args = list(args)
+    if args[:2] in (['lifecycle', 'get'], ['lifecycle', 'set'], ['param', 'list'], ['param', 'describe']):
+        args.insert(2, '--no-daemon')
     return subprocess.run(['ros2', *args], env=env, capture_output=True, text=True, timeout=timeout)
 
 
