@@ -19,12 +19,13 @@ import time
 from dataclasses import dataclass, field
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
-from typing import IO, Any, Iterable, Mapping, Optional, Sequence
+from typing import Any, Iterable, Mapping, Optional, Sequence
 
 import yaml
 from mcap.writer import CompressionType, Writer as McapWriter
 
-from .errors import BagWriteError
+from .datafile import DataFile, describe_os_error, open_data_file
+from .errors import BagIOError, BagWriteError
 from .msgdefs import DefinitionSource, normalize_msgtype
 
 #: rosbag2 metadata format version written (Jazzy).
@@ -267,8 +268,12 @@ def write_metadata_file(bag_dir: os.PathLike | str, info: Mapping[str, Any]) -> 
     """Write ``metadata.yaml`` atomically (temporary file, then rename); return its path."""
     path = Path(bag_dir) / 'metadata.yaml'
     tmp = path.with_name('.metadata.yaml.tmp')
-    tmp.write_text(dump_yaml({'rosbag2_bagfile_information': dict(info)}), encoding='utf-8')
-    os.replace(tmp, path)
+    try:
+        tmp.write_text(dump_yaml({'rosbag2_bagfile_information': dict(info)}), encoding='utf-8')
+        os.replace(tmp, path)
+    except OSError:
+        tmp.unlink(missing_ok=True)
+        raise
     return path
 
 
@@ -277,6 +282,9 @@ class BagWriter:
 
     Use as a context manager, or call open(), add_topic(), write() and close().
     Not thread-safe: call it from one thread (the recorder uses a writer thread).
+    A failed write (disk full, I/O error) raises BagIOError once: the file is cut back to its
+    last complete chunk and closed, the writer is closed, ``durable`` says how many messages
+    reached the file, and discard() removes what open() created.
     """
 
     def __init__(
@@ -309,7 +317,10 @@ class BagWriter:
         self.counts: list[int] = []
         self.start_ns = 0
         self.end_ns = 0
-        self._file: Optional[IO[bytes]] = None
+        self._file: Optional[DataFile] = None
+        self._created: list[Path] = []
+        #: Messages known to be in the file (complete chunks written), as opposed to ``counts`` (accepted).
+        self.durable = 0
         self._mcap: Optional[McapWriter] = None
         self._schemas: dict[tuple[str, str], int] = {}
         self._channels: list[int] = []
@@ -325,22 +336,36 @@ class BagWriter:
         """Create the folder and the MCAP file and write the MCAP header."""
         if self._mcap is not None:
             raise BagWriteError(f'{self.path} is already open')
+        missing = [p for p in (self.path, *self.path.parents) if not p.exists()]
         try:
             self.path.mkdir(parents=True, exist_ok=False)
         except FileExistsError:
             raise BagWriteError(f'{self.path} exists already, not overwriting') from None
         except OSError as err:
             raise BagWriteError(f'cannot create {self.path}: {err.strerror}') from None
-        self._file = open(self.mcap_path, 'xb')
-        self._mcap = McapWriter(
-            self._file,
-            chunk_size=self.chunk_size,
-            compression=CompressionType.ZSTD if self.compression == 'zstd' else CompressionType.NONE,
-            enable_crcs=True,
-        )
-        self._mcap.start(profile='ros2', library=_library_id())
-        self._file.flush()
+        self._created = list(missing)
+        try:
+            self._file = open_data_file(self.mcap_path)
+            self._created.insert(0, self.mcap_path)
+            self._mcap = McapWriter(
+                self._file,
+                chunk_size=self.chunk_size,
+                compression=CompressionType.ZSTD if self.compression == 'zstd' else CompressionType.NONE,
+                enable_crcs=True,
+            )
+            self._mcap.start(profile='ros2', library=_library_id())
+        except OSError as err:
+            self._mcap = None
+            self.discard()
+            raise BagIOError(f'cannot create {self.mcap_path}: {describe_os_error(err)}', err.errno) from None
         self._last_flush = time.monotonic()
+
+    def _failed(self, err: OSError, doing: str) -> BagIOError:
+        """Cut the file back to its last complete write, close it; the BagIOError to raise."""
+        if self._file is not None:
+            self._file.cut_back()
+        self.abort()
+        return BagIOError(f'{doing} {self.mcap_path} failed: {describe_os_error(err)}', err.errno)
 
     def _writer(self) -> McapWriter:
         """The open MCAP writer, or BagWriteError."""
@@ -381,18 +406,24 @@ class BagWriter:
             raise BagWriteError(f'unknown topic handle {handle}')
         if log_time_ns < 0:
             raise BagWriteError(f'log time must be >= 0 ns, not {log_time_ns}')
-        writer.add_message(
-            channel_id=self._channels[handle],
-            log_time=int(log_time_ns),
-            data=data,
-            publish_time=int(log_time_ns if publish_time_ns is None else publish_time_ns),
-        )
+        written = self._file.good if self._file is not None else 0
+        try:
+            writer.add_message(
+                channel_id=self._channels[handle],
+                log_time=int(log_time_ns),
+                data=data,
+                publish_time=int(log_time_ns if publish_time_ns is None else publish_time_ns),
+            )
+        except OSError as err:
+            raise self._failed(err, 'writing') from None
         if not any(self.counts):
             self.start_ns = self.end_ns = int(log_time_ns)
         else:
             self.start_ns = min(self.start_ns, int(log_time_ns))
             self.end_ns = max(self.end_ns, int(log_time_ns))
         self.counts[handle] += 1
+        if self._file is not None and self._file.good != written:
+            self.durable = sum(self.counts)  # a chunk (holding this message) went to the file
         self._unflushed += len(data) + 31
         if self._unflushed >= self.chunk_size:
             self.flush()
@@ -409,7 +440,11 @@ class BagWriter:
     def flush(self) -> None:
         """Close the current chunk and hand everything written so far to the operating system."""
         writer = self._writer()
-        writer.flush()
+        try:
+            writer.flush()
+        except OSError as err:
+            raise self._failed(err, 'writing') from None
+        self.durable = sum(self.counts)
         self._last_flush = time.monotonic()
         self._unflushed = 0
 
@@ -432,16 +467,21 @@ class BagWriter:
         """Write the rosbag2 metadata record, the MCAP summary and footer, then metadata.yaml."""
         writer = self._writer()
         info = self.metadata()
-        writer.flush()
-        writer.add_metadata('rosbag2', {'serialized_metadata': dump_yaml(info)})
-        writer.finish()
         assert self._file is not None
-        self._file.flush()
-        os.fsync(self._file.fileno())
-        self._file.close()
-        self._file = None
-        self._mcap = None
-        write_metadata_file(self.path, info)
+        try:
+            writer.flush()
+            self.durable = sum(self.counts)
+            writer.add_metadata('rosbag2', {'serialized_metadata': dump_yaml(info)})
+            writer.finish()
+            os.fsync(self._file.fileno())
+        except OSError as err:
+            raise self._failed(err, 'closing') from None
+        self.abort()
+        try:
+            write_metadata_file(self.path, info)
+        except OSError as err:
+            raise BagIOError(f'writing {self.path / "metadata.yaml"} failed: {describe_os_error(err)} '
+                             f'(the MCAP file is complete)', err.errno) from None
         return self.summary()
 
     def abort(self) -> None:
@@ -450,6 +490,22 @@ class BagWriter:
             self._file.close()
         self._file = None
         self._mcap = None
+
+    def discard(self) -> None:
+        """Close and remove every file and folder open() created (for output that must not stay half-written)."""
+        self.abort()
+        if not self._created:
+            return
+        files = [self.mcap_path, self.path / 'metadata.yaml', self.path / '.metadata.yaml.tmp']
+        for path in files + [p for p in self._created if p not in files]:
+            try:
+                if path in files:
+                    path.unlink(missing_ok=True)
+                else:
+                    path.rmdir()  # a folder open() created; only when empty
+            except OSError:
+                pass
+        self._created = []
 
     def __enter__(self) -> BagWriter:
         """Open on entering the context."""
