@@ -360,9 +360,14 @@ class BagWriter:
             raise BagIOError(f'cannot create {self.mcap_path}: {describe_os_error(err)}', err.errno) from None
         self._last_flush = time.monotonic()
 
-    def _failed(self, err: OSError, doing: str) -> BagIOError:
-        """Cut the file back to its last complete write, close it; the BagIOError to raise."""
+    def _failed(self, err: OSError, doing: str, good_before: int) -> BagIOError:
+        """Cut the file back to its last complete write, close it; the BagIOError to raise.
+
+        When the file grew since ``good_before``, the chunk went out (its index write failed): its messages count.
+        """
         if self._file is not None:
+            if self._file.good != good_before:
+                self.durable = sum(self.counts)
             self._file.cut_back()
         self.abort()
         return BagIOError(f'{doing} {self.mcap_path} failed: {describe_os_error(err)}', err.errno)
@@ -406,6 +411,12 @@ class BagWriter:
             raise BagWriteError(f'unknown topic handle {handle}')
         if log_time_ns < 0:
             raise BagWriteError(f'log time must be >= 0 ns, not {log_time_ns}')
+        if not any(self.counts):
+            self.start_ns = self.end_ns = int(log_time_ns)
+        else:
+            self.start_ns = min(self.start_ns, int(log_time_ns))
+            self.end_ns = max(self.end_ns, int(log_time_ns))
+        self.counts[handle] += 1
         written = self._file.good if self._file is not None else 0
         try:
             writer.add_message(
@@ -415,13 +426,7 @@ class BagWriter:
                 publish_time=int(log_time_ns if publish_time_ns is None else publish_time_ns),
             )
         except OSError as err:
-            raise self._failed(err, 'writing') from None
-        if not any(self.counts):
-            self.start_ns = self.end_ns = int(log_time_ns)
-        else:
-            self.start_ns = min(self.start_ns, int(log_time_ns))
-            self.end_ns = max(self.end_ns, int(log_time_ns))
-        self.counts[handle] += 1
+            raise self._failed(err, 'writing', written) from None
         if self._file is not None and self._file.good != written:
             self.durable = sum(self.counts)  # a chunk (holding this message) went to the file
         self._unflushed += len(data) + 31
@@ -440,10 +445,11 @@ class BagWriter:
     def flush(self) -> None:
         """Close the current chunk and hand everything written so far to the operating system."""
         writer = self._writer()
+        written = self._file.good if self._file is not None else 0
         try:
             writer.flush()
         except OSError as err:
-            raise self._failed(err, 'writing') from None
+            raise self._failed(err, 'writing', written) from None
         self.durable = sum(self.counts)
         self._last_flush = time.monotonic()
         self._unflushed = 0
@@ -468,14 +474,16 @@ class BagWriter:
         writer = self._writer()
         info = self.metadata()
         assert self._file is not None
+        written = self._file.good
         try:
             writer.flush()
             self.durable = sum(self.counts)
+            written = self._file.good
             writer.add_metadata('rosbag2', {'serialized_metadata': dump_yaml(info)})
             writer.finish()
             os.fsync(self._file.fileno())
         except OSError as err:
-            raise self._failed(err, 'closing') from None
+            raise self._failed(err, 'closing', written) from None
         self.abort()
         try:
             write_metadata_file(self.path, info)

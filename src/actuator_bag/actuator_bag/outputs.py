@@ -80,13 +80,13 @@ def _nearest_existing(path: Path) -> Path:
 
 def _check_not_source(label: str, out: Path, real: Path, inputs: Sequence[Path]) -> None:
     """Refuse an output inside (or equal to) a source bag folder, or one that is an input file."""
+    for file in source_files(inputs):
+        if real == file or _same_file(real, file):
+            raise OutputLocationError(f'{label} {out} would overwrite the input file {file}')
     for folder in source_folders(inputs):
         if real == folder or folder in real.parents:
             raise OutputLocationError(f'{label} {out} is inside the source bag {folder}: tools never write '
                                       'into a bag they read; choose a location outside it')
-    for file in source_files(inputs):
-        if real == file or _same_file(real, file):
-            raise OutputLocationError(f'{label} {out} would overwrite the input file {file}')
 
 
 def check_output_file(label: str, out: Path, inputs: Sequence[Path]) -> None:
