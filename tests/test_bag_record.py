@@ -302,3 +302,108 @@ def test_help(ros_process, exe: str) -> None:
     proc = ros_process('actuator_bag', exe, ['--help'])
     assert proc.wait(30) == 0, proc.describe()
     assert proc.stdout.startswith('usage: ')
+
+
+# ------------------------------------------------- full disk, parameters, signals at any moment
+def test_full_disk_stops_the_recorder_at_once(ros_env, ros_process, tmp_path: Path) -> None:
+    """The disk fills while recording (real ENOSPC: the test hook sends bytes past 60 kB to /dev/full): the
+    recorder exits 1 by itself, without SIGINT, with one error line saying so and how many messages are on
+    disk; the file is cut back to its last complete chunk, so bag_repair recovers exactly those."""
+    from actuator_bag.datafile import FULL_AFTER_ENV
+
+    bag = tmp_path / 'full'
+    env = {**ros_env, FULL_AFTER_ENV: '60000'}
+    recorder = ros_process('actuator_bag', 'recorder', ['-o', str(bag), '--flush-interval', '0.2'], env=env)
+    recorder.wait_for_output(r'recording \d+ topics', timeout=30)
+    pub = _publisher(ros_env, tmp_path, 4000)
+    pub.wait_for_output('publishing', timeout=30)
+    started = time.monotonic()
+    code = recorder.wait(20)
+    assert code == 1 and recorder.stopped_by == 'exit', recorder.describe()
+    assert time.monotonic() - started < 4.0 and pub.running  # noticed mid-run, not at the end
+    errors = [x for x in recorder.stderr.splitlines() if x.startswith('recorder: error:')]
+    assert len(errors) == 1 and 'No space left on device (ENOSPC)' in errors[0], recorder.describe()
+    assert f'run bag_repair {bag}' in errors[0] and 'Traceback' not in recorder.stderr
+    on_disk = int(errors[0].split('recording stopped: ')[1].split(' messages are on disk')[0])
+    assert on_disk > 0 and (bag / mcap_name_of(bag)).stat().st_size <= 60000
+    assert not (bag / 'metadata.yaml').exists()
+    pub.stop()
+    repair = RosProcess.installed('actuator_bag', 'bag_repair', [str(bag), '-o', str(tmp_path / 'fixed'), '-q'],
+                                  env=ros_env, log_dir=tmp_path / 'processes')
+    assert repair.wait(60) == 0, repair.describe()
+    assert sum(len(v) for v in _bag_messages(tmp_path / 'fixed').values()) == on_disk
+    assert '0 bytes not recoverable, 0 messages lost' in repair.stdout
+
+
+def mcap_name_of(bag: Path) -> str:
+    """The MCAP file name of a bag folder."""
+    from actuator_bag.bag_format import mcap_name
+
+    return mcap_name(bag)
+
+
+@pytest.mark.parametrize('args, names', [
+    (['-p', 'queue_depth:=many'], ['queue_depth']),
+    (['-p', 'queue_depth:=0'], ['queue_depth', '[1, ']),
+    (['-p', 'flush_interval:=true'], ['flush_interval']),
+    (['-p', 'reliability:=sometimes'], ['reliability', 'best_effort']),
+    (['-p', 'topics:=7'], ['topics']),
+    (['-p', 'queu_depth:=5'], ['queu_depth', "did you mean 'queue_depth'"]),
+])
+def test_recorder_refuses_bad_parameters(ros_process, tmp_path: Path, args: list, names: list) -> None:
+    """A wrong type, a value out of range or a misspelled name: one line naming it, exit 2, no bag created."""
+    bag = tmp_path / 'never'
+    proc = ros_process('actuator_bag', 'recorder', ['-o', str(bag), '--ros-args', *args])
+    assert proc.wait(30) == 2, proc.describe()
+    lines = [x for x in proc.stderr.splitlines() if x.startswith('recorder: ')]
+    assert len(lines) == 1 and all(n in lines[0] for n in names), proc.describe()
+    assert 'Traceback' not in proc.stderr and not bag.exists()
+
+
+def test_recorder_allows_unknown_parameters_when_asked(ros_process, tmp_path: Path) -> None:
+    """allow_unknown_parameters:=true turns a misspelled name into a warning; the recorder runs."""
+    bag = tmp_path / 'ok'
+    proc = _start_recorder(ros_process, bag, '--ros-args', '-p', 'allow_unknown_parameters:=true',
+                           '-p', 'queu_depth:=5')
+    assert proc.stop() == 0 and (bag / 'metadata.yaml').is_file(), proc.describe()
+    assert 'queu_depth' in proc.stderr + proc.stdout
+
+
+def test_recorder_parameters_have_descriptions(rclpy_context, tmp_path: Path) -> None:
+    """Every parameter the recorder declares has a description (ros2 param describe shows it)."""
+    from actuator_bag.recorder_node import RecorderNode, build_parser
+
+    node = RecorderNode(build_parser().parse_args(['-o', str(tmp_path / 'desc')]), context=rclpy_context)
+    try:
+        names = sorted(n for n in node._parameters if n != 'use_sim_time')  # noqa: SLF001
+        assert {'topics', 'record_clock', 'output', 'queue_depth', 'reliability', 'flush_interval', 'chunk_size',
+                'allow_unknown_parameters'} <= set(names)
+        assert all(d.description for d in node.describe_parameters(names)), names
+        node.finish()
+    finally:
+        node.destroy_node()
+
+
+@pytest.mark.parametrize('exe', ['recorder', 'player'])
+@pytest.mark.parametrize('delay, signame', [(0.15, 'SIGINT'), (0.3, 'SIGTERM'), (0.5, 'SIGINT'), (0.8, 'SIGTERM'),
+                                            (None, 'SIGINT')])
+def test_signal_at_any_moment_exits_0(ros_process, tmp_path: Path, exe: str, delay, signame: str) -> None:
+    """SIGINT or SIGTERM during the imports, the start-up or the run (None: once running) ends recorder and
+    player with exit 0 and no traceback; a bag the recorder had opened is closed (metadata.yaml)."""
+    from test_bag_support import synthetic_run, write_run_bag
+
+    bag = tmp_path / 'sig'
+    if exe == 'recorder':
+        args = ['-o', str(bag)]
+    else:
+        args = [str(write_run_bag(tmp_path / 'src', synthetic_run(duration_s=0.2))), '--loop']
+    proc = ros_process('actuator_bag', exe, args)
+    if delay is None:
+        proc.wait_for_output(r'recording \d+ topics' if exe == 'recorder' else 'playing', timeout=30)
+    else:
+        time.sleep(delay)
+    proc.popen.send_signal(getattr(signal, signame))
+    assert proc.wait(20) == 0, proc.describe()
+    assert 'Traceback' not in proc.stderr + proc.stdout, proc.describe()
+    if exe == 'recorder' and bag.exists():
+        assert (bag / 'metadata.yaml').is_file(), proc.describe()
