@@ -305,6 +305,27 @@ def test_garbage_inserted_between_chunks_loses_no_message(tmp_path: Path) -> Non
     assert result.bytes_lost == 1000
 
 
+def test_two_damaged_places_are_both_reported(tmp_path: Path) -> None:
+    """A chunk failing its CRC and, later, garbage over another chunk's header: both ranges are reported, the
+    first with its message count; the line gives the counted messages as a lower bound."""
+    def damage(data: bytearray, chunks: list) -> None:
+        _, start, end = chunks[1]
+        data[(start + end) // 2] ^= 0xFF
+        data[chunks[4][1]:chunks[4][1] + 30] = b'\xff' * 30
+
+    bag, payloads, records, per_chunk = _damaged(tmp_path, damage)
+    chunks = [r for r in records if r[0] == CHUNK]
+    result = repair_bag(bag, tmp_path / 'fixed', quiet=True)
+    losses = result.scans[0].losses
+    assert [(x.start, x.messages) for x in losses] == [(chunks[1][1], per_chunk[1]), (chunks[4][1], None)]
+    assert losses[0].end == chunks[1][2]
+    assert f'at least {per_chunk[1]} messages lost' in result.line()
+    assert result.as_dict()['messages_lost'] == 'unknown' and result.as_dict()['messages_lost_counted'] == per_chunk[1]
+    first, second = sum(per_chunk[:1]), sum(per_chunk[:4])
+    assert _read(tmp_path / 'fixed') == (payloads[:first] + payloads[first + per_chunk[1]:second]
+                                         + payloads[second + per_chunk[4]:])
+
+
 def test_complete_bag_with_a_corrupt_chunk_reaches_its_end(tmp_path: Path) -> None:
     """A closed bag (summary, footer) with one damaged chunk: the scan goes on to the end of the data section."""
     store = SOURCE.typestore([MSGTYPE])

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import errno
 import hashlib
+import json
 import os
 import struct
 import subprocess
@@ -131,6 +132,14 @@ def test_repair_refuses_output_locations_before_work(tmp_path: Path, case: str) 
     assert '%' not in proc.stderr and proc.stdout == ''
     assert _tree(src) == before
     assert not (tmp_path / 'run_repaired').exists()
+
+
+def test_repair_report_may_go_into_the_new_output(tmp_path: Path) -> None:
+    """--json inside the -o folder repair creates is accepted (that folder is new, not a source)."""
+    src = _interrupted(tmp_path / 'run')
+    proc = _run('repair', '-q', str(src), '-o', str(tmp_path / 'fixed'), '--json', str(tmp_path / 'fixed' / 'r.json'))
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads((tmp_path / 'fixed' / 'r.json').read_text())['messages_lost'] == 0
 
 
 def test_repair_refuses_existing_non_empty_output(tmp_path: Path) -> None:

@@ -89,12 +89,17 @@ def _check_not_source(label: str, out: Path, real: Path, inputs: Sequence[Path])
                                       'into a bag they read; choose a location outside it')
 
 
-def check_output_file(label: str, out: Path, inputs: Sequence[Path]) -> None:
-    """Check a file to be written (``--json F``): not a source, not a folder, its folder writable."""
+def check_output_file(label: str, out: Path, inputs: Sequence[Path], created: Iterable[Path] = ()) -> None:
+    """Check a file to be written (``--json F``): not a source, not a folder, its folder writable.
+
+    ``created``: folders the tool creates before it writes the file (its folder may be one of them).
+    """
     real = Path(out).resolve()
     _check_not_source(label, out, real, inputs)
     if real.is_dir():
         raise OutputLocationError(f'{label} {out} is a folder, not a file')
+    if real.parent in {Path(c).resolve() for c in created}:
+        return
     if not writable_folder(real.parent):
         what = 'is not writable' if real.parent.is_dir() else 'does not exist or is not a folder'
         raise OutputLocationError(f'{label} {out}: folder {real.parent} {what}')

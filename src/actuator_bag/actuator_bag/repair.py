@@ -122,9 +122,13 @@ class RepairResult:
         details = [f'{s.path.name} {loss.text()}' for s in self.scans for loss in s.losses]
         details += [f'{s.path.name}: {s.without_channel} messages of intact chunks whose channel was defined in '
                     'a lost part' for s in self.scans if s.without_channel]
+        counted = sum(s.messages_lost_counted for s in self.scans)
+        if lost is not None:
+            amount = str(lost)
+        else:
+            amount = f'at least {counted}' if counted else 'an unknown number of'
         return (f'repaired {self.summary.line()}; {how}; {self.bytes_lost} bytes not recoverable, '
-                f'{"an unknown number of" if lost is None else lost} messages lost'
-                + (f' ({"; ".join(details)})' if details else ''))
+                f'{amount} messages lost' + (f' ({"; ".join(details)})' if details else ''))
 
     def as_dict(self) -> dict[str, Any]:
         """JSON form: the repaired bag, its counts, and per file the scan and every skipped range."""
@@ -134,6 +138,7 @@ class RepairResult:
             'counts': self.summary.counts,
             'bytes_lost': self.bytes_lost,
             'messages_lost': 'unknown' if lost is None else lost,
+            'messages_lost_counted': sum(s.messages_lost_counted for s in self.scans),
             'scans': [s.as_dict() for s in self.scans],
         }
 
@@ -221,7 +226,8 @@ def _main(argv: Optional[Sequence[str]]) -> int:
     """Parse arguments, repair, print the one-line result."""
     args = build_parser().parse_args(argv)
     if args.json:
-        check_output_file('--json', args.json, [args.bag])
+        out = args.out if args.out is not None else default_output(args.bag)
+        check_output_file('--json', args.json, [args.bag], created=[out])
     result = repair_bag(args.bag, args.out, quiet=args.quiet)
     print(result.line())
     if args.json:

@@ -108,6 +108,11 @@ class ScanReport:
         """Messages known lost (damaged chunks plus messages without channel); None when a loss is uncounted."""
         if any(loss.messages is None for loss in self.losses):
             return None
+        return self.messages_lost_counted
+
+    @property
+    def messages_lost_counted(self) -> int:
+        """Messages lost in the ranges whose count is known, plus messages without channel (a lower bound)."""
         return sum(loss.messages or 0 for loss in self.losses) + self.without_channel
 
     def as_dict(self) -> dict[str, Any]:
@@ -117,6 +122,7 @@ class ScanReport:
             'file': str(self.path), 'stop_reason': self.stop_reason, 'complete': self.complete,
             'bytes_lost': self.bytes_lost, 'chunks': self.chunks, 'messages': self.messages,
             'messages_lost': 'unknown' if lost is None else lost,
+            'messages_lost_counted': self.messages_lost_counted,
             'messages_without_channel': self.without_channel,
             'losses': [loss.as_dict() for loss in self.losses],
         }
