@@ -351,9 +351,35 @@ def test_complete_bag_with_a_corrupt_chunk_reaches_its_end(tmp_path: Path) -> No
     assert result.messages_lost == per_chunk[1]
 
 
+def test_closed_bag_with_its_first_chunk_lost_keeps_the_rest(tmp_path: Path) -> None:
+    """A closed bag whose first chunk (the one holding the schema and channel) fails its CRC: the definitions
+    are taken from the summary section, so every later chunk's messages are recovered."""
+    store = SOURCE.typestore([MSGTYPE])
+    src = tmp_path / 'ok'
+    payloads = []
+    with BagWriter(src, chunk_size=2048) as writer:
+        handle = writer.add_topic(topic_spec('/current_command', MSGTYPE, SOURCE))
+        for k in range(300):
+            msg = store.types[MSGTYPE](
+                header=store.types['std_msgs/msg/Header'](
+                    stamp=store.types['builtin_interfaces/msg/Time'](sec=1, nanosec=k), frame_id=''),
+                current_a=float(k), safe_stop=False)
+            payloads.append(bytes(store.serialize_cdr(msg, MSGTYPE)))
+            writer.write(handle, k, payloads[-1])
+    mcap = src / mcap_name(src)
+    per_chunk = _chunk_messages(mcap)
+    first = [r for r in _records(mcap) if r[0] == CHUNK][0]
+    data = bytearray(mcap.read_bytes())
+    data[(first[1] + first[2]) // 2] ^= 0xFF
+    mcap.write_bytes(bytes(data))
+    result = repair_bag(src, tmp_path / 'again', quiet=True)
+    assert _read(tmp_path / 'again') == payloads[per_chunk[0]:]
+    assert result.scans[0].without_channel == 0 and result.messages_lost == per_chunk[0]
+
+
 def test_lost_channel_definition_is_reported(tmp_path: Path) -> None:
-    """When the chunk holding the channel definition is lost, later messages cannot be attributed: they are
-    counted as lost (messages without channel), never silently dropped."""
+    """In an interrupted bag (no summary) whose chunk holding the channel definition is lost, later messages
+    cannot be attributed: they are counted as lost (messages without channel), never silently dropped."""
     def damage(data: bytearray, chunks: list) -> None:
         _, start, end = chunks[0]
         data[(start + end) // 2] ^= 0xFF

@@ -28,7 +28,7 @@ from .datafile import describe_os_error
 from .errors import BagWriteError, RepairError, run_cli
 from .outputs import check_output_file, check_output_folder, source_folders
 from .progress import Progress
-from .scan import Loss, ScanReport, scan_mcap
+from .scan import Loss, ScanReport, scan_mcap, summary_definitions
 
 __all__ = ['Loss', 'RepairResult', 'ScanReport', 'default_output', 'main', 'mcap_files', 'repair_bag', 'scan_mcap']
 
@@ -163,20 +163,30 @@ def repair_bag(
         for path in files:
             report = ScanReport(path=path, file_size=path.stat().st_size)
             scans.append(report)
+            # The summary's definitions (closed files only) stand in for those lost with a damaged chunk.
+            spare_schemas, spare_channels = summary_definitions(path)
             schemas: dict[int, Schema] = {}
             handles: dict[int, int] = {}
             base = done
+
+            def register(channel: Channel) -> None:
+                nonlocal writer
+                if writer is None:
+                    writer = BagWriter(out, custom_data={'repaired_from': str(bag.resolve())})
+                    writer.open()
+                schema = schemas.get(channel.schema_id) or spare_schemas.get(channel.schema_id)
+                topic = _topic_from(channel, schema)
+                known = [i for i, t in enumerate(writer.topics) if t.name == topic.name]
+                handles[channel.id] = known[0] if known else writer.add_topic(topic)
+
             for record in scan_mcap(path, report, lambda pos: progress.update(base + pos)):
                 if isinstance(record, Schema):
                     schemas[record.id] = record
                 elif isinstance(record, Channel) and record.id not in handles:
-                    if writer is None:
-                        writer = BagWriter(out, custom_data={'repaired_from': str(bag.resolve())})
-                        writer.open()
-                    topic = _topic_from(record, schemas.get(record.schema_id))
-                    known = [i for i, t in enumerate(writer.topics) if t.name == topic.name]
-                    handles[record.id] = known[0] if known else writer.add_topic(topic)
+                    register(record)
                 elif isinstance(record, Message):
+                    if record.channel_id not in handles and record.channel_id in spare_channels:
+                        register(spare_channels[record.channel_id])
                     if record.channel_id not in handles:
                         report.without_channel += 1
                         continue

@@ -212,6 +212,41 @@ def _indexed_messages(buf: Any, pos: int, size: int) -> Optional[int]:
     return total if found else None
 
 
+def summary_definitions(path: Path) -> tuple[dict[int, Schema], dict[int, Channel]]:
+    """Schemas and channels of the file's summary section when its footer is intact (a closed file), else none.
+
+    They stand in for definitions lost with a damaged chunk: a writer puts each schema and channel in the
+    chunk where it is first used only, and repeats them all in the summary at close.
+    """
+    schemas: dict[int, Schema] = {}
+    channels: dict[int, Channel] = {}
+    with open(path, 'rb') as bio, mmap.mmap(bio.fileno(), 0, access=mmap.ACCESS_READ) as buf:
+        size = len(buf)
+        foot = size - len(MCAP_MAGIC) - _HEAD - 20
+        if foot < len(MCAP_MAGIC) or buf[size - len(MCAP_MAGIC):] != MCAP_MAGIC:
+            return schemas, channels
+        try:
+            opcode, _, footer = _decode(buf, foot, size - len(MCAP_MAGIC))
+        except _Damage:
+            return schemas, channels
+        if opcode != Opcode.FOOTER:
+            return schemas, channels
+        pos, end = footer.summary_start, footer.summary_offset_start or foot
+        if not len(MCAP_MAGIC) <= pos <= end <= foot:
+            return schemas, channels
+        while pos < end:
+            try:
+                opcode, length, record = _decode(buf, pos, end)
+            except _Damage:
+                break
+            if isinstance(record, Schema):
+                schemas[record.id] = record
+            elif isinstance(record, Channel):
+                channels[record.id] = record
+            pos += _HEAD + length
+    return schemas, channels
+
+
 def scan_mcap(
     path: Path, report: ScanReport, on_progress: Optional[Callable[[int], None]] = None
 ) -> Iterator[Record]:
