@@ -306,9 +306,8 @@ def test_help(ros_process, exe: str) -> None:
 
 # ------------------------------------------------- full disk, parameters, signals at any moment
 def test_full_disk_stops_the_recorder_at_once(ros_env, ros_process, tmp_path: Path) -> None:
-    """The disk fills while recording (real ENOSPC: the test hook sends bytes past 60 kB to /dev/full): the
-    recorder exits 1 by itself, without SIGINT, with one error line saying so and how many messages are on
-    disk; the file is cut back to its last complete chunk, so bag_repair recovers exactly those."""
+    """Disk full while recording (real ENOSPC): exit 1 by itself, one error line, bag_repair recovers what it said."""
+    from actuator_bag.bag_format import mcap_name
     from actuator_bag.datafile import FULL_AFTER_ENV
 
     bag = tmp_path / 'full'
@@ -325,7 +324,7 @@ def test_full_disk_stops_the_recorder_at_once(ros_env, ros_process, tmp_path: Pa
     assert len(errors) == 1 and 'No space left on device (ENOSPC)' in errors[0], recorder.describe()
     assert f'run bag_repair {bag}' in errors[0] and 'Traceback' not in recorder.stderr
     on_disk = int(errors[0].split('recording stopped: ')[1].split(' messages are on disk')[0])
-    assert on_disk > 0 and (bag / mcap_name_of(bag)).stat().st_size <= 60000
+    assert on_disk > 0 and (bag / mcap_name(bag)).stat().st_size <= 60000
     assert not (bag / 'metadata.yaml').exists()
     pub.stop()
     repair = RosProcess.installed('actuator_bag', 'bag_repair', [str(bag), '-o', str(tmp_path / 'fixed'), '-q'],
@@ -333,13 +332,6 @@ def test_full_disk_stops_the_recorder_at_once(ros_env, ros_process, tmp_path: Pa
     assert repair.wait(60) == 0, repair.describe()
     assert sum(len(v) for v in _bag_messages(tmp_path / 'fixed').values()) == on_disk
     assert '0 bytes not recoverable, 0 messages lost' in repair.stdout
-
-
-def mcap_name_of(bag: Path) -> str:
-    """The MCAP file name of a bag folder."""
-    from actuator_bag.bag_format import mcap_name
-
-    return mcap_name(bag)
 
 
 @pytest.mark.parametrize('args, names', [
@@ -388,8 +380,7 @@ def test_recorder_parameters_have_descriptions(rclpy_context, tmp_path: Path) ->
 @pytest.mark.parametrize('delay, signame', [(0.15, 'SIGINT'), (0.3, 'SIGTERM'), (0.5, 'SIGINT'), (0.8, 'SIGTERM'),
                                             (None, 'SIGINT')])
 def test_signal_at_any_moment_exits_0(ros_process, tmp_path: Path, exe: str, delay, signame: str) -> None:
-    """SIGINT or SIGTERM during the imports, the start-up or the run (None: once running) ends recorder and
-    player with exit 0 and no traceback; a bag the recorder had opened is closed (metadata.yaml)."""
+    """SIGINT/SIGTERM during imports, start-up or the run: exit 0, no traceback; an opened bag is closed."""
     from test_bag_support import synthetic_run, write_run_bag
 
     bag = tmp_path / 'sig'

@@ -231,7 +231,7 @@ def _chunk_messages(path: Path) -> list[int]:
 
 
 def _damaged(tmp_path: Path, damage) -> tuple[Path, list[bytes], list[tuple[int, int, int]], list[int]]:
-    """An interrupted bag of 8+ chunks, its payloads, records and messages per chunk, after damage(bytearray, records)."""
+    """An interrupted bag of 6+ chunks damaged by damage(data, chunks): its payloads, records, messages per chunk."""
     bag = tmp_path / 'run'
     payloads = _interrupted_bag(bag, flushed=600, unflushed=0)
     mcap = bag / mcap_name(bag)
@@ -244,8 +244,7 @@ def _damaged(tmp_path: Path, damage) -> tuple[Path, list[bytes], list[tuple[int,
 
 
 def test_resyncs_after_a_chunk_failing_its_crc(tmp_path: Path) -> None:
-    """Bytes changed inside chunk 3's data: exactly that chunk is skipped, every later chunk is recovered, and
-    the loss is reported as that byte range holding that chunk's message count (summary line and JSON)."""
+    """Chunk 3 fails its CRC: exactly it is skipped, later chunks recovered, its range and message count reported."""
     def damage(data: bytearray, chunks: list) -> None:
         _, start, end = chunks[2]
         middle = (start + end) // 2
@@ -270,8 +269,7 @@ def test_resyncs_after_a_chunk_failing_its_crc(tmp_path: Path) -> None:
 
 
 def test_resyncs_after_garbage_over_a_record_header(tmp_path: Path) -> None:
-    """Random bytes over chunk 4's header and fields: the scan resynchronises at the next plausible record,
-    recovers every later chunk, and reports the skipped range from the damage on with an unknown message count."""
+    """Garbage over chunk 4's header: resync at the next plausible record, later chunks recovered, count unknown."""
     rng = random.Random(4)
 
     def damage(data: bytearray, chunks: list) -> None:
@@ -306,8 +304,7 @@ def test_garbage_inserted_between_chunks_loses_no_message(tmp_path: Path) -> Non
 
 
 def test_two_damaged_places_are_both_reported(tmp_path: Path) -> None:
-    """A chunk failing its CRC and, later, garbage over another chunk's header: both ranges are reported, the
-    first with its message count; the line gives the counted messages as a lower bound."""
+    """A CRC-failing chunk and a damaged header later: both ranges reported, the counted messages as a lower bound."""
     def damage(data: bytearray, chunks: list) -> None:
         _, start, end = chunks[1]
         data[(start + end) // 2] ^= 0xFF
@@ -352,8 +349,7 @@ def test_complete_bag_with_a_corrupt_chunk_reaches_its_end(tmp_path: Path) -> No
 
 
 def test_closed_bag_with_its_first_chunk_lost_keeps_the_rest(tmp_path: Path) -> None:
-    """A closed bag whose first chunk (the one holding the schema and channel) fails its CRC: the definitions
-    are taken from the summary section, so every later chunk's messages are recovered."""
+    """Closed bag, first chunk (schema, channel) corrupt: definitions come from the summary, later chunks recovered."""
     store = SOURCE.typestore([MSGTYPE])
     src = tmp_path / 'ok'
     payloads = []
@@ -378,8 +374,7 @@ def test_closed_bag_with_its_first_chunk_lost_keeps_the_rest(tmp_path: Path) -> 
 
 
 def test_lost_channel_definition_is_reported(tmp_path: Path) -> None:
-    """In an interrupted bag (no summary) whose chunk holding the channel definition is lost, later messages
-    cannot be attributed: they are counted as lost (messages without channel), never silently dropped."""
+    """Interrupted bag, chunk defining the channel lost: later messages are counted as without channel, not hidden."""
     def damage(data: bytearray, chunks: list) -> None:
         _, start, end = chunks[0]
         data[(start + end) // 2] ^= 0xFF

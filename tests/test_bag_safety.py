@@ -76,8 +76,7 @@ def _interrupted(path: Path, count: int = 300) -> Path:
 @pytest.mark.parametrize('case', ['json_inside', 'json_is_mcap', 'json_links_to_input', 'out_inside', 'out_is_bag',
                                   'out_figure_links_to_input', 'json_folder_missing', 'json_under_a_file'])
 def test_analyze_refuses_output_locations_before_work(bag: Path, tmp_path: Path, case: str) -> None:
-    """bag_analyze refuses an output inside/equal to an input bag, over an input file (also via a link), or
-    in a folder it cannot write: one line, exit 2, before reading any bag (no table), the bag untouched."""
+    """bag_analyze refuses an output inside/over an input bag (links too) or unwritable: one line, exit 2, no work."""
     before = _tree(bag)
     mcap = bag / mcap_name(bag)
     link = tmp_path / 'link.json'
@@ -114,8 +113,7 @@ def test_analyze_writes_next_to_a_bag(bag: Path, tmp_path: Path) -> None:
 # ------------------------------------------------------------------------------- bag_repair
 @pytest.mark.parametrize('case', ['out_inside', 'out_is_bag', 'json_inside', 'out_under_a_file', 'json_is_mcap'])
 def test_repair_refuses_output_locations_before_work(tmp_path: Path, case: str) -> None:
-    """bag_repair refuses -o inside/equal to the bag, --json inside it or over its file, an -o it cannot
-    create: one line, exit 2, no progress (no work done), nothing created, the bag untouched."""
+    """bag_repair refuses -o/--json inside or over the bag, or an -o it cannot create: exit 2, no work, nothing made."""
     src = _interrupted(tmp_path / 'run')
     before = _tree(src)
     (tmp_path / 'afile').write_text('x')
@@ -166,8 +164,7 @@ def test_repair_of_a_file_in_its_bag_folder_writes_beside_the_folder(tmp_path: P
 @pytest.mark.parametrize('limit', [5000, 12345, 20000])
 def test_writer_full_disk_is_one_error_and_leaves_a_repairable_file(tmp_path: Path, limit: int,
                                                                      monkeypatch: pytest.MonkeyPatch) -> None:
-    """The disk fills mid-recording: write() raises BagIOError (ENOSPC) once, the file is cut back to its last
-    complete chunk and closed, ``durable`` says how many messages are in it, and bag_repair recovers exactly those."""
+    """Disk full mid-write: one BagIOError (ENOSPC), file cut to a record end, repair recovers exactly `durable`."""
     monkeypatch.setenv(FULL_AFTER_ENV, str(limit))
     store = SOURCE.typestore([MSGTYPE])
     types = store.types
@@ -204,8 +201,7 @@ def test_writer_that_cannot_start_leaves_nothing(tmp_path: Path, monkeypatch: py
 
 @pytest.mark.parametrize('limit', ['0', '3000', '30000'])
 def test_repair_onto_a_full_disk(tmp_path: Path, limit: str) -> None:
-    """bag_repair onto a full disk (at its header, mid-way, near the end): exit 1, one line naming ENOSPC, no
-    traceback, and nothing of the output left (not even the parent folders it created)."""
+    """bag_repair onto a full disk: exit 1, one ENOSPC line, no traceback, none of its output (or parents) left."""
     src = write_run_bag(tmp_path / 'run', synthetic_run(duration_s=0.5))
     (src / 'metadata.yaml').unlink()
     before = _tree(src)

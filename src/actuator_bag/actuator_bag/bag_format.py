@@ -280,11 +280,9 @@ class BagWriter:
         self._last_flush = time.monotonic()
 
     def _failed(self, err: OSError, doing: str, good_before: int) -> BagIOError:
-        """Cut the file back to its last complete write, close it; the BagIOError to raise.
-
-        When the file grew since ``good_before``, the chunk went out (its index write failed): its messages count.
-        """
+        """Cut the file back to its last complete write, close it; the BagIOError to raise."""
         if self._file is not None:
+            # Grown since good_before: the chunk went out and its index write failed, so its messages are in.
             if self._file.good != good_before:
                 self.durable = sum(self.counts)
             self._file.cut_back()

@@ -53,7 +53,7 @@ def run_cli(
     main: Callable[[Optional[Sequence[str]]], int],
     argv: Optional[Sequence[str]] = None,
 ) -> int:
-    """Run a tool's main, turning a BagError (its exit_code) or an interrupt into a one-line message and an exit code."""
+    """Run a tool's main, turning a BagError (exit code: its exit_code) or an interrupt into a one-line message."""
     try:
         return main(argv)
     except BagError as err:

@@ -90,10 +90,7 @@ def _check_not_source(label: str, out: Path, real: Path, inputs: Sequence[Path])
 
 
 def check_output_file(label: str, out: Path, inputs: Sequence[Path], created: Iterable[Path] = ()) -> None:
-    """Check a file to be written (``--json F``): not a source, not a folder, its folder writable.
-
-    ``created``: folders the tool creates before it writes the file (its folder may be one of them).
-    """
+    """Check a file to be written (``--json F``): not a source, not a folder, its folder writable or in ``created``."""
     real = Path(out).resolve()
     _check_not_source(label, out, real, inputs)
     if real.is_dir():

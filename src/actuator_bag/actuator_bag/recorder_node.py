@@ -273,7 +273,7 @@ class RecorderNode(Node):
         return self.thread.error is not None
 
     def finish(self) -> BagSummary:
-        """Stop the subscriptions, let the writer drain, close the bag; BagError saying what is on disk if writing failed."""
+        """Stop the subscriptions, let the writer drain, close the bag (failed writing: BagError, what is on disk)."""
         for sub in self.subscriptions_:
             self.destroy_subscription(sub)
         self.subscriptions_ = []

@@ -46,7 +46,7 @@ def mcap_files(bag: Path) -> list[Path]:
 
 
 def default_output(bag: Path) -> Path:
-    """``<bag>_repaired`` next to the bag folder (or next to a single .mcap file, by its stem, outside its bag folder)."""
+    """``<bag>_repaired`` beside the bag folder (for a lone .mcap file: beside it, by its stem)."""
     if bag.is_file() and source_folders([bag]):
         bag = bag.parent
     base = bag.parent / (bag.stem if bag.is_file() else bag.name)

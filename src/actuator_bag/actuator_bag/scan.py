@@ -129,11 +129,10 @@ class ScanReport:
 
 
 class _Damage(Exception):
-    """The bytes at a position are not a valid record; the message says why.
+    """The bytes at a position are not a valid record; ``length`` is set when its framing is trusted."""
 
-    ``length`` is set when the record's framing is intact (a chunk whose fields decode to exactly
-    its length but whose data fails to decompress or its CRC): its extent can be skipped exactly.
-    """
+    # The framing is trusted for a chunk whose fields decode to exactly its length but whose data fails to
+    # decompress or its CRC: its extent can then be skipped exactly.
 
     def __init__(self, reason: str, length: Optional[int] = None) -> None:
         """A reason, and the record length when the framing is trusted."""
@@ -213,11 +212,9 @@ def _indexed_messages(buf: Any, pos: int, size: int) -> Optional[int]:
 
 
 def summary_definitions(path: Path) -> tuple[dict[int, Schema], dict[int, Channel]]:
-    """Schemas and channels of the file's summary section when its footer is intact (a closed file), else none.
-
-    They stand in for definitions lost with a damaged chunk: a writer puts each schema and channel in the
-    chunk where it is first used only, and repeats them all in the summary at close.
-    """
+    """Schemas and channels of the file's summary section when its footer is intact (a closed file), else none."""
+    # They stand in for definitions lost with a damaged chunk: a writer puts each schema and channel only in the
+    # chunk where it is first used, and repeats them all in the summary at close.
     schemas: dict[int, Schema] = {}
     channels: dict[int, Channel] = {}
     with open(path, 'rb') as bio, mmap.mmap(bio.fileno(), 0, access=mmap.ACCESS_READ) as buf:
@@ -250,10 +247,7 @@ def summary_definitions(path: Path) -> tuple[dict[int, Schema], dict[int, Channe
 def scan_mcap(
     path: Path, report: ScanReport, on_progress: Optional[Callable[[int], None]] = None
 ) -> Iterator[Record]:
-    """Yield the schemas, channels, messages and metadata of an MCAP file in file order, skipping damage.
-
-    ``report`` is filled in as the scan goes: where and why it stopped, and every byte range it skipped.
-    """
+    """Yield an MCAP file's schemas, channels, messages, metadata in file order, skipping damage (``report``: what)."""
     with open(path, 'rb') as bio:
         if bio.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
             raise RepairError(f'{path} is not an MCAP file (bad magic)')
