@@ -155,19 +155,22 @@ def test_cli_reports_progress_and_result(tmp_path: Path) -> None:
     assert (tmp_path / 'r.json').is_file()
 
 
-@pytest.mark.parametrize('case', ['missing', 'not_mcap', 'empty_dir', 'output_exists', 'header_only'])
+@pytest.mark.parametrize('case', ['missing', 'not_mcap', 'empty_dir', 'output_exists', 'header_only', 'empty_file'])
 def test_cli_bad_input_is_one_line_error(tmp_path: Path, case: str) -> None:
     """Each kind of bad input gives one line naming the problem and exit code 1, never a traceback."""
     target = tmp_path / 'bag'
     expect = {
         'missing': 'does not exist', 'not_mcap': 'not an MCAP file', 'empty_dir': 'no .mcap file',
-        'output_exists': 'exists already', 'header_only': 'nothing recoverable',
+        'output_exists': 'exists already', 'header_only': 'nothing recoverable', 'empty_file': 'not an MCAP file',
     }[case]
     if case == 'not_mcap':
         target.mkdir()
         (target / 'bag_0.mcap').write_text('hello, this is text\n')
     elif case == 'empty_dir':
         target.mkdir()
+    elif case == 'empty_file':
+        target.mkdir()
+        (target / 'bag_0.mcap').write_bytes(b'')
     elif case == 'output_exists':
         _interrupted_bag(target, flushed=10, unflushed=0)
         (tmp_path / 'bag_repaired').mkdir()

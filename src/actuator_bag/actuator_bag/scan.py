@@ -217,6 +217,8 @@ def summary_definitions(path: Path) -> tuple[dict[int, Schema], dict[int, Channe
     # chunk where it is first used, and repeats them all in the summary at close.
     schemas: dict[int, Schema] = {}
     channels: dict[int, Channel] = {}
+    if path.stat().st_size < 2 * len(MCAP_MAGIC) + _HEAD + 20:
+        return schemas, channels
     with open(path, 'rb') as bio, mmap.mmap(bio.fileno(), 0, access=mmap.ACCESS_READ) as buf:
         size = len(buf)
         foot = size - len(MCAP_MAGIC) - _HEAD - 20
