@@ -351,6 +351,22 @@ def test_complete_bag_with_a_corrupt_chunk_reaches_its_end(tmp_path: Path) -> No
     assert result.messages_lost == per_chunk[1]
 
 
+def test_adjacent_corrupt_chunks_are_each_counted(tmp_path: Path) -> None:
+    """Chunks 2 and 3 both fail their CRC: two exact ranges, each with its own message count, the rest recovered."""
+    def damage(data: bytearray, chunks: list) -> None:
+        for _, start, end in chunks[2:4]:
+            data[(start + end) // 2] ^= 0xFF
+
+    bag, payloads, records, per_chunk = _damaged(tmp_path, damage)
+    chunks = [r for r in records if r[0] == CHUNK]
+    result = repair_bag(bag, tmp_path / 'fixed', quiet=True)
+    assert [(x.start, x.end, x.messages) for x in result.scans[0].losses] == [
+        (chunks[2][1], chunks[2][2], per_chunk[2]), (chunks[3][1], chunks[3][2], per_chunk[3])]
+    assert result.messages_lost == per_chunk[2] + per_chunk[3]
+    before = sum(per_chunk[:2])
+    assert _read(tmp_path / 'fixed') == payloads[:before] + payloads[before + per_chunk[2] + per_chunk[3]:]
+
+
 def test_closed_bag_with_its_first_chunk_lost_keeps_the_rest(tmp_path: Path) -> None:
     """Closed bag, first chunk (schema, channel) corrupt: definitions come from the summary, later chunks recovered."""
     store = SOURCE.typestore([MSGTYPE])

@@ -199,12 +199,17 @@ def _indexed_messages(buf: Any, pos: int, size: int) -> Optional[int]:
     """Messages listed by the message index records starting at ``pos`` (a chunk's); None unless intact."""
     total, found = 0, False
     while pos < size:
+        if size - pos < _HEAD:
+            return None
+        opcode, length = _RECORD_HEADER.unpack_from(buf, pos)
+        if opcode != Opcode.MESSAGE_INDEX:
+            # The group ends at the next record; its header must look sound, else the group may be cut short.
+            sound = opcode in _KNOWN and length <= size - pos - _HEAD
+            return total if found and sound else None
         try:
-            opcode, length, record = _decode(buf, pos, size)
+            _, _, record = _decode(buf, pos, size)
         except _Damage:
             return None
-        if opcode != Opcode.MESSAGE_INDEX:
-            break
         total += len(record.records)
         found = True
         pos += _HEAD + length
