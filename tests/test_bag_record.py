@@ -302,3 +302,129 @@ def test_help(ros_process, exe: str) -> None:
     proc = ros_process('actuator_bag', exe, ['--help'])
     assert proc.wait(30) == 0, proc.describe()
     assert proc.stdout.startswith('usage: ')
+
+
+# ------------------------------------------------- full disk, parameters, signals at any moment
+def test_full_disk_stops_the_recorder_at_once(ros_env, ros_process, tmp_path: Path) -> None:
+    """Disk full while recording (real ENOSPC): exit 1 by itself, one error line, bag_repair recovers what it said."""
+    from actuator_bag.bag_format import mcap_name
+    from actuator_bag.datafile import FULL_AFTER_ENV
+
+    bag = tmp_path / 'full'
+    env = {**ros_env, FULL_AFTER_ENV: '60000'}
+    recorder = ros_process('actuator_bag', 'recorder', ['-o', str(bag), '--flush-interval', '0.2'], env=env)
+    recorder.wait_for_output(r'recording \d+ topics', timeout=30)
+    pub = _publisher(ros_env, tmp_path, 4000)
+    pub.wait_for_output('publishing', timeout=30)
+    started = time.monotonic()
+    code = recorder.wait(20)
+    assert code == 1 and recorder.stopped_by == 'exit', recorder.describe()
+    assert time.monotonic() - started < 4.0 and pub.running  # noticed mid-run, not at the end
+    errors = [x for x in recorder.stderr.splitlines() if x.startswith('recorder: error:')]
+    assert len(errors) == 1 and 'No space left on device (ENOSPC)' in errors[0], recorder.describe()
+    assert f'run bag_repair {bag}' in errors[0] and 'Traceback' not in recorder.stderr
+    on_disk = int(errors[0].split('recording stopped: ')[1].split(' messages are on disk')[0])
+    assert on_disk > 0 and (bag / mcap_name(bag)).stat().st_size <= 60000
+    assert not (bag / 'metadata.yaml').exists()
+    pub.stop()
+    repair = RosProcess.installed('actuator_bag', 'bag_repair', [str(bag), '-o', str(tmp_path / 'fixed'), '-q'],
+                                  env=ros_env, log_dir=tmp_path / 'processes')
+    assert repair.wait(60) == 0, repair.describe()
+    assert sum(len(v) for v in _bag_messages(tmp_path / 'fixed').values()) == on_disk
+    assert '0 bytes not recoverable, 0 messages lost' in repair.stdout
+
+
+@pytest.mark.parametrize('args, names', [
+    (['-p', 'queue_depth:=many'], ['queue_depth']),
+    (['-p', 'queue_depth:=0'], ['queue_depth', '[1, ']),
+    (['-p', 'flush_interval:=true'], ['flush_interval']),
+    (['-p', 'reliability:=sometimes'], ['reliability', 'best_effort']),
+    (['-p', 'topics:=7'], ['topics']),
+    (['-p', 'queu_depth:=5'], ['queu_depth', "did you mean 'queue_depth'"]),
+])
+def test_recorder_refuses_bad_parameters(ros_process, tmp_path: Path, args: list, names: list) -> None:
+    """A wrong type, a value out of range or a misspelled name: one line naming it, exit 2, no bag created."""
+    bag = tmp_path / 'never'
+    proc = ros_process('actuator_bag', 'recorder', ['-o', str(bag), '--ros-args', *args])
+    assert proc.wait(30) == 2, proc.describe()
+    lines = [x for x in proc.stderr.splitlines() if x.startswith('recorder: ')]
+    assert len(lines) == 1 and all(n in lines[0] for n in names), proc.describe()
+    assert 'Traceback' not in proc.stderr and not bag.exists()
+
+
+def test_recorder_allows_unknown_parameters_when_asked(ros_process, tmp_path: Path) -> None:
+    """allow_unknown_parameters:=true turns a misspelled name into a warning; the recorder runs."""
+    bag = tmp_path / 'ok'
+    proc = _start_recorder(ros_process, bag, '--ros-args', '-p', 'allow_unknown_parameters:=true',
+                           '-p', 'queu_depth:=5')
+    assert proc.stop() == 0 and (bag / 'metadata.yaml').is_file(), proc.describe()
+    assert 'queu_depth' in proc.stderr + proc.stdout
+
+
+def test_recorder_parameters_have_descriptions(rclpy_context, tmp_path: Path) -> None:
+    """Every parameter the recorder declares has a description (ros2 param describe shows it)."""
+    from actuator_bag.recorder_node import RecorderNode, build_parser
+
+    node = RecorderNode(build_parser().parse_args(['-o', str(tmp_path / 'desc')]), context=rclpy_context)
+    try:
+        names = sorted(n for n in node._parameters if n != 'use_sim_time')  # noqa: SLF001
+        assert {'topics', 'record_clock', 'output', 'queue_depth', 'reliability', 'flush_interval', 'chunk_size',
+                'allow_unknown_parameters'} <= set(names)
+        assert all(d.description for d in node.describe_parameters(names)), names
+        node.finish()
+    finally:
+        node.destroy_node()
+
+
+@pytest.mark.parametrize('exe', ['recorder', 'player'])
+def test_entry_point_quiets_signals_before_rclpy(exe: str) -> None:
+    """recorder and player start at actuator_bag.entry, whose import loads no rclpy (signals go quiet first)."""
+    import importlib.metadata
+    import subprocess
+
+    scripts = {ep.name: ep.value for ep in importlib.metadata.distribution('actuator_bag').entry_points
+               if ep.group == 'console_scripts'}
+    assert scripts[exe] == f'actuator_bag.entry:{exe}'
+    probe = subprocess.run([sys.executable, '-c', 'import sys, actuator_bag.entry; '
+                            'print(sorted(m for m in sys.modules if m.split(".")[0] in ("rclpy", "rosbags")))'],
+                           capture_output=True, text=True, timeout=60)
+    assert probe.returncode == 0 and probe.stdout.strip() == '[]', probe.stdout + probe.stderr
+
+
+def _catches(pid: int, signum: int) -> bool:
+    """True when process ``pid`` has a handler for ``signum`` (SigCgt in /proc/<pid>/status)."""
+    try:
+        status = Path(f'/proc/{pid}/status').read_text()
+    except OSError:
+        return False
+    mask = next((int(x.split()[1], 16) for x in status.splitlines() if x.startswith('SigCgt:')), 0)
+    return bool(mask >> (signum - 1) & 1)
+
+
+@pytest.mark.parametrize('exe', ['recorder', 'player'])
+@pytest.mark.parametrize('delay, signame', [(0.0, 'SIGINT'), (0.1, 'SIGTERM'), (0.3, 'SIGINT'), (0.6, 'SIGTERM'),
+                                            (None, 'SIGINT')])
+def test_signal_at_any_moment_exits_0(ros_process, tmp_path: Path, exe: str, delay, signame: str) -> None:
+    """SIGINT/SIGTERM during imports, start-up or the run: exit 0, no traceback; an opened bag is closed."""
+    from test_bag_support import synthetic_run, write_run_bag
+
+    bag = tmp_path / 'sig'
+    if exe == 'recorder':
+        args = ['-o', str(bag)]
+    else:
+        args = [str(write_run_bag(tmp_path / 'src', synthetic_run(duration_s=0.2))), '--loop']
+    proc = ros_process('actuator_bag', exe, args)
+    if delay is None:
+        proc.wait_for_output(r'recording \d+ topics' if exe == 'recorder' else 'playing', timeout=30)
+    else:
+        # Delays count from the entry point (it handles SIGTERM from its first line: Python alone does not);
+        # the interpreter start and console-script wrapper before it are not this code's.
+        deadline = time.monotonic() + 20
+        while not _catches(proc.pid, signal.SIGTERM) and proc.running and time.monotonic() < deadline:
+            time.sleep(0.005)
+        time.sleep(delay)
+    proc.popen.send_signal(getattr(signal, signame))
+    assert proc.wait(20) == 0, proc.describe()
+    assert 'Traceback' not in proc.stderr + proc.stdout, proc.describe()
+    if exe == 'recorder' and bag.exists():
+        assert (bag / 'metadata.yaml').is_file(), proc.describe()

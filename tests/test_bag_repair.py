@@ -6,8 +6,11 @@ The end-to-end case (recorder killed with SIGKILL mid-run) is in test_bag_record
 from __future__ import annotations
 
 import hashlib
+import json
 import os
+import random
 import shutil
+import struct
 import subprocess
 import sys
 from pathlib import Path
@@ -20,6 +23,7 @@ from rosbags.highlevel import AnyReader  # noqa: E402
 from rosbags.rosbag2 import Reader  # noqa: E402
 
 from actuator_bag.bag_format import BagWriter, mcap_name, topic_spec  # noqa: E402
+from actuator_bag.errors import RepairError  # noqa: E402
 from actuator_bag.repair import main, repair_bag  # noqa: E402
 from test_bag_support import SOURCE  # noqa: E402
 
@@ -95,7 +99,7 @@ def test_truncated_anywhere_stops_cleanly(tmp_path: Path, cut: int) -> None:
 
 
 def test_corrupt_chunk_keeps_what_precedes_it(tmp_path: Path) -> None:
-    """A chunk whose bytes were damaged fails its CRC; the scan stops there with the earlier chunks intact."""
+    """A chunk whose bytes were damaged fails its CRC; the earlier chunks are intact, and so are the later ones."""
     bag = tmp_path / 'run'
     payloads = _interrupted_bag(bag, flushed=600, unflushed=0)
     mcap = bag / mcap_name(bag)
@@ -105,7 +109,11 @@ def test_corrupt_chunk_keeps_what_precedes_it(tmp_path: Path) -> None:
     mcap.write_bytes(bytes(data))
     result = repair_bag(bag, tmp_path / 'fixed', quiet=True)
     got = _read(tmp_path / 'fixed')
-    assert 0 < len(got) < 600 and got == payloads[:len(got)]
+    assert 0 < len(got) < 600
+    first_missing = next(i for i, (x, y) in enumerate(zip(got, payloads)) if x != y)
+    resumed = first_missing + 600 - len(got)
+    # Every chunk before the damage is intact, and (since the resync) every chunk after it too.
+    assert first_missing > 0 and got == payloads[:first_missing] + payloads[resumed:]
     assert 'corrupt' in result.line() or 'truncated' in result.line()
 
 
@@ -147,19 +155,22 @@ def test_cli_reports_progress_and_result(tmp_path: Path) -> None:
     assert (tmp_path / 'r.json').is_file()
 
 
-@pytest.mark.parametrize('case', ['missing', 'not_mcap', 'empty_dir', 'output_exists', 'header_only'])
+@pytest.mark.parametrize('case', ['missing', 'not_mcap', 'empty_dir', 'output_exists', 'header_only', 'empty_file'])
 def test_cli_bad_input_is_one_line_error(tmp_path: Path, case: str) -> None:
     """Each kind of bad input gives one line naming the problem and exit code 1, never a traceback."""
     target = tmp_path / 'bag'
     expect = {
         'missing': 'does not exist', 'not_mcap': 'not an MCAP file', 'empty_dir': 'no .mcap file',
-        'output_exists': 'exists already', 'header_only': 'nothing recoverable',
+        'output_exists': 'exists already', 'header_only': 'nothing recoverable', 'empty_file': 'not an MCAP file',
     }[case]
     if case == 'not_mcap':
         target.mkdir()
         (target / 'bag_0.mcap').write_text('hello, this is text\n')
     elif case == 'empty_dir':
         target.mkdir()
+    elif case == 'empty_file':
+        target.mkdir()
+        (target / 'bag_0.mcap').write_bytes(b'')
     elif case == 'output_exists':
         _interrupted_bag(target, flushed=10, unflushed=0)
         (tmp_path / 'bag_repaired').mkdir()
@@ -193,3 +204,202 @@ def test_original_folder_not_modified_on_failure(tmp_path: Path) -> None:
     assert not (tmp_path / 'bag_repaired').exists()
     shutil.rmtree(bag)
     assert not os.path.exists(bag)
+
+
+# ------------------------------------------------------------- resynchronisation after damage
+CHUNK, MESSAGE_INDEX = 0x06, 0x07
+
+
+def _records(path: Path) -> list[tuple[int, int, int]]:
+    """(opcode, start, end) of every top-level record of an intact MCAP file, in file order."""
+    data = path.read_bytes()
+    out, pos = [], 8
+    while pos + 9 <= len(data):
+        opcode, length = struct.unpack_from('<BQ', data, pos)
+        out.append((opcode, pos, pos + 9 + length))
+        pos += 9 + length
+    return out
+
+
+def _chunk_messages(path: Path) -> list[int]:
+    """Messages per chunk, in file order, from the message index records that follow each chunk."""
+    data = path.read_bytes()
+    counts: list[int] = []
+    for opcode, start, _ in _records(path):
+        if opcode == CHUNK:
+            counts.append(0)
+        elif opcode == MESSAGE_INDEX:
+            counts[-1] += struct.unpack_from('<I', data, start + 9 + 2)[0] // 16
+    return counts
+
+
+def _damaged(tmp_path: Path, damage) -> tuple[Path, list[bytes], list[tuple[int, int, int]], list[int]]:
+    """An interrupted bag of 6+ chunks damaged by damage(data, chunks): its payloads, records, messages per chunk."""
+    bag = tmp_path / 'run'
+    payloads = _interrupted_bag(bag, flushed=600, unflushed=0)
+    mcap = bag / mcap_name(bag)
+    records, per_chunk = _records(mcap), _chunk_messages(mcap)
+    assert len(per_chunk) >= 6 and sum(per_chunk) == 600
+    data = bytearray(mcap.read_bytes())
+    damage(data, [r for r in records if r[0] == CHUNK])
+    mcap.write_bytes(bytes(data))
+    return bag, payloads, records, per_chunk
+
+
+def test_resyncs_after_a_chunk_failing_its_crc(tmp_path: Path) -> None:
+    """Chunk 3 fails its CRC: exactly it is skipped, later chunks recovered, its range and message count reported."""
+    def damage(data: bytearray, chunks: list) -> None:
+        _, start, end = chunks[2]
+        middle = (start + end) // 2
+        data[middle:middle + 16] = bytes(b ^ 0x5A for b in data[middle:middle + 16])
+
+    bag, payloads, records, per_chunk = _damaged(tmp_path, damage)
+    _, start, end = [r for r in records if r[0] == CHUNK][2]
+    before = sum(per_chunk[:2])
+    result = repair_bag(bag, tmp_path / 'fixed', quiet=True)
+    assert _read(tmp_path / 'fixed') == payloads[:before] + payloads[before + per_chunk[2]:]
+    scan = result.scans[0]
+    assert [(x.start, x.end, x.messages) for x in scan.losses] == [(start, end, per_chunk[2])]
+    assert 'CRC' in scan.losses[0].reason.upper() and result.messages_lost == per_chunk[2]
+    assert f'{end - start} bytes not recoverable, {per_chunk[2]} messages lost' in result.line()
+    assert f'bytes {start}-{end}' in result.line()
+    proc = _cli(str(bag), '-o', str(tmp_path / 'cli'), '--json', str(tmp_path / 'r.json'), '-q')
+    assert proc.returncode == 0, proc.stderr
+    doc = json.loads((tmp_path / 'r.json').read_text())
+    assert doc['bytes_lost'] == end - start and doc['messages_lost'] == per_chunk[2]
+    loss = doc['scans'][0]['losses'][0]
+    assert (loss['start'], loss['end'], loss['bytes'], loss['messages']) == (start, end, end - start, per_chunk[2])
+
+
+def test_resyncs_after_garbage_over_a_record_header(tmp_path: Path) -> None:
+    """Garbage over chunk 4's header: resync at the next plausible record, later chunks recovered, count unknown."""
+    rng = random.Random(4)
+
+    def damage(data: bytearray, chunks: list) -> None:
+        start = chunks[3][1]
+        data[start:start + 48] = bytes(rng.randrange(256) for _ in range(48))
+
+    bag, payloads, records, per_chunk = _damaged(tmp_path, damage)
+    chunk_pos = [i for i, r in enumerate(records) if r[0] == CHUNK][3]
+    start, resume = records[chunk_pos][1], records[chunk_pos + 1][1]  # its first message index record
+    before = sum(per_chunk[:3])
+    result = repair_bag(bag, tmp_path / 'fixed', quiet=True)
+    assert _read(tmp_path / 'fixed') == payloads[:before] + payloads[before + per_chunk[3]:]
+    assert [(x.start, x.end, x.messages) for x in result.scans[0].losses] == [(start, resume, None)]
+    assert result.messages_lost is None and 'an unknown number of messages lost' in result.line()
+    assert result.scans[0].as_dict()['losses'][0]['messages'] == 'unknown'
+
+
+def test_garbage_inserted_between_chunks_loses_no_message(tmp_path: Path) -> None:
+    """1000 random bytes inserted between two chunks: all 600 messages recovered, exactly that range reported."""
+    rng = random.Random(7)
+    inserted: list[int] = []
+
+    def damage(data: bytearray, chunks: list) -> None:
+        inserted.append(chunks[5][1])
+        data[chunks[5][1]:chunks[5][1]] = bytes(rng.randrange(256) for _ in range(1000))
+
+    bag, payloads, _, _ = _damaged(tmp_path, damage)
+    result = repair_bag(bag, tmp_path / 'fixed', quiet=True)
+    assert _read(tmp_path / 'fixed') == payloads
+    assert [(x.start, x.end) for x in result.scans[0].losses] == [(inserted[0], inserted[0] + 1000)]
+    assert result.bytes_lost == 1000
+
+
+def test_two_damaged_places_are_both_reported(tmp_path: Path) -> None:
+    """A CRC-failing chunk and a damaged header later: both ranges reported, the counted messages as a lower bound."""
+    def damage(data: bytearray, chunks: list) -> None:
+        _, start, end = chunks[1]
+        data[(start + end) // 2] ^= 0xFF
+        data[chunks[4][1]:chunks[4][1] + 30] = b'\xff' * 30
+
+    bag, payloads, records, per_chunk = _damaged(tmp_path, damage)
+    chunks = [r for r in records if r[0] == CHUNK]
+    result = repair_bag(bag, tmp_path / 'fixed', quiet=True)
+    losses = result.scans[0].losses
+    assert [(x.start, x.messages) for x in losses] == [(chunks[1][1], per_chunk[1]), (chunks[4][1], None)]
+    assert losses[0].end == chunks[1][2]
+    assert f'at least {per_chunk[1]} messages lost' in result.line()
+    assert result.as_dict()['messages_lost'] == 'unknown' and result.as_dict()['messages_lost_counted'] == per_chunk[1]
+    first, second = sum(per_chunk[:1]), sum(per_chunk[:4])
+    assert _read(tmp_path / 'fixed') == (payloads[:first] + payloads[first + per_chunk[1]:second]
+                                         + payloads[second + per_chunk[4]:])
+
+
+def test_complete_bag_with_a_corrupt_chunk_reaches_its_end(tmp_path: Path) -> None:
+    """A closed bag (summary, footer) with one damaged chunk: the scan goes on to the end of the data section."""
+    store = SOURCE.typestore([MSGTYPE])
+    src = tmp_path / 'ok'
+    with BagWriter(src, chunk_size=2048) as writer:
+        handle = writer.add_topic(topic_spec('/current_command', MSGTYPE, SOURCE))
+        for k in range(400):
+            msg = store.types[MSGTYPE](
+                header=store.types['std_msgs/msg/Header'](
+                    stamp=store.types['builtin_interfaces/msg/Time'](sec=1, nanosec=k), frame_id=''),
+                current_a=float(k), safe_stop=False)
+            writer.write(handle, k, bytes(store.serialize_cdr(msg, MSGTYPE)))
+    mcap = src / mcap_name(src)
+    per_chunk = _chunk_messages(mcap)
+    chunks = [r for r in _records(mcap) if r[0] == CHUNK]
+    data = bytearray(mcap.read_bytes())
+    middle = (chunks[1][1] + chunks[1][2]) // 2
+    data[middle] ^= 0xFF
+    mcap.write_bytes(bytes(data))
+    result = repair_bag(src, tmp_path / 'again', quiet=True)
+    assert result.scans[0].complete and result.scans[0].stop_reason == 'end of data section'
+    assert len(_read(tmp_path / 'again')) == 400 - per_chunk[1]
+    assert result.messages_lost == per_chunk[1]
+
+
+def test_adjacent_corrupt_chunks_are_each_counted(tmp_path: Path) -> None:
+    """Chunks 2 and 3 both fail their CRC: two exact ranges, each with its own message count, the rest recovered."""
+    def damage(data: bytearray, chunks: list) -> None:
+        for _, start, end in chunks[2:4]:
+            data[(start + end) // 2] ^= 0xFF
+
+    bag, payloads, records, per_chunk = _damaged(tmp_path, damage)
+    chunks = [r for r in records if r[0] == CHUNK]
+    result = repair_bag(bag, tmp_path / 'fixed', quiet=True)
+    assert [(x.start, x.end, x.messages) for x in result.scans[0].losses] == [
+        (chunks[2][1], chunks[2][2], per_chunk[2]), (chunks[3][1], chunks[3][2], per_chunk[3])]
+    assert result.messages_lost == per_chunk[2] + per_chunk[3]
+    before = sum(per_chunk[:2])
+    assert _read(tmp_path / 'fixed') == payloads[:before] + payloads[before + per_chunk[2] + per_chunk[3]:]
+
+
+def test_closed_bag_with_its_first_chunk_lost_keeps_the_rest(tmp_path: Path) -> None:
+    """Closed bag, first chunk (schema, channel) corrupt: definitions come from the summary, later chunks recovered."""
+    store = SOURCE.typestore([MSGTYPE])
+    src = tmp_path / 'ok'
+    payloads = []
+    with BagWriter(src, chunk_size=2048) as writer:
+        handle = writer.add_topic(topic_spec('/current_command', MSGTYPE, SOURCE))
+        for k in range(300):
+            msg = store.types[MSGTYPE](
+                header=store.types['std_msgs/msg/Header'](
+                    stamp=store.types['builtin_interfaces/msg/Time'](sec=1, nanosec=k), frame_id=''),
+                current_a=float(k), safe_stop=False)
+            payloads.append(bytes(store.serialize_cdr(msg, MSGTYPE)))
+            writer.write(handle, k, payloads[-1])
+    mcap = src / mcap_name(src)
+    per_chunk = _chunk_messages(mcap)
+    first = [r for r in _records(mcap) if r[0] == CHUNK][0]
+    data = bytearray(mcap.read_bytes())
+    data[(first[1] + first[2]) // 2] ^= 0xFF
+    mcap.write_bytes(bytes(data))
+    result = repair_bag(src, tmp_path / 'again', quiet=True)
+    assert _read(tmp_path / 'again') == payloads[per_chunk[0]:]
+    assert result.scans[0].without_channel == 0 and result.messages_lost == per_chunk[0]
+
+
+def test_lost_channel_definition_is_reported(tmp_path: Path) -> None:
+    """Interrupted bag, chunk defining the channel lost: later messages are counted as without channel, not hidden."""
+    def damage(data: bytearray, chunks: list) -> None:
+        _, start, end = chunks[0]
+        data[(start + end) // 2] ^= 0xFF
+
+    bag, _, _, per_chunk = _damaged(tmp_path, damage)
+    with pytest.raises(RepairError, match='nothing recoverable') as err:
+        repair_bag(bag, tmp_path / 'fixed', quiet=True)
+    assert f'{600 - per_chunk[0]} messages of intact chunks whose channel was defined in a lost part' in str(err.value)
+    assert not (tmp_path / 'fixed').exists()

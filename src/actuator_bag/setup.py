@@ -33,8 +33,8 @@ setup(
     extras_require={'test': ['pytest']},
     entry_points={
         'console_scripts': [
-            'recorder = actuator_bag.recorder_node:main',
-            'player = actuator_bag.player_node:main',
+            'recorder = actuator_bag.entry:recorder',
+            'player = actuator_bag.entry:player',
             'bag_repair = actuator_bag.repair:main',
             'bag_analyze = actuator_bag.analyze:main',
         ],

@@ -33,6 +33,7 @@ from actuator_core.timing import stamp_to_ns
 
 from .errors import AnalysisError, BagError, run_cli
 from .msgdefs import DefinitionSource, definition_roots
+from .outputs import check_output_file, check_output_folder
 from .progress import Progress
 from .reading import bag_typestore, find_topic, open_bag, topic_names
 
@@ -41,7 +42,9 @@ STATE_ESTIMATE = 'actuator_msgs/msg/StateEstimate'
 PLANT_TRUTH = 'actuator_msgs/msg/PlantTruth'
 CURRENT_COMMAND = 'actuator_msgs/msg/CurrentCommand'
 JOINT_STATE = 'sensor_msgs/msg/JointState'
-
+#: The files draw_figures writes (the velocity and disturbance figures only when a bag has estimates).
+FIGURE_FILES = ('position.png', 'tracking_error.png', 'velocity_estimate.png', 'disturbance_estimate.png',
+                'control_input.png')
 
 
 @dataclass
@@ -413,8 +416,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument('bags', nargs='+', type=Path, metavar='BAG', help='bag folders (or .mcap files)')
     parser.add_argument('--out', type=Path,
-                        help='write position, tracking error, estimate and input figures (PNG) here')
-    parser.add_argument('--json', type=Path, help='write the figures of every bag as JSON to this file')
+                        help='write position, tracking error, estimate and input figures (PNG) here '
+                        '(never inside an input bag)')
+    parser.add_argument('--json', type=Path, help='write the figures of every bag as JSON to this file '
+                        '(never inside an input bag)')
     parser.add_argument(
         '--steady-start', type=float, default=STEADY_STATE_START_S, metavar='SECONDS',
         help='start of the steady-state window after the run start [s] (default: %(default)s)',
@@ -441,6 +446,11 @@ def _main(argv: Optional[Sequence[str]]) -> int:
     args = build_parser().parse_args(argv)
     if not math.isfinite(args.steady_start) or args.steady_start < 0:
         raise AnalysisError(f'--steady-start must be a finite number >= 0, not {args.steady_start}')
+    # Output locations first: nothing is read or computed for a run whose results could not be written.
+    if args.json:
+        check_output_file('--json', args.json, args.bags)
+    if args.out:
+        check_output_folder('--out', args.out, args.bags, FIGURE_FILES)
     source = DefinitionSource(definition_roots(args.msg_path))
     reports = []
     for bag in args.bags:

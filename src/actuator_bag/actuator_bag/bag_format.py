@@ -19,29 +19,30 @@ import time
 from dataclasses import dataclass, field
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
-from typing import IO, Any, Iterable, Mapping, Optional, Sequence
+from typing import Any, Iterable, Mapping, Optional, Sequence
 
 import yaml
 from mcap.writer import CompressionType, Writer as McapWriter
 
-from .errors import BagWriteError
+from .bag_qos import DURATION_INFINITE, QosProfile, qos_from_yaml, qos_to_yaml
+from .datafile import DataFile, describe_os_error, open_data_file
+from .errors import BagIOError, BagWriteError
 from .msgdefs import DefinitionSource, normalize_msgtype
+
+__all__ = [
+    'DEFAULT_CHUNK_SIZE', 'DEFAULT_FLUSH_INTERVAL_S', 'DURATION_INFINITE', 'METADATA_VERSION', 'ROS_DISTRO',
+    'BagSummary', 'BagWriter', 'QosProfile', 'TopicSpec', 'bag_metadata', 'dump_yaml', 'mcap_name',
+    'qos_from_yaml', 'qos_to_yaml', 'topic_spec', 'write_metadata_file',
+]
 
 #: rosbag2 metadata format version written (Jazzy).
 METADATA_VERSION = 9
 #: ROS distribution recorded in the metadata.
 ROS_DISTRO = 'jazzy'
-#: The rmw value of an infinite duration, as the graph reports it for default deadline etc. (sec, nsec).
-DURATION_INFINITE = (9223372036, 854775807)
 #: Default size of an MCAP chunk before compression [bytes].
 DEFAULT_CHUNK_SIZE = 1 << 20
 #: Default longest time data may stay in memory before it is written to the file [s].
 DEFAULT_FLUSH_INTERVAL_S = 1.0
-
-_HISTORY = ('system_default', 'keep_last', 'keep_all', 'unknown')
-_RELIABILITY = ('system_default', 'reliable', 'best_effort', 'unknown', 'best_available')
-_DURABILITY = ('system_default', 'transient_local', 'volatile', 'unknown', 'best_available')
-_LIVELINESS = ('system_default', 'automatic', 'manual_by_topic', 'unknown', 'best_available')
 
 
 def _library_id() -> str:
@@ -55,87 +56,6 @@ def _library_id() -> str:
     except PackageNotFoundError:
         lib = 'unknown'
     return f'actuator_bag-{own}; mcap-python-{lib}'
-
-
-def _check_choice(name: str, value: str, choices: Sequence[str]) -> None:
-    """Raise BagWriteError unless value is one of choices."""
-    if value not in choices:
-        raise BagWriteError(f'QoS {name} must be one of {", ".join(choices)}, not {value!r}')
-
-
-def _time_dict(value: tuple[int, int]) -> dict[str, int]:
-    """A (sec, nsec) pair as rosbag2's YAML map."""
-    return {'sec': int(value[0]), 'nsec': int(value[1])}
-
-
-@dataclass(frozen=True)
-class QosProfile:
-    """One offered QoS profile as rosbag2 v9 stores it; durations are (sec, nsec)."""
-
-    history: str = 'keep_last'
-    depth: int = 10
-    reliability: str = 'reliable'
-    durability: str = 'volatile'
-    deadline: tuple[int, int] = DURATION_INFINITE
-    lifespan: tuple[int, int] = DURATION_INFINITE
-    liveliness: str = 'automatic'
-    liveliness_lease_duration: tuple[int, int] = DURATION_INFINITE
-    avoid_ros_namespace_conventions: bool = False
-
-    def __post_init__(self) -> None:
-        """Validate the policy names and the depth."""
-        _check_choice('history', self.history, _HISTORY)
-        _check_choice('reliability', self.reliability, _RELIABILITY)
-        _check_choice('durability', self.durability, _DURABILITY)
-        _check_choice('liveliness', self.liveliness, _LIVELINESS)
-        if self.depth < 0:
-            raise BagWriteError(f'QoS depth must be >= 0, not {self.depth}')
-
-    def as_dict(self) -> dict[str, Any]:
-        """The v9 YAML map of this profile."""
-        return {
-            'history': self.history,
-            'depth': int(self.depth),
-            'reliability': self.reliability,
-            'durability': self.durability,
-            'deadline': _time_dict(self.deadline),
-            'lifespan': _time_dict(self.lifespan),
-            'liveliness': self.liveliness,
-            'liveliness_lease_duration': _time_dict(self.liveliness_lease_duration),
-            'avoid_ros_namespace_conventions': bool(self.avoid_ros_namespace_conventions),
-        }
-
-    @classmethod
-    def from_dict(cls, dct: Mapping[str, Any]) -> QosProfile:
-        """Profile from a v9 YAML map."""
-
-        def pair(key: str) -> tuple[int, int]:
-            return (int(dct[key]['sec']), int(dct[key]['nsec']))
-
-        return cls(
-            history=str(dct['history']),
-            depth=int(dct['depth']),
-            reliability=str(dct['reliability']),
-            durability=str(dct['durability']),
-            deadline=pair('deadline'),
-            lifespan=pair('lifespan'),
-            liveliness=str(dct['liveliness']),
-            liveliness_lease_duration=pair('liveliness_lease_duration'),
-            avoid_ros_namespace_conventions=bool(dct['avoid_ros_namespace_conventions']),
-        )
-
-
-def qos_to_yaml(profiles: Sequence[QosProfile]) -> str:
-    """The offered_qos_profiles string of an MCAP channel (a YAML list of v9 maps)."""
-    return yaml.safe_dump([p.as_dict() for p in profiles], default_flow_style=False, sort_keys=False)
-
-
-def qos_from_yaml(text: str) -> tuple[QosProfile, ...]:
-    """Profiles from an offered_qos_profiles string (empty string: none)."""
-    loaded = yaml.safe_load(text) if text.strip() else []
-    if not isinstance(loaded, list):
-        raise BagWriteError('offered_qos_profiles is not a YAML list')
-    return tuple(QosProfile.from_dict(x) for x in loaded)
 
 
 @dataclass(frozen=True)
@@ -267,8 +187,12 @@ def write_metadata_file(bag_dir: os.PathLike | str, info: Mapping[str, Any]) -> 
     """Write ``metadata.yaml`` atomically (temporary file, then rename); return its path."""
     path = Path(bag_dir) / 'metadata.yaml'
     tmp = path.with_name('.metadata.yaml.tmp')
-    tmp.write_text(dump_yaml({'rosbag2_bagfile_information': dict(info)}), encoding='utf-8')
-    os.replace(tmp, path)
+    try:
+        tmp.write_text(dump_yaml({'rosbag2_bagfile_information': dict(info)}), encoding='utf-8')
+        os.replace(tmp, path)
+    except OSError:
+        tmp.unlink(missing_ok=True)
+        raise
     return path
 
 
@@ -277,6 +201,9 @@ class BagWriter:
 
     Use as a context manager, or call open(), add_topic(), write() and close().
     Not thread-safe: call it from one thread (the recorder uses a writer thread).
+    A failed write (disk full, I/O error) raises BagIOError once: the file is cut back to its
+    last complete chunk and closed, the writer is closed, ``durable`` says how many messages
+    reached the file, and discard() removes what open() created.
     """
 
     def __init__(
@@ -309,7 +236,10 @@ class BagWriter:
         self.counts: list[int] = []
         self.start_ns = 0
         self.end_ns = 0
-        self._file: Optional[IO[bytes]] = None
+        self._file: Optional[DataFile] = None
+        self._created: list[Path] = []
+        #: Messages known to be in the file (complete chunks written), as opposed to ``counts`` (accepted).
+        self.durable = 0
         self._mcap: Optional[McapWriter] = None
         self._schemas: dict[tuple[str, str], int] = {}
         self._channels: list[int] = []
@@ -325,22 +255,39 @@ class BagWriter:
         """Create the folder and the MCAP file and write the MCAP header."""
         if self._mcap is not None:
             raise BagWriteError(f'{self.path} is already open')
+        missing = [p for p in (self.path, *self.path.parents) if not p.exists()]
         try:
             self.path.mkdir(parents=True, exist_ok=False)
         except FileExistsError:
             raise BagWriteError(f'{self.path} exists already, not overwriting') from None
         except OSError as err:
             raise BagWriteError(f'cannot create {self.path}: {err.strerror}') from None
-        self._file = open(self.mcap_path, 'xb')
-        self._mcap = McapWriter(
-            self._file,
-            chunk_size=self.chunk_size,
-            compression=CompressionType.ZSTD if self.compression == 'zstd' else CompressionType.NONE,
-            enable_crcs=True,
-        )
-        self._mcap.start(profile='ros2', library=_library_id())
-        self._file.flush()
+        self._created = list(missing)
+        try:
+            self._file = open_data_file(self.mcap_path)
+            self._created.insert(0, self.mcap_path)
+            self._mcap = McapWriter(
+                self._file,
+                chunk_size=self.chunk_size,
+                compression=CompressionType.ZSTD if self.compression == 'zstd' else CompressionType.NONE,
+                enable_crcs=True,
+            )
+            self._mcap.start(profile='ros2', library=_library_id())
+        except OSError as err:
+            self._mcap = None
+            self.discard()
+            raise BagIOError(f'cannot create {self.mcap_path}: {describe_os_error(err)}', err.errno) from None
         self._last_flush = time.monotonic()
+
+    def _failed(self, err: OSError, doing: str, good_before: int) -> BagIOError:
+        """Cut the file back to its last complete write, close it; the BagIOError to raise."""
+        if self._file is not None:
+            # Grown since good_before: the chunk went out and its index write failed, so its messages are in.
+            if self._file.good != good_before:
+                self.durable = sum(self.counts)
+            self._file.cut_back()
+        self.abort()
+        return BagIOError(f'{doing} {self.mcap_path} failed: {describe_os_error(err)}', err.errno)
 
     def _writer(self) -> McapWriter:
         """The open MCAP writer, or BagWriteError."""
@@ -381,18 +328,24 @@ class BagWriter:
             raise BagWriteError(f'unknown topic handle {handle}')
         if log_time_ns < 0:
             raise BagWriteError(f'log time must be >= 0 ns, not {log_time_ns}')
-        writer.add_message(
-            channel_id=self._channels[handle],
-            log_time=int(log_time_ns),
-            data=data,
-            publish_time=int(log_time_ns if publish_time_ns is None else publish_time_ns),
-        )
         if not any(self.counts):
             self.start_ns = self.end_ns = int(log_time_ns)
         else:
             self.start_ns = min(self.start_ns, int(log_time_ns))
             self.end_ns = max(self.end_ns, int(log_time_ns))
         self.counts[handle] += 1
+        written = self._file.good if self._file is not None else 0
+        try:
+            writer.add_message(
+                channel_id=self._channels[handle],
+                log_time=int(log_time_ns),
+                data=data,
+                publish_time=int(log_time_ns if publish_time_ns is None else publish_time_ns),
+            )
+        except OSError as err:
+            raise self._failed(err, 'writing', written) from None
+        if self._file is not None and self._file.good != written:
+            self.durable = sum(self.counts)  # a chunk (holding this message) went to the file
         self._unflushed += len(data) + 31
         if self._unflushed >= self.chunk_size:
             self.flush()
@@ -409,7 +362,12 @@ class BagWriter:
     def flush(self) -> None:
         """Close the current chunk and hand everything written so far to the operating system."""
         writer = self._writer()
-        writer.flush()
+        written = self._file.good if self._file is not None else 0
+        try:
+            writer.flush()
+        except OSError as err:
+            raise self._failed(err, 'writing', written) from None
+        self.durable = sum(self.counts)
         self._last_flush = time.monotonic()
         self._unflushed = 0
 
@@ -432,16 +390,23 @@ class BagWriter:
         """Write the rosbag2 metadata record, the MCAP summary and footer, then metadata.yaml."""
         writer = self._writer()
         info = self.metadata()
-        writer.flush()
-        writer.add_metadata('rosbag2', {'serialized_metadata': dump_yaml(info)})
-        writer.finish()
         assert self._file is not None
-        self._file.flush()
-        os.fsync(self._file.fileno())
-        self._file.close()
-        self._file = None
-        self._mcap = None
-        write_metadata_file(self.path, info)
+        written = self._file.good
+        try:
+            writer.flush()
+            self.durable = sum(self.counts)
+            written = self._file.good
+            writer.add_metadata('rosbag2', {'serialized_metadata': dump_yaml(info)})
+            writer.finish()
+            os.fsync(self._file.fileno())
+        except OSError as err:
+            raise self._failed(err, 'closing', written) from None
+        self.abort()
+        try:
+            write_metadata_file(self.path, info)
+        except OSError as err:
+            raise BagIOError(f'writing {self.path / "metadata.yaml"} failed: {describe_os_error(err)} '
+                             f'(the MCAP file is complete)', err.errno) from None
         return self.summary()
 
     def abort(self) -> None:
@@ -450,6 +415,22 @@ class BagWriter:
             self._file.close()
         self._file = None
         self._mcap = None
+
+    def discard(self) -> None:
+        """Close and remove every file and folder open() created (for output that must not stay half-written)."""
+        self.abort()
+        if not self._created:
+            return
+        files = [self.mcap_path, self.path / 'metadata.yaml', self.path / '.metadata.yaml.tmp']
+        for path in files + [p for p in self._created if p not in files]:
+            try:
+                if path in files:
+                    path.unlink(missing_ok=True)
+                else:
+                    path.rmdir()  # a folder open() created; only when empty
+            except OSError:
+                pass
+        self._created = []
 
     def __enter__(self) -> BagWriter:
         """Open on entering the context."""

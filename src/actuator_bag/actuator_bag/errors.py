@@ -9,9 +9,27 @@ from typing import Callable, Optional, Sequence
 class BagError(Exception):
     """Base class of every error the bag tooling raises on purpose."""
 
+    #: Exit code of a command-line tool that ends with this error.
+    exit_code = 1
+
 
 class BagWriteError(BagError):
     """A bag could not be created or written (target exists, bad topic, closed writer)."""
+
+
+class BagIOError(BagWriteError):
+    """A write to a bag failed in the operating system (disk full, I/O error); ``errno`` says which."""
+
+    def __init__(self, message: str, errno: Optional[int] = None) -> None:
+        """The one-line message and the OSError's errno."""
+        super().__init__(message)
+        self.errno = errno
+
+
+class OutputLocationError(BagError):
+    """An output location is refused before any work: inside or over an input bag, or not writable."""
+
+    exit_code = 2
 
 
 class BagReadError(BagError):
@@ -35,12 +53,12 @@ def run_cli(
     main: Callable[[Optional[Sequence[str]]], int],
     argv: Optional[Sequence[str]] = None,
 ) -> int:
-    """Run a tool's main, turning a BagError or an interrupt into a one-line message and an exit code."""
+    """Run a tool's main, turning a BagError (exit code: its exit_code) or an interrupt into a one-line message."""
     try:
         return main(argv)
     except BagError as err:
         print(f'{prog}: error: {err}', file=sys.stderr)
-        return 1
+        return err.exit_code
     except KeyboardInterrupt:
         print(f'{prog}: interrupted', file=sys.stderr)
         return 130

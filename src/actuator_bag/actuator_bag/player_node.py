@@ -5,6 +5,7 @@ bytes and hands them to rmw unchanged), on publishers of the recorded type impor
 installed message packages, so a replayed message is byte-identical to the recorded one.
 QoS: KEEP_LAST with a deep queue, RELIABLE by default. Timing follows the recorded log
 times: message k goes out at start + (t_k - t_0) / rate on the monotonic clock.
+SIGINT/SIGTERM at any moment (also during the imports: entry.py) stop it with exit 0.
 """
 
 from __future__ import annotations
@@ -168,9 +169,15 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     args = build_parser().parse_args(remove_ros_args(argv)[1:])
     stop = StopFlag()
     stop.install()
-    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
+    except Exception as exc:  # noqa: BLE001 - rcl's RCLError: a bad --ros-args or parameter file
+        print(f'player: ROS arguments refused: {str(exc).splitlines()[0] if str(exc) else exc!r}', file=sys.stderr)
+        return 2
     node: Optional[PlayerNode] = None
     try:
+        if stop.requested:
+            return 0
         node = PlayerNode(args)
         elapsed = node.play(stop)
         per_topic = ', '.join(f'{k}={v}' for k, v in node.counts.items())

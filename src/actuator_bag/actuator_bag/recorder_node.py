@@ -19,9 +19,17 @@ callbacks that take message info, so the default executor stamps in the callback
 bag_analyze pairs samples by header.stamp and computes command latency as log time minus
 header.stamp.
 
-SIGINT/SIGTERM: stop taking new messages, write what was received, close the bag (MCAP
-summary, metadata.yaml), print one summary line, exit 0. SIGKILL: what was flushed (all
-but the last <= 1 s / 1 MiB) stays on disk and ``bag_repair`` recovers it.
+SIGINT/SIGTERM (at any moment, also during the imports: entry.py): stop taking new messages,
+write what was received, close the bag (MCAP summary, metadata.yaml), print one summary line,
+exit 0. SIGKILL: what was flushed (all but the last <= 1 s / 1 MiB) stays on disk and
+``bag_repair`` recovers it. A failed write (disk full: ENOSPC, or any OSError) is noticed at
+once (within 0.1 s): the recorder stops, the file is cut back to its last complete chunk (so
+``bag_repair`` recovers all of it; there is no room for an index or metadata.yaml), one error
+line says how many messages are on disk and how many were lost, and it exits 1.
+
+Parameters (each declared with a description, defaults from the command line): a value of the
+wrong type or a name it does not declare is refused with one line and exit 2, unless
+``allow_unknown_parameters:=true``.
 """
 
 from __future__ import annotations
@@ -42,8 +50,12 @@ from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
 
 from .bag_format import DEFAULT_CHUNK_SIZE, DEFAULT_FLUSH_INTERVAL_S, BagSummary, BagWriter, TopicSpec
-from .errors import BagError
+from .errors import BagError, BagIOError
 from .msgdefs import DefinitionSource, normalize_msgtype
+from actuator_ros.parameters import (
+    ParameterError, check_unknown_parameters, declare_choice, declare_flag, declare_number, declare_text,
+    declare_text_list,
+)
 from actuator_ros.runner import make_executor
 
 from .ros_common import EXECUTORS, StopFlag, make_qos, message_class, to_bag_qos
@@ -132,25 +144,34 @@ class BagWriterThread(threading.Thread):
 class RecorderNode(Node):
     """Subscribes raw to each topic and hands messages to the writer thread."""
 
-    def __init__(self, defaults: argparse.Namespace) -> None:
+    def __init__(self, defaults: argparse.Namespace, **node_options: Any) -> None:
         """Declare parameters (defaults from the command line), resolve topics, open the bag."""
-        super().__init__('recorder')
-        self.declare_parameter('topics', list(defaults.topics))
-        self.declare_parameter('record_clock', bool(defaults.record_clock))
-        self.declare_parameter('output', defaults.output or '')
-        self.declare_parameter('queue_depth', int(defaults.queue_depth))
-        self.declare_parameter('reliability', defaults.reliability)
-        self.declare_parameter('flush_interval', float(defaults.flush_interval))
-        self.declare_parameter('chunk_size', int(defaults.chunk_size))
-        entries = list(self.get_parameter('topics').value or [])
-        if self.get_parameter('record_clock').value and '/clock' not in entries:
+        super().__init__('recorder', **node_options)
+        declare_flag(self, 'allow_unknown_parameters', False,
+                     'accept parameter names the recorder does not declare, with a warning, instead of refusing them')
+        entries = declare_text_list(self, 'topics', list(defaults.topics) or [''],
+                                    'topics to record: a system topic name, or name:pkg/msg/Type')
+        record_clock = declare_flag(self, 'record_clock', bool(defaults.record_clock), 'also record /clock')
+        output = declare_text(self, 'output', defaults.output or '',
+                              'bag folder to create (must not exist); empty: bags/<UTC timestamp>')
+        depth = declare_number(self, 'queue_depth', int(defaults.queue_depth), 1, 10_000_000, 'messages',
+                               'subscription KEEP_LAST depth per topic')
+        reliability = declare_choice(self, 'reliability', str(defaults.reliability), ('best_effort', 'reliable'),
+                                     'subscription reliability; best_effort matches every publisher')
+        flush_interval = declare_number(self, 'flush_interval', float(defaults.flush_interval), 1e-3, 3600.0, 's',
+                                        'longest time data stays in memory before it is written')
+        chunk_size = declare_number(self, 'chunk_size', int(defaults.chunk_size), 1024, 1 << 30, 'bytes',
+                                    'MCAP chunk size before compression')
+        unknown = check_unknown_parameters(self)
+        if unknown:
+            self.get_logger().warning(f'ignoring parameters the recorder does not have: {", ".join(unknown)}')
+        entries = [e for e in entries if e]
+        if record_clock and '/clock' not in entries:
             entries.append('/clock')
         if not entries:
             raise BagError('no topics to record')
         topics = [parse_topic(e) for e in entries]
-        depth = int(self.get_parameter('queue_depth').value)
-        qos = make_qos(str(self.get_parameter('reliability').value), depth)
-        output = str(self.get_parameter('output').value)
+        qos = make_qos(reliability, depth)
         path = Path(output) if output else default_output()
         self.sim_time = bool(self.get_parameter('use_sim_time').value)
         source = DefinitionSource()
@@ -165,8 +186,8 @@ class RecorderNode(Node):
         self._source = source
         self.writer = BagWriter(
             path,
-            chunk_size=int(self.get_parameter('chunk_size').value),
-            flush_interval_s=float(self.get_parameter('flush_interval').value),
+            chunk_size=chunk_size,
+            flush_interval_s=flush_interval,
             custom_data={
                 'recorder': 'actuator_bag recorder',
                 'log_time': 'receive time on the recorder node clock' + (' (sim time)' if self.sim_time else ''),
@@ -246,17 +267,35 @@ class RecorderNode(Node):
 
         return callback_info if with_info else callback
 
+    @property
+    def failed(self) -> bool:
+        """True once the writer thread has stopped on an error (a failed write)."""
+        return self.thread.error is not None
+
     def finish(self) -> BagSummary:
-        """Stop the subscriptions, let the writer drain, close the bag."""
+        """Stop the subscriptions, let the writer drain, close the bag (failed writing: BagError, what is on disk)."""
         for sub in self.subscriptions_:
             self.destroy_subscription(sub)
         self.subscriptions_ = []
         self.thread.stop()
         self.thread.join()
-        if self.thread.error is not None:
-            self.writer.abort()
-            raise BagError(f'writing {self.writer.path} failed: {self.thread.error}')
-        return self.writer.close()
+        writer = self.writer
+        error = self.thread.error
+        if error is None:
+            try:
+                return writer.close()
+            except BagIOError as err:
+                error = err
+        writer.abort()
+        if not isinstance(error, BagIOError):
+            raise BagError(f'writing {writer.path} failed: {error!r}')
+        lost = sum(writer.counts) - writer.durable + len(self.thread.queue)
+        if writer.durable == sum(writer.counts) and 'metadata.yaml' in str(error):
+            rest = f'all {writer.durable} messages are in the MCAP file'
+        else:
+            rest = f'{writer.durable} messages are on disk, {lost} received ones were lost'
+        raise BagError(f'{error}; recording stopped: {rest}; the bag has no metadata.yaml: '
+                       f'run bag_repair {writer.path}')
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -291,7 +330,7 @@ def drain(executor: Any, node: 'RecorderNode', quiet_s: float = 0.3, limit_s: fl
     """
     end = time.monotonic() + limit_s
     last, quiet_since = -1, time.monotonic()
-    while rclpy.ok() and time.monotonic() < end:
+    while rclpy.ok() and time.monotonic() < end and not node.failed:
         executor.spin_once(timeout_sec=0.05)
         received = node.thread.written + len(node.thread.queue)
         if received != last:
@@ -306,19 +345,29 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     args = build_parser().parse_args(remove_ros_args(argv)[1:])
     stop = StopFlag()
     stop.install()
-    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
+    try:
+        rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
+    except Exception as exc:  # noqa: BLE001 - rcl's RCLError: a bad --ros-args or parameter file
+        print(f'recorder: ROS arguments refused: {str(exc).splitlines()[0] if str(exc) else exc!r}', file=sys.stderr)
+        return 2
     node: Optional[RecorderNode] = None
     try:
+        if stop.requested:
+            return 0
         node = RecorderNode(args)
         executor = make_executor(args.executor)
         executor.add_node(node)
-        while not stop.requested and rclpy.ok():
+        while not stop.requested and rclpy.ok() and not node.failed:
             executor.spin_once(timeout_sec=0.1)
-        drain(executor, node)
+        if not node.failed:
+            drain(executor, node)
         summary = node.finish()
         lost = f', {node.lost} reported lost by the middleware' if node.lost else ''
         print(f'recorder: wrote {summary.line()}; max writer backlog {node.thread.max_backlog}{lost}', flush=True)
         return 0
+    except ParameterError as err:
+        print(f'recorder: {err}', file=sys.stderr)
+        return 2
     except BagError as err:
         print(f'recorder: error: {err}', file=sys.stderr)
         return 1

@@ -1,11 +1,12 @@
 """``bag_repair``: rebuild a bag whose recorder died (no MCAP summary or footer, no metadata.yaml).
 
-The MCAP files of the bag are scanned linearly, record by record. Schemas, channels and
-messages are taken from every complete, CRC-valid chunk; the scan stops cleanly at the
-first truncated or corrupt record (the tail a killed process left half-written) or at
-the end of the data section. What was read is written to a NEW bag folder (default
-``<bag>_repaired``) with a fresh MCAP index and metadata.yaml; the original files are only
-read, never modified.
+The MCAP files of the bag are scanned record by record (scan.py). Schemas, channels and
+messages are taken from every complete, CRC-valid chunk; after a truncated or corrupt record
+the scan resynchronises at the next plausible record, so every intact chunk is recovered,
+and each skipped byte range is reported with the number of messages it held (or unknown).
+What was read is written to a NEW bag folder (default ``<bag>_repaired``) with a fresh MCAP
+index and metadata.yaml; the original files are only read, never modified. Output locations
+are checked before any work (outputs.py); a repair that fails removes what it wrote.
 """
 
 from __future__ import annotations
@@ -13,123 +14,23 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import struct
-from dataclasses import dataclass, field
-from io import BytesIO
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, BinaryIO, Callable, Iterator, Optional, Sequence, Union
+from typing import Any, Optional, Sequence, Union
 
 import yaml
-from mcap.data_stream import ReadDataStream
-from mcap.exceptions import McapError
-from mcap.opcode import Opcode
-from mcap.records import Channel, Chunk, Header, Message, Metadata, Schema
-from mcap.stream_reader import CRCValidationError, breakup_chunk
+from mcap.records import Channel, Message, Schema
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.base import TypesysError
 
 from .bag_format import BagSummary, BagWriter, TopicSpec, qos_from_yaml
+from .datafile import describe_os_error
 from .errors import BagWriteError, RepairError, run_cli
+from .outputs import check_output_file, check_output_folder, source_folders
 from .progress import Progress
+from .scan import Loss, ScanReport, scan_mcap, summary_definitions
 
-MCAP_MAGIC = b'\x89MCAP0\r\n'
-_RECORD_HEADER = struct.Struct('<BQ')
-
-Record = Union[Schema, Channel, Message, Metadata, Header]
-
-
-@dataclass
-class ScanReport:
-    """Outcome of scanning one MCAP file: where and why it stopped, what it found."""
-
-    path: Path
-    file_size: int
-    bytes_read: int = 0
-    complete: bool = False
-    stop_reason: str = ''
-    chunks: int = 0
-    messages: int = 0
-    profile: str = ''
-    metadata: dict[str, dict[str, str]] = field(default_factory=dict)
-
-    @property
-    def bytes_lost(self) -> int:
-        """Bytes of the data section after the last complete record (not recoverable)."""
-        return 0 if self.complete else self.file_size - self.bytes_read
-
-
-def _read_exact(bio: BinaryIO, size: int) -> bytes:
-    """Read size bytes or fewer at end of file."""
-    return bio.read(size)
-
-
-def scan_mcap(
-    path: Path, report: ScanReport, on_progress: Optional[Callable[[int], None]] = None
-) -> Iterator[Record]:
-    """Yield the schemas, channels, messages and metadata of an MCAP file in file order, stopping at damage.
-
-    ``report`` is filled in as the scan goes; it says where and why the scan stopped.
-    """
-    with open(path, 'rb') as bio:
-        if _read_exact(bio, 8) != MCAP_MAGIC:
-            raise RepairError(f'{path} is not an MCAP file (bad magic)')
-        pos = 8
-        report.bytes_read = pos
-        while True:
-            head = _read_exact(bio, _RECORD_HEADER.size)
-            if not head:
-                report.stop_reason = f'file ends at byte {pos} without MCAP footer'
-                return
-            if len(head) < _RECORD_HEADER.size:
-                report.stop_reason = f'truncated record header at byte {pos}'
-                return
-            opcode, length = _RECORD_HEADER.unpack(head)
-            if length > report.file_size - pos - _RECORD_HEADER.size:
-                name = Opcode(opcode).name if opcode in Opcode._value2member_map_ else f'0x{opcode:02x}'
-                report.stop_reason = f'truncated {name} record at byte {pos}'
-                return
-            body = _read_exact(bio, length)
-            stream = ReadDataStream(BytesIO(body))
-            try:
-                if opcode == Opcode.HEADER:
-                    report.profile = Header.read(stream).profile
-                elif opcode in (Opcode.SCHEMA, Opcode.CHANNEL, Opcode.MESSAGE, Opcode.METADATA):
-                    yield _plain_record(opcode, stream, length, report)
-                elif opcode == Opcode.CHUNK:
-                    chunk = Chunk.read(stream)
-                    records = breakup_chunk(chunk, validate_crc=True)
-                    report.chunks += 1
-                    for record in records:
-                        if isinstance(record, Message):
-                            report.messages += 1
-                        if isinstance(record, (Schema, Channel, Message)):
-                            yield record
-                elif opcode in (Opcode.DATA_END, Opcode.FOOTER):
-                    report.complete = True
-                    report.stop_reason = 'end of data section'
-                    report.bytes_read = pos + _RECORD_HEADER.size + length
-                    return
-            except (McapError, CRCValidationError, ValueError, struct.error, UnicodeDecodeError) as err:
-                report.stop_reason = f'corrupt record at byte {pos} ({err})'
-                return
-            pos += _RECORD_HEADER.size + length
-            report.bytes_read = pos
-            if on_progress is not None:
-                on_progress(pos)
-
-
-def _plain_record(opcode: int, stream: ReadDataStream, length: int, report: ScanReport) -> Record:
-    """Decode one record found outside a chunk."""
-    if opcode == Opcode.SCHEMA:
-        return Schema.read(stream)
-    if opcode == Opcode.CHANNEL:
-        return Channel.read(stream)
-    if opcode == Opcode.METADATA:
-        record = Metadata.read(stream)
-        report.metadata[record.name] = dict(record.metadata)
-        return record
-    report.messages += 1
-    return Message.read(stream, length)
+__all__ = ['Loss', 'RepairResult', 'ScanReport', 'default_output', 'main', 'mcap_files', 'repair_bag', 'scan_mcap']
 
 
 def mcap_files(bag: Path) -> list[Path]:
@@ -145,7 +46,9 @@ def mcap_files(bag: Path) -> list[Path]:
 
 
 def default_output(bag: Path) -> Path:
-    """``<bag>_repaired`` next to the bag folder (or next to a single .mcap file, by its stem)."""
+    """``<bag>_repaired`` beside the bag folder (for a lone .mcap file: beside it, by its stem)."""
+    if bag.is_file() and source_folders([bag]):
+        bag = bag.parent
     base = bag.parent / (bag.stem if bag.is_file() else bag.name)
     return base.with_name(base.name + '_repaired')
 
@@ -201,11 +104,43 @@ class RepairResult:
     summary: BagSummary
     scans: list[ScanReport]
 
+    @property
+    def bytes_lost(self) -> int:
+        """Bytes skipped in every file."""
+        return sum(s.bytes_lost for s in self.scans)
+
+    @property
+    def messages_lost(self) -> Optional[int]:
+        """Messages known lost in every file; None when some loss is uncounted."""
+        counts = [s.messages_lost for s in self.scans]
+        return None if any(n is None for n in counts) else sum(n or 0 for n in counts)
+
     def line(self) -> str:
-        """One-line human summary."""
-        lost = sum(s.bytes_lost for s in self.scans)
+        """One-line human summary: what was written, why each scan stopped, and exactly what was lost."""
         how = '; '.join(f'{s.path.name}: {s.stop_reason}' for s in self.scans)
-        return f'repaired {self.summary.line()}; {how}; {lost} bytes not recoverable'
+        lost = self.messages_lost
+        details = [f'{s.path.name} {loss.text()}' for s in self.scans for loss in s.losses]
+        details += [f'{s.path.name}: {s.without_channel} messages of intact chunks whose channel was defined in '
+                    'a lost part' for s in self.scans if s.without_channel]
+        counted = sum(s.messages_lost_counted for s in self.scans)
+        if lost is not None:
+            amount = str(lost)
+        else:
+            amount = f'at least {counted}' if counted else 'an unknown number of'
+        return (f'repaired {self.summary.line()}; {how}; {self.bytes_lost} bytes not recoverable, '
+                f'{amount} messages lost' + (f' ({"; ".join(details)})' if details else ''))
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON form: the repaired bag, its counts, and per file the scan and every skipped range."""
+        lost = self.messages_lost
+        return {
+            'path': str(self.summary.path),
+            'counts': self.summary.counts,
+            'bytes_lost': self.bytes_lost,
+            'messages_lost': 'unknown' if lost is None else lost,
+            'messages_lost_counted': sum(s.messages_lost_counted for s in self.scans),
+            'scans': [s.as_dict() for s in self.scans],
+        }
 
 
 def repair_bag(
@@ -215,10 +150,10 @@ def repair_bag(
     bag = Path(bag)
     files = mcap_files(bag)
     out = Path(out) if out is not None else default_output(bag)
+    check_output_folder('output', out, [bag])
     if out.exists():
-        raise RepairError(f'{out} exists already, not overwriting')
-    if out.resolve() == bag.resolve():
-        raise RepairError('the repaired bag must go to a new folder')
+        full = out.is_dir() and any(out.iterdir())
+        raise RepairError(f'{out} exists already{" and is not empty" if full else ""}, not overwriting')
     total = sum(p.stat().st_size for p in files)
     progress = Progress(f'bag_repair {bag.name}', total, unit='bytes', enabled=not quiet)
     writer: Optional[BagWriter] = None
@@ -228,21 +163,32 @@ def repair_bag(
         for path in files:
             report = ScanReport(path=path, file_size=path.stat().st_size)
             scans.append(report)
+            # The summary's definitions (closed files only) stand in for those lost with a damaged chunk.
+            spare_schemas, spare_channels = summary_definitions(path)
             schemas: dict[int, Schema] = {}
             handles: dict[int, int] = {}
             base = done
+
+            def register(channel: Channel) -> None:
+                nonlocal writer
+                if writer is None:
+                    writer = BagWriter(out, custom_data={'repaired_from': str(bag.resolve())})
+                    writer.open()
+                schema = schemas.get(channel.schema_id) or spare_schemas.get(channel.schema_id)
+                topic = _topic_from(channel, schema)
+                known = [i for i, t in enumerate(writer.topics) if t.name == topic.name]
+                handles[channel.id] = known[0] if known else writer.add_topic(topic)
+
             for record in scan_mcap(path, report, lambda pos: progress.update(base + pos)):
                 if isinstance(record, Schema):
                     schemas[record.id] = record
                 elif isinstance(record, Channel) and record.id not in handles:
-                    if writer is None:
-                        writer = BagWriter(out, custom_data={'repaired_from': str(bag.resolve())})
-                        writer.open()
-                    topic = _topic_from(record, schemas.get(record.schema_id))
-                    known = [i for i, t in enumerate(writer.topics) if t.name == topic.name]
-                    handles[record.id] = known[0] if known else writer.add_topic(topic)
+                    register(record)
                 elif isinstance(record, Message):
+                    if record.channel_id not in handles and record.channel_id in spare_channels:
+                        register(spare_channels[record.channel_id])
                     if record.channel_id not in handles:
+                        report.without_channel += 1
                         continue
                     assert writer is not None
                     writer.write(handles[record.channel_id], record.log_time, record.data, record.publish_time)
@@ -252,16 +198,21 @@ def repair_bag(
             progress.update(done)
         if writer is None:
             reasons = '; '.join(s.stop_reason for s in scans)
+            orphans = sum(s.without_channel for s in scans)
+            if orphans:
+                reasons += (f'; {orphans} messages of intact chunks whose channel was defined in a lost part')
             raise RepairError(f'nothing recoverable in {bag}: no complete chunk with a channel ({reasons})')
         writer.custom_data = {**_recorded_custom_data(scans), **writer.custom_data}
         return RepairResult(writer.close(), scans)
     except OSError as err:
-        if writer is not None and writer.is_open:
-            writer.abort()
-        raise RepairError(f'{err.filename or bag}: {err.strerror}') from None
-    except BaseException:
-        if writer is not None and writer.is_open:
-            writer.abort()
+        if writer is not None:
+            writer.discard()
+        raise RepairError(f'{err.filename or bag}: {describe_os_error(err)}') from None
+    except BaseException as err:
+        if writer is not None:
+            writer.discard()
+        if isinstance(err, BagWriteError) and not isinstance(err, RepairError):
+            raise RepairError(f'{err}; nothing was left in {out}') from None
         raise
 
 
@@ -270,8 +221,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog='bag_repair',
         description='Rebuild an interrupted rosbag2/MCAP bag (index, summary, metadata.yaml) into a new folder, '
-        'reading every complete chunk and stopping at the first truncated or corrupt record. '
-        'The original bag is not modified.',
+        'reading every complete chunk; after a truncated or corrupt record it resynchronises at the next '
+        'intact one and reports every skipped byte range. The original bag is not modified; the output '
+        'must be a new folder outside it.',
     )
     parser.add_argument('bag', type=Path, help='bag folder (or a single .mcap file) to repair')
     parser.add_argument('-o', '--out', type=Path, help='folder of the repaired bag (default: <bag>_repaired)')
@@ -283,19 +235,17 @@ def build_parser() -> argparse.ArgumentParser:
 def _main(argv: Optional[Sequence[str]]) -> int:
     """Parse arguments, repair, print the one-line result."""
     args = build_parser().parse_args(argv)
+    if args.json:
+        out = args.out if args.out is not None else default_output(args.bag)
+        check_output_file('--json', args.json, [args.bag], created=[out])
     result = repair_bag(args.bag, args.out, quiet=args.quiet)
     print(result.line())
     if args.json:
-        doc: dict[str, Any] = {
-            'path': str(result.summary.path),
-            'counts': result.summary.counts,
-            'scans': [
-                {'file': str(s.path), 'stop_reason': s.stop_reason, 'complete': s.complete,
-                 'bytes_lost': s.bytes_lost, 'chunks': s.chunks}
-                for s in result.scans
-            ],
-        }
-        args.json.write_text(json.dumps(doc, indent=2) + '\n', encoding='utf-8')
+        try:
+            args.json.write_text(json.dumps(result.as_dict(), indent=2) + '\n', encoding='utf-8')
+        except OSError as err:
+            raise RepairError(f'cannot write {args.json}: {describe_os_error(err)} '
+                              f'(the repaired bag {result.summary.path} is complete)') from None
     return 0
 
 

@@ -104,6 +104,13 @@ def declare_text(node: Node, name: str, default: str, description: str) -> str:
     return _declare(node, name, default, ParameterDescriptor(name=name, description=description), '(a string)')
 
 
+def declare_text_list(node: Node, name: str, default: Sequence[str], description: str) -> list[str]:
+    """Declare a list-of-strings parameter (``default`` must not be empty: rclpy takes the type from it)."""
+    value = _declare(node, name, list(default), ParameterDescriptor(name=name, description=description),
+                     '(a list of strings)')
+    return [str(v) for v in value]
+
+
 def declare_flag(node: Node, name: str, default: bool, description: str) -> bool:
     """Declare a boolean parameter."""
     return _declare(node, name, default, ParameterDescriptor(name=name, description=description), '(true or false)')

@@ -1,0 +1,17 @@
+"""Entry points of ``recorder`` and ``player``: signals answered quietly from the first instant, then the imports."""
+
+from actuator_ros.early import quiet_until_running
+
+
+def recorder() -> int:
+    """Quiet signals, import the recorder (rclpy: 0.3-0.5 s), run it (it installs its own stop handling)."""
+    quiet_until_running()
+    from actuator_bag.recorder_node import main
+    return main()
+
+
+def player() -> int:
+    """Quiet signals, import the player (rclpy: 0.3-0.5 s), run it (it installs its own stop handling)."""
+    quiet_until_running()
+    from actuator_bag.player_node import main
+    return main()
