@@ -29,14 +29,18 @@ import ros_helpers  # noqa: E402
 def _require_project_environment():
     problem = ros_helpers.check_project_environment()
     if problem:
-        pytest.fail(f'the project environment is not active ({problem}). Run the tests with '
-                    f'`make test` or `scripts/test.sh`, or `source scripts/env.sh` first.',
-                    pytrace=False)
+        pytest.fail(
+            f'the project environment is not active ({problem}). Run the tests with '
+            f'`make test` or `scripts/test.sh`, or `source scripts/env.sh` first.',
+            pytrace=False,
+        )
 
 
 def pytest_report_header(config):
-    return (f'ROS: {os.environ.get("ACTUATOR_ROS_MODE")} mode, RMW {os.environ.get("RMW_IMPLEMENTATION")}, '
-            f'workspace {os.environ.get("ACTUATOR_WS")}')
+    return (
+        f'ROS: {os.environ.get("ACTUATOR_ROS_MODE")} mode, RMW {os.environ.get("RMW_IMPLEMENTATION")}, '
+        f'workspace {os.environ.get("ACTUATOR_WS")}'
+    )
 
 
 @pytest.fixture
@@ -76,8 +80,13 @@ def ros_process(ros_env, tmp_path):
 
     def start(package, executable, args=(), env=None, **kwargs):
         proc = ros_helpers.RosProcess.installed(
-            package, executable, args, env=ros_env if env is None else env,
-            log_dir=tmp_path / 'processes', **kwargs)
+            package,
+            executable,
+            args,
+            env=ros_env if env is None else env,
+            log_dir=tmp_path / 'processes',
+            **kwargs,
+        )
         started.append(proc)
         return proc
 

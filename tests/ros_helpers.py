@@ -49,8 +49,11 @@ def reserve_domain(exclude: Iterable[int] = ()):
     return domain_coordinator.domain_id(selector=_RandomStart(exclude))
 
 
-def isolated_ros_env(domain_id: int, base: Optional[Mapping[str, str]] = None,
-                     log_dir: Optional[Union[str, Path]] = None) -> dict:
+def isolated_ros_env(
+    domain_id: int,
+    base: Optional[Mapping[str, str]] = None,
+    log_dir: Optional[Union[str, Path]] = None,
+) -> dict:
     """An environment for a ROS subprocess that sees only processes of ``domain_id`` on this host."""
     env = dict(os.environ if base is None else base)
     for name in ISOLATION_UNSET:
@@ -102,18 +105,29 @@ def env_without_workspace(env: Mapping[str, str], workspace: Union[str, Path] = 
 
 
 # The process supervisor is the product's own (actuator_tools.supervisor), shared with the runner.
-from actuator_tools.supervisor import RosProcess, executable_path, live_processes, stop_all_processes
+from actuator_tools.supervisor import (
+    RosProcess,
+    executable_path,
+    live_processes,
+    stop_all_processes,
+)
 
 __all__ = ['RosProcess', 'executable_path', 'live_processes', 'stop_all_processes']
 
 
 # -- messages ---------------------------------------------------------------------------------
 _INT_RANGES = {
-    'int8': (-2**7, 2**7 - 1), 'uint8': (0, 2**8 - 1),
-    'int16': (-2**15, 2**15 - 1), 'uint16': (0, 2**16 - 1),
-    'int32': (-2**31, 2**31 - 1), 'uint32': (0, 2**32 - 1),
-    'int64': (-2**63, 2**63 - 1), 'uint64': (0, 2**64 - 1),
-    'octet': (0, 255), 'byte': (0, 255), 'char': (0, 255),
+    'int8': (-(2**7), 2**7 - 1),
+    'uint8': (0, 2**8 - 1),
+    'int16': (-(2**15), 2**15 - 1),
+    'uint16': (0, 2**16 - 1),
+    'int32': (-(2**31), 2**31 - 1),
+    'uint32': (0, 2**32 - 1),
+    'int64': (-(2**63), 2**63 - 1),
+    'uint64': (0, 2**64 - 1),
+    'octet': (0, 255),
+    'byte': (0, 255),
+    'char': (0, 255),
 }
 _ARRAY_RE = re.compile(r'^(?P<base>.+?)\[(?P<size>\d+)\]$')
 _SEQ_RE = re.compile(r'^sequence<(?P<base>.+?)(?:,\s*(?P<bound>\d+))?>$')
@@ -149,7 +163,7 @@ def _scalar(type_name: str, counter: _Counter):
     if m:
         text = f'v{k}-éx' if m.group('kind') == 'wstring' else f'v{k}-x'
         bound = m.group('bound')
-        return text[:int(bound)] if bound else text
+        return text[: int(bound)] if bound else text
     raise ValueError(f'no test value for type {type_name!r}')
 
 
@@ -175,18 +189,25 @@ def _value_for(type_name: str, current, counter: _Counter):
     m = _ARRAY_RE.match(type_name)
     if m:
         size = int(m.group('size'))
-        items = [_value_for(m.group('base'), _element_template(current, m.group('base')), counter)
-                 for _ in range(size)]
+        items = [
+            _value_for(m.group('base'), _element_template(current, m.group('base')), counter)
+            for _ in range(size)
+        ]
         return items
     m = _SEQ_RE.match(type_name)
     if m:
         bound = m.group('bound')
         size = min(3, int(bound)) if bound else 3
-        return [_value_for(m.group('base'), _element_template(current, m.group('base')), counter)
-                for _ in range(size)]
+        return [
+            _value_for(m.group('base'), _element_template(current, m.group('base')), counter)
+            for _ in range(size)
+        ]
     if '/' in type_name:  # nested message: fill a fresh instance of the field's class
-        nested = type(current)() if current is not None and not isinstance(current, (list, tuple)) \
+        nested = (
+            type(current)()
+            if current is not None and not isinstance(current, (list, tuple))
             else _message_class(type_name)()
+        )
         _fill(nested, counter)
         return nested
     value = _scalar(type_name, counter)
@@ -202,6 +223,7 @@ def _element_template(current, base_type: str):
 def _message_class(type_name: str):
     """'pkg/Type' or 'pkg/msg/Type' to the Python class."""
     import importlib
+
     parts = type_name.split('/')
     pkg, name = parts[0], parts[-1]
     return getattr(importlib.import_module(f'{pkg}.msg'), name)
@@ -244,7 +266,9 @@ def leaves_equal(a: dict, b: dict) -> 'list[str]':
             diffs.append(f'{key}: only in {"first" if key in a else "second"}')
             continue
         x, y = a[key], b[key]
-        same = x == y or (isinstance(x, float) and isinstance(y, float) and math.isnan(x) and math.isnan(y))
+        same = x == y or (
+            isinstance(x, float) and isinstance(y, float) and math.isnan(x) and math.isnan(y)
+        )
         if not same:
             diffs.append(f'{key}: {x!r} != {y!r}')
     return diffs

@@ -50,12 +50,18 @@ class BusLoad:
 
     def text(self) -> str:
         """One line with the figure, e.g. '38.0 % of 1000 kbit/s (380 bits per 1 ms cycle)'."""
-        return (f'{100.0 * self.fraction:.1f} % of {self.bitrate_bit_s / 1000:g} kbit/s '
-                f'({self.bits_per_cycle} bits per {self.cycle_period_s * 1e3:g} ms cycle, worst-case stuffing)')
+        return (
+            f'{100.0 * self.fraction:.1f} % of {self.bitrate_bit_s / 1000:g} kbit/s '
+            f'({self.bits_per_cycle} bits per {self.cycle_period_s * 1e3:g} ms cycle, worst-case stuffing)'
+        )
 
 
-def cycle_load(bitrate_bit_s: int, cycle_period_s: float, payloads: Sequence[int] = CYCLE_PAYLOADS,
-               joints: int = 1) -> BusLoad:
+def cycle_load(
+    bitrate_bit_s: int,
+    cycle_period_s: float,
+    payloads: Sequence[int] = CYCLE_PAYLOADS,
+    joints: int = 1,
+) -> BusLoad:
     """Worst-case load of ``joints`` drives each sending ``payloads`` frames per cycle (one SYNC shared)."""
     if bitrate_bit_s <= 0 or cycle_period_s <= 0:
         raise ValueError('bitrate and cycle period must be > 0')
@@ -68,13 +74,20 @@ class BusLoadError(ValueError):
     """The cyclic traffic does not fit on the bus."""
 
 
-def check_bus_load(bitrate_bit_s: int, cycle_period_s: float, payloads: Sequence[int] = CYCLE_PAYLOADS,
-                   limit: float = DEFAULT_LIMIT, warn: float = DEFAULT_WARN) -> str | None:
+def check_bus_load(
+    bitrate_bit_s: int,
+    cycle_period_s: float,
+    payloads: Sequence[int] = CYCLE_PAYLOADS,
+    limit: float = DEFAULT_LIMIT,
+    warn: float = DEFAULT_WARN,
+) -> str | None:
     """Raise BusLoadError (one line with the figure) above ``limit``; return a warning text above ``warn``."""
     load = cycle_load(bitrate_bit_s, cycle_period_s, payloads)
     if load.fraction > limit:
-        raise BusLoadError(f'bus load {load.text()} exceeds the limit of {100 * limit:g} %: '
-                           f'raise the bitrate or lengthen sync_period_s')
+        raise BusLoadError(
+            f'bus load {load.text()} exceeds the limit of {100 * limit:g} %: '
+            f'raise the bitrate or lengthen sync_period_s'
+        )
     if load.fraction > warn:
         return f'bus load {load.text()} is above {100 * warn:g} %: little room left for SDO, EMCY or another joint'
     return None

@@ -28,8 +28,13 @@ class Scaling:
 
     def __post_init__(self) -> None:
         """Refuse non-positive or non-finite constants."""
-        for name in ('encoder_counts_per_rev', 'gear_ratio', 'rated_torque_nm', 'rated_current_a',
-                     'torque_constant_nm_a'):
+        for name in (
+            'encoder_counts_per_rev',
+            'gear_ratio',
+            'rated_torque_nm',
+            'rated_current_a',
+            'torque_constant_nm_a',
+        ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f'{name} must be finite and > 0, got {value}')

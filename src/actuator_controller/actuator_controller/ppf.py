@@ -40,25 +40,53 @@ BOUNDARY_MARGIN = 1.0e-4
 class PrescribedPerformance:
     """Envelope parameters of (8): rho0 > rho_inf > 0 [rad], m > 0 [1/s], l, h > 0."""
 
-    rho0_rad: float = spec(0.25, 'rho0: initial half-width of the error envelope (Table 4)', 'rad',
-                           0.0, 10.0, low_open=True)
-    rho_inf_rad: float = spec(0.05, 'rho_inf: final half-width of the error envelope (Table 4)', 'rad',
-                              0.0, 10.0, low_open=True)
-    decay_rate_per_s: float = spec(0.5, 'm: decay rate of the envelope (Table 4)', '1/s', 0.0, 1.0e3, low_open=True)
-    lower_scale: float = spec(1.0, 'l: lower bound is -l rho (Table 4)', '', 0.0, 100.0, low_open=True)
-    upper_scale: float = spec(1.0, 'h: upper bound is +h rho (Table 4)', '', 0.0, 100.0, low_open=True)
-    restart_margin: float = spec(2.0, 'beyond the paper: when e leaves the envelope, restart (8) with rho0 = '
-                                 'max(rho0, restart_margin |e| / min(l, h)); 0 never restarts', '', 0.0, 100.0)
+    rho0_rad: float = spec(
+        0.25,
+        'rho0: initial half-width of the error envelope (Table 4)',
+        'rad',
+        0.0,
+        10.0,
+        low_open=True,
+    )
+    rho_inf_rad: float = spec(
+        0.05,
+        'rho_inf: final half-width of the error envelope (Table 4)',
+        'rad',
+        0.0,
+        10.0,
+        low_open=True,
+    )
+    decay_rate_per_s: float = spec(
+        0.5, 'm: decay rate of the envelope (Table 4)', '1/s', 0.0, 1.0e3, low_open=True
+    )
+    lower_scale: float = spec(
+        1.0, 'l: lower bound is -l rho (Table 4)', '', 0.0, 100.0, low_open=True
+    )
+    upper_scale: float = spec(
+        1.0, 'h: upper bound is +h rho (Table 4)', '', 0.0, 100.0, low_open=True
+    )
+    restart_margin: float = spec(
+        2.0,
+        'beyond the paper: when e leaves the envelope, restart (8) with rho0 = '
+        'max(rho0, restart_margin |e| / min(l, h)); 0 never restarts',
+        '',
+        0.0,
+        100.0,
+    )
 
     def __post_init__(self) -> None:
         """Refuse an envelope that grows."""
         validate(self)
         if not self.rho_inf_rad <= self.rho0_rad:
-            raise ValueError(f'rho_inf_rad ({self.rho_inf_rad}) must not exceed rho0_rad ({self.rho0_rad})')
+            raise ValueError(
+                f'rho_inf_rad ({self.rho_inf_rad}) must not exceed rho0_rad ({self.rho0_rad})'
+            )
 
     def rho(self, t):
         """rho(t) [rad], eq. (8)."""
-        return (self.rho0_rad - self.rho_inf_rad) * xm.exp(-self.decay_rate_per_s * t) + self.rho_inf_rad
+        return (self.rho0_rad - self.rho_inf_rad) * xm.exp(
+            -self.decay_rate_per_s * t
+        ) + self.rho_inf_rad
 
     def rho_derivatives(self, t, rho0_rad=None):
         """(rho, rho', rho'') at t [rad, rad/s, rad/s^2]; ``rho0_rad`` replaces rho0 after a restart."""

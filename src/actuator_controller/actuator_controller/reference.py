@@ -41,7 +41,9 @@ class PaperTrajectory:
         f, df, ddf = 0.5 - xm.cos(w * t), w * xm.sin(w * t), w * w * xm.cos(w * t)
         decay = xm.exp(-t / tau)
         g, dg, ddg = 1.0 - decay, decay / tau, -decay / (tau * tau)
-        return ReferenceSample(amp * f * g, amp * (df * g + f * dg), amp * (ddf * g + 2.0 * df * dg + f * ddg))
+        return ReferenceSample(
+            amp * f * g, amp * (df * g + f * dg), amp * (ddf * g + 2.0 * df * dg + f * ddg)
+        )
 
 
 def slow_trajectory() -> PaperTrajectory:
@@ -65,7 +67,9 @@ class StepReference:
     def sample(self, t) -> ReferenceSample:
         """Step value; zero velocity and acceleration."""
         zero = 0.0 * t
-        return ReferenceSample(xm.where(t >= self.start_s, self.amplitude_rad, 0.0) + zero, zero, zero)
+        return ReferenceSample(
+            xm.where(t >= self.start_s, self.amplitude_rad, 0.0) + zero, zero, zero
+        )
 
 
 @dataclass(frozen=True)
@@ -84,7 +88,9 @@ class SineReference:
         return ReferenceSample(self.offset_rad + amp * s, amp * w * c, -amp * w * w * s)
 
 
-def make_reference(kind: str, amplitude_rad: float | None = None, frequency_rad_s: float | None = None) -> Reference:
+def make_reference(
+    kind: str, amplitude_rad: float | None = None, frequency_rad_s: float | None = None
+) -> Reference:
     """Build a reference by name: 'slow', 'fast', 'step' or 'sine' (amplitude/frequency override defaults)."""
     if kind == 'slow':
         ref: Reference = slow_trajectory()
@@ -93,8 +99,10 @@ def make_reference(kind: str, amplitude_rad: float | None = None, frequency_rad_
     elif kind == 'step':
         ref = StepReference(amplitude_rad=0.1 if amplitude_rad is None else amplitude_rad)
     elif kind == 'sine':
-        ref = SineReference(amplitude_rad=0.2 if amplitude_rad is None else amplitude_rad,
-                            frequency_rad_s=2.0 * math.pi if frequency_rad_s is None else frequency_rad_s)
+        ref = SineReference(
+            amplitude_rad=0.2 if amplitude_rad is None else amplitude_rad,
+            frequency_rad_s=2.0 * math.pi if frequency_rad_s is None else frequency_rad_s,
+        )
     else:
         raise ValueError(f"reference must be one of 'slow', 'fast', 'step', 'sine', got {kind!r}")
     return ref

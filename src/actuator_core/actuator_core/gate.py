@@ -29,16 +29,19 @@ class Held(NamedTuple):
     """What the drive applies over one sample: current [A], the stamp of its command, brake, reason."""
 
     current_a: float
-    command_stamp_ns: int      # stamp of the command applied; -1 when none is
-    brake: bool                # the holding brake is engaged
-    reason: str                # '' while a command is applied, else why 0 A is
+    command_stamp_ns: int  # stamp of the command applied; -1 when none is
+    brake: bool  # the holding brake is engaged
+    reason: str  # '' while a command is applied, else why 0 A is
 
 
 class CommandGate:
     """Command checks, hold over the sample, timeout and brake of one drive."""
 
-    def __init__(self, current_limit_a: float = limits.CURRENT_LIMIT_A,
-                 timeout_s: float = limits.COMMAND_TIMEOUT_S):
+    def __init__(
+        self,
+        current_limit_a: float = limits.CURRENT_LIMIT_A,
+        timeout_s: float = limits.COMMAND_TIMEOUT_S,
+    ):
         """Refuse currents beyond +-``current_limit_a``; 0 A once commands are ``timeout_s`` old."""
         if not (math.isfinite(current_limit_a) and current_limit_a > 0.0):
             raise ValueError(f'current_limit_a must be finite and > 0, got {current_limit_a}')
@@ -68,7 +71,9 @@ class CommandGate:
         self.brake = True
         self._current_a, self._stamp_ns = 0.0, -1
 
-    def offer(self, current_a: float, stamp_ns: int, safe_stop: bool, received_ns: int) -> Optional[str]:
+    def offer(
+        self, current_a: float, stamp_ns: int, safe_stop: bool, received_ns: int
+    ) -> Optional[str]:
         """Take a command received at ``received_ns``; returns None, or why it was refused (0 A then applies)."""
         if not self.active:
             return 'the drive is not active'
@@ -81,7 +86,7 @@ class CommandGate:
                 self._received_ns = received_ns
                 self.brake = True
                 return f'command {current_a} A refused (valid: finite, |u| <= {self.current_limit_a:g} A); applying 0 A'
-            current_a = xm.where(valid, current_a, 0.0)      # a batch: refused elements get 0 A
+            current_a = xm.where(valid, current_a, 0.0)  # a batch: refused elements get 0 A
         self._received_ns = received_ns
         self._stamp_ns = stamp_ns
         self._safe_stop = bool(safe_stop)

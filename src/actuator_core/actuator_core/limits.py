@@ -62,7 +62,7 @@ STEADY_STATE_START_S = 5.0
 
 # --- encoder and loop delay (simulated joint, offline studies) -----------------------------------
 #: Largest encoder resolution accepted [counts per joint revolution] (a 32-bit absolute encoder).
-ENCODER_COUNTS_PER_REV_MAX = 2.0 ** 32
+ENCODER_COUNTS_PER_REV_MAX = 2.0**32
 #: Largest encoder noise standard deviation accepted [rad] (about 5.7 degrees).
 ENCODER_NOISE_STD_MAX_RAD = 0.1
 #: Largest command delay an offline run accepts [samples] (the plant applies u(k - D)).

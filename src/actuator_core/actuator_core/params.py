@@ -13,18 +13,33 @@ from typing import Any, Iterator
 import numpy as np
 
 
-def spec(default: Any, description: str, unit: str = '', low: float = -math.inf, high: float = math.inf,
-         *, low_open: bool = False) -> Any:
+def spec(
+    default: Any,
+    description: str,
+    unit: str = '',
+    low: float = -math.inf,
+    high: float = math.inf,
+    *,
+    low_open: bool = False,
+) -> Any:
     """A dataclass field with a valid range [low, high] ((low, high] when ``low_open``) and a description."""
-    return dataclasses.field(default=default, metadata={
-        'description': description, 'unit': unit, 'low': low, 'high': high, 'low_open': low_open})
+    return dataclasses.field(
+        default=default,
+        metadata={
+            'description': description,
+            'unit': unit,
+            'low': low,
+            'high': high,
+            'low_open': low_open,
+        },
+    )
 
 
 def range_text(meta: dict) -> str:
     """Human-readable valid range of a spec'd field, e.g. '(0, inf] rad/s'."""
     left = '(' if meta['low_open'] else '['
-    unit = f" {meta['unit']}" if meta['unit'] else ''
-    return f"{left}{meta['low']:g}, {meta['high']:g}]{unit}"
+    unit = f' {meta["unit"]}' if meta['unit'] else ''
+    return f'{left}{meta["low"]:g}, {meta["high"]:g}]{unit}'
 
 
 def check_value(name: str, value: Any, meta: dict) -> None:
@@ -33,9 +48,15 @@ def check_value(name: str, value: Any, meta: dict) -> None:
         return
     v = np.asarray(value, dtype=float)
     low, high = meta['low'], meta['high']
-    ok = np.all(np.isfinite(v)) and np.all(v <= high) and (np.all(v > low) if meta['low_open'] else np.all(v >= low))
+    ok = (
+        np.all(np.isfinite(v))
+        and np.all(v <= high)
+        and (np.all(v > low) if meta['low_open'] else np.all(v >= low))
+    )
     if not ok:
-        raise ValueError(f'{name} = {value} is outside its valid range {range_text(meta)}: {meta["description"]}')
+        raise ValueError(
+            f'{name} = {value} is outside its valid range {range_text(meta)}: {meta["description"]}'
+        )
 
 
 def validate(obj: Any) -> None:
@@ -48,8 +69,11 @@ def validate(obj: Any) -> None:
 def iter_specs(cls: type, prefix: str = '') -> Iterator[tuple[str, dataclasses.Field]]:
     """Yield (dotted name, field) of every spec'd field of ``cls``, recursing into nested dataclasses."""
     for f in dataclasses.fields(cls):
-        if dataclasses.is_dataclass(f.type) or (isinstance(f.type, str) and f.default_factory is not dataclasses.MISSING
-                                                and dataclasses.is_dataclass(f.default_factory)):
+        if dataclasses.is_dataclass(f.type) or (
+            isinstance(f.type, str)
+            and f.default_factory is not dataclasses.MISSING
+            and dataclasses.is_dataclass(f.default_factory)
+        ):
             inner = f.default_factory if f.default_factory is not dataclasses.MISSING else f.type
             yield from iter_specs(inner, f'{prefix}{f.name}.')
         elif 'low' in f.metadata:
@@ -60,7 +84,9 @@ def build(cls: type, values: dict[str, Any], prefix: str = '') -> Any:
     """Construct ``cls`` from a flat dict of dotted names (missing names keep their defaults)."""
     kwargs: dict[str, Any] = {}
     for f in dataclasses.fields(cls):
-        if f.default_factory is not dataclasses.MISSING and dataclasses.is_dataclass(f.default_factory):
+        if f.default_factory is not dataclasses.MISSING and dataclasses.is_dataclass(
+            f.default_factory
+        ):
             kwargs[f.name] = build(f.default_factory, values, f'{prefix}{f.name}.')
         elif f'{prefix}{f.name}' in values:
             kwargs[f.name] = values[f'{prefix}{f.name}']

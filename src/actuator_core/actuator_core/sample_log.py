@@ -38,7 +38,7 @@ class SampleLog:
         """All rows as one (rows, columns) array."""
         if not self._chunks:
             return np.empty((0, len(self.columns)), dtype=np.int64)
-        return np.concatenate(self._chunks[:-1] + [self._chunks[-1][:self._fill]])
+        return np.concatenate(self._chunks[:-1] + [self._chunks[-1][: self._fill]])
 
     def save(self, path: str) -> None:
         """Write the columns as arrays of an .npz file."""

@@ -13,8 +13,11 @@ def percentiles(values, prefix: str, mean: bool = False) -> dict[str, Optional[f
     keys = ('p50', 'p99', 'max') + (('mean',) if mean else ())
     if v.size == 0:
         return {f'{prefix}_{k}': None for k in keys}
-    out = {f'{prefix}_p50': float(np.percentile(v, 50)), f'{prefix}_p99': float(np.percentile(v, 99)),
-           f'{prefix}_max': float(v.max())}
+    out = {
+        f'{prefix}_p50': float(np.percentile(v, 50)),
+        f'{prefix}_p99': float(np.percentile(v, 99)),
+        f'{prefix}_max': float(v.max()),
+    }
     if mean:
         out[f'{prefix}_mean'] = float(v.mean())
     return out

@@ -33,7 +33,9 @@ class Verdict(Enum):
 class StampCheck:
     """One stream's stamps: grid, clock, discontinuities; counts what it refused."""
 
-    def __init__(self, period_ns: int, sim: bool, future_tolerance_ns: int, jump_samples: int = JUMP_SAMPLES):
+    def __init__(
+        self, period_ns: int, sim: bool, future_tolerance_ns: int, jump_samples: int = JUMP_SAMPLES
+    ):
         """``sim``: the next expected sample bounds the future; else the receiver's clock does."""
         self.period_ns = period_ns
         self.sim = sim
@@ -55,7 +57,7 @@ class StampCheck:
             self.refused_future += 1
             return Verdict.FUTURE
         ahead = stamp_ns - last
-        back = -self.period_ns if self.sim else -self.jump_ns   # sim: nothing is late or duplicated
+        back = -self.period_ns if self.sim else -self.jump_ns  # sim: nothing is late or duplicated
         if (ahead % self.period_ns != 0) or ahead <= back or ahead > self.jump_ns:
             self.jumps += 1
             self.last_ns = stamp_ns

@@ -7,4 +7,5 @@ def main() -> int:
     """Quiet signals, import the node module (rclpy: 0.3-0.5 s), run it."""
     quiet_until_running()
     from actuator_plant.plant_node import main as run
+
     return run()

@@ -22,40 +22,68 @@ import traceback
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 
 from actuator_ros.log import RateLimitedLog
-from actuator_ros.parameters import (ParameterError, check_unknown_parameters, declare_choice, declare_common,
-                                     declare_number, declare_text, only_while_unconfigured)
+from actuator_ros.parameters import (
+    ParameterError,
+    check_unknown_parameters,
+    declare_choice,
+    declare_common,
+    declare_number,
+    declare_text,
+    only_while_unconfigured,
+)
 from actuator_ros.realtime import EXECUTORS, RealtimeSettings
 
 
 def declare_realtime(node, settings: RealtimeSettings) -> RealtimeSettings:
     """Declare thread_priority, cpu_affinity and executor (applied before rclpy.init, see realtime)."""
     return RealtimeSettings(
-        thread_priority=declare_number(node, 'thread_priority', settings.thread_priority, 0, 99, '',
-                                       'SCHED_FIFO priority of every thread of the process, applied before the '
-                                       'middleware starts (0: normal scheduling)'),
-        cpu_affinity=declare_text(node, 'cpu_affinity', settings.cpu_affinity,
-                                  'CPUs the process may run on, e.g. "1" or "0,1" (empty: any)'),
-        executor=declare_choice(node, 'executor', settings.executor, EXECUTORS,
-                                'rclpy executor: events (EventsExecutor, lower latency) or single_threaded'))
+        thread_priority=declare_number(
+            node,
+            'thread_priority',
+            settings.thread_priority,
+            0,
+            99,
+            '',
+            'SCHED_FIFO priority of every thread of the process, applied before the '
+            'middleware starts (0: normal scheduling)',
+        ),
+        cpu_affinity=declare_text(
+            node,
+            'cpu_affinity',
+            settings.cpu_affinity,
+            'CPUs the process may run on, e.g. "1" or "0,1" (empty: any)',
+        ),
+        executor=declare_choice(
+            node,
+            'executor',
+            settings.executor,
+            EXECUTORS,
+            'rclpy executor: events (EventsExecutor, lower latency) or single_threaded',
+        ),
+    )
 
 
 class ManagedNode(LifecycleNode):
     """Lifecycle plumbing; subclasses write load_parameters, build, start, stop, drop."""
 
-    def __init__(self, node_name: str, settings: RealtimeSettings = RealtimeSettings(), **kwargs) -> None:
+    def __init__(
+        self, node_name: str, settings: RealtimeSettings = RealtimeSettings(), **kwargs
+    ) -> None:
         """Declare and check every parameter (ParameterError: the process exits 2 with one line)."""
         super().__init__(node_name, **kwargs)
         self.log = RateLimitedLog(self.get_logger())
         self.configured = False
         self.active = False
-        self.finished = False          # read by run_node: the run is over
+        self.finished = False  # read by run_node: the run is over
         self.error: str | None = None  # read by run_node: the run failed
         declare_common(self)
         self.settings = declare_realtime(self, settings)
         self.load_parameters()
         unknown = check_unknown_parameters(self)
         if unknown:
-            self.get_logger().warning(f'ignoring parameters this node does not have: {", ".join(unknown)}')
+            self.get_logger().warning(
+                f'ignoring parameters this node does not have: {", ".join(unknown)}'
+            )
         only_while_unconfigured(self)
 
     # --- what a node implements ---------------------------------------------------------------
@@ -114,7 +142,9 @@ class ManagedNode(LifecycleNode):
 
     def on_error(self, state: LifecycleState) -> TransitionCallbackReturn:
         """An exception in a transition: leave the joint safe, back to unconfigured."""
-        self.get_logger().error(f'error processing: {traceback.format_exc(limit=1).strip().splitlines()[-1]}')
+        self.get_logger().error(
+            f'error processing: {traceback.format_exc(limit=1).strip().splitlines()[-1]}'
+        )
         self._stop()
         self._drop()
         return TransitionCallbackReturn.SUCCESS

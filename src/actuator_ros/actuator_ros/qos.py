@@ -24,7 +24,15 @@ def control_qos(mode: str) -> QoSProfile:
     runs; 0 of 46 with 10000). A BEST_EFFORT subscriber matches either publisher.
     """
     if mode == 'sim':
-        return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=SIM_DEPTH, reliability=ReliabilityPolicy.RELIABLE,
-                          durability=DurabilityPolicy.VOLATILE)
-    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=REALTIME_DEPTH, reliability=ReliabilityPolicy.BEST_EFFORT,
-                      durability=DurabilityPolicy.VOLATILE)
+        return QoSProfile(
+            history=HistoryPolicy.KEEP_LAST,
+            depth=SIM_DEPTH,
+            reliability=ReliabilityPolicy.RELIABLE,
+            durability=DurabilityPolicy.VOLATILE,
+        )
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=REALTIME_DEPTH,
+        reliability=ReliabilityPolicy.BEST_EFFORT,
+        durability=DurabilityPolicy.VOLATILE,
+    )

@@ -32,14 +32,20 @@ class RealtimeSettings:
         """What is invalid, one line each."""
         out = []
         if not isinstance(self.thread_priority, int) or not 0 <= self.thread_priority <= 99:
-            out.append(f'parameter \'thread_priority\' = {self.thread_priority!r} refused: an integer in [0, 99]')
+            out.append(
+                f"parameter 'thread_priority' = {self.thread_priority!r} refused: an integer in [0, 99]"
+            )
         if self.executor not in EXECUTORS:
-            out.append(f'parameter \'executor\' = {self.executor!r} refused: one of {", ".join(EXECUTORS)}')
+            out.append(
+                f"parameter 'executor' = {self.executor!r} refused: one of {', '.join(EXECUTORS)}"
+            )
         try:
             self.cpus()
         except ValueError:
-            out.append(f'parameter \'cpu_affinity\' = {self.cpu_affinity!r} refused: a comma-separated CPU list '
-                       'such as "1" or "0,1"')
+            out.append(
+                f"parameter 'cpu_affinity' = {self.cpu_affinity!r} refused: a comma-separated CPU list "
+                'such as "1" or "0,1"'
+            )
         return out
 
     def cpus(self) -> set[int]:
@@ -54,13 +60,17 @@ class RealtimeSettings:
             try:
                 os.sched_setaffinity(0, self.cpus())
             except OSError as exc:
-                notes.append(f'cpu_affinity {self.cpu_affinity!r} refused by the kernel ({exc}); not pinned')
+                notes.append(
+                    f'cpu_affinity {self.cpu_affinity!r} refused by the kernel ({exc}); not pinned'
+                )
         if self.thread_priority:
             try:
                 os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(self.thread_priority))
             except OSError as exc:
-                notes.append(f'SCHED_FIFO priority {self.thread_priority} refused by the kernel ({exc}); running '
-                             'with normal scheduling (grant CAP_SYS_NICE or an rtprio limit to enable it)')
+                notes.append(
+                    f'SCHED_FIFO priority {self.thread_priority} refused by the kernel ({exc}); running '
+                    'with normal scheduling (grant CAP_SYS_NICE or an rtprio limit to enable it)'
+                )
         return '; '.join(notes) or None
 
 
@@ -84,12 +94,14 @@ def pre_init_settings(args: Sequence[str], node_name: str) -> RealtimeSettings:
             in_ros = False
         elif in_ros and arg in ('-p', '--param'):
             name, _, text = next(it, '').partition(':=')
-            name = name.split(':')[-1]      # node:name form
+            name = name.split(':')[-1]  # node:name form
             if name in names:
                 found[name] = _value(text)
         elif in_ros and arg == '--params-file':
             found.update(_from_file(next(it, ''), node_name, names))
-    return RealtimeSettings(**{k: (str(v) if k == 'cpu_affinity' else v) for k, v in found.items()})
+    return RealtimeSettings(
+        **{k: (str(v) if k == 'cpu_affinity' else v) for k, v in found.items()}
+    )
 
 
 def _from_file(path: str, node_name: str, names: Sequence[str]) -> dict:
@@ -98,7 +110,7 @@ def _from_file(path: str, node_name: str, names: Sequence[str]) -> dict:
         with open(path) as f:
             data = yaml.safe_load(f) or {}
     except (OSError, yaml.YAMLError):
-        return {}   # rcl reports an unreadable file itself, with its own message
+        return {}  # rcl reports an unreadable file itself, with its own message
     out: dict = {}
     for key in ('/**', node_name, f'/{node_name}'):
         section = data.get(key, {}) if isinstance(data, dict) else {}

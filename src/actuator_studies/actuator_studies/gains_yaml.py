@@ -22,9 +22,12 @@ from actuator_studies.space import StudyInputError
 
 def parameters_document(controller: str, gains, eso: EsoGains) -> dict:
     """The two nodes' parameters for ``gains`` of ``controller`` and the observer ``eso``."""
-    return {'actuator_eso': {'ros__parameters': dataclasses.asdict(eso)},
-            'actuator_controller': {'ros__parameters': {'controller': controller,
-                                                        controller: dataclasses.asdict(gains)}}}
+    return {
+        'actuator_eso': {'ros__parameters': dataclasses.asdict(eso)},
+        'actuator_controller': {
+            'ros__parameters': {'controller': controller, controller: dataclasses.asdict(gains)}
+        },
+    }
 
 
 def write_gains_yaml(path: Path, controller: str, gains, eso: EsoGains, header: str = '') -> Path:

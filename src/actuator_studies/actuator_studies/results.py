@@ -29,11 +29,15 @@ def prepare_folder(out: Path, request: dict, resume: bool) -> None:
     """Create ``out`` for a new study, or check that a resumed one asks exactly what it asked before."""
     definition = out / 'study.json'
     if out.exists() and not resume:
-        raise StudyInputError(f'output folder {out} exists (use --resume to continue it, or another --out)')
+        raise StudyInputError(
+            f'output folder {out} exists (use --resume to continue it, or another --out)'
+        )
     if resume and definition.exists():
         before = json.loads(definition.read_text())
         if before != json.loads(json.dumps(request)):
-            raise StudyInputError(f'--resume: {out} holds a different study ({definition} differs from this request)')
+            raise StudyInputError(
+                f'--resume: {out} holds a different study ({definition} differs from this request)'
+            )
     (out / 'chunks').mkdir(parents=True, exist_ok=True)
     if not definition.exists():
         definition.write_text(json.dumps(request, indent=2))
@@ -68,27 +72,40 @@ def _stats(x: np.ndarray) -> dict:
     x = x[np.isfinite(x)]
     if not x.size:
         return {'count': 0}
-    return {'count': int(x.size), 'min': float(x.min()), 'median': float(np.median(x)),
-            'p95': float(np.percentile(x, 95)), 'max': float(x.max())}
+    return {
+        'count': int(x.size),
+        'min': float(x.min()),
+        'median': float(np.median(x)),
+        'p95': float(np.percentile(x, 95)),
+        'max': float(x.max()),
+    }
 
 
 def summarise(table: pa.Table, varied: list[str], extra: dict) -> dict:
     """Counts of diverged, saturated and out-of-envelope runs, error statistics, the worst run."""
-    col = {name: np.asarray(table.column(name).to_pylist(), dtype=float) for name in table.column_names
-           if name not in ('bounds_kept', 'diverged')}
+    col = {
+        name: np.asarray(table.column(name).to_pylist(), dtype=float)
+        for name in table.column_names
+        if name not in ('bounds_kept', 'diverged')
+    }
     diverged = np.asarray(table.column('diverged').to_pylist(), dtype=bool)
     err = col['max_steady_error_rad']
     worst = None
     if np.isfinite(err).any():
         i = int(np.nanargmax(err))
-        worst = {'run': int(col['run'][i]), **{n: float(col[n][i]) for n in varied},
-                 'max_steady_error_rad': float(err[i])}
+        worst = {
+            'run': int(col['run'][i]),
+            **{n: float(col[n][i]) for n in varied},
+            'max_steady_error_rad': float(err[i]),
+        }
     summary = {
-        'runs': int(table.num_rows), 'diverged': int(diverged.sum()),
+        'runs': int(table.num_rows),
+        'diverged': int(diverged.sum()),
         'saturated_runs': int((col['saturated_fraction'] > SATURATED_FRACTION_LIMIT).sum()),
         'saturated_fraction_limit': SATURATED_FRACTION_LIMIT,
         'envelope_violated_runs': int((col['paper_envelope_violations'] > 0).sum()),
-        'max_steady_error_rad': _stats(err), 'rms_error_rad': _stats(col['rms_error_rad']),
+        'max_steady_error_rad': _stats(err),
+        'rms_error_rad': _stats(col['rms_error_rad']),
         'saturated_fraction': _stats(col['saturated_fraction']),
         'max_abs_current_a': _stats(col['max_abs_current_a']),
         'worst_run': worst,
@@ -116,8 +133,13 @@ def tables_identical(a: pa.Table, b: pa.Table) -> bool:
     if a.schema != b.schema or a.num_rows != b.num_rows:
         return False
     for name in a.column_names:
-        x, y = a.column(name).to_numpy(zero_copy_only=False), b.column(name).to_numpy(zero_copy_only=False)
-        same = np.array_equal(x, y, equal_nan=True) if x.dtype.kind == 'f' else np.array_equal(x, y)
+        x, y = (
+            a.column(name).to_numpy(zero_copy_only=False),
+            b.column(name).to_numpy(zero_copy_only=False),
+        )
+        same = (
+            np.array_equal(x, y, equal_nan=True) if x.dtype.kind == 'f' else np.array_equal(x, y)
+        )
         if not same:
             return False
     return True

@@ -29,12 +29,29 @@ from actuator_sim.offline import trace_metrics
 from actuator_studies.space import BaseScenario, build_scenario, quantities, run_seeds
 
 #: Per-sample fields a run's metrics need (trace_metrics).
-RECORDED = ('error_rad', 'current_a', 'lower_bound_rad', 'upper_bound_rad', 'saturated', 'x2_hat_rad_s',
-            'true_velocity_rad_s', 'x3_hat_rad_s2', 'true_disturbance_rad_s2', 'status')
+RECORDED = (
+    'error_rad',
+    'current_a',
+    'lower_bound_rad',
+    'upper_bound_rad',
+    'saturated',
+    'x2_hat_rad_s',
+    'true_velocity_rad_s',
+    'x3_hat_rad_s2',
+    'true_disturbance_rad_s2',
+    'status',
+)
 #: Metric columns of a row, in order (steady_window_s becomes two columns).
-METRIC_COLUMNS = tuple(f.name for f in dataclasses.fields(RunMetrics) if f.name != 'steady_window_s') + (
-    'steady_window_start_s', 'steady_window_end_s', 'saturated_samples', 'bounds_violation_fraction',
-    'paper_envelope_violations', 'paper_envelope_violation_fraction')
+METRIC_COLUMNS = tuple(
+    f.name for f in dataclasses.fields(RunMetrics) if f.name != 'steady_window_s'
+) + (
+    'steady_window_start_s',
+    'steady_window_end_s',
+    'saturated_samples',
+    'bounds_violation_fraction',
+    'paper_envelope_violations',
+    'paper_envelope_violation_fraction',
+)
 
 
 @dataclass(frozen=True)
@@ -61,7 +78,9 @@ class SweepSpec:
         return np.arange(chunk * self.batch, min((chunk + 1) * self.batch, self.runs))
 
 
-def run_batch(base: BaseScenario, values: dict[str, np.ndarray], seeds: np.ndarray) -> list[tuple[RunMetrics, int]]:
+def run_batch(
+    base: BaseScenario, values: dict[str, np.ndarray], seeds: np.ndarray
+) -> list[tuple[RunMetrics, int]]:
     """(metrics, paper-envelope violations) of n runs at once: ``values`` holds n values per varied quantity."""
     n = len(seeds)
     scenario = build_scenario(base, values, seeds=seeds, name='batch')
@@ -77,8 +96,11 @@ def run_batch(base: BaseScenario, values: dict[str, np.ndarray], seeds: np.ndarr
             t[k] = row['t_s']
             for name in RECORDED:
                 traces[name][k] = row[name]
-            bad = (~np.isfinite(row['measured_position_rad']) | (np.abs(row['error_rad']) > DIVERGENCE_ERROR_RAD)
-                   | (np.asarray(row['status']) == Status.LATCHED))
+            bad = (
+                ~np.isfinite(row['measured_position_rad'])
+                | (np.abs(row['error_rad']) > DIVERGENCE_ERROR_RAD)
+                | (np.asarray(row['status']) == Status.LATCHED)
+            )
             newly = bad & ~measured_bad
             cut[newly] = k + 1
             measured_bad |= bad
@@ -91,7 +113,12 @@ def run_batch(base: BaseScenario, values: dict[str, np.ndarray], seeds: np.ndarr
             metrics = trace_metrics(trace)
             if m < samples:
                 metrics = dataclasses.replace(metrics, diverged=True)
-            out.append((metrics, paper_envelope_violations(trace['t_s'], trace['error_rad'], scenario.gains)))
+            out.append(
+                (
+                    metrics,
+                    paper_envelope_violations(trace['t_s'], trace['error_rad'], scenario.gains),
+                )
+            )
     return out
 
 
@@ -139,8 +166,11 @@ def run_chunk(spec: SweepSpec, chunk: int) -> dict[str, list]:
             values[name] = float(part[0]) if not table[name].vector else part
         for pos, (metrics, paper) in zip(group, run_batch(spec.base, values, seeds[group])):
             rows[pos] = metrics_row(metrics, paper)
-    columns: dict[str, list] = {'run': [int(i) for i in indices], 'chunk': [chunk] * len(indices),
-                                'seed': [int(s) for s in seeds]}
+    columns: dict[str, list] = {
+        'run': [int(i) for i in indices],
+        'chunk': [chunk] * len(indices),
+        'seed': [int(s) for s in seeds],
+    }
     for name, column in spec.table.items():
         columns[name] = [float(v) for v in column[indices]]
     for key in METRIC_COLUMNS:
@@ -158,4 +188,6 @@ def run_single(spec: SweepSpec, run: int) -> dict[str, Any]:
         metrics = trace_metrics(trace)
     if len(trace['t_s']) < scenario.samples:
         metrics = dataclasses.replace(metrics, diverged=True)
-    return metrics_row(metrics, paper_envelope_violations(trace['t_s'], trace['error_rad'], scenario.gains))
+    return metrics_row(
+        metrics, paper_envelope_violations(trace['t_s'], trace['error_rad'], scenario.gains)
+    )

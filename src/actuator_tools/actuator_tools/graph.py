@@ -30,14 +30,14 @@ PINNING = {'joint': '0', 'eso': '1', 'controller': '1'}
 class NodeSpec:
     """One process of the run."""
 
-    key: str                      # plant | driver | eso | controller | recorder
+    key: str  # plant | driver | eso | controller | recorder
     package: str
     executable: str
-    name: str                     # node name (parameter file sections are keyed by it)
+    name: str  # node name (parameter file sections are keyed by it)
     parameters: dict = field(default_factory=dict)
-    scenario_file: bool = True    # gets the scenario's parameter file
-    leader: bool = False          # the run ends when this process ends
-    managed: bool = True          # a lifecycle node
+    scenario_file: bool = True  # gets the scenario's parameter file
+    leader: bool = False  # the run ends when this process ends
+    managed: bool = True  # a lifecycle node
 
 
 def recorder_parameters(mode: str) -> dict:
@@ -55,10 +55,20 @@ def recorder_parameters(mode: str) -> dict:
     return {'reliability': 'best_effort', 'queue_depth': 5000}
 
 
-def closed_loop(mode: str, duration_s: float, *, record: bool = True, bag: Optional[Path] = None,
-                joint: str = 'plant', thread_priority: int = 0, cpus: Optional[dict] = None,
-                executor: str = 'events', logs: Optional[Path] = None, joint_parameters: Optional[dict] = None,
-                autostart: bool = True) -> list[NodeSpec]:
+def closed_loop(
+    mode: str,
+    duration_s: float,
+    *,
+    record: bool = True,
+    bag: Optional[Path] = None,
+    joint: str = 'plant',
+    thread_priority: int = 0,
+    cpus: Optional[dict] = None,
+    executor: str = 'events',
+    logs: Optional[Path] = None,
+    joint_parameters: Optional[dict] = None,
+    autostart: bool = True,
+) -> list[NodeSpec]:
     """The processes of one run in start order (the joint last: it starts sampling when all are there).
 
     ``logs``: folder for the per-node timing files the benchmark reads (controller_timing.npz,
@@ -81,32 +91,95 @@ def closed_loop(mode: str, duration_s: float, *, record: bool = True, bag: Optio
     loop_params = {'mode': mode, 'use_sim_time': sim}
     specs = []
     if record:
-        specs.append(NodeSpec('recorder', 'actuator_bag', 'recorder', 'recorder',
-                              {'use_sim_time': sim, **recorder_parameters(mode), **({'output': str(bag)} if bag else {})},
-                              scenario_file=False, managed=False))
-    logged = (lambda name: {} if logs is None else {name[0]: str(logs / name[1])})
-    specs.append(NodeSpec('controller', 'actuator_controller', 'controller_node', 'actuator_controller',
-                          {**loop_params, **settings('controller', thread_priority),
-                           **logged(('timing_log', 'controller_timing.npz'))}))
-    specs.append(NodeSpec('eso', 'actuator_eso', 'eso_node', 'actuator_eso',
-                          {**loop_params, **settings('eso', thread_priority),
-                           **logged(('stats_log', 'eso_stats.json'))}))
+        specs.append(
+            NodeSpec(
+                'recorder',
+                'actuator_bag',
+                'recorder',
+                'recorder',
+                {
+                    'use_sim_time': sim,
+                    **recorder_parameters(mode),
+                    **({'output': str(bag)} if bag else {}),
+                },
+                scenario_file=False,
+                managed=False,
+            )
+        )
+    logged = lambda name: {} if logs is None else {name[0]: str(logs / name[1])}
+    specs.append(
+        NodeSpec(
+            'controller',
+            'actuator_controller',
+            'controller_node',
+            'actuator_controller',
+            {
+                **loop_params,
+                **settings('controller', thread_priority),
+                **logged(('timing_log', 'controller_timing.npz')),
+            },
+        )
+    )
+    specs.append(
+        NodeSpec(
+            'eso',
+            'actuator_eso',
+            'eso_node',
+            'actuator_eso',
+            {
+                **loop_params,
+                **settings('eso', thread_priority),
+                **logged(('stats_log', 'eso_stats.json')),
+            },
+        )
+    )
     joint_priority = min(thread_priority + 1, 99) if thread_priority else 0
     subscribers = 3 if record else 2
     if joint == 'plant':
-        specs.append(NodeSpec('plant', 'actuator_plant', 'plant_node', 'actuator_plant',
-                              {'mode': mode, 'stop_after_s': float(duration_s), 'wait_for_subscribers': subscribers,
-                               **settings('joint', joint_priority), **logged(('timing_log', 'plant_samples.npz'))},
-                              leader=True))
+        specs.append(
+            NodeSpec(
+                'plant',
+                'actuator_plant',
+                'plant_node',
+                'actuator_plant',
+                {
+                    'mode': mode,
+                    'stop_after_s': float(duration_s),
+                    'wait_for_subscribers': subscribers,
+                    **settings('joint', joint_priority),
+                    **logged(('timing_log', 'plant_samples.npz')),
+                },
+                leader=True,
+            )
+        )
     elif joint in ('cia402_sim', 'cia402'):
         if sim:
             raise ValueError('the CiA 402 driver runs in real time only (mode realtime)')
-        from actuator_cia402.launch_spec import DRIVER_EXECUTABLE, DRIVER_NODE_NAME, DRIVER_PACKAGE, driver_parameters
-        params = driver_parameters(simulated=joint == 'cia402_sim', stop_after_s=float(duration_s),
-                                   wait_for_subscribers=subscribers, autostart=autostart, **(joint_parameters or {}))
+        from actuator_cia402.launch_spec import (
+            DRIVER_EXECUTABLE,
+            DRIVER_NODE_NAME,
+            DRIVER_PACKAGE,
+            driver_parameters,
+        )
+
+        params = driver_parameters(
+            simulated=joint == 'cia402_sim',
+            stop_after_s=float(duration_s),
+            wait_for_subscribers=subscribers,
+            autostart=autostart,
+            **(joint_parameters or {}),
+        )
         params.update(logged(('timing_log', 'plant_samples.npz')))
-        specs.append(NodeSpec('driver', DRIVER_PACKAGE, DRIVER_EXECUTABLE, DRIVER_NODE_NAME,
-                              {**params, **settings('joint', joint_priority)}, leader=True))
+        specs.append(
+            NodeSpec(
+                'driver',
+                DRIVER_PACKAGE,
+                DRIVER_EXECUTABLE,
+                DRIVER_NODE_NAME,
+                {**params, **settings('joint', joint_priority)},
+                leader=True,
+            )
+        )
     return specs
 
 
