@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Fixtures shared by every test of the project (tooling in tests/ros_helpers.py).
 
     ros_domain_id   a ROS domain id reserved for this test alone (ros_helpers.reserve_domain)

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Publisher / subscriber process for the message exchange tests (run with the venv's python).
 
 msg_exchange.py pub --package actuator_msgs --types A,B --seed 7

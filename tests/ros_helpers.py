@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Shared test tooling: isolated ROS domains, installed executables, managed processes.
 
 Everything here expects the project environment (``source scripts/env.sh``; ``make test``

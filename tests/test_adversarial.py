@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """The running loop attacked as an adversarial user would: the loop keeps tracking, or stops safely
 with the reason logged and resumes as the policy says (README "Safety").
 

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """The benchmark's figure computations on synthetic arrays, its input checks, and one short sim-time run."""
 
 from __future__ import annotations

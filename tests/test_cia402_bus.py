@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """CiA 402 master against the simulated drive on python-can's virtual bus (no ROS processes).
 
 Enable, disable, fault and fault-reset sequences; the cycle's process data; injected faults

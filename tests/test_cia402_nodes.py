@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """CiA 402 driver node as a ROS process (ROS-PROCESS TESTS: each starts installed executables).
 
 Parameter refusals, the lifecycle driven through its services (what ``ros2 lifecycle set``

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """CiA 402 driver, ROS-free units: scaling, state machine coding, bus load, parameter checks (fast, no processes)."""
 
 import math

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """The closed loop across processes: sim time equals the offline core, real time runs, the main job reports."""
 
 import json

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Controllers, closed loop and stability: behaviour of the control core without ROS."""
 
 import dataclasses

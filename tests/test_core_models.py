@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Plant, loss models, ESO and PPF: the ROS-free core against hand calculations and known signals."""
 
 import math

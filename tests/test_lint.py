@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Static checks: no unused imports, undefined names or other pyflakes findings in the project's Python."""
 
 import subprocess

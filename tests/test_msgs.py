@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """actuator_msgs: every type is built, serialises losslessly and crosses between processes.
 
 The types come from the ament index (what the build registered), the fields from each

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Each node on its own against bad input: refused and logged, safe output, clean shutdown."""
 
 import math

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """design_gains: the margin and current constraints hold for the designed set, the YAML is the nodes' format."""
 
 import json

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """actuator_studies sweeps: encoder and delay hooks, sampling, batched rows against single runs, resume, bad input."""
 
 import dataclasses

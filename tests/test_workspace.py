@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """The workspace itself: it builds from a clean clone, every executable is where `ros2 run`
 looks, and the shared test tooling (isolated domains, RosProcess) does what it promises."""
 

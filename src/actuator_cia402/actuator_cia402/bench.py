@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Benchmark of the CiA 402 driver: CPU per cycle and the cycle timing it holds at 1 kHz and 500 Hz.
 
 Runs the real driver node in this process (simulated drive on the virtual bus, autostart,

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """CAN bus load of one joint's cyclic traffic: SYNC plus the mapped PDOs, worst-case bit stuffing.
 
 A classic CAN base frame (11-bit identifier) with n data bytes has 47 + 8 n bits: SOF 1,

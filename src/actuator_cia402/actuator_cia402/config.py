@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """The driver's parameters as specs (unit, valid range, description): one declaration for ROS and docs.
 
 ROS-free: the driver node declares them with actuator_ros.parameters.declare_spec_parameters,

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """The driver's cycle thread: SYNC on an absolute grid of the system clock, as ros2_control's loop.
 
 Each cycle k at t_k = start + k * period: take the command to apply (the gate's hold), write

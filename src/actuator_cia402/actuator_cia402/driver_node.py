@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Managed (lifecycle) CiA 402 driver node: drops in for the simulated plant, speaking CANopen.
 
 Topic contract (identical to actuator_plant's plant_node, docs/architecture.md):

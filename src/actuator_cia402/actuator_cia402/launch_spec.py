@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """The driver's parameters for a closed-loop run, for the launch file and the runner (ROS-free).
 
     from actuator_cia402.launch_spec import driver_parameters, DRIVER_PACKAGE, DRIVER_EXECUTABLE

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """The CiA 402 master for one joint drive on a canopen.Network (RemoteNode from the drive's EDS).
 
 Layered like ros2_canopen's cia402 driver: ROS-free, called by the driver node's lifecycle

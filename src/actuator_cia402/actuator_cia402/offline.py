@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """The offline core (actuator_sim.loop.ClosedLoop) with what the CiA 402 drive adds to the plant.
 
 Explains the difference between a run through the driver and the offline core: the drive

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Fast packing of a PDO's mapped objects with one precompiled struct (CiA 301 PDO mapping).
 
 canopen's PdoVariable.raw decodes and encodes through the object dictionary on every access

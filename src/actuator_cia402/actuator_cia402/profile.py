@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """CiA 402 drive profile: object indices, the power state machine, statusword and controlword.
 
 ROS-free. Object indices and bit patterns follow CiA 402 part 2 (device control, section

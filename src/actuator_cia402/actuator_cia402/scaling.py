@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Unit conversion between CiA 402 process data and SI units (REP-103).
 
 Position actual 0x6064 is in counts of the motor-side encoder; the joint turns once every

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """A simulated CiA 402 joint drive: a canopen LocalNode on the bus, this project's joint behind it.
 
 The drive answers SDO and NMT like a real one, runs the CiA 402 power state machine

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Joint controller node (managed): PP-NFTSMC-ESO (or PI, SMC-ESO, NFTSMC-ESO) at the sensor's 1 kHz.
 
 subscribes joint_states (sensor_msgs/JointState), eso/estimate (actuator_msgs/StateEstimate)

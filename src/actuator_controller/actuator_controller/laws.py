@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """The paper's four joint controllers behind one interface: PP-NFTSMC-ESO (19)-(35), NFTSMC-ESO
 (47)-(49)/(A9)-(A13), SMC-ESO (44)-(46)/(A1)-(A5) and PI (43).
 

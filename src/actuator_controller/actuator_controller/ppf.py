@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Prescribed performance function and error transformation, paper eq. (8)-(12).
 
 rho(t) = (rho0 - rho_inf) e^(-m t) + rho_inf bounds the error: -l rho < e < h rho (8).

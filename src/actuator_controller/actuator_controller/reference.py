@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Reference trajectories with analytic derivatives: the paper's slow and fast ones, step and sine."""
 
 from __future__ import annotations

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """The controller's sample protocol: measurement + estimate + reference -> one command per sample.
 
 Held by the controller node and by the offline loop (``actuator_sim.loop``). Sample k is

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """The drive's command gate: what current a drive (simulated joint or hardware driver) applies.
 
 One object per drive, held by the plant node, the CiA 402 driver and the offline loop alike.

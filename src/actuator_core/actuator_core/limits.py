@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """The one source of every limit and shared constant of the suite (SI units, REP-103).
 
 Every node, tool and test reads these; none repeats a literal. Nominal model: Table 1 of

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Run metrics of the paper's Tables 5 and 6, shared by the offline simulation and bag analysis.
 
 One function computes every figure from plain arrays, so a run simulated offline and the

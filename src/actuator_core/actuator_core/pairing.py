@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """The observer's input protocol: pair each measurement y(k) with the current u(k) commanded for it.
 
 Held by the ESO node and by the offline loop (``actuator_sim.loop``). The observer holds

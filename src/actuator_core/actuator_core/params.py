@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Parameter specifications: each dataclass field carries its unit, valid range and description.
 
 One declaration serves three users: the dataclass validates itself on construction, the

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """A per-sample log of integer rows that grows in chunks, so memory follows the run's length."""
 
 from __future__ import annotations

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Summaries of per-sample figures, one way everywhere: percentiles and missed samples."""
 
 from __future__ import annotations

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """The time base of one input stream: every stamp checked against the receiver's clock and the sample grid.
 
 Held by each node for each 1 kHz input. ``check`` sorts a stamp into:

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Sample-time arithmetic shared by the nodes and the offline loop, so both compute identical times."""
 
 from __future__ import annotations

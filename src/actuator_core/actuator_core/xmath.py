@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Elementary functions for a float or a numpy array: ``math`` on scalars, numpy on arrays.
 
 The model and control laws are written once and run both per sample in the nodes (scalars,

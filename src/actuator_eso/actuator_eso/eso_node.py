@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Extended state observer node (managed): pairs each measurement with the current commanded for it.
 
 subscribes joint_states (sensor_msgs/JointState) and current_command (actuator_msgs/CurrentCommand)

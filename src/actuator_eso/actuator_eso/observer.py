@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Third-order extended state observer, paper eq. (14)-(16), discretised by forward Euler.
 
 Continuous observer (15), with x1_tilde = y - x1_hat:

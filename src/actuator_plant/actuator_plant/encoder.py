@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Joint angle encoder: quantisation to counts per revolution and additive Gaussian noise.
 
 The paper measures the joint angle exactly. A real joint reads it from an encoder, so the

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Deep-sea oil-filled joint actuator, paper eq. (1)-(5) with the losses (6)-(7), (40)-(42).
 
 The motion equation (1), J (N q'') = k_t u - k_b (N q') - T_v - T_d/N - T_f/N, is

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Oil stirring loss of the oil-filled motor, paper eq. (6)-(7), and the oil's viscosity.
 
 The paper's Table 2 lost its viscosity values mu_0. They are derived here for the paper's

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Simulated joint node (managed): integrates the joint model and publishes only what a position sensor gives.
 
 Topics (the contract a hardware driver implements, README "Nodes and topic contract"):

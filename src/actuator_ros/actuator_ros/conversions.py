@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Message field conversions shared by the nodes."""
 
 from __future__ import annotations

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Signals before a node runs: exit 0 quietly, never a KeyboardInterrupt traceback from an import.
 
 The entry point of every executable calls ``quiet_until_running`` before it imports rclpy

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Rate-limited logging that costs almost nothing when a message is suppressed."""
 
 from __future__ import annotations

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """ManagedNode: the lifecycle base of the plant, ESO and controller nodes (rclpy.lifecycle).
 
 States as in ros2_control's hardware lifecycle:

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """ROS parameters declared from specifications: description, unit, range; refusals as one line.
 
 Policy (README "Parameters"): every parameter is declared with a description; a value of the

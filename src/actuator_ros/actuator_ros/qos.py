@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """QoS of the 1 kHz streams, chosen per run mode."""
 
 from __future__ import annotations

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Real-time settings as node parameters (ros2_control's thread_priority, cpu_affinity), applied before rclpy.init.
 
 SCHED_FIFO must be set before ``rclpy.init``: the middleware's threads (Fast DDS receive and

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """main() of every node: real-time settings, rclpy.init, the node, autostart, spin, clean exit.
 
 Exit codes: 0 after SIGINT or SIGTERM at any moment (no traceback) or when the node ended the

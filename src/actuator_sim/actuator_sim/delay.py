@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Command delay of the offline loop: the plant applies u(k - D), D samples after it was commanded.
 
 D = 0 is the paper's loop. D = 1 or 2 models a drive that takes the command one or two

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """What late commands do to the loop, offline: ``python -m actuator_sim.late_commands``.
 
 In real time a command sometimes misses its sample, and the plant holds the previous current

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """The closed loop: the objects the three nodes hold, called in the order the nodes call them.
 
 Sample k (see docs/architecture.md), each step the same call a node makes:

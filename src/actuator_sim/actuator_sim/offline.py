@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Offline closed-loop simulation of the paper's cases: ``offline_sim case1 | case2 | run``.
 
 Prints each result next to the paper's number, writes JSON and saves every trace (.npz)

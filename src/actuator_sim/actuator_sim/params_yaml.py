@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Scenario -> ROS parameter files: one YAML per paper scenario, generated from ``scenarios``.
 
 The YAML files installed with actuator_bringup (config/*.yaml) are written by this module

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """The paper's simulation cases (section 5.3) as scenarios, with the numbers it reports.
 
 Case 1 (Table 5): PP-NFTSMC-ESO on the slow and the fast trajectory, in the laboratory

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Is a gain set stable at a sample time and loop delay? Spectral radius of the linearised sampled loop.
 
 The loop of ``closed_loop`` (ideal plant (5) with d = 0, forward-Euler ESO (15), controller)

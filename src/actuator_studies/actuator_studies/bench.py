@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Throughput of studies: runs per second against batch size (one core) and against Ray workers.
 
 Batch size: one chunk of b runs (depths spread over 0..2000 m, so every element differs) in

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Command lines: ``sweep``, ``sweep-bench``, ``design_gains`` and ``sweep-compare``.
 
 Bad input (an unknown quantity, an empty or inverted range, a sample count of 0, an

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Robust PP-NFTSMC-ESO gain design: Optuna TPE over (k0, k1, k2, k3, omega0) for the envelope.
 
 Objective: the chosen percentile (default 100, the worst case) of the max steady-state

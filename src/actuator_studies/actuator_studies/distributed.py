@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Where a study's chunks run: in this process, or as Ray tasks on a local instance or a cluster.
 
 Both executors yield (chunk, columns) as chunks finish, so the caller writes each chunk at

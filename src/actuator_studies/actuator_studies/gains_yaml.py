@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Gain sets as ROS 2 parameter files the controller and ESO nodes load as they are.
 
 Same nesting as the installed scenario files (``actuator_bringup/config/*.yaml``):

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Figures of a study (matplotlib, Agg): maps over two chosen quantities, CDFs over random draws.
 
 Map: three panels over (x, y): max steady-state error (log10, rad), fraction of samples at

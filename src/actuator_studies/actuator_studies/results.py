@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """A study's folder: its definition, one Parquet file per finished chunk, the joined table and summary.
 
 Layout of ``out/``: ``study.json`` (the request, to check a resumed run asks the same),

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Batched runs of a study: the design table cut into chunks, each chunk one vectorised ClosedLoop.
 
 A chunk is ``batch`` consecutive runs of the table, run as ClosedLoop(scenario, batch=n) with

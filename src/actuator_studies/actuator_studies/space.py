@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Study space: the scenario quantities a sweep may vary, how they are sampled, and the batch scenario.
 
 A quantity is named as the nodes name their parameters: ``depth_m``, the plant's

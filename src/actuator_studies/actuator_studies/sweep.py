@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """A sweep from request to folder: build the study, run the missing chunks, join, summarise, draw.
 
 Chunks run locally or on Ray (``distributed``), each written as soon as it finishes, with a

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Performance benchmark of the closed loop (``make bench``): timing, latency, CPU, memory, speed.
 
 Runs plant, ESO, controller and the recorder as separate processes (``bringup.run_closed_loop``)

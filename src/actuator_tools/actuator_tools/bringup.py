@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Bring up a closed-loop run as separate processes: ``bringup`` (the runner).
 
 The processes and their parameters come from ``actuator_tools.graph.closed_loop``, the same

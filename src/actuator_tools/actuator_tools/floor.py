@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Middleware floor: what one message hop costs on this machine with no control code at all.
 
 Two processes stand in for two of our nodes. ``source`` publishes an ``actuator_msgs/CurrentCommand``

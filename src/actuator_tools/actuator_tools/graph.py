@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """The one description of a closed-loop run: which nodes, with which parameters and real-time settings.
 
 Both the runner (``bringup``, actuator_tools.bringup) and the launch file

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """The main job (``make main``): the paper's hardest case across three processes, in both modes.
 
 Fast trajectory, deep sea (10 MPa, 2 degC), PP-NFTSMC-ESO: plant, ESO and controller run

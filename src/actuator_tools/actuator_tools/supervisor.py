@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """The one process supervisor: start installed executables as ``ros2 run`` does, watch, stop, measure.
 
 Used by the runner (``bringup``), the benchmark and the tests alike. A ``RosProcess`` runs in
