@@ -48,7 +48,7 @@ class _RandomStart:
 
 
 def reserve_domain(exclude: Iterable[int] = ()):
-    """A ROS_DOMAIN_ID in 1..100 held for this process alone (domain_coordinator: a bound port per id)."""
+    """Return a ROS_DOMAIN_ID in 1..100 held for this process alone (domain_coordinator: a bound port per id)."""
     return domain_coordinator.domain_id(selector=_RandomStart(exclude))
 
 
@@ -57,7 +57,7 @@ def isolated_ros_env(
     base: Optional[Mapping[str, str]] = None,
     log_dir: Optional[Union[str, Path]] = None,
 ) -> dict:
-    """An environment for a ROS subprocess that sees only processes of ``domain_id`` on this host."""
+    """Return an environment for a ROS subprocess that sees only processes of ``domain_id`` on this host."""
     env = dict(os.environ if base is None else base)
     for name in ISOLATION_UNSET:
         env.pop(name, None)

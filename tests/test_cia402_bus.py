@@ -36,11 +36,11 @@ _channels = itertools.count()
 
 @pytest.fixture
 def bus():
-    """Factory: (master, drive) on a fresh virtual bus; both leave the bus at test end."""
+    """Provide a factory of (master, drive) on a fresh virtual bus; both leave the bus at test end."""
     made = []
 
     def make(faults=FaultPlan(), scaling=SCALING, **drive_kwargs):
-        """A drive and a master on their own virtual bus channel."""
+        """Return a drive and a master on their own virtual bus channel."""
         channel = f'test_cia402_{next(_channels)}'
         drive = SimulatedDrive(
             EDS, NODE, SCALING, DT, channel, faults=faults, **drive_kwargs

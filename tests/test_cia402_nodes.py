@@ -37,7 +37,7 @@ def wait_for_output(proc, pattern, timeout):
 
 
 def scenario_file() -> Path:
-    """The installed parameter file of the paper's fast deep-sea case with PP-NFTSMC-ESO."""
+    """Return the installed parameter file of the paper's fast deep-sea case with PP-NFTSMC-ESO."""
     from ament_index_python.packages import get_package_share_directory
 
     return (
@@ -120,7 +120,7 @@ class Harness:
         ).success
 
     def state(self):
-        """The driver's lifecycle state label (``ros2 lifecycle get``)."""
+        """Return the driver's lifecycle state label (``ros2 lifecycle get``)."""
         return self.call(self.get, self.types[1].Request()).current_state.label
 
     def diag_values(self):
@@ -130,7 +130,7 @@ class Harness:
 
 @pytest.fixture
 def harness(rclpy_context):
-    """A Harness for the test, destroyed at its end."""
+    """Return a Harness for the test, destroyed at its end."""
     h = Harness(rclpy_context)
     yield h
     h.executor.shutdown()
@@ -271,7 +271,7 @@ def test_drive_fault_mid_run_goes_to_error_processing_with_the_drive_error_code(
 
 
 def _closed_loop(ros_process, tmp_path, driver_params, record=True, rt_priority=0):
-    """The run as graph.closed_loop describes it with the driver as the joint (what bringup --joint cia402_sim starts)."""
+    """Return the run as graph.closed_loop describes it with the driver as the joint (what bringup --joint cia402_sim starts)."""
     from actuator_tools.graph import closed_loop, ros_arguments
 
     params = dict(driver_params)

@@ -32,7 +32,7 @@ def _keys(tree, prefix=''):
 
 @pytest.fixture(scope='module')
 def design(tmp_path_factory):
-    """A small design: 8 trials over two corners, short runs."""
+    """Return a small design: 8 trials over two corners, short runs."""
     out = tmp_path_factory.mktemp('design') / 'd'
     req = DesignRequest(
         trials=8,

@@ -17,7 +17,7 @@ SHORT_S = 5.2
 
 @pytest.fixture(scope='module')
 def ray_session():
-    """A private local Ray instance with two workers for the whole module."""
+    """Return a private local Ray instance with two workers for the whole module."""
     ray = distributed.start_ray('local:2')
     assert distributed.ray_workers(ray) == 2
     yield ray
@@ -25,7 +25,7 @@ def ray_session():
 
 
 def _request(**changes) -> SweepRequest:
-    """A small Monte Carlo with encoder noise (so the per-run seeds matter)."""
+    """Return a small Monte Carlo with encoder noise (so the per-run seeds matter)."""
     fields = dict(
         vary=[
             'condition.temperature_c=-2:30',
@@ -44,7 +44,7 @@ def _request(**changes) -> SweepRequest:
 
 @pytest.fixture(scope='module')
 def local_table(tmp_path_factory):
-    """The same study run in this process."""
+    """Return the same study run in this process."""
     out = tmp_path_factory.mktemp('local') / 'study'
     run_sweep(_request(), out, progress=False)
     return pq.read_table(out / 'runs.parquet')

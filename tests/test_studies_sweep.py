@@ -79,7 +79,7 @@ def test_latin_hypercube_puts_one_draw_in_each_stratum_and_is_seeded():
 
 
 def _single_run_metrics(depth, temperature, noise, delay, seed) -> RunMetrics:
-    """A run built by hand from the paper's scenario, as offline_sim runs one."""
+    """Return a run built by hand from the paper's scenario, as offline_sim runs one."""
     s = paper_scenario('one', 'pp_nftsmc_eso', 'fast', 'deep_sea', duration_s=SHORT_S)
     s = dataclasses.replace(
         s,

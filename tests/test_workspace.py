@@ -46,7 +46,7 @@ def _source_packages(src: Path):
 
 
 def _is_alive(pid: int) -> bool:
-    """True for a running process, False for a gone or zombie one."""
+    """Return True for a running process, False for a gone or zombie one."""
     try:
         with open(f'/proc/{pid}/stat') as f:
             state = f.read().rsplit(')', 1)[1].split()[0]

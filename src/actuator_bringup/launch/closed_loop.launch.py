@@ -37,7 +37,7 @@ from actuator_tools.graph import JOINTS, closed_loop
 
 
 def _flag(context, name):
-    """A boolean launch argument through launch's own condition parser."""
+    """Return a boolean launch argument through launch's own condition parser."""
     return evaluate_condition_expression(context, [LaunchConfiguration(name)])
 
 

@@ -77,7 +77,7 @@ class SimDriveSettings:
             )
 
     def fault_plan(self) -> FaultPlan:
-        """The faults to inject, as the simulated drive takes them."""
+        """Return the faults to inject, as the simulated drive takes them."""
         return FaultPlan(
             self.fault_kind,
             self.fault_at_s,
@@ -276,7 +276,7 @@ class DriverParameters:
         )
 
     def eds_path(self) -> str:
-        """The EDS file to read (the installed one of the simulated drive unless eds_file is set)."""
+        """Return the EDS file to read (the installed one of the simulated drive unless eds_file is set)."""
         if self.eds_file:
             return self.eds_file
         from ament_index_python.packages import get_package_share_directory

@@ -83,7 +83,7 @@ def _check(params: dict[str, Any]) -> None:
 
 
 def driver_arguments(params: dict[str, Any]) -> list[str]:
-    """The parameters as command-line arguments of the installed executable."""
+    """Return the parameters as command-line arguments of the installed executable."""
     args = ['--ros-args']
     for key, value in params.items():
         text = ('true' if value else 'false') if isinstance(value, bool) else str(value)

@@ -106,7 +106,7 @@ class Cia402Master:
 
     # --- configure --------------------------------------------------------------------------
     def _sdo(self, index: int, subindex: int | None = None):
-        """The SDO variable of an object (blocking transfers: configure/activate/deactivate only)."""
+        """Return the SDO variable of an object (blocking transfers: configure/activate/deactivate only)."""
         return self.node.sdo[index] if subindex is None else self.node.sdo[index][subindex]
 
     def configure(self) -> list[str]:
@@ -277,7 +277,7 @@ class Cia402Master:
         self.read_state()  # NMT taken (see activate)
 
     def read_error(self) -> tuple[int, str]:
-        """The drive's error code 0x603F over SDO, with its text."""
+        """Return the drive's error code 0x603F over SDO, with its text."""
         code = self._sdo(p.ERROR_CODE).raw
         return code, p.error_text(code)
 

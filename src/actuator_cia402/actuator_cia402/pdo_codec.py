@@ -19,7 +19,7 @@ class PdoCodec:
     """Pack/unpack the objects of one mapped PDO (little endian, in mapping order)."""
 
     def __init__(self, fmt: struct.Struct, cob_id: int):
-        """A compiled layout for the frames of ``cob_id``."""
+        """Return a compiled layout for the frames of ``cob_id``."""
         self.struct = fmt
         self.cob_id = cob_id
 
@@ -37,9 +37,9 @@ class PdoCodec:
         return cls(struct.Struct('<' + ''.join(chars)), pdo_map.cob_id)
 
     def pack(self, values: Sequence[int]) -> bytes:
-        """The frame's data bytes for ``values`` (one per mapped object)."""
+        """Return the frame's data bytes for ``values`` (one per mapped object)."""
         return self.struct.pack(*values)
 
     def unpack(self, data: bytes) -> tuple:
-        """The mapped objects' values from a received frame."""
+        """Return the mapped objects' values from a received frame."""
         return self.struct.unpack_from(data)

@@ -78,7 +78,7 @@ SW_TARGET_REACHED = 1 << 10
 
 
 def decode_state(statusword: int) -> State | None:
-    """The CiA 402 state coded in statusword 0x6041, or None for an undefined pattern."""
+    """Return the CiA 402 state coded in statusword 0x6041, or None for an undefined pattern."""
     for mask, value, state in _STATE_CODING:
         if statusword & mask == value:
             return state
@@ -86,7 +86,7 @@ def decode_state(statusword: int) -> State | None:
 
 
 def encode_statusword(state: State, remote: bool = True, warning: bool = False) -> int:
-    """The statusword 0x6041 a drive reports in ``state`` (voltage-enabled bit 4 while powered)."""
+    """Return the statusword 0x6041 a drive reports in ``state`` (voltage-enabled bit 4 while powered)."""
     base = {
         State.NOT_READY_TO_SWITCH_ON: 0x0000,
         State.SWITCH_ON_DISABLED: 0x0040,
@@ -122,7 +122,7 @@ CW_FAULT_RESET = 1 << 7
 
 
 def decode_command(controlword: int) -> Command:
-    """The device control command in controlword 0x6040 (bits 0-3; bit 7 = fault reset)."""
+    """Return the device control command in controlword 0x6040 (bits 0-3; bit 7 = fault reset)."""
     if controlword & CW_FAULT_RESET:
         return Command.FAULT_RESET
     if not controlword & 0x2:
@@ -157,7 +157,7 @@ TRANSITIONS = {
 
 
 def next_state(state: State, command: Command) -> State:
-    """The state after ``command`` in ``state`` (CiA 402 transitions; unknown pairs keep the state)."""
+    """Return the state after ``command`` in ``state`` (CiA 402 transitions; unknown pairs keep the state)."""
     return TRANSITIONS.get((state, command), state)
 
 

@@ -75,7 +75,7 @@ class FaultPlan:
 
 
 def plant_parameters(working_condition: str) -> PlantParameters:
-    """The joint model of the paper in ``working_condition`` ('deep_sea': 10 MPa, 2 degC; 'lab': 0 MPa, 25 degC)."""
+    """Return the joint model of the paper in ``working_condition`` ('deep_sea': 10 MPa, 2 degC; 'lab': 0 MPa, 25 degC)."""
     conditions = {'deep_sea': WorkingCondition.deep_sea, 'lab': WorkingCondition.lab}
     if working_condition not in conditions:
         raise ValueError(f'working_condition must be deep_sea or lab, got {working_condition!r}')

@@ -215,7 +215,7 @@ class PiController(Controller):
     integral_current_sign = 1.0
 
     def update(self, t, y, x2_hat, x3_hat, ref: ReferenceSample) -> ControlOutput:
-        """Current for this sample; the integral advances by (x1d - y) dt."""
+        """Compute the current for this sample; the integral advances by (x1d - y) dt."""
         e = y - ref.position_rad
         proportional = self.gains.kp_a_rad * (-e)
         integral = self.gains.ki_a_rad_s * self.integral
@@ -248,7 +248,7 @@ class SmcEsoController(Controller):
     has_integral = False
 
     def update(self, t, y, x2_hat, x3_hat, ref: ReferenceSample) -> ControlOutput:
-        """Current for this sample."""
+        """Compute the current for this sample."""
         g, c = self.gains, self.common
         z1 = y - ref.position_rad
         z2 = x2_hat - ref.velocity_rad_s
@@ -283,7 +283,7 @@ class NftsmcEsoController(Controller):
     gains: NftsmcGains
 
     def update(self, t, y, x2_hat, x3_hat, ref: ReferenceSample) -> ControlOutput:
-        """Current for this sample; the sliding integral advances by its integrand times dt."""
+        """Compute the current for this sample; the sliding integral advances by its integrand times dt."""
         g, c = self.gains, self.common
         z1 = y - ref.position_rad
         z2 = x2_hat - ref.velocity_rad_s
@@ -319,14 +319,14 @@ class PpNftsmcEsoController(Controller):
     gains: PpNftsmcGains
 
     def __init__(self, gains, common: CommonConfig):
-        """The envelope (8) starts at t = 0 with the gains' rho0 (until a restart, see ppf)."""
+        """Return the envelope (8) starts at t = 0 with the gains' rho0 (until a restart, see ppf)."""
         super().__init__(gains, common)
         self.envelope_start_s = 0.0
         self.envelope_rho0_rad = gains.ppf.rho0_rad
         self.envelope_restarts = 0
 
     def reset(self) -> None:
-        """A new run: zero integral, the gains' envelope from t = 0."""
+        """Return a new run: zero integral, the gains' envelope from t = 0."""
         super().reset()
         self.envelope_start_s, self.envelope_rho0_rad, self.envelope_restarts = (
             0.0,
@@ -335,7 +335,7 @@ class PpNftsmcEsoController(Controller):
         )
 
     def update(self, t, y, x2_hat, x3_hat, ref: ReferenceSample) -> ControlOutput:
-        """Current for this sample; the sliding integral of (27) advances by its integrand times dt."""
+        """Compute the current for this sample; the sliding integral of (27) advances by its integrand times dt."""
         g, c = self.gains, self.common
         e = y - ref.position_rad  # (19)
         rho, rho_d, rho_dd = g.ppf.rho_derivatives(

@@ -26,7 +26,7 @@ class Reference(Protocol):
     name: str
 
     def sample(self, t) -> ReferenceSample:
-        """Reference at time t [s] since the start of the run."""
+        """Return the reference at time t [s] since the start of the run."""
 
 
 @dataclass(frozen=True)
@@ -50,12 +50,12 @@ class PaperTrajectory:
 
 
 def slow_trajectory() -> PaperTrajectory:
-    """The paper's slow motion: w = pi rad/s."""
+    """Return the paper's slow motion: w = pi rad/s."""
     return PaperTrajectory(frequency_rad_s=math.pi, name='slow')
 
 
 def fast_trajectory() -> PaperTrajectory:
-    """The paper's fast motion: w = 4 pi rad/s."""
+    """Return the paper's fast motion: w = 4 pi rad/s."""
     return PaperTrajectory(frequency_rad_s=4.0 * math.pi, name='fast')
 
 

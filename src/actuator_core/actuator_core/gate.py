@@ -98,7 +98,7 @@ class CommandGate:
         return None
 
     def hold(self, now_ns: int) -> Held:
-        """What to apply over the sample starting at ``now_ns``."""
+        """Return what to apply over the sample starting at ``now_ns``."""
         if not self.active:
             self.brake = True
             return Held(0.0, -1, True, 'inactive')

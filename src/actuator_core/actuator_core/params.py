@@ -25,7 +25,7 @@ def spec(
     *,
     low_open: bool = False,
 ) -> Any:
-    """A dataclass field with a valid range [low, high] ((low, high] when ``low_open``) and a description."""
+    """Return a dataclass field with a valid range [low, high] ((low, high] when ``low_open``) and a description."""
     return dataclasses.field(
         default=default,
         metadata={

@@ -27,6 +27,6 @@ def percentiles(values, prefix: str, mean: bool = False) -> dict[str, Optional[f
 
 
 def missed_samples(stamp_ns, period_ns: int) -> int:
-    """Samples never answered: the sum over gaps between consecutive stamps of (gap / period - 1)."""
+    """Count the samples never answered: the sum over gaps between consecutive stamps of (gap / period - 1)."""
     gaps = np.diff(np.asarray(stamp_ns, dtype=np.int64)) // period_ns - 1
     return int(gaps[gaps > 0].sum()) if gaps.size else 0

@@ -48,7 +48,7 @@ class StampCheck:
         self.refused_future = self.ignored_old = self.jumps = 0
 
     def check(self, stamp_ns: int, now_ns: int) -> Verdict:
-        """The verdict on ``stamp_ns`` received when the receiver's clock read ``now_ns``."""
+        """Return the verdict on ``stamp_ns`` received when the receiver's clock read ``now_ns``."""
         if not self.sim and stamp_ns > now_ns + self.future_tolerance_ns:
             self.refused_future += 1
             return Verdict.FUTURE

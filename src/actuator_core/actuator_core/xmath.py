@@ -56,12 +56,12 @@ def fabs(x):
 
 
 def isfinite(x):
-    """True where x is neither NaN nor infinite."""
+    """Return True where x is neither NaN nor infinite."""
     return np.isfinite(x) if isinstance(x, _ndarray) else math.isfinite(x)
 
 
 def where(condition, a, b):
-    """a where condition holds, else b (both are evaluated)."""
+    """Return a where condition holds, else b (both are evaluated)."""
     if isinstance(condition, _ndarray) or isinstance(a, _ndarray) or isinstance(b, _ndarray):
         return np.where(condition, a, b)
     return a if condition else b

@@ -94,7 +94,7 @@ class Encoder:
 
     @classmethod
     def from_parameters(cls, parameters: EncoderParameters) -> 'Encoder':
-        """An encoder with the given parameters."""
+        """Return an encoder with the given parameters."""
         return cls(parameters.counts_per_rev, parameters.noise_std_rad, parameters.seed)
 
     @property

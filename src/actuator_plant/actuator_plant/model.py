@@ -164,7 +164,7 @@ class WorkingCondition:
 
     @classmethod
     def lab(cls) -> 'WorkingCondition':
-        """Normal laboratory condition of the paper: 0 MPa, 25 degC."""
+        """Return the normal laboratory condition of the paper: 0 MPa, 25 degC."""
         return cls(pressure_pa=0.0, temperature_c=25.0)
 
     @classmethod
@@ -222,7 +222,7 @@ class PlantParameters:
         validate(self)
 
     def ideal(self) -> 'PlantParameters':
-        """The same joint with nominal parameters and no loss or disturbance: exactly model (5) with d = 0."""
+        """Return the same joint with nominal parameters and no loss or disturbance: exactly model (5) with d = 0."""
         return replace(
             self,
             with_drift=False,
@@ -253,7 +253,7 @@ def derive_constants(params: PlantParameters) -> PlantConstants:
 
 
 def _plain(x):
-    """A 0-d numpy value as a Python float (scalar arithmetic is several times faster); arrays unchanged."""
+    """Return a 0-d numpy value as a Python float (scalar arithmetic is several times faster); arrays unchanged."""
     return float(x) if np.ndim(x) == 0 else x
 
 
@@ -329,7 +329,7 @@ class DisturbanceParts(NamedTuple):
 
 
 def disturbance_parts(t: float, velocity_rad_s, current_a, c: PlantConstants) -> DisturbanceParts:
-    """True lumped disturbance d = q'' - theta1n u - theta2n q' and its parts, eq. (4)-(5)."""
+    """Return True lumped disturbance d = q'' - theta1n u - theta2n q' and its parts, eq. (4)-(5)."""
     f = joint_forces(t, velocity_rad_s, c)
     n = c.params.nominal
     gear = n.gear_ratio
@@ -450,5 +450,5 @@ class JointPlant:
         self.sample_index += 1
 
     def truth(self, current_a) -> DisturbanceParts:
-        """True acceleration and lumped disturbance at t_k, with ``current_a`` the current being applied."""
+        """Return True acceleration and lumped disturbance at t_k, with ``current_a`` the current being applied."""
         return disturbance_parts(self.time_s, self.velocity_rad_s, current_a, self.constants)

@@ -205,7 +205,7 @@ class PlantNode(ManagedNode):
         )
 
     def start(self) -> None:
-        """The gate accepts commands; sampling starts once the graph is ready (on_tick)."""
+        """Return the gate accepts commands; sampling starts once the graph is ready (on_tick)."""
         self.gate.activate()
 
     def stop(self) -> None:
@@ -291,7 +291,7 @@ class PlantNode(ManagedNode):
             self._advance(self.gate.hold(self.published_ns))
 
     def _now_ns(self) -> int:
-        """The gate's clock: system time in real time, the published sample's stamp in sim."""
+        """Return the gate's clock: system time in real time, the published sample's stamp in sim."""
         return self.published_ns if self.mode == 'sim' else time.time_ns()
 
     def _sampling_loop(self) -> None:

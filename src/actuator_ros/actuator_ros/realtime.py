@@ -32,7 +32,7 @@ class RealtimeSettings:
     executor: str = 'events'
 
     def problems(self) -> list[str]:
-        """What is invalid, one line each."""
+        """Return what is invalid, one line each."""
         out = []
         if not isinstance(self.thread_priority, int) or not 0 <= self.thread_priority <= 99:
             out.append(
@@ -52,7 +52,7 @@ class RealtimeSettings:
         return out
 
     def cpus(self) -> set[int]:
-        """The CPU set, empty for no pinning."""
+        """Return the CPU set, empty for no pinning."""
         text = str(self.cpu_affinity).strip()
         return {int(c) for c in text.split(',')} if text else set()
 
@@ -78,7 +78,7 @@ class RealtimeSettings:
 
 
 def _value(text: str):
-    """A ``-p`` value as rcl parses it (YAML scalar)."""
+    """Return a ``-p`` value as rcl parses it (YAML scalar)."""
     try:
         return yaml.safe_load(text)
     except yaml.YAMLError:
@@ -86,7 +86,7 @@ def _value(text: str):
 
 
 def pre_init_settings(args: Sequence[str], node_name: str) -> RealtimeSettings:
-    """The real-time parameters for ``node_name`` from ROS arguments, before rclpy exists (later wins)."""
+    """Return the real-time parameters for ``node_name`` from ROS arguments, before rclpy exists (later wins)."""
     found: dict = {}
     names = ('thread_priority', 'cpu_affinity', 'executor')
     in_ros, it = False, iter(list(args))

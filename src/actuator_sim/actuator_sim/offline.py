@@ -86,7 +86,7 @@ def _fmt(x: float) -> str:
 
 
 def verdict(metrics: RunMetrics, radius: float) -> str:
-    """What the numbers of a run may be taken for."""
+    """Return what the numbers of a run may be taken for."""
     if metrics.diverged:
         return 'DIVERGED: no figure reported'
     if metrics.saturated_fraction > 0.5:

@@ -22,7 +22,7 @@ from actuator_controller.laws import GAINS_BY_NAME
 
 
 def _nested(obj) -> dict:
-    """A dataclass as nested plain dicts of floats/ints/bools."""
+    """Return a dataclass as nested plain dicts of floats/ints/bools."""
     return {
         k: (_nested(v) if dataclasses.is_dataclass(v) else v)
         for k, v in ((f.name, getattr(obj, f.name)) for f in dataclasses.fields(obj))
@@ -30,7 +30,7 @@ def _nested(obj) -> dict:
 
 
 def scenario_parameters(scenario: Scenario) -> dict:
-    """The three nodes' ROS parameters of a scenario.
+    """Return the three nodes' ROS parameters of a scenario.
 
     ``/**`` holds what every loop node declares and must agree on: the sample time and the one
     current limit. Mode and run length are left to the launcher: a node-specific entry in a

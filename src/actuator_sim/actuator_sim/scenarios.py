@@ -47,7 +47,7 @@ def paper_scenario(
     duration_s: float = 10.0,
     gains=None,
 ) -> Scenario:
-    """A scenario of section 5.3 with Table 1-4 parameters in the named condition."""
+    """Return a scenario of section 5.3 with Table 1-4 parameters in the named condition."""
     plant = PlantParameters(condition=CONDITIONS[condition]())
     return Scenario(
         name=name,

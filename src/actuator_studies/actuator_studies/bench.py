@@ -31,7 +31,7 @@ BENCH_DEPTH_M = (0.0, 2000.0)
 
 
 def _spec(runs: int, batch: int, duration_s: float) -> SweepSpec:
-    """A depth study of ``runs`` runs in chunks of ``batch``."""
+    """Return a depth study of ``runs`` runs in chunks of ``batch``."""
     return SweepSpec(
         BaseScenario(duration_s=duration_s),
         {'depth_m': np.linspace(*BENCH_DEPTH_M, runs)},
@@ -41,7 +41,7 @@ def _spec(runs: int, batch: int, duration_s: float) -> SweepSpec:
 
 
 def scalar_rate(duration_s: float) -> float:
-    """Runs per second of one scalar ClosedLoop run (the nodes' float path)."""
+    """Measure the runs per second of one scalar ClosedLoop run (the nodes' float path)."""
     scenario = build_scenario(BaseScenario(duration_s=duration_s), {})
     start = time.perf_counter()
     ClosedLoop(scenario).run()
@@ -49,7 +49,7 @@ def scalar_rate(duration_s: float) -> float:
 
 
 def batch_rate(batch: int, duration_s: float) -> float:
-    """Runs per second of one vectorised chunk of ``batch`` runs in this process."""
+    """Measure the runs per second of one vectorised chunk of ``batch`` runs in this process."""
     spec = _spec(batch, batch, duration_s)
     start = time.perf_counter()
     run_chunk(spec, 0)
@@ -57,7 +57,7 @@ def batch_rate(batch: int, duration_s: float) -> float:
 
 
 def ray_rate(workers: int, runs: int, duration_s: float) -> tuple[float, float]:
-    """(runs per second, Ray start seconds) of ``runs`` runs on a local Ray instance with ``workers`` CPUs."""
+    """Measure (runs per second, Ray start seconds) of ``runs`` runs on a local Ray instance with ``workers`` CPUs."""
     start = time.perf_counter()
     ray = distributed.start_ray(f'local:{workers}')
     started = time.perf_counter() - start

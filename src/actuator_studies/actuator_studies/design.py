@@ -94,7 +94,7 @@ class DesignRequest:
 
 
 def corner_table(corners: list[str], controller: str) -> dict[str, np.ndarray]:
-    """The product of every corner axis's values, one array per quantity."""
+    """Return the product of every corner axis's values, one array per quantity."""
     axes = [parse_axis(text, controller) for text in (corners or DEFAULT_CORNERS)]
     columns = list(zip(*itertools.product(*(a.grid_values() for a in axes))))
     return {a.name: np.asarray(c, dtype=float) for a, c in zip(axes, columns)}
@@ -199,7 +199,7 @@ def evaluate_slice(base: BaseScenario, values: dict[str, np.ndarray], seeds: np.
 
 
 def _objective(errors: np.ndarray, percentile: float) -> float:
-    """The percentile of the corners' max steady-state errors [rad]."""
+    """Return the percentile of the corners' max steady-state errors [rad]."""
     return float(np.percentile(errors, percentile))
 
 
@@ -281,7 +281,7 @@ def compare(evaluator: Evaluator, sets: dict[str, dict], percentile: float) -> d
 
 
 def run_design(req: DesignRequest, out: Path, ray_target: str = '', log=print) -> dict:
-    """The whole command: check input, search, verify on a finer envelope, write gains YAML and report."""
+    """Return the whole command: check input, search, verify on a finer envelope, write gains YAML and report."""
     if req.controller != 'pp_nftsmc_eso':
         raise StudyInputError(
             'design_gains designs PP-NFTSMC-ESO gains only (--controller pp_nftsmc_eso)'

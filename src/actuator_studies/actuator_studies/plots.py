@@ -31,12 +31,12 @@ PANELS = (
 
 
 def _columns(table) -> dict[str, np.ndarray]:
-    """A pyarrow table as float arrays (booleans as 0/1)."""
+    """Return a pyarrow table as float arrays (booleans as 0/1)."""
     return {n: np.asarray(table.column(n).to_pylist(), dtype=float) for n in table.column_names}
 
 
 def _worst_grid(x, y, z, diverged):
-    """Unique x, y and the worst z per cell (NaN cell where any run diverged), and the diverged mask."""
+    """Return the unique x, y and the worst z per cell (NaN cell where any run diverged), and the diverged mask."""
     xs, ys = np.unique(x), np.unique(y)
     grid = np.full((ys.size, xs.size), -np.inf)
     bad = np.zeros_like(grid, dtype=bool)

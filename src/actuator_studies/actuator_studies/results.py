@@ -85,7 +85,7 @@ def _stats(x: np.ndarray) -> dict:
 
 
 def summarise(table: pa.Table, varied: list[str], extra: dict) -> dict:
-    """Counts of diverged, saturated and out-of-envelope runs, error statistics, the worst run."""
+    """Summarise: counts of diverged, saturated and out-of-envelope runs, error statistics, worst run."""
     col = {
         name: np.asarray(table.column(name).to_pylist(), dtype=float)
         for name in table.column_names
@@ -132,7 +132,7 @@ def write_summary(out: Path, summary: dict) -> Path:
 
 
 def tables_identical(a: pa.Table, b: pa.Table) -> bool:
-    """Same schema and the same value in every cell, NaN equal to NaN (pyarrow's equals says NaN != NaN)."""
+    """Check for the same schema and the same value in every cell, NaN equal to NaN (pyarrow's equals says NaN != NaN)."""
     if a.schema != b.schema or a.num_rows != b.num_rows:
         return False
     for name in a.column_names:

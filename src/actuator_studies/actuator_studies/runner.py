@@ -126,14 +126,14 @@ def run_batch(
 
 
 def paper_envelope_violations(t_s: np.ndarray, error_rad: np.ndarray, gains) -> int:
-    """Samples with e outside (-l rho(t), h rho(t)) of (8) from t = 0, restarts ignored (Table 4's PPF without one)."""
+    """Count the samples with e outside (-l rho(t), h rho(t)) of (8) from t = 0, restarts ignored (Table 4's PPF without one)."""
     ppf = getattr(gains, 'ppf', None) or PrescribedPerformance()
     lower, upper = ppf.bounds(t_s)
     return int(np.count_nonzero(~((error_rad > lower) & (error_rad < upper))))
 
 
 def metrics_row(metrics: RunMetrics, paper_violations: int = 0) -> dict[str, Any]:
-    """The metric columns of one run."""
+    """Return the metric columns of one run."""
     row = {k: v for k, v in metrics.as_dict().items() if k != 'steady_window_s'}
     row['steady_window_start_s'], row['steady_window_end_s'] = metrics.steady_window_s
     row['saturated_samples'] = int(round(metrics.saturated_fraction * metrics.samples))

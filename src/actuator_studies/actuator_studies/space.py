@@ -123,7 +123,7 @@ def quantities(controller: str) -> dict[str, Quantity]:
 
 
 def lookup(name: str, controller: str) -> Quantity:
-    """The quantity called ``name``; StudyInputError naming the nearest one when there is none."""
+    """Return the quantity called ``name``; StudyInputError naming the nearest one when there is none."""
     table = quantities(controller)
     if name in table:
         return table[name]
@@ -153,7 +153,7 @@ class Axis:
     values: tuple = ()
 
     def grid_values(self) -> np.ndarray:
-        """The grid points of this axis."""
+        """Return the grid points of this axis."""
         if self.values:
             return np.asarray(self.values, dtype=float)
         if self.points < 1:
@@ -164,7 +164,7 @@ class Axis:
 
 
 def _number(text: str, what: str) -> float:
-    """A float from user text, or StudyInputError."""
+    """Return a float from user text, or StudyInputError."""
     try:
         value = float(text)
     except ValueError:
@@ -234,7 +234,7 @@ def parse_setting(text: str, controller: str) -> tuple[str, float]:
 
 
 def sample(axes: list[Axis], method: str, samples: int, seed: int) -> dict[str, np.ndarray]:
-    """The design table: one array per axis name, one element per run."""
+    """Return the design table: one array per axis name, one element per run."""
     if method not in METHODS:
         raise StudyInputError(f'method must be one of {", ".join(METHODS)}, got {method!r}')
     if not axes:
@@ -283,7 +283,7 @@ class BaseScenario:
     fixed: tuple = ()  # ((name, value), ...)
 
     def values_with(self, varied: dict[str, Any]) -> dict[str, Any]:
-        """Fixed values overridden by the varied ones (a name may not be both)."""
+        """Return the fixed values overridden by the varied ones (a name may not be both)."""
         both = set(dict(self.fixed)) & set(varied)
         if both:
             raise StudyInputError(f'{", ".join(sorted(both))} is both varied and set')
@@ -305,7 +305,7 @@ def _replace_nested(obj, changes: dict[tuple, Any]):
 def build_scenario(
     base: BaseScenario, values: dict[str, Any], seeds=None, name: str = 'study'
 ) -> Scenario:
-    """The Scenario of one run (scalars) or one batch (arrays, one element per run)."""
+    """Return the Scenario of one run (scalars) or one batch (arrays, one element per run)."""
     table = quantities(base.controller)
     values = base.values_with(values) if values is not None else dict(base.fixed)
     if 'depth_m' in values and 'condition.pressure_pa' in values:

@@ -49,7 +49,7 @@ class SweepRequest:
 
 
 def build_spec(req: SweepRequest) -> tuple[SweepSpec, list[str]]:
-    """The SweepSpec of a request and the varied names; StudyInputError on any bad input."""
+    """Return the SweepSpec of a request and the varied names; StudyInputError on any bad input."""
     if req.batch < 1:
         raise StudyInputError(f'batch size must be >= 1, got {req.batch}')
     if not req.duration_s > STEADY_STATE_START_S:
@@ -135,7 +135,7 @@ def run_sweep(
     progress: bool = True,
     ray_session=None,
 ) -> dict:
-    """The whole command: check, (re)start the folder, run what is missing, join, summarise, draw."""
+    """Return the whole command: check, (re)start the folder, run what is missing, join, summarise, draw."""
     spec, names = build_spec(req)
     if ray_target:
         target, _ = distributed.parse_ray_target(ray_target)

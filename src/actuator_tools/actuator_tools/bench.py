@@ -60,7 +60,7 @@ def _percentiles_us(values_ns: np.ndarray, prefix: str) -> Figures:
 
 
 def period_figures(received_wall_ns: np.ndarray, period_ns: int) -> Figures:
-    """Controller tick periods (diff of arrival wall times): mean, p50/p99/max, p99 |deviation|, count > 2 periods."""
+    """Summarise the controller tick periods (diff of arrival wall times): mean, p50/p99/max, p99 |deviation|, count > 2 periods."""
     periods_ns = np.diff(np.asarray(received_wall_ns, dtype=np.int64))
     figures = _percentiles_us(periods_ns, 'period')
     if periods_ns.size == 0:
@@ -144,7 +144,7 @@ def held_command_fractions(
 
 
 def plant_figures(stamp_ns: np.ndarray, published_wall_ns: np.ndarray, period_ns: int) -> Figures:
-    """Simulated seconds per wall second over the published span, and the plant's publish-interval spread."""
+    """Measure the simulated seconds per wall second over the published span, and the plant's publish-interval spread."""
     stamp = np.asarray(stamp_ns, dtype=np.int64)
     wall = np.asarray(published_wall_ns, dtype=np.int64)
     figures = _percentiles_us(np.diff(wall), 'plant_interval')
@@ -155,7 +155,7 @@ def plant_figures(stamp_ns: np.ndarray, published_wall_ns: np.ndarray, period_ns
 
 
 def coverage_figures(ctrl_stamp_ns: np.ndarray, plant_stamp_ns: np.ndarray) -> Figures:
-    """What the controller's timing log covers: % of plant samples it answered, and the span of its stamps [s]."""
+    """Return what the controller's timing log covers: % of plant samples it answered, and the span of its stamps [s]."""
     ctrl = np.asarray(ctrl_stamp_ns, dtype=np.int64)
     span_s = float((ctrl[-1] - ctrl[0]) / 1e9) if ctrl.size else 0.0
     plant_n = np.asarray(plant_stamp_ns).size
@@ -524,12 +524,12 @@ def offline_rows(batches: Sequence[int]) -> list[Row]:
 
 
 def _cell(value: Optional[float], fmt: str) -> str:
-    """A number in ``fmt``, or 'n/a'."""
+    """Return a number in ``fmt``, or 'n/a'."""
     return 'n/a' if value is None or not math.isfinite(value) else format(value, fmt)
 
 
 def format_table(sections: Sequence[tuple[str, list[Row], list[Figures]]]) -> str:
-    """The table (tabulate): per section (title, rows, per-run figures) one line per figure present in any run."""
+    """Return the table (tabulate): per section (title, rows, per-run figures) one line per figure present in any run."""
     lines = []
     for title, rows, runs in sections:
         lines.append(
@@ -615,7 +615,7 @@ class Variant:
 def make_variants(
     modes: Sequence[str], rt_variants: Sequence[str], rt_priority: int
 ) -> list[Variant]:
-    """The variants to run, sim first, in the order given."""
+    """Return the variants to run, sim first, in the order given."""
     variants = [Variant('sim')] if 'sim' in modes else []
     if 'realtime' in modes:
         for name in dict.fromkeys(rt_variants):
@@ -848,7 +848,7 @@ def environment() -> dict:
 
 
 def _read_int(path: str) -> Optional[int]:
-    """An integer kernel setting (e.g. the SCHED_FIFO budget per second; -1 = unlimited), or None."""
+    """Return an integer kernel setting (e.g. the SCHED_FIFO budget per second; -1 = unlimited), or None."""
     try:
         return int(Path(path).read_text().split()[0])
     except (OSError, ValueError, IndexError):
@@ -888,7 +888,7 @@ class OneLineParser(argparse.ArgumentParser):
 
 
 def build_parser() -> OneLineParser:
-    """The command line."""
+    """Return the command line."""
     p = OneLineParser(prog='bench', description=__doc__.splitlines()[0])
     p.add_argument(
         '--duration',
@@ -967,7 +967,7 @@ def build_parser() -> OneLineParser:
 
 
 def check_args(args: argparse.Namespace) -> Optional[str]:
-    """The first problem with the arguments, or None."""
+    """Return the first problem with the arguments, or None."""
     from actuator_sim.params_yaml import all_scenarios
 
     low, high = DURATION_RANGE_S

@@ -43,7 +43,7 @@ def scenario_file(scenario: str) -> Path:
 
 
 def scenario_duration(scenario: str) -> float:
-    """The paper scenario's run length [s] (10 s for any other parameter file)."""
+    """Return the paper scenario's run length [s] (10 s for any other parameter file)."""
     known = all_scenarios().get(scenario)
     return known.duration_s if known is not None else 10.0
 

@@ -44,7 +44,7 @@ class NodeSpec:
 
 
 def recorder_parameters(mode: str) -> dict:
-    """The recorder's queue for a closed-loop run in ``mode``.
+    """Return the recorder's queue for a closed-loop run in ``mode``.
 
     realtime: BEST_EFFORT, 5 s of queue per topic: the recorder keeps normal scheduling, and the
     queue rides out the bursts in which the SCHED_FIFO loop leaves it no CPU (measured, 3 runs
@@ -72,7 +72,7 @@ def closed_loop(
     joint_parameters: Optional[dict] = None,
     autostart: bool = True,
 ) -> list[NodeSpec]:
-    """The processes of one run in start order (the joint last: it starts sampling when all are there).
+    """Return the processes of one run in start order (the joint last: it starts sampling when all are there).
 
     ``logs``: folder for the per-node timing files the benchmark reads (controller_timing.npz,
     eso_stats.json, plant_samples.npz). ``autostart``: the nodes configure and activate

@@ -33,7 +33,7 @@ SCENARIO = 'case2_pp_nftsmc_eso'
 
 
 def timing_figures(result: RunResult) -> dict:
-    """Controller update period and sensor-to-command latency from the controller's timing log."""
+    """Read the controller update period and sensor-to-command latency from the controller's timing log."""
     if not result.timing_log.is_file():
         return {}
     log = np.load(result.timing_log)
@@ -130,7 +130,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def print_run(mode: str, entry: dict, offline_error: float) -> None:
-    """The short report of one mode."""
+    """Return the short report of one mode."""
     m, t, c = entry['metrics'], entry['timing'], entry['offline_comparison']
     print(f'bag: {entry["bag"]}')
     print(
