@@ -24,6 +24,14 @@ from typing import Iterable, Mapping, Optional, Union
 
 import domain_coordinator
 
+# The process supervisor is the product's own (actuator_tools.supervisor), shared with the runner.
+from actuator_tools.supervisor import (
+    RosProcess,
+    executable_path,
+    live_processes,
+    stop_all_processes,
+)
+
 #: Variables that decide whom a ROS process can discover. ``isolated_ros_env`` sets or
 #: removes every one of them.
 ISOLATION_SET = ('ROS_DOMAIN_ID', 'ROS_AUTOMATIC_DISCOVERY_RANGE', 'ROS_STATIC_PEERS')
@@ -106,14 +114,6 @@ def env_without_workspace(env: Mapping[str, str], workspace: Union[str, Path] = 
         out[key] = value
     return out
 
-
-# The process supervisor is the product's own (actuator_tools.supervisor), shared with the runner.
-from actuator_tools.supervisor import (
-    RosProcess,
-    executable_path,
-    live_processes,
-    stop_all_processes,
-)
 
 __all__ = ['RosProcess', 'executable_path', 'live_processes', 'stop_all_processes']
 

@@ -1,8 +1,10 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""The running loop attacked as an adversarial user would: the loop keeps tracking, or stops safely
-with the reason logged and resumes as the policy says (README "Safety").
+"""The running loop attacked as an adversarial user would.
+
+The loop keeps tracking, or stops safely with the reason logged and resumes as the policy says
+(README "Safety").
 
 Each test runs plant, ESO, controller and recorder in real time (SCHED_FIFO where the kernel
 allows) on an isolated domain, attacks the loop from this process at about 3 s, and judges the

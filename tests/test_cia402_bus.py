@@ -61,12 +61,12 @@ def bus():
 
 
 def run_cycles(master, n, current_a=0.0, controlword=ENABLE, wait_s=0.02):
-    """n cycles with a constant command; returns the feedbacks (None where TPDO1 missed)."""
+    """Run n cycles with a constant command; return the feedbacks (None where TPDO1 missed)."""
     return [master.cycle(controlword, current_a, wait_s) for _ in range(n)]
 
 
 def test_configure_maps_pdos_and_sets_cst_then_enable_and_disable_sequences(bus):
-    """configure maps PDOs (0x1600/0x1A00) and sets 0x6060 = 10; activate enables; deactivate quick-stops."""
+    """Configure maps PDOs (0x1600/0x1A00), sets 0x6060 = 10; activate enables; deactivate quick-stops."""
     master, drive = bus()
     assert master.configure() == []
     assert drive.mode == p.MODE_CST and master.read_state()[1] is p.State.SWITCH_ON_DISABLED

@@ -110,8 +110,11 @@ def test_stability_check_reproduces_the_known_facts():
 
 
 def test_late_eso_current_diverges_in_the_closed_loop_too():
-    """The linearised verdict holds in the nonlinear loop: fed u(k-1), the ESO drives the loop into a
-    limit cycle held only by the current limit, with several times the normal error."""
+    """The linearised verdict holds in the nonlinear loop.
+
+    Fed u(k-1), the ESO drives the loop into a limit cycle held only by the current limit, with
+    several times the normal error.
+    """
     loop = ClosedLoop(paper_scenario('late', 'pp_nftsmc_eso', 'fast', 'deep_sea', duration_s=3.0))
     update = loop.eso.update
     previous = {'u': 0.0}
@@ -201,7 +204,7 @@ def test_late_commands_bursts_and_the_eso_integrating_the_commanded_current():
 
 
 def test_envelope_restarts_when_the_error_leaves_it_and_not_otherwise():
-    """e beyond h rho restarts (8) at t with rho0 = max(rho0, margin |e|); restart_margin 0 keeps the paper's clamp."""
+    """An error e beyond h rho restarts (8) at t with rho0 = max(rho0, margin |e|); restart_margin 0 keeps the paper's clamp."""
     from actuator_controller.laws import PpNftsmcGains, make_controller
     from actuator_controller.ppf import PrescribedPerformance
     from actuator_controller.reference import ReferenceSample

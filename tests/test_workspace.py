@@ -1,8 +1,11 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""The workspace itself: it builds from a clean clone, every executable is where `ros2 run`
-looks, and the shared test tooling (isolated domains, RosProcess) does what it promises."""
+"""The workspace itself.
+
+It builds from a clean clone, every executable is where `ros2 run` looks, and the shared test
+tooling (isolated domains, RosProcess) does what it promises.
+"""
 
 from __future__ import annotations
 
@@ -58,8 +61,10 @@ def _is_alive(pid: int) -> bool:
 # -- the workspace ------------------------------------------------------------------------------
 @pytest.mark.ros
 def test_workspace_builds_from_a_clean_clone(tmp_path):
-    """`git clone` of HEAD, then `colcon build` of its src/ with the same tools, and the
-    result works: messages import and packages resolve to the clone's install/."""
+    """`git clone` of HEAD, then `colcon build` of its src/ with the same tools.
+
+    The result works: messages import and packages resolve to the clone's install/.
+    """
     if (
         subprocess.run(['git', '-C', str(WS), 'rev-parse', 'HEAD'], capture_output=True).returncode
         != 0
@@ -120,8 +125,11 @@ def test_workspace_builds_from_a_clean_clone(tmp_path):
 
 
 def test_every_console_script_is_where_ros2_run_looks():
-    """For every ament_python package in src/, each console_scripts entry point of its
-    installed metadata is the executable lib/<pkg>/<exe> under the ament-index prefix."""
+    """Every console_scripts entry point is an executable lib/<pkg>/<exe>.
+
+    For every ament_python package in src/, each console_scripts entry point of its installed
+    metadata is the executable lib/<pkg>/<exe> under the ament-index prefix.
+    """
     packages = _source_packages(WS / 'src')
     python_packages = sorted(n for n, bt in packages.items() if bt == 'ament_python')
     assert python_packages, 'no ament_python package in src/'
@@ -165,8 +173,11 @@ def test_every_package_in_src_is_installed():
 
 # -- the test tooling ------------------------------------------------------------------------
 def test_isolated_domains_do_not_see_each_other(rclpy_context, ros_env, tmp_path):
-    """A node in this process hears a publisher process on its own domain and never one
-    on another test's domain, though both publish the same topic and type on this host."""
+    """A node in this process hears a publisher on its own domain, never one on another.
+
+    A node in this process hears a publisher process on its own domain and never one on another
+    test's domain, though both publish the same topic and type on this host.
+    """
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy

@@ -42,7 +42,7 @@ def _flag(context, name):
 
 
 def _drive_lifecycle(action):
-    """configure at start, activate once inactive (launch_ros lifecycle events)."""
+    """Configure at start, activate once inactive (launch_ros lifecycle events)."""
     configure = EmitEvent(
         event=ChangeState(
             lifecycle_node_matcher=matches_action(action),

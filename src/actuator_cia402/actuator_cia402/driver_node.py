@@ -378,7 +378,7 @@ class Cia402DriverNode(LifecycleNode):
             self.diag_pub.publish(self.diagnostics())
 
     def _autostart(self) -> None:
-        """configure at once; activate when wait_for_subscribers have joined (and 0.5 s later)."""
+        """Configure at once; activate when wait_for_subscribers have joined (and 0.5 s later)."""
         if self._autostart_stage == 'configure':
             if self.trigger_configure() != TransitionCallbackReturn.SUCCESS:
                 self.error, self.finished, self._autostart_stage = (

@@ -1,8 +1,10 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""The paper's four joint controllers behind one interface: PP-NFTSMC-ESO (19)-(35), NFTSMC-ESO
-(47)-(49)/(A9)-(A13), SMC-ESO (44)-(46)/(A1)-(A5) and PI (43).
+"""The paper's four joint controllers behind one interface.
+
+PP-NFTSMC-ESO (19)-(35), NFTSMC-ESO (47)-(49)/(A9)-(A13), SMC-ESO (44)-(46)/(A1)-(A5) and
+PI (43).
 
 Each controller is called once per sample with the measured angle y(k), the observer's
 x2_hat(k), x3_hat(k) and the reference; it returns the current u(k) and every intermediate

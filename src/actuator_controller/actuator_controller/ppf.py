@@ -86,7 +86,7 @@ class PrescribedPerformance:
             )
 
     def rho(self, t):
-        """rho(t) [rad], eq. (8)."""
+        """Return the envelope at time t [rad], rho of eq. (8)."""
         return (self.rho0_rad - self.rho_inf_rad) * xm.exp(
             -self.decay_rate_per_s * t
         ) + self.rho_inf_rad
@@ -118,7 +118,7 @@ class Transformed(NamedTuple):
 
 
 def transform_error(e, rho, ppf: PrescribedPerformance) -> Transformed:
-    """z = S^-1(e / rho) of (11) and r of (12), clamping e / rho into the band (see module doc)."""
+    """Compute z = S^-1(e / rho) of (11) and r of (12), clamping e / rho into the band (see module doc)."""
     lo, hi = -ppf.lower_scale, ppf.upper_scale
     eps = e / rho
     inside = (eps > lo) & (eps < hi)
@@ -130,6 +130,6 @@ def transform_error(e, rho, ppf: PrescribedPerformance) -> Transformed:
 
 
 def inverse_transform(z, rho, ppf: PrescribedPerformance):
-    """e = rho S(z) with S(z) = (h e^z - l e^-z) / (e^z + e^-z), eq. (9)-(10)."""
+    """Compute e = rho S(z) with S(z) = (h e^z - l e^-z) / (e^z + e^-z), eq. (9)-(10)."""
     ez, emz = xm.exp(z), xm.exp(-z)
     return rho * (ppf.upper_scale * ez - ppf.lower_scale * emz) / (ez + emz)

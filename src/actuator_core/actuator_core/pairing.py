@@ -115,8 +115,11 @@ class ObserverInputPairing:
         return self._advance()
 
     def restart(self, stamp_ns: int, y) -> list[Estimate]:
-        """(Re)start at sample ``stamp_ns`` from x_hat = (y, 0, 0) (the paper's x_hat(0) = 0 at y(0) = 0),
-        then step at once if that sample's command is already in."""
+        """(Re)start at sample ``stamp_ns`` from x_hat = (y, 0, 0).
+
+        As the paper's x_hat(0) = 0 at y(0) = 0; then step at once if that sample's command is
+        already in.
+        """
         if self.sample_ns is not None:
             self.restarts += 1
         zero = 0.0 * y

@@ -68,7 +68,7 @@ def where(condition, a, b):
 
 
 def clip(x, low, high):
-    """x limited to [low, high]."""
+    """Return x limited to [low, high]."""
     if isinstance(x, _ndarray):
         return np.clip(x, low, high)
     return low if x < low else (high if x > high else x)

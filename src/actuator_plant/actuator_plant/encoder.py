@@ -99,7 +99,7 @@ class Encoder:
 
     @property
     def resolution_rad(self):
-        """delta = 2 pi / counts_per_rev [rad] (0 where not quantised)."""
+        """The resolution delta = 2 pi / counts_per_rev [rad] (0 where not quantised)."""
         return self._resolution_rad if self._resolution_rad.ndim else float(self._resolution_rad)
 
     def _noise(self, shape):
@@ -116,7 +116,7 @@ class Encoder:
         return column.reshape(shape)
 
     def measure(self, position_rad):
-        """y = round(q / delta) delta + noise_std n [rad], elementwise; q unchanged when the encoder is off."""
+        """Return y = round(q / delta) delta + noise_std n [rad], elementwise; q unchanged when the encoder is off."""
         y = position_rad
         if self._quantised:
             res = self._resolution_rad

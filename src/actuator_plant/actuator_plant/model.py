@@ -306,7 +306,7 @@ def joint_forces(t: float, velocity_rad_s, c: PlantConstants) -> JointForces:
 
 
 def joint_acceleration(t: float, velocity_rad_s, current_a, c: PlantConstants):
-    """q'' from eq. (1): (k_t u - k_b N q' - T_v - T_d/N - T_f/N) / (J N) [rad/s^2]."""
+    """Compute q'' from eq. (1): (k_t u - k_b N q' - T_v - T_d/N - T_f/N) / (J N) [rad/s^2]."""
     f = joint_forces(t, velocity_rad_s, c)
     gear = c.params.nominal.gear_ratio
     motor_torque = (

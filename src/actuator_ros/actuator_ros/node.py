@@ -169,7 +169,7 @@ class ManagedNode(LifecycleNode):
             self.drop()
 
     def autostart(self) -> bool:
-        """configure and activate when the autostart parameter says so; False when a transition failed."""
+        """Configure and activate when the autostart parameter says so; False when a transition failed."""
         if not self.get_parameter('autostart').value:
             return True
         self.trigger_configure()

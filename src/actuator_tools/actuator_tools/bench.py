@@ -166,8 +166,11 @@ def coverage_figures(ctrl_stamp_ns: np.ndarray, plant_stamp_ns: np.ndarray) -> F
 
 
 def eso_figures(stats: dict) -> Figures:
-    """ESO pairing from eso_stats.json: % of steps with the commanded current on time, and on time or repaired
-    once the late command came (the state is then exactly the true pair's); substituted, refused."""
+    """ESO pairing from eso_stats.json.
+
+    % of steps with the commanded current on time, and on time or repaired once the late command
+    came (the state is then exactly the true pair's); substituted, refused.
+    """
     steps = int(stats.get('steps', 0))
     exact, repaired = int(stats.get('exact_pairs', 0)), int(stats.get('repaired_pairs', 0))
     return {

@@ -109,7 +109,10 @@ def closed_loop(
                 managed=False,
             )
         )
-    logged = lambda name: {} if logs is None else {name[0]: str(logs / name[1])}
+
+    def logged(name):
+        return {} if logs is None else {name[0]: str(logs / name[1])}
+
     specs.append(
         NodeSpec(
             'controller',
