@@ -1,7 +1,7 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""Benchmark of the CiA 402 driver: CPU per cycle and the cycle timing it holds at 1 kHz and 500 Hz.
+"""Benchmark of the CiA 402 driver: CPU per cycle and the cycle timing held at 1 kHz and 500 Hz.
 
 Runs the real driver node in this process (simulated drive on the virtual bus, autostart,
 no controller: the gate holds 0 A) for ``--duration`` seconds per rate, and prints medians

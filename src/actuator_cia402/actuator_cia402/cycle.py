@@ -105,7 +105,7 @@ class SyncCycle:
         return self._thread is not None and self._thread.is_alive()
 
     def _run(self) -> None:
-        """Return the loop; an exception ends it with ``ended = 'error'`` and the reason in ``fault``."""
+        """Run the loop; an exception ends it with ``ended = 'error'`` and the reason in ``fault``."""
         try:
             self._loop()
         except Exception as exc:  # noqa: BLE001 - reported by the node, never lost with the thread

@@ -54,7 +54,7 @@ class DrivePlant:
         return self.plant.truth(self.current_a)
 
     def step(self, current_a: float) -> None:
-        """Return the command enters the delay line; the drive integrates the one it latched at this SYNC."""
+        """Put the command into the delay line; the drive integrates the one it latched at this SYNC."""
         self.queue.append(current_a)
         target = self.queue.popleft()
         mean, self.current_a = torque_loop(self.current_a, target, self.plant.dt_s, self.tau_s)
@@ -68,7 +68,7 @@ def run(
     tau_s: float | None = None,
     quantise: bool = True,
 ) -> dict[str, np.ndarray]:
-    """Return the offline closed loop of a scenario with the drive effects; returns the trace."""
+    """Run the offline closed loop of a scenario with the drive effects; returns the trace."""
     from actuator_sim.loop import ClosedLoop
     from actuator_sim.params_yaml import all_scenarios
 

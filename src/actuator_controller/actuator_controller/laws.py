@@ -321,7 +321,7 @@ class PpNftsmcEsoController(Controller):
     gains: PpNftsmcGains
 
     def __init__(self, gains, common: CommonConfig):
-        """Return the envelope (8) starts at t = 0 with the gains' rho0 (until a restart, see ppf)."""
+        """Start the envelope (8) at t = 0 with the gains' rho0 (until a restart, see ppf)."""
         super().__init__(gains, common)
         self.envelope_start_s = 0.0
         self.envelope_rho0_rad = gains.ppf.rho0_rad

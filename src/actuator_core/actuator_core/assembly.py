@@ -127,11 +127,11 @@ class ControlSampleAssembly:
         return self._try_control()
 
     def _gap(self, newest_ns: Optional[int], stamp_ns: int) -> bool:
-        """Return a gap of more than RESYNC_GAP_SAMPLES since ``newest_ns``."""
+        """Return True on a gap of more than RESYNC_GAP_SAMPLES since ``newest_ns``."""
         return newest_ns is not None and stamp_ns - newest_ns > RESYNC_GAP_SAMPLES * self.period_ns
 
     def resync(self, stamp_ns: int) -> None:
-        """Return the time base jumped at ``stamp_ns``: 0 A and brake while the observer converges, then restart."""
+        """Handle a time base jump at ``stamp_ns``: 0 A and brake while the observer converges, then restart."""
         if self.resync_until_ns is not None and stamp_ns < self.resync_until_ns:
             return  # already resyncing
         self.resyncs += 1

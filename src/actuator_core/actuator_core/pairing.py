@@ -136,7 +136,7 @@ class ObserverInputPairing:
         ] + self._advance()
 
     def _repair(self, stamp_ns: int, u) -> None:
-        """Return a command for a sample already stepped with a substitute: correct x_hat to the true pair."""
+        """Take a command for a sample already stepped with a substitute: correct x_hat to the true pair."""
         used = self.substitutes.pop(stamp_ns, None)
         if used is None:
             return

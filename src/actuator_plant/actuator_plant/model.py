@@ -329,7 +329,7 @@ class DisturbanceParts(NamedTuple):
 
 
 def disturbance_parts(t: float, velocity_rad_s, current_a, c: PlantConstants) -> DisturbanceParts:
-    """Return True lumped disturbance d = q'' - theta1n u - theta2n q' and its parts, eq. (4)-(5)."""
+    """Return the true lumped disturbance d = q'' - theta1n u - theta2n q' and its parts, eq. (4)-(5)."""
     f = joint_forces(t, velocity_rad_s, c)
     n = c.params.nominal
     gear = n.gear_ratio
@@ -450,5 +450,5 @@ class JointPlant:
         self.sample_index += 1
 
     def truth(self, current_a) -> DisturbanceParts:
-        """Return True acceleration and lumped disturbance at t_k, with ``current_a`` the current being applied."""
+        """Return the true acceleration and lumped disturbance at t_k, with ``current_a`` the current being applied."""
         return disturbance_parts(self.time_s, self.velocity_rad_s, current_a, self.constants)

@@ -205,7 +205,7 @@ class PlantNode(ManagedNode):
         )
 
     def start(self) -> None:
-        """Return the gate accepts commands; sampling starts once the graph is ready (on_tick)."""
+        """Open the gate for commands; sampling starts once the graph is ready (on_tick)."""
         self.gate.activate()
 
     def stop(self) -> None:

@@ -144,7 +144,7 @@ class ManagedNode(LifecycleNode):
         return TransitionCallbackReturn.SUCCESS
 
     def on_error(self, state: LifecycleState) -> TransitionCallbackReturn:
-        """Return an exception in a transition: leave the joint safe, back to unconfigured."""
+        """Handle an exception in a transition: leave the joint safe, back to unconfigured."""
         self.get_logger().error(
             f'error processing: {traceback.format_exc(limit=1).strip().splitlines()[-1]}'
         )

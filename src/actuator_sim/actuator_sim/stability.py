@@ -1,7 +1,7 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""Is a gain set stable at a sample time and loop delay? Spectral radius of the linearised sampled loop.
+"""Is a gain set stable at a sample time and delay? Spectral radius of the linearised sampled loop.
 
 The loop of ``closed_loop`` (ideal plant (5) with d = 0, forward-Euler ESO (15), controller)
 is one nonlinear map X(k+1) = F(X(k)) over the state

@@ -281,7 +281,7 @@ def compare(evaluator: Evaluator, sets: dict[str, dict], percentile: float) -> d
 
 
 def run_design(req: DesignRequest, out: Path, ray_target: str = '', log=print) -> dict:
-    """Return the whole command: check input, search, verify on a finer envelope, write gains YAML and report."""
+    """Run the whole command: check input, search, verify on a finer envelope, write gains YAML and report."""
     if req.controller != 'pp_nftsmc_eso':
         raise StudyInputError(
             'design_gains designs PP-NFTSMC-ESO gains only (--controller pp_nftsmc_eso)'
