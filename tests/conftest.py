@@ -117,7 +117,10 @@ ROS_FIXTURES = {'ros_domain_id', 'ros_env', 'rclpy_context', 'ros_process'}
 
 
 def pytest_collection_modifyitems(config, items):
-    """Mark each test: ros when it uses a ROS fixture (or says so), realtime implies ros, else unit."""
+    """Mark each test.
+
+    ros when it uses a ROS fixture (or says so), realtime implies ros, else unit.
+    """
     for item in items:
         marks = {m.name for m in item.iter_markers()}
         if 'realtime' in marks or ROS_FIXTURES & set(getattr(item, 'fixturenames', ())):

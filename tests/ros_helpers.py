@@ -56,7 +56,10 @@ class _RandomStart:
 
 
 def reserve_domain(exclude: Iterable[int] = ()):
-    """Return a ROS_DOMAIN_ID in 1..100 held for this process alone (domain_coordinator: a bound port per id)."""
+    """Return a ROS_DOMAIN_ID in 1..100 held for this process alone.
+
+    domain_coordinator: a bound port per id.
+    """
     return domain_coordinator.domain_id(selector=_RandomStart(exclude))
 
 
@@ -233,7 +236,10 @@ def _message_class(type_name: str):
 
 
 def message_leaves(msg, prefix: str = '') -> dict:
-    """Flatten a message into {'field.sub[2].x': plain value} (numbers, bools, str, bytes as ints)."""
+    """Flatten a message into {'field.sub[2].x': plain value}.
+
+    Numbers, bools, str, bytes as ints.
+    """
     out = {}
     for field, type_name in msg.get_fields_and_field_types().items():
         _leaves(getattr(msg, field), f'{prefix}{field}', out)

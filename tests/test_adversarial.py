@@ -33,7 +33,10 @@ TRACKING_RAD = 0.05
 
 
 class Loop:
-    """The closed loop as processes, from the one description (graph.closed_loop), with restarts."""
+    """The closed loop as processes, from the one description (graph.closed_loop).
+
+    With restarts.
+    """
 
     def __init__(self, env: dict, tmp: Path):
         from ament_index_python.packages import get_package_share_directory

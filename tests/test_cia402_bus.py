@@ -36,7 +36,10 @@ _channels = itertools.count()
 
 @pytest.fixture
 def bus():
-    """Provide a factory of (master, drive) on a fresh virtual bus; both leave the bus at test end."""
+    """Provide a factory of (master, drive) on a fresh virtual bus.
+
+    Both leave the bus at test end.
+    """
     made = []
 
     def make(faults=FaultPlan(), scaling=SCALING, **drive_kwargs):
@@ -66,7 +69,10 @@ def run_cycles(master, n, current_a=0.0, controlword=ENABLE, wait_s=0.02):
 
 
 def test_configure_maps_pdos_and_sets_cst_then_enable_and_disable_sequences(bus):
-    """Configure maps PDOs (0x1600/0x1A00), sets 0x6060 = 10; activate enables; deactivate quick-stops."""
+    """Configure maps PDOs (0x1600/0x1A00), sets 0x6060 = 10; activate enables.
+
+    Deactivate quick-stops.
+    """
     master, drive = bus()
     assert master.configure() == []
     assert drive.mode == p.MODE_CST and master.read_state()[1] is p.State.SWITCH_ON_DISABLED
@@ -104,7 +110,10 @@ def test_enable_is_refused_without_cst_mode(bus):
 
 
 def test_cycle_drives_the_joint_through_the_torque_loop_with_quantised_position(bus):
-    """RPDO 0x6071 acts at the next SYNC through the first-order torque loop; 0x6064 comes in whole counts."""
+    """RPDO 0x6071 acts at the next SYNC through the first-order torque loop.
+
+    0x6064 comes in whole counts.
+    """
     master, drive = bus(torque_time_constant_s=2e-4)
     master.configure()
     master.activate()
@@ -124,7 +133,10 @@ def test_cycle_drives_the_joint_through_the_torque_loop_with_quantised_position(
 
 
 def test_after_a_missed_cycle_the_late_tpdo_of_the_previous_sync_is_not_taken_for_this_one(bus):
-    """A TPDO1 arriving after its deadline: the next cycle takes the newest TPDO1, that of its own SYNC."""
+    """A TPDO1 arriving after its deadline.
+
+    The next cycle takes the newest TPDO1, that of its own SYNC.
+    """
     master, drive = bus()
     master.configure()
     master.activate()
@@ -141,7 +153,10 @@ def test_after_a_missed_cycle_the_late_tpdo_of_the_previous_sync_is_not_taken_fo
 
 
 def test_gate_of_the_drive_goes_to_zero_and_brake_when_rpdos_stop(bus):
-    """SYNCs without RPDO beyond command_timeout_s: the drive's own gate applies 0 A and the brake."""
+    """SYNCs without RPDO beyond command_timeout_s.
+
+    The drive's own gate applies 0 A and the brake.
+    """
     master, drive = bus(command_timeout_s=0.005)
     master.configure()
     master.activate()
@@ -157,7 +172,10 @@ def test_gate_of_the_drive_goes_to_zero_and_brake_when_rpdos_stop(bus):
 
 
 def test_a_late_sync_lets_the_skipped_periods_pass_for_the_joint(bus):
-    """A master stall of 30 ms: the drive integrates the 30 periods (its watchdog applying 0 A and brake after 10 ms)."""
+    """A master stall of 30 ms.
+
+    The drive integrates the 30 periods (its watchdog applying 0 A and brake after 10 ms).
+    """
     master, drive = bus()
     master.configure()
     master.activate()
@@ -183,7 +201,10 @@ def test_a_late_sync_lets_the_skipped_periods_pass_for_the_joint(bus):
 def test_injected_fault_mid_run_gives_the_error_code_then_fault_reset_recovers(
     bus, kind, code, text
 ):
-    """Fault bit, EMCY and 0x603F carry the code; activate resets the fault (controlword bit 7) and re-enables."""
+    """Fault bit, EMCY and 0x603F carry the code.
+
+    Activate resets the fault (controlword bit 7) and re-enables.
+    """
     master, drive = bus(faults=FaultPlan(fault_kind=kind, fault_at_s=0.05))
     master.configure()
     master.activate()

@@ -24,7 +24,10 @@ NODE = 'actuator_cia402_driver'
 
 
 def wait_for_output(proc, pattern, timeout):
-    """proc.wait_for_output; on a timeout the process first dumps its threads' stacks (SIGUSR1) into the report."""
+    """proc.wait_for_output.
+
+    On a timeout the process first dumps its threads' stacks (SIGUSR1) into the report.
+    """
     try:
         return proc.wait_for_output(pattern, timeout=timeout)
     except TimeoutError:
@@ -57,7 +60,10 @@ def driver_args(**params) -> list:
 
 
 class Harness:
-    """Test-side node: lifecycle service client, joint_states / diagnostics / current_command recorder."""
+    """Test-side node.
+
+    Lifecycle service client, joint_states / diagnostics / current_command recorder.
+    """
 
     def __init__(self, context):
         """Subscriptions and lifecycle service clients on the test's rclpy context."""
@@ -106,7 +112,10 @@ class Harness:
         return future.result()
 
     def transition(self, label):
-        """Request a lifecycle transition by label (what ``ros2 lifecycle set`` does); True on success."""
+        """Request a lifecycle transition by label (what ``ros2 lifecycle set`` does).
+
+        True on success.
+        """
         from lifecycle_msgs.msg import Transition
 
         ids = {
@@ -155,7 +164,10 @@ def harness(rclpy_context):
     ],
 )
 def test_every_parameter_refusal_is_one_line_and_exit_2(ros_env, params, word):
-    """Bad values and combinations: exit 2, one line on stderr naming the parameter, no traceback."""
+    """Bad values and combinations.
+
+    Exit 2, one line on stderr naming the parameter, no traceback.
+    """
     proc = subprocess.run(
         [executable_path(*DRIVER), '--ros-args', *params],
         env=ros_env,
@@ -179,7 +191,10 @@ def test_500_kbit_at_1_khz_starts_with_the_bus_load_warning(ros_process):
 
 
 def test_lifecycle_configure_activate_deactivate_through_the_services(harness, ros_process):
-    """No joint_states until active; stamps on the 1 ms grid while active; none after deactivate; cleanup and again."""
+    """No joint_states until active; stamps on the 1 ms grid while active; none after deactivate.
+
+    Cleanup and again.
+    """
     from actuator_core.timing import stamp_to_ns
 
     driver = ros_process(*DRIVER, driver_args())
@@ -237,7 +252,10 @@ def test_lifecycle_configure_activate_deactivate_through_the_services(harness, r
 def test_drive_fault_mid_run_goes_to_error_processing_with_the_drive_error_code(
     harness, ros_process
 ):
-    """Over-current mid-run: 0x2310 logged, error processing to unconfigured, recovery by configure + activate."""
+    """Over-current mid-run.
+
+    0x2310 logged, error processing to unconfigured, recovery by configure + activate.
+    """
     driver = ros_process(
         *DRIVER,
         driver_args(autostart=True, **{'sim.fault_kind': 'over_current', 'sim.fault_at_s': 1.0}),
@@ -271,7 +289,10 @@ def test_drive_fault_mid_run_goes_to_error_processing_with_the_drive_error_code(
 
 
 def _closed_loop(ros_process, tmp_path, driver_params, record=True, rt_priority=0):
-    """Return the run as graph.closed_loop describes it with the driver as the joint (what bringup --joint cia402_sim starts)."""
+    """Return the run as graph.closed_loop describes it with the driver as the joint.
+
+    What bringup --joint cia402_sim starts.
+    """
     from actuator_tools.graph import closed_loop, ros_arguments
 
     params = dict(driver_params)
@@ -306,7 +327,10 @@ def _closed_loop(ros_process, tmp_path, driver_params, record=True, rt_priority=
 def test_silent_bus_or_drive_fault_gives_the_stale_measurement_stop_of_the_controller(
     harness, ros_process, tmp_path, fault, driver_says
 ):
-    """Silent or faulted drive in closed loop: the controller commands 0 A with safe_stop; the driver logs why."""
+    """Silent or faulted drive in closed loop: the controller commands 0 A with safe_stop.
+
+    The driver logs why.
+    """
     procs = _closed_loop(ros_process, tmp_path, fault, record=False, rt_priority=50)
     wait_for_output(procs['driver'], driver_says, timeout=40)
     harness.command.clear()
@@ -328,7 +352,10 @@ def test_silent_bus_or_drive_fault_gives_the_stale_measurement_stop_of_the_contr
 def test_end_to_end_fast_deep_sea_case_tracks_within_a_factor_of_the_offline_core(
     ros_process, tmp_path
 ):
-    """Real time, separate processes; the drive adds quantisation, a torque loop and one SYNC of delay."""
+    """Real time, separate processes.
+
+    The drive adds quantisation, a torque loop and one SYNC of delay.
+    """
     from actuator_bag.analyze import analyze_run, load_run
     from actuator_sim.loop import ClosedLoop
     from actuator_sim.params_yaml import all_scenarios

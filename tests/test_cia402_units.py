@@ -1,7 +1,10 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""CiA 402 driver, ROS-free units: scaling, state machine coding, bus load, parameter checks (fast, no processes)."""
+"""CiA 402 driver, ROS-free units.
+
+scaling, state machine coding, bus load, parameter checks (fast, no processes).
+"""
 
 import math
 
@@ -188,7 +191,10 @@ def test_driver_parameter_values_and_combinations_are_refused(build, words):
 
 
 def test_launch_spec_gives_checked_parameters_for_a_closed_loop_run():
-    """driver_parameters for the lead: simulated or socketcan, checked, as command-line arguments."""
+    """driver_parameters for the lead.
+
+    Simulated or socketcan, checked, as command-line arguments.
+    """
     params = driver_parameters(simulated=True, working_condition='lab', stop_after_s=3.0)
     assert params['simulated_drive'] is True and params['interface'] == 'virtual'
     assert params['sim.working_condition'] == 'lab' and params['autostart'] is True
@@ -248,7 +254,10 @@ def test_pdo_codec_packs_the_eds_tpdo1_layout_like_canopen_and_refuses_unaligned
 
 # --- offline drive model ---------------------------------------------------------------------
 def test_offline_drive_model_without_effects_is_the_offline_core_and_the_sync_delay_costs_most():
-    """The drive model reduces to the offline core; one SYNC of delay costs most, two give a limit cycle."""
+    """The drive model reduces to the offline core.
+
+    One SYNC of delay costs most, two give a limit cycle.
+    """
     import numpy as np
 
     from actuator_cia402.offline import run, window_errors
@@ -269,7 +278,10 @@ def test_offline_drive_model_without_effects_is_the_offline_core_and_the_sync_de
 
 
 def test_every_driver_parameter_is_a_spec_with_description_and_numeric_range():
-    """Each field of DriverParameters (and sim.*) declares a description; numbers a finite range and a unit or none."""
+    """Each field of DriverParameters (and sim.*) declares a description.
+
+    Numbers a finite range and a unit or none.
+    """
     import dataclasses
     import math as m
 

@@ -1,7 +1,10 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""The closed loop across processes: sim time equals the offline core, real time runs, the main job reports."""
+"""The closed loop across processes.
+
+Sim time equals the offline core, real time runs, the main job reports.
+"""
 
 import json
 import os
@@ -156,7 +159,10 @@ def test_installed_scenario_files_match_the_scenarios():
 
 
 def test_closed_loop_description_is_one_for_runner_and_launch():
-    """graph.closed_loop: the processes, their parameters and real-time settings, as both starters use them."""
+    """graph.closed_loop.
+
+    The processes, their parameters and real-time settings, as both starters use them.
+    """
     from actuator_tools.graph import closed_loop, ros_arguments
 
     specs = closed_loop('realtime', 5.0, record=True, thread_priority=50, cpus={'joint': '0'})
@@ -194,7 +200,10 @@ def test_closed_loop_description_is_one_for_runner_and_launch():
 
 
 def test_launch_description_builds_the_processes_of_the_description():
-    """The installed launch file, loaded through the launch API, starts exactly graph.closed_loop's processes."""
+    """The installed launch file, loaded through the launch API.
+
+    Starts exactly graph.closed_loop's processes.
+    """
     # launch_ros, not launch: the symlink install puts build/actuator_bringup (with its launch/ folder)
     # on sys.path, where a bare `import launch` finds that folder as a namespace package.
     pytest.importorskip(

@@ -190,7 +190,10 @@ def test_gains_refuse_out_of_range_values_with_the_name():
 
 
 def test_late_commands_bursts_and_the_eso_integrating_the_commanded_current():
-    """Late bursts have the asked length; the ESO integrating u(k) tolerates what integrating u(k-1) does not."""
+    """Late bursts have the asked length.
+
+    The ESO integrating u(k) tolerates what integrating u(k-1) does not.
+    """
     from actuator_sim.late_commands import late_mask, max_steady_error
 
     mask = late_mask(20000, 0.1, 3, seed=1)
@@ -204,7 +207,10 @@ def test_late_commands_bursts_and_the_eso_integrating_the_commanded_current():
 
 
 def test_envelope_restarts_when_the_error_leaves_it_and_not_otherwise():
-    """An error e beyond h rho restarts (8) at t with rho0 = max(rho0, margin |e|); restart_margin 0 keeps the paper's clamp."""
+    """An error e beyond h rho restarts (8) at t with rho0 = max(rho0, margin |e|).
+
+    restart_margin 0 keeps the paper's clamp.
+    """
     from actuator_controller.laws import PpNftsmcGains, make_controller
     from actuator_controller.ppf import PrescribedPerformance
     from actuator_controller.reference import ReferenceSample

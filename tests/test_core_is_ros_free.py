@@ -1,7 +1,10 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""The core imports and runs with rclpy and launch made unimportable: it is ROS-free by construction."""
+"""The core imports and runs with rclpy and launch made unimportable.
+
+It is ROS-free by construction.
+"""
 
 import importlib
 import pkgutil

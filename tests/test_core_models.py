@@ -1,7 +1,10 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""Plant, loss models, ESO and PPF: the ROS-free core against hand calculations and known signals."""
+"""Plant, loss models, ESO and PPF.
+
+The ROS-free core against hand calculations and known signals.
+"""
 
 import math
 
@@ -152,7 +155,10 @@ def test_eso_gains_follow_bandwidth_parametrisation_and_refuse_non_hurwitz():
 
 
 def test_eso_converges_on_a_known_signal():
-    """Truth: x'' = theta1n u + theta2n x' + d with a slowly varying d; the ESO must find x' and d."""
+    """Truth.
+
+    x'' = theta1n u + theta2n x' + d with a slowly varying d; the ESO must find x' and d.
+    """
     gains = EsoGains()
     dt = 1e-4
     eso = ExtendedStateObserver(gains, dt)
@@ -177,7 +183,10 @@ def test_eso_converges_on_a_known_signal():
 
 @pytest.mark.parametrize('steps', [0, 1, 4])
 def test_late_current_correction_equals_stepping_with_the_right_current(steps):
-    """A step taken with a substituted current, repaired `steps` steps later, equals the exact run."""
+    """A step taken with a substituted current, repaired `steps` steps later.
+
+    Equals the exact run.
+    """
     gains, dt = EsoGains(), 1e-3
     rng = np.random.default_rng(7)
     ys, us = rng.normal(0.0, 0.1, 8), rng.normal(0.0, 5.0, 8)

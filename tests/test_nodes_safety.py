@@ -167,7 +167,10 @@ def test_controller_refuses_nan_and_goes_safe_on_stale_inputs(harness, ros_proce
 def test_controller_corrects_an_estimate_integrated_with_a_substituted_current(
     harness, ros_process
 ):
-    """x_hat(k) says it integrated 1 A less than the controller commanded for k-1: x2_hat gains 1 A * gain."""
+    """x_hat(k) says it integrated 1 A less than the controller commanded for k-1.
+
+    x2_hat gains 1 A * gain.
+    """
     ctrl = ros_process(
         'actuator_controller',
         'controller_node',  # long timeouts: no watchdog command between

@@ -1,7 +1,10 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""The sample protocol without processes: observer pairing, controller sample assembly, drive gate."""
+"""The sample protocol without processes.
+
+Observer pairing, controller sample assembly, drive gate.
+"""
 
 import math
 

@@ -1,7 +1,10 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""design_gains: the margin and current constraints hold for the designed set, the YAML is the nodes' format."""
+"""design_gains.
+
+The margin and current constraints hold for the designed set, the YAML is the nodes' format.
+"""
 
 import json
 from pathlib import Path

@@ -1,7 +1,10 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""actuator_studies on Ray (one local instance, two workers): equal to a local run, failed chunks retried, never missing."""
+"""actuator_studies on Ray (one local instance, two workers).
+
+Equal to a local run, failed chunks retried, never missing.
+"""
 
 import pyarrow.parquet as pq
 import pytest

@@ -1,7 +1,10 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""actuator_studies sweeps: encoder and delay hooks, sampling, batched rows against single runs, resume, bad input."""
+"""actuator_studies sweeps.
+
+Encoder and delay hooks, sampling, batched rows against single runs, resume, bad input.
+"""
 
 import dataclasses
 import json

@@ -29,7 +29,10 @@ CYCLE_PAYLOADS = (0, 4, 8, 4)
 
 
 def frame_bits(data_bytes: int, worst_case_stuffing: bool = True) -> int:
-    """Bits on the wire of a CAN 2.0A frame with ``data_bytes`` (0-8), incl. worst-case stuff bits."""
+    """Bits on the wire of a CAN 2.0A frame with ``data_bytes`` (0-8).
+
+    incl. worst-case stuff bits.
+    """
     if not 0 <= data_bytes <= 8:
         raise ValueError(f'a classic CAN frame carries 0-8 data bytes, got {data_bytes}')
     bits = 47 + 8 * data_bytes
@@ -65,7 +68,10 @@ def cycle_load(
     payloads: Sequence[int] = CYCLE_PAYLOADS,
     joints: int = 1,
 ) -> BusLoad:
-    """Worst-case load of ``joints`` drives each sending ``payloads`` frames per cycle (one SYNC shared)."""
+    """Worst-case load of ``joints`` drives each sending ``payloads`` frames per cycle.
+
+    One SYNC shared.
+    """
     if bitrate_bit_s <= 0 or cycle_period_s <= 0:
         raise ValueError('bitrate and cycle period must be > 0')
     sync, *per_joint = payloads
@@ -84,7 +90,10 @@ def check_bus_load(
     limit: float = DEFAULT_LIMIT,
     warn: float = DEFAULT_WARN,
 ) -> str | None:
-    """Raise BusLoadError (one line with the figure) above ``limit``; return a warning text above ``warn``."""
+    """Raise BusLoadError (one line with the figure) above ``limit``.
+
+    Return a warning text above ``warn``.
+    """
     load = cycle_load(bitrate_bit_s, cycle_period_s, payloads)
     if load.fraction > limit:
         raise BusLoadError(

@@ -232,7 +232,10 @@ class DriverParameters:
     sim: SimDriveSettings = field(default_factory=SimDriveSettings)
 
     def __post_init__(self) -> None:
-        """Range checks, then the combinations: interface, simulated drive on socketcan, bus load."""
+        """Range checks, then the combinations.
+
+        interface, simulated drive on socketcan, bus load.
+        """
         validate(self)
         if self.interface not in INTERFACES:
             raise ValueError(
@@ -276,7 +279,10 @@ class DriverParameters:
         )
 
     def eds_path(self) -> str:
-        """Return the EDS file to read (the installed one of the simulated drive unless eds_file is set)."""
+        """Return the EDS file to read.
+
+        The installed one of the simulated drive unless eds_file is set.
+        """
         if self.eds_file:
             return self.eds_file
         from ament_index_python.packages import get_package_share_directory

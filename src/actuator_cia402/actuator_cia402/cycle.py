@@ -45,7 +45,10 @@ class CycleStats:
         self.cycles += 1
 
     def medians_us(self) -> dict[str, float]:
-        """Median and 99th percentile of CPU per cycle, lateness and cycle wall time over the kept cycles [us]."""
+        """Median and 99th percentile of CPU per cycle.
+
+        Lateness and cycle wall time over the kept cycles [us].
+        """
         n = min(self.cycles, HISTORY)
         out = {}
         for name, values in (
@@ -105,7 +108,10 @@ class SyncCycle:
         return self._thread is not None and self._thread.is_alive()
 
     def _run(self) -> None:
-        """Run the loop; an exception ends it with ``ended = 'error'`` and the reason in ``fault``."""
+        """Run the loop.
+
+        An exception ends it with ``ended = 'error'`` and the reason in ``fault``.
+        """
         try:
             self._loop()
         except Exception as exc:  # noqa: BLE001 - reported by the node, never lost with the thread

@@ -66,7 +66,10 @@ class Cia402DriverNode(LifecycleNode):
     """The hardware driver behind the joint_states / current_command contract."""
 
     def __init__(self, settings: Optional[RealtimeSettings] = None, **node_kwargs) -> None:
-        """Declare and check every parameter (a refusal exits 2); create topics; nothing on the bus yet."""
+        """Declare and check every parameter (a refusal exits 2); create topics.
+
+        Nothing on the bus yet.
+        """
         super().__init__(NODE_NAME, **node_kwargs)
         if self.get_parameter('use_sim_time').value:
             raise ParameterError(
@@ -145,7 +148,10 @@ class Cia402DriverNode(LifecycleNode):
         return self._state_machine.current_state[1]
 
     def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
-        """Bus up (+ simulated drive), OD checks, PDO mapping, CST; FAILURE with the reason otherwise."""
+        """Bus up (+ simulated drive), OD checks, PDO mapping, CST.
+
+        FAILURE with the reason otherwise.
+        """
         cfg = self.cfg
         try:
             if (
@@ -229,7 +235,10 @@ class Cia402DriverNode(LifecycleNode):
         return super().on_activate(state)
 
     def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
-        """Stop the cycle, 0 A, quick stop and disable (brake); ERROR when a drive fault ended the cycle."""
+        """Stop the cycle, 0 A, quick stop and disable (brake).
+
+        ERROR when a drive fault ended the cycle.
+        """
         fault = self._stop_cycle()
         if fault is not None:
             self.last_fault = fault
@@ -243,7 +252,10 @@ class Cia402DriverNode(LifecycleNode):
         return super().on_deactivate(state)
 
     def on_error(self, state: LifecycleState) -> TransitionCallbackReturn:
-        """Error processing: log the drive's error code and text, make the drive safe if it answers, bus down."""
+        """Error processing.
+
+        Log the drive's error code and text, make the drive safe if it answers, bus down.
+        """
         self._stop_cycle()
         fault = self.last_fault
         if (
@@ -305,7 +317,10 @@ class Cia402DriverNode(LifecycleNode):
             self.drive = None
 
     def _safe_shutdown(self) -> None:
-        """Active or inactive: quick stop and disable if the drive answers; then bus and simulated drive down."""
+        """Active or inactive: quick stop and disable if the drive answers.
+
+        Then bus and simulated drive down.
+        """
         fault = self._stop_cycle()
         if self.master is not None and fault is None:
             try:
@@ -316,7 +331,10 @@ class Cia402DriverNode(LifecycleNode):
 
     # --- cycle callbacks (cycle thread) -----------------------------------------------------
     def _command(self, t_ns: int) -> tuple[int, float]:
-        """Controlword and current of this SYNC; 'disable operation' (brake) before a command or after brake_delay_s."""
+        """Controlword and current of this SYNC.
+
+        'disable operation' (brake) before a command or after brake_delay_s.
+        """
         now = time.time_ns()
         with self.gate_lock:
             held = self.gate.hold(now)
@@ -404,7 +422,10 @@ class Cia402DriverNode(LifecycleNode):
                 self.error, self.finished = 'autostart: activate failed', True
 
     def diagnostics(self) -> DiagnosticArray:
-        """One DiagnosticStatus: lifecycle and CiA 402 state, error code and text, cycle figures."""
+        """One DiagnosticStatus.
+
+        Lifecycle and CiA 402 state, error code and text, cycle figures.
+        """
         fb, fault, cycle = self.last_feedback, self.last_fault, self.cycle
         state = p.decode_state(fb.statusword) if fb is not None else None
         level = DiagnosticStatus.OK
@@ -458,7 +479,10 @@ class Cia402DriverNode(LifecycleNode):
         return msg
 
     def close(self) -> None:
-        """At exit (run_node): stop the cycle, quick stop and disable the drive, bus down, summary."""
+        """At exit (run_node).
+
+        Stop the cycle, quick stop and disable the drive, bus down, summary.
+        """
         stats = self.cycle.stats if self.cycle is not None else getattr(self, '_last_stats', None)
         self._safe_shutdown()
         if self.cfg.timing_log:
@@ -473,7 +497,10 @@ class Cia402DriverNode(LifecycleNode):
 
 
 def main(argv=None) -> int:
-    """Entry point of ``ros2 run actuator_cia402 cia402_driver``; ``kill -USR1 <pid>`` dumps every thread's stack."""
+    """Entry point of ``ros2 run actuator_cia402 cia402_driver``.
+
+    ``kill -USR1 <pid>`` dumps every thread's stack.
+    """
     faulthandler.register(signal.SIGUSR1, all_threads=True)
     return run_node(
         'cia402_driver',

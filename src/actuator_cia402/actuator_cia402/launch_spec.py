@@ -69,7 +69,10 @@ def driver_parameters(
 
 
 def _check(params: dict[str, Any]) -> None:
-    """Build DriverParameters from the flat names, so a refused value fails here and not in the node."""
+    """Build DriverParameters from the flat names.
+
+    So a refused value fails here and not in the node.
+    """
     sim = {k[4:]: v for k, v in params.items() if k.startswith('sim.')}
     top = {k: v for k, v in params.items() if not k.startswith('sim.')}
     known = {f.name for f in dataclasses.fields(DriverParameters)} | {'use_sim_time'}

@@ -106,11 +106,17 @@ class Cia402Master:
 
     # --- configure --------------------------------------------------------------------------
     def _sdo(self, index: int, subindex: int | None = None):
-        """Return the SDO variable of an object (blocking transfers: configure/activate/deactivate only)."""
+        """Return the SDO variable of an object.
+
+        Blocking transfers: configure/activate/deactivate only.
+        """
         return self.node.sdo[index] if subindex is None else self.node.sdo[index][subindex]
 
     def configure(self) -> list[str]:
-        """NMT pre-operational, OD checks, PDO mapping, CST mode; returns notes (raises Cia402Error)."""
+        """NMT pre-operational, OD checks, PDO mapping, CST mode.
+
+        Returns notes (raises Cia402Error).
+        """
         self.node.nmt.state = 'PRE-OPERATIONAL'
         try:
             device_type = self._sdo(p.DEVICE_TYPE).raw
@@ -240,7 +246,10 @@ class Cia402Master:
         self._sdo(p.CONTROLWORD).raw = p.Command.DISABLE_VOLTAGE.value
 
     def activate(self) -> list[str]:
-        """Fault reset if needed, shutdown, switch on, enable operation, NMT operational; returns notes."""
+        """Fault reset if needed, shutdown, switch on, enable operation, NMT operational.
+
+        Returns notes.
+        """
         notes = []
         statusword, state = self.read_state()
         if state in (p.State.FAULT, p.State.FAULT_REACTION_ACTIVE):
@@ -309,7 +318,10 @@ class Cia402Master:
         return self.feedback if got else None
 
     def _on_tpdo1(self, pdo_map) -> None:
-        """TPDO1 received (bus thread): statusword, position, torque; the fault bit sets ``fault``."""
+        """TPDO1 received (bus thread): statusword, position, torque.
+
+        The fault bit sets ``fault``.
+        """
         statusword, counts, torque = self._t1.unpack(pdo_map.data)
         s = self.scaling
         self.feedback = Feedback(
@@ -337,7 +349,10 @@ class Cia402Master:
             self.fault = DriveFault(code, p.error_text(code), self.fault.source)
 
     def _on_emcy(self, emcy) -> None:
-        """EMCY (bus thread): an error register != 0 is a fault; otherwise a warning kept in ``warnings``."""
+        """EMCY (bus thread): an error register != 0 is a fault.
+
+        Otherwise a warning kept in ``warnings``.
+        """
         if emcy.code == 0:
             return
         if emcy.register:

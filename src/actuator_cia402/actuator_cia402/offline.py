@@ -54,7 +54,10 @@ class DrivePlant:
         return self.plant.truth(self.current_a)
 
     def step(self, current_a: float) -> None:
-        """Put the command into the delay line; the drive integrates the one it latched at this SYNC."""
+        """Put the command into the delay line.
+
+        The drive integrates the one it latched at this SYNC.
+        """
         self.queue.append(current_a)
         target = self.queue.popleft()
         mean, self.current_a = torque_loop(self.current_a, target, self.plant.dt_s, self.tau_s)

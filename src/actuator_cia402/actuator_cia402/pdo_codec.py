@@ -25,7 +25,10 @@ class PdoCodec:
 
     @classmethod
     def compile(cls, pdo_map) -> Optional['PdoCodec']:
-        """Codec of a canopen PdoMap whose variables are whole, byte-aligned and contiguous; None otherwise."""
+        """Codec of a canopen PdoMap whose variables are whole, byte-aligned and contiguous.
+
+        None otherwise.
+        """
         chars, offset = [], 0
         for var in pdo_map.map:
             od = var.od

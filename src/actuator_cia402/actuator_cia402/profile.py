@@ -86,7 +86,10 @@ def decode_state(statusword: int) -> State | None:
 
 
 def encode_statusword(state: State, remote: bool = True, warning: bool = False) -> int:
-    """Return the statusword 0x6041 a drive reports in ``state`` (voltage-enabled bit 4 while powered)."""
+    """Return the statusword 0x6041 a drive reports in ``state``.
+
+    Voltage-enabled bit 4 while powered.
+    """
     base = {
         State.NOT_READY_TO_SWITCH_ON: 0x0000,
         State.SWITCH_ON_DISABLED: 0x0040,
@@ -157,7 +160,10 @@ TRANSITIONS = {
 
 
 def next_state(state: State, command: Command) -> State:
-    """Return the state after ``command`` in ``state`` (CiA 402 transitions; unknown pairs keep the state)."""
+    """Return the state after ``command`` in ``state``.
+
+    CiA 402 transitions; unknown pairs keep the state.
+    """
     return TRANSITIONS.get((state, command), state)
 
 

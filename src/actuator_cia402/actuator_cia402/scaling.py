@@ -59,12 +59,18 @@ class Scaling:
         return counts
 
     def current_to_torque_permille(self, current_a: float) -> int:
-        """Target torque 0x6071 [per mille of 0x6076] for the motor current ``current_a``: 1000 k_t i / T_rated."""
+        """Target torque 0x6071 [per mille of 0x6076] for the motor current ``current_a``.
+
+        1000 k_t i / T_rated.
+        """
         value = int(round(1000.0 * self.torque_constant_nm_a * current_a / self.rated_torque_nm))
         return max(-INT16_MAX, min(INT16_MAX, value))
 
     def torque_permille_to_current(self, permille: int) -> float:
-        """Motor current [A] of a torque 0x6071/0x6077 [per mille]: permille T_rated / (1000 k_t)."""
+        """Motor current [A] of a torque 0x6071/0x6077 [per mille].
+
+        Permille T_rated / (1000 k_t).
+        """
         return permille * self.rated_torque_nm / (1000.0 * self.torque_constant_nm_a)
 
     def torque_permille_to_nm(self, permille: int) -> float:

@@ -52,7 +52,10 @@ MAX_CATCH_UP_PERIODS = 1000
 
 @dataclass(frozen=True)
 class FaultPlan:
-    """Faults to inject, at drive time t [s] counted in SYNCs since NMT operational; negative = never."""
+    """Faults to inject, at drive time t [s] counted in SYNCs since NMT operational.
+
+    Negative = never.
+    """
 
     fault_kind: str = 'none'  # 'none', 'over_current' or 'following_error'
     fault_at_s: float = -1.0
@@ -75,7 +78,10 @@ class FaultPlan:
 
 
 def plant_parameters(working_condition: str) -> PlantParameters:
-    """Return the joint model of the paper in ``working_condition`` ('deep_sea': 10 MPa, 2 degC; 'lab': 0 MPa, 25 degC)."""
+    """Return the joint model of the paper in ``working_condition``.
+
+    'deep_sea': 10 MPa, 2 degC; 'lab': 0 MPa, 25 degC.
+    """
     conditions = {'deep_sea': WorkingCondition.deep_sea, 'lab': WorkingCondition.lab}
     if working_condition not in conditions:
         raise ValueError(f'working_condition must be deep_sea or lab, got {working_condition!r}')
@@ -85,7 +91,10 @@ def plant_parameters(working_condition: str) -> PlantParameters:
 def torque_loop(
     current_a: float, target_a: float, dt_s: float, tau_s: float
 ) -> tuple[float, float]:
-    """First-order torque loop over one period: (mean current, end current); i = i* + (i0 - i*) exp(-t/tau)."""
+    """First-order torque loop over one period: (mean current, end current).
+
+    i = i* + (i0 - i*) exp(-t/tau).
+    """
     if tau_s <= 0.0:
         return target_a, target_a
     decay = math.exp(-dt_s / tau_s)
@@ -155,7 +164,10 @@ class SimulatedDrive:
 
     # --- bus --------------------------------------------------------------------------------
     def start(self) -> 'SimulatedDrive':
-        """Join the bus, boot (boot-up message, NMT pre-operational) and reach 'switch on disabled'."""
+        """Join the bus.
+
+        Boot (boot-up message, NMT pre-operational) and reach 'switch on disabled'.
+        """
         self.network.connect(
             interface=self.interface, channel=self.channel, receive_own_messages=False
         )
@@ -182,7 +194,10 @@ class SimulatedDrive:
             self.node.sdo.on_request(can_id, data, timestamp)
 
     def _on_nmt(self, can_id, data, timestamp) -> None:
-        """NMT command; on entering operational the drive takes the PDO configuration the master wrote."""
+        """NMT command.
+
+        On entering operational the drive takes the PDO configuration the master wrote.
+        """
         if self.silent:
             return
         self.node.nmt.on_command(can_id, data, timestamp)
@@ -212,7 +227,10 @@ class SimulatedDrive:
 
     # --- object dictionary ------------------------------------------------------------------
     def _on_read(self, index: int, subindex: int, od) -> int | None:
-        """Live values of the process objects for SDO reads (0x6041, 0x6061, 0x6064, 0x6077, 0x6078, 0x603F, 0x1001)."""
+        """Live values of the process objects for SDO reads.
+
+        0x6041, 0x6061, 0x6064, 0x6077, 0x6078, 0x603F, 0x1001.
+        """
         with self.lock:
             live = {
                 p.STATUSWORD: self.statusword,
@@ -226,7 +244,10 @@ class SimulatedDrive:
             return live.get(index)
 
     def _on_write(self, index: int, subindex: int, od, data: bytes) -> None:
-        """SDO writes that act at once: controlword 0x6040 (state machine), modes of operation 0x6060."""
+        """SDO writes that act at once.
+
+        Controlword 0x6040 (state machine), modes of operation 0x6060.
+        """
         with self.lock:
             if index == p.CONTROLWORD:
                 self.apply_controlword(od.decode_raw(data))
@@ -286,7 +307,10 @@ class SimulatedDrive:
         self._send_emcy(code, self.error_register)
 
     def _clear_fault(self) -> None:
-        """Fault reset (transition 15): 'switch on disabled', error code cleared, EMCY 'error reset'."""
+        """Fault reset (transition 15).
+
+        'switch on disabled', error code cleared, EMCY 'error reset'.
+        """
         self.state = p.State.SWITCH_ON_DISABLED
         self.error_code = 0
         self.error_register = 0
@@ -300,7 +324,11 @@ class SimulatedDrive:
 
     # --- the cycle --------------------------------------------------------------------------
     def _on_sync(self, can_id, data, timestamp) -> None:
-        """SYNC: the periods a late SYNC skipped pass first (time goes on for the joint), then one drive cycle."""
+        """SYNC.
+
+        The periods a late SYNC skipped pass first (time goes on for the joint), then one drive
+        cycle.
+        """
         if self.silent or not self._pdo_ready:
             return
         now = time.monotonic_ns()
@@ -313,11 +341,17 @@ class SimulatedDrive:
             self._advance(cycle=True)
 
     def step(self) -> None:
-        """One drive cycle as on a SYNC: latch the RPDO, faults, sample and send TPDOs, integrate one period."""
+        """One drive cycle as on a SYNC.
+
+        Latch the RPDO, faults, sample and send TPDOs, integrate one period.
+        """
         self._advance(cycle=True)
 
     def _advance(self, cycle: bool) -> None:
-        """One sync period of drive time; ``cycle``: with the RPDO latched and TPDOs sent (a SYNC), else idle."""
+        """One sync period of drive time.
+
+        ``cycle``: with the RPDO latched and TPDOs sent (a SYNC), else idle.
+        """
         t_s = self.syncs * self.dt_s
         now_ns = self.syncs * self.period_ns
         self.syncs += 1
@@ -351,7 +385,10 @@ class SimulatedDrive:
             self._raise_fault(FAULT_CODES['over_current'])
 
     def _send_tpdos(self) -> None:
-        """TPDO1/TPDO2 with the objects the master mapped (statusword, position, torque; current, error code)."""
+        """TPDO1/TPDO2 with the objects the master mapped.
+
+        Statusword, position, torque; current, error code.
+        """
         if f_drop := self.faults.drop_tpdo_fraction:
             if self.rng.random() < f_drop:
                 self.tpdos_dropped += 1
@@ -375,7 +412,10 @@ class SimulatedDrive:
                 pdo_map.transmit()
 
     def _integrate(self) -> None:
-        """Joint over one sync period: the torque loop's mean current held (or the brake holding the joint)."""
+        """Joint over one sync period.
+
+        The torque loop's mean current held (or the brake holding the joint).
+        """
         target = self.target_current_a
         if self.brake:
             self.current_a = 0.0

@@ -359,7 +359,10 @@ class ControllerNode(ManagedNode):
             )
 
     def on_graph_check(self) -> None:
-        """10 Hz: more than one publisher on a watched topic stops control until one is left, then resync."""
+        """10 Hz.
+
+        More than one publisher on a watched topic stops control until one is left, then resync.
+        """
         crowded = [
             f'{n} publishers on {t}' for t in WATCHED_TOPICS if (n := self.count_publishers(t)) > 1
         ]
@@ -391,7 +394,10 @@ class ControllerNode(ManagedNode):
 
     # --- output -----------------------------------------------------------------------------------
     def _control(self, sample: ControlSample | None) -> None:
-        """Publish a control update the assembly produced; log the latch, restarts, late samples."""
+        """Publish a control update the assembly produced.
+
+        Log the latch, restarts, late samples.
+        """
         if sample is None:
             return
         start = time.perf_counter_ns()

@@ -50,7 +50,10 @@ NAN = float('nan')
 
 @dataclass(frozen=True)
 class CommonConfig:
-    """What every controller shares: the nominal model (3), the sample time and the current limit."""
+    """What every controller shares.
+
+    The nominal model (3), the sample time and the current limit.
+    """
 
     theta1n: float = spec(
         limits.THETA1N, 'theta_1n = k_tn/(J_n N), eq. (3)', 'rad/s^2/A', 0.0, 1.0e6, low_open=True
@@ -121,7 +124,10 @@ class NftsmcGains:
 
 @dataclass(frozen=True)
 class PpNftsmcGains(NftsmcGains):
-    """PP-NFTSMC-ESO gains: NFTSMC-ESO's, which the paper says it inherits, plus (23), (35) and the envelope (8)."""
+    """PP-NFTSMC-ESO gains.
+
+    NFTSMC-ESO's, which the paper says it inherits, plus (23), (35) and the envelope (8).
+    """
 
     k0_per_s: float = spec(
         100.0, 'k0: virtual-control gain of (23)', 'rad/s', 0.0, 1.0e6, low_open=True
@@ -169,7 +175,10 @@ def tanh_sq_over(sigma, tau: float):
 
 
 class Controller:
-    """Base: limit the current, guard non-finite output, integrate one scalar state with anti-windup."""
+    """Base.
+
+    Limit the current, guard non-finite output, integrate one scalar state with anti-windup.
+    """
 
     name = ''
     #: Sign of d(current)/d(integral state); decides which integration drives further into saturation.
@@ -188,7 +197,10 @@ class Controller:
         self.integral = 0.0
 
     def _finish(self, u_unlimited, integrand, **terms) -> ControlOutput:
-        """Limit u, decide the integral update (frozen on wind-up or non-finite output), pack the output."""
+        """Limit u, decide the integral update (frozen on wind-up or non-finite output).
+
+        Pack the output.
+        """
         limit = self.common.current_limit_a
         finite = xm.isfinite(u_unlimited)
         u = xm.where(finite, xm.clip(xm.where(finite, u_unlimited, 0.0), -limit, limit), 0.0)
@@ -285,7 +297,10 @@ class NftsmcEsoController(Controller):
     gains: NftsmcGains
 
     def update(self, t, y, x2_hat, x3_hat, ref: ReferenceSample) -> ControlOutput:
-        """Compute the current for this sample; the sliding integral advances by its integrand times dt."""
+        """Compute the current for this sample.
+
+        The sliding integral advances by its integrand times dt.
+        """
         g, c = self.gains, self.common
         z1 = y - ref.position_rad
         z2 = x2_hat - ref.velocity_rad_s
@@ -337,7 +352,10 @@ class PpNftsmcEsoController(Controller):
         )
 
     def update(self, t, y, x2_hat, x3_hat, ref: ReferenceSample) -> ControlOutput:
-        """Compute the current for this sample; the sliding integral of (27) advances by its integrand times dt."""
+        """Compute the current for this sample.
+
+        The sliding integral of (27) advances by its integrand times dt.
+        """
         g, c = self.gains, self.common
         e = y - ref.position_rad  # (19)
         rho, rho_d, rho_dd = g.ppf.rho_derivatives(

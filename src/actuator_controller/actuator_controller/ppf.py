@@ -118,7 +118,10 @@ class Transformed(NamedTuple):
 
 
 def transform_error(e, rho, ppf: PrescribedPerformance) -> Transformed:
-    """Compute z = S^-1(e / rho) of (11) and r of (12), clamping e / rho into the band (see module doc)."""
+    """Compute z = S^-1(e / rho) of (11) and r of (12), clamping e / rho into the band.
+
+    See module doc.
+    """
     lo, hi = -ppf.lower_scale, ppf.upper_scale
     eps = e / rho
     inside = (eps > lo) & (eps < hi)

@@ -1,7 +1,10 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""Reference trajectories with analytic derivatives: the paper's slow and fast ones, step and sine."""
+"""Reference trajectories with analytic derivatives.
+
+The paper's slow and fast ones, step and sine.
+"""
 
 from __future__ import annotations
 
@@ -61,7 +64,10 @@ def fast_trajectory() -> PaperTrajectory:
 
 @dataclass(frozen=True)
 class StepReference:
-    """x1d = amplitude for t >= start_s, else 0 (derivatives zero: the step itself is not differentiable)."""
+    """x1d = amplitude for t >= start_s, else 0.
+
+    Derivatives zero: the step itself is not differentiable.
+    """
 
     amplitude_rad: float = 0.1
     start_s: float = 0.0
@@ -94,7 +100,10 @@ class SineReference:
 def make_reference(
     kind: str, amplitude_rad: float | None = None, frequency_rad_s: float | None = None
 ) -> Reference:
-    """Build a reference by name: 'slow', 'fast', 'step' or 'sine' (amplitude/frequency override defaults)."""
+    """Build a reference by name.
+
+    'slow', 'fast', 'step' or 'sine' (amplitude/frequency override defaults).
+    """
     if kind == 'slow':
         ref: Reference = slow_trajectory()
     elif kind == 'fast':

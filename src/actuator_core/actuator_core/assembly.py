@@ -96,7 +96,10 @@ class ControlSampleAssembly:
         input_current_gain=0.0,
         initial: bool = False,
     ) -> Optional[ControlSample]:
-        """x_hat(k); an ``initial`` one after the start means the observer restarted: resync (PI uses none)."""
+        """x_hat(k); an ``initial`` one after the start means the observer restarted.
+
+        Resync (PI uses none).
+        """
         if (
             self.start_ns is not None
             and self.needs_estimate
@@ -131,7 +134,10 @@ class ControlSampleAssembly:
         return newest_ns is not None and stamp_ns - newest_ns > RESYNC_GAP_SAMPLES * self.period_ns
 
     def resync(self, stamp_ns: int) -> None:
-        """Handle a time base jump at ``stamp_ns``: 0 A and brake while the observer converges, then restart."""
+        """Handle a time base jump at ``stamp_ns``.
+
+        0 A and brake while the observer converges, then restart.
+        """
         if self.resync_until_ns is not None and stamp_ns < self.resync_until_ns:
             return  # already resyncing
         self.resyncs += 1
@@ -221,7 +227,10 @@ class ControlSampleAssembly:
     def watchdog(
         self, now_ns: int, measurement_timeout_ns: int, estimate_timeout_ns: int
     ) -> Optional[Status]:
-        """STALE_MEASUREMENT or STALE_ESTIMATE when the newest input is older than its timeout, else None."""
+        """STALE_MEASUREMENT or STALE_ESTIMATE when the newest input is older than its timeout.
+
+        Else None.
+        """
         if self.start_ns is None or self.latched is True:
             return None
         if (

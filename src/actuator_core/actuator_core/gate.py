@@ -29,7 +29,10 @@ from actuator_core import xmath as xm
 
 
 class Held(NamedTuple):
-    """What the drive applies over one sample: current [A], the stamp of its command, brake, reason."""
+    """What the drive applies over one sample.
+
+    Current [A], the stamp of its command, brake, reason.
+    """
 
     current_a: float
     command_stamp_ns: int  # stamp of the command applied; -1 when none is
@@ -45,7 +48,10 @@ class CommandGate:
         current_limit_a: float = limits.CURRENT_LIMIT_A,
         timeout_s: float = limits.COMMAND_TIMEOUT_S,
     ):
-        """Refuse currents beyond +-``current_limit_a``; 0 A once commands are ``timeout_s`` old."""
+        """Refuse currents beyond +-``current_limit_a``.
+
+        0 A once commands are ``timeout_s`` old.
+        """
         if not (math.isfinite(current_limit_a) and current_limit_a > 0.0):
             raise ValueError(f'current_limit_a must be finite and > 0, got {current_limit_a}')
         if not (math.isfinite(timeout_s) and timeout_s > 0.0):
@@ -77,7 +83,10 @@ class CommandGate:
     def offer(
         self, current_a: float, stamp_ns: int, safe_stop: bool, received_ns: int
     ) -> Optional[str]:
-        """Take a command received at ``received_ns``; returns None, or why it was refused (0 A then applies)."""
+        """Take a command received at ``received_ns``.
+
+        Returns None, or why it was refused (0 A then applies).
+        """
         if not self.active:
             return 'the drive is not active'
         finite = xm.isfinite(current_a)

@@ -64,7 +64,10 @@ class Estimate(NamedTuple):
 
 
 class ObserverInputPairing:
-    """Pairs (y(k), u(k)) by stamp for one observer and steps it; returns the estimates it produces."""
+    """Pairs (y(k), u(k)) by stamp for one observer and steps it.
+
+    Returns the estimates it produces.
+    """
 
     def __init__(
         self,
@@ -73,7 +76,10 @@ class ObserverInputPairing:
         correction: Callable[[float, int], tuple],
         patience_samples: int = REALTIME_PATIENCE_SAMPLES,
     ):
-        """``correction(du, steps)``: change of x_hat ``steps`` steps after u(k) changed by du (eq. 15)."""
+        """``correction(du, steps)``.
+
+        Change of x_hat ``steps`` steps after u(k) changed by du (eq. 15).
+        """
         self.observer = observer
         self.period_ns = period_ns
         self.correction = correction
@@ -136,7 +142,10 @@ class ObserverInputPairing:
         ] + self._advance()
 
     def _repair(self, stamp_ns: int, u) -> None:
-        """Take a command for a sample already stepped with a substitute: correct x_hat to the true pair."""
+        """Take a command for a sample already stepped with a substitute.
+
+        Correct x_hat to the true pair.
+        """
         used = self.substitutes.pop(stamp_ns, None)
         if used is None:
             return

@@ -46,7 +46,10 @@ def range_text(meta: dict) -> str:
 
 
 def check_value(name: str, value: Any, meta: dict) -> None:
-    """Raise ValueError naming ``name``, its value and its valid range when ``value`` is outside it."""
+    """Raise ValueError naming ``name``.
+
+    Its value and its valid range when ``value`` is outside it.
+    """
     if isinstance(value, (bool, str)) or value is None:
         return
     v = np.asarray(value, dtype=float)

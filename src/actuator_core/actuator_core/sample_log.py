@@ -14,7 +14,10 @@ CHUNK_ROWS = 4096
 
 
 class SampleLog:
-    """Append fixed-width int64 rows cheaply; ``array()`` joins them; rows beyond ``max_rows`` are counted, not kept."""
+    """Append fixed-width int64 rows cheaply; ``array()`` joins them.
+
+    Rows beyond ``max_rows`` are counted, not kept.
+    """
 
     def __init__(self, columns: Sequence[str], max_rows: int = 3_600_000):
         """One column per name; at most ``max_rows`` rows (one hour at 1 kHz by default)."""

@@ -11,7 +11,10 @@ import numpy as np
 
 
 def percentiles(values, prefix: str, mean: bool = False) -> dict[str, Optional[float]]:
-    """{prefix_p50, prefix_p99, prefix_max (, prefix_mean)} of ``values``; None for an empty array."""
+    """{prefix_p50, prefix_p99, prefix_max (, prefix_mean)} of ``values``.
+
+    None for an empty array.
+    """
     v = np.asarray(values, dtype=float)
     keys = ('p50', 'p99', 'max') + (('mean',) if mean else ())
     if v.size == 0:
@@ -27,6 +30,9 @@ def percentiles(values, prefix: str, mean: bool = False) -> dict[str, Optional[f
 
 
 def missed_samples(stamp_ns, period_ns: int) -> int:
-    """Count the samples never answered: the sum over gaps between consecutive stamps of (gap / period - 1)."""
+    """Count the samples never answered.
+
+    The sum over gaps between consecutive stamps of (gap / period - 1).
+    """
     gaps = np.diff(np.asarray(stamp_ns, dtype=np.int64)) // period_ns - 1
     return int(gaps[gaps > 0].sum()) if gaps.size else 0

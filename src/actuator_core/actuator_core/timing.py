@@ -1,7 +1,10 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""Sample-time arithmetic shared by the nodes and the offline loop, so both compute identical times."""
+"""Sample-time arithmetic shared by the nodes and the offline loop.
+
+So both compute identical times.
+"""
 
 from __future__ import annotations
 
@@ -12,7 +15,10 @@ def period_ns(dt_s: float) -> int:
 
 
 def sample_time_s(elapsed_ns: int) -> float:
-    """Seconds since the start of the run from integer nanoseconds (one rounding, same everywhere)."""
+    """Seconds since the start of the run from integer nanoseconds.
+
+    One rounding, same everywhere.
+    """
     return elapsed_ns * 1.0e-9
 
 

@@ -145,7 +145,10 @@ class EsoNode(ManagedNode):
 
     # --- inputs -----------------------------------------------------------------------------------
     def on_graph_check(self) -> None:
-        """10 Hz: more than one publisher on a control input stops the observer until one is left."""
+        """10 Hz.
+
+        More than one publisher on a control input stops the observer until one is left.
+        """
         crowded = [
             f'{n} publishers on {t}' for t in WATCHED_TOPICS if (n := self.count_publishers(t)) > 1
         ]

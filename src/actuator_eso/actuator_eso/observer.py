@@ -125,11 +125,17 @@ class ExtendedStateObserver:
         self.x1_hat, self.x2_hat, self.x3_hat = x_hat
 
     def add(self, delta) -> None:
-        """Add ``delta`` to x_hat: the exact repair of a step taken with the wrong current (``input_current_correction``)."""
+        """Add ``delta`` to x_hat.
+
+        The exact repair of a step taken with the wrong current (``input_current_correction``).
+        """
         self.x1_hat, self.x2_hat, self.x3_hat = (x + d for x, d in zip(self.state, delta))
 
     def correction(self, du_a, steps: int):
-        """Change of x_hat ``steps`` steps after the current of a step changed by ``du_a`` [A], eq. (15)."""
+        """Change of x_hat ``steps`` steps after the current of a step changed by ``du_a`` [A].
+
+        eq. (15).
+        """
         return input_current_correction(du_a, steps, self.dt_s, self.gains)
 
     @property

@@ -69,10 +69,16 @@ class EncoderParameters:
 
 
 class Encoder:
-    """Stateful encoder: ``measure(q)`` returns the reading of one sample, drawing fresh noise each call."""
+    """Stateful encoder.
+
+    ``measure(q)`` returns the reading of one sample, drawing fresh noise each call.
+    """
 
     def __init__(self, counts_per_rev=0, noise_std_rad=0.0, seed=0):
-        """Quantise to ``counts_per_rev`` (0: none), add N(0, ``noise_std_rad``^2) noise seeded by ``seed``."""
+        """Quantise to ``counts_per_rev`` (0: none).
+
+        Add N(0, ``noise_std_rad``^2) noise seeded by ``seed``.
+        """
         self.parameters = EncoderParameters(counts_per_rev, noise_std_rad, seed)
         counts = np.asarray(counts_per_rev, dtype=float)
         self._quantised = bool(np.any(counts > 0))
@@ -116,7 +122,10 @@ class Encoder:
         return column.reshape(shape)
 
     def measure(self, position_rad):
-        """Return y = round(q / delta) delta + noise_std n [rad], elementwise; q unchanged when the encoder is off."""
+        """Return y = round(q / delta) delta + noise_std n [rad], elementwise.
+
+        q unchanged when the encoder is off.
+        """
         y = position_rad
         if self._quantised:
             res = self._resolution_rad

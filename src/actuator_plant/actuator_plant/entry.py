@@ -1,7 +1,10 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""Entry point of ``plant_node``: signals answered quietly from the first instant, then the node's imports."""
+"""Entry point of ``plant_node``.
+
+Signals answered quietly from the first instant, then the node's imports.
+"""
 
 from actuator_ros.early import quiet_until_running
 

@@ -132,7 +132,10 @@ class ExternalTorque:
 
 @dataclass(frozen=True)
 class SealFriction:
-    """Dynamic seal friction at the output shaft, eq. (42) [N m]: (c0 + e^(cv|q'|) + e^(cp P)) sign(q')."""
+    """Dynamic seal friction at the output shaft, eq. (42) [N m].
+
+    (c0 + e^(cv|q'|) + e^(cp P)) sign(q').
+    """
 
     base_nm: float = spec(
         1.0, 'c0: constant part of the seal friction amplitude', 'N m', 0.0, 1.0e3
@@ -174,7 +177,10 @@ class WorkingCondition:
 
     @classmethod
     def at_depth(cls, depth_m: float, temperature_c: float = 2.0) -> 'WorkingCondition':
-        """Hydrostatic pressure rho g depth of sea water at ``depth_m`` (the oil is pressure-compensated)."""
+        """Hydrostatic pressure rho g depth of sea water at ``depth_m``.
+
+        The oil is pressure-compensated.
+        """
         check_value(
             'depth_m',
             depth_m,
@@ -222,7 +228,10 @@ class PlantParameters:
         validate(self)
 
     def ideal(self) -> 'PlantParameters':
-        """Return the same joint with nominal parameters and no loss or disturbance: exactly model (5) with d = 0."""
+        """Return the same joint with nominal parameters and no loss or disturbance.
+
+        Exactly model (5) with d = 0.
+        """
         return replace(
             self,
             with_drift=False,
@@ -233,7 +242,10 @@ class PlantParameters:
 
 
 class PlantConstants(NamedTuple):
-    """Per-condition constants derived once from ``PlantParameters`` (viscosity, seal pressure term)."""
+    """Per-condition constants derived once from ``PlantParameters``.
+
+    viscosity, seal pressure term.
+    """
 
     params: PlantParameters
     stirring_coefficient_nm_s_rad: float  # k * mu, multiplies the rotor speed
@@ -253,7 +265,10 @@ def derive_constants(params: PlantParameters) -> PlantConstants:
 
 
 def _plain(x):
-    """Return a 0-d numpy value as a Python float (scalar arithmetic is several times faster); arrays unchanged."""
+    """Return a 0-d numpy value as a Python float (scalar arithmetic is several times faster).
+
+    Arrays unchanged.
+    """
     return float(x) if np.ndim(x) == 0 else x
 
 
@@ -397,7 +412,10 @@ class JointPlant:
     """The simulated joint as a sampled system: state (q, q') at sample k, t_k = k * dt."""
 
     def __init__(self, params: PlantParameters, dt_s: float, position_rad=0.0, velocity_rad_s=0.0):
-        """Start at sample 0 at rest at q = ``position_rad`` (arrays give one joint per element)."""
+        """Start at sample 0 at rest at q = ``position_rad``.
+
+        Arrays give one joint per element.
+        """
         check_value(
             'dt_s',
             dt_s,
@@ -450,5 +468,8 @@ class JointPlant:
         self.sample_index += 1
 
     def truth(self, current_a) -> DisturbanceParts:
-        """Return the true acceleration and lumped disturbance at t_k, with ``current_a`` the current being applied."""
+        """Return the true acceleration and lumped disturbance at t_k.
+
+        With ``current_a`` the current being applied.
+        """
         return disturbance_parts(self.time_s, self.velocity_rad_s, current_a, self.constants)

@@ -125,7 +125,10 @@ def pressure_viscosity_coefficient_per_pa(
 
 
 def dynamic_viscosity_pa_s(temperature_c: float, pressure_pa: float, oil: OilProperties) -> float:
-    """Dynamic viscosity mu = mu_0(T) * exp(alpha * P) [Pa s], eq. (7), with mu_0 = rho * nu at P = 0."""
+    """Dynamic viscosity mu = mu_0(T) * exp(alpha * P) [Pa s], eq. (7).
+
+    With mu_0 = rho * nu at P = 0.
+    """
     if np.any(np.asarray(pressure_pa) < 0.0):
         raise ValueError(f'pressure_pa must be >= 0 (gauge), got {pressure_pa}')
     mu0 = density_kg_m3(temperature_c, oil) * kinematic_viscosity_m2_s(temperature_c, oil)

@@ -252,7 +252,10 @@ class PlantNode(ManagedNode):
             self.sampler.start()
 
     def on_tick(self) -> None:
-        """10 Hz wall timer: start once the graph is ready; publisher count; sim lockstep watchdog."""
+        """10 Hz wall timer: start once the graph is ready; publisher count.
+
+        Sim lockstep watchdog.
+        """
         if not self.active:
             return
         publishers = self.count_publishers('current_command')

@@ -38,7 +38,10 @@ from actuator_ros.realtime import EXECUTORS, RealtimeSettings
 
 
 def declare_realtime(node, settings: RealtimeSettings) -> RealtimeSettings:
-    """Declare thread_priority, cpu_affinity and executor (applied before rclpy.init, see realtime)."""
+    """Declare thread_priority, cpu_affinity and executor.
+
+    Applied before rclpy.init, see realtime.
+    """
     return RealtimeSettings(
         thread_priority=declare_number(
             node,
@@ -72,7 +75,10 @@ class ManagedNode(LifecycleNode):
     def __init__(
         self, node_name: str, settings: RealtimeSettings = RealtimeSettings(), **kwargs
     ) -> None:
-        """Declare and check every parameter (ParameterError: the process exits 2 with one line)."""
+        """Declare and check every parameter.
+
+        ParameterError: the process exits 2 with one line.
+        """
         super().__init__(node_name, **kwargs)
         self.log = RateLimitedLog(self.get_logger())
         self.configured = False
@@ -91,7 +97,10 @@ class ManagedNode(LifecycleNode):
 
     # --- what a node implements ---------------------------------------------------------------
     def load_parameters(self) -> None:
-        """Declare (first call) or read (at configure) and check every parameter; raise ParameterError."""
+        """Declare (first call) or read (at configure) and check every parameter.
+
+        Raise ParameterError.
+        """
 
     def build(self) -> None:
         """Build the core objects and create the topics; publish nothing."""
@@ -107,7 +116,10 @@ class ManagedNode(LifecycleNode):
 
     # --- transitions ----------------------------------------------------------------------------
     def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
-        """Parameters read and checked, core built; a refusal is logged and the node stays unconfigured."""
+        """Parameters read and checked, core built.
+
+        a refusal is logged and the node stays unconfigured.
+        """
         try:
             self.load_parameters()
             self.build()
@@ -169,7 +181,10 @@ class ManagedNode(LifecycleNode):
             self.drop()
 
     def autostart(self) -> bool:
-        """Configure and activate when the autostart parameter says so; False when a transition failed."""
+        """Configure and activate when the autostart parameter says so.
+
+        False when a transition failed.
+        """
         if not self.get_parameter('autostart').value:
             return True
         self.trigger_configure()

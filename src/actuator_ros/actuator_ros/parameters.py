@@ -57,7 +57,10 @@ def _descriptor(
 def _declare(
     node: Node, name: str, default: Any, descriptor: ParameterDescriptor, valid: str
 ) -> Any:
-    """declare_parameter (or read it if declared), with type and range refusals as one ParameterError line."""
+    """declare_parameter (or read it if declared).
+
+    With type and range refusals as one ParameterError line.
+    """
     try:
         # Declared once at construction; read again at configure (a ros2 param set may have changed it).
         value = (
@@ -172,7 +175,10 @@ def declare_flag(node: Node, name: str, default: bool, description: str) -> bool
 
 
 def declare_output_path(node: Node, name: str, description: str) -> str:
-    """Declare a file path the node writes at shutdown ('' = none); refuse one whose folder is not writable."""
+    """Declare a file path the node writes at shutdown ('' = none).
+
+    Refuse one whose folder is not writable.
+    """
     path = declare_text(node, name, '', f'{description}; empty: not written')
     if path:
         folder = os.path.dirname(os.path.abspath(path))
@@ -225,7 +231,10 @@ def declare_common(node: Node) -> None:
 
 
 def only_while_unconfigured(node) -> None:
-    """Refuse ``ros2 param set`` unless the node is unconfigured: parameters are read at configure."""
+    """Refuse ``ros2 param set`` unless the node is unconfigured.
+
+    Parameters are read at configure.
+    """
 
     def check(params) -> SetParametersResult:
         if getattr(node, 'configured', False):

@@ -57,7 +57,10 @@ class RealtimeSettings:
         return {int(c) for c in text.split(',')} if text else set()
 
     def apply(self) -> Optional[str]:
-        """Pin and raise the process (all threads created later inherit); return the refusal, if any."""
+        """Pin and raise the process (all threads created later inherit).
+
+        Return the refusal, if any.
+        """
         notes = []
         if self.cpus():
             try:
@@ -86,7 +89,10 @@ def _value(text: str):
 
 
 def pre_init_settings(args: Sequence[str], node_name: str) -> RealtimeSettings:
-    """Return the real-time parameters for ``node_name`` from ROS arguments, before rclpy exists (later wins)."""
+    """Return the real-time parameters for ``node_name`` from ROS arguments, before rclpy exists.
+
+    Later wins.
+    """
     found: dict = {}
     names = ('thread_priority', 'cpu_affinity', 'executor')
     in_ros, it = False, iter(list(args))

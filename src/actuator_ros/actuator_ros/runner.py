@@ -35,7 +35,10 @@ ACK_TIMEOUT_S = 5.0
 
 
 def make_executor(kind: str):
-    """Return the executor by name: 'events' (rclpy.experimental.EventsExecutor) or 'single_threaded'."""
+    """Return the executor by name.
+
+    'events' (rclpy.experimental.EventsExecutor) or 'single_threaded'.
+    """
     if kind == 'events':
         from rclpy.experimental import EventsExecutor
 

@@ -1,4 +1,7 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""ROS-free closed loop, scenarios, offline simulation, stability analysis and the late-command study."""
+"""ROS-free closed loop, scenarios, offline simulation.
+
+Stability analysis and the late-command study.
+"""

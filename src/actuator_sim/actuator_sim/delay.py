@@ -22,7 +22,10 @@ class CommandDelay:
     """Shift register of the last D commands: ``apply(u(k))`` returns u(k - D)."""
 
     def __init__(self, samples, zero=0.0):
-        """Delay by ``samples`` (int or int array, 0..COMMAND_DELAY_MAX_SAMPLES); ``zero`` is 0 A of the run's shape."""
+        """Delay by ``samples`` (int or int array, 0..COMMAND_DELAY_MAX_SAMPLES).
+
+        ``zero`` is 0 A of the run's shape.
+        """
         check_value(
             'command_delay_samples',
             samples,

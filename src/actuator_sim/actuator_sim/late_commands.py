@@ -57,7 +57,10 @@ def max_steady_error(
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Print max steady-state error per late fraction and burst, ESO integrating commanded vs held current."""
+    """Print max steady-state error per late fraction and burst.
+
+    ESO integrating commanded vs held current.
+    """
     parser = argparse.ArgumentParser(prog='late_commands', description=__doc__.splitlines()[0])
     parser.add_argument(
         '--fractions',

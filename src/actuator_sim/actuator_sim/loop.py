@@ -79,7 +79,10 @@ class ClosedLoop:
     """Plant, observer, controller and drive gate, advanced one sample per ``step``."""
 
     def __init__(self, scenario: Scenario, batch: int | None = None):
-        """Build the run; ``batch`` = n runs the same scenario n times at once (states are arrays)."""
+        """Build the run.
+
+        ``batch`` = n runs the same scenario n times at once (states are arrays).
+        """
         dt = scenario.common.dt_s
         zero = 0.0 if batch is None else np.zeros(batch)
         self.scenario = scenario

@@ -234,7 +234,10 @@ def design_main(argv: Sequence[str] | None = None) -> int:
 
 
 def compare_main(argv: Sequence[str] | None = None) -> int:
-    """``sweep-compare A B``: exit 0 when two studies' runs.parquet are identical cell for cell (NaN == NaN)."""
+    """``sweep-compare A B``.
+
+    Exit 0 when two studies' runs.parquet are identical cell for cell (NaN == NaN).
+    """
     import pyarrow.parquet as pq
     from actuator_studies.results import tables_identical
 

@@ -206,7 +206,10 @@ def _objective(errors: np.ndarray, percentile: float) -> float:
 def search(
     evaluator: Evaluator, req: DesignRequest, target: float, log=print
 ) -> tuple[dict, list[dict]]:
-    """Optuna TPE with constraints; returns (best feasible values or None, every trial's record)."""
+    """Optuna TPE with constraints.
+
+    Returns (best feasible values or None, every trial's record).
+    """
     import optuna
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
@@ -263,7 +266,10 @@ def search(
 
 
 def compare(evaluator: Evaluator, sets: dict[str, dict], percentile: float) -> dict:
-    """Margin, worst/median/percentile error and saturation over the corners, per named gain set."""
+    """Margin, worst/median/percentile error and saturation over the corners.
+
+    Per named gain set.
+    """
     outcomes = evaluator.run(list(sets.values()))
     table = {}
     for (label, values), o in zip(sets.items(), outcomes):
@@ -281,7 +287,10 @@ def compare(evaluator: Evaluator, sets: dict[str, dict], percentile: float) -> d
 
 
 def run_design(req: DesignRequest, out: Path, ray_target: str = '', log=print) -> dict:
-    """Run the whole command: check input, search, verify on a finer envelope, write gains YAML and report."""
+    """Run the whole command.
+
+    check input, search, verify on a finer envelope, write gains YAML and report.
+    """
     if req.controller != 'pp_nftsmc_eso':
         raise StudyInputError(
             'design_gains designs PP-NFTSMC-ESO gains only (--controller pp_nftsmc_eso)'

@@ -41,7 +41,10 @@ LOCAL_OBJECT_STORE_BYTES = 200 * 1024 * 1024
 
 @dataclass(frozen=True)
 class InjectedFailure:
-    """Test hook: the first attempt of ``chunk`` fails, by an exception or by killing its process."""
+    """Test hook.
+
+    The first attempt of ``chunk`` fails, by an exception or by killing its process.
+    """
 
     chunk: int
     marker: str  # file created by the failing attempt; later attempts find it and run
@@ -69,7 +72,10 @@ class ChunkFailed(RuntimeError):
 def run_local(
     spec: SweepSpec, chunks: Iterable[int], inject: InjectedFailure | None = None
 ) -> Iterator[tuple]:
-    """Run chunks one after another in this process, retrying a failed one; yield (chunk, columns)."""
+    """Run chunks one after another in this process, retrying a failed one.
+
+    Yield (chunk, columns).
+    """
     for chunk in chunks:
         for attempt in range(MAX_RETRIES + 1):
             try:
@@ -111,7 +117,10 @@ def check_reachable(address: str) -> None:
 
 
 def start_ray(target: str):
-    """Start (local:N) or join (address) Ray; return the ray module. StudyInputError when it cannot."""
+    """Start (local:N) or join (address) Ray.
+
+    Return the ray module. StudyInputError when it cannot.
+    """
     address, cpus = parse_ray_target(target)
     if cpus is None:
         check_reachable(address)
@@ -144,7 +153,10 @@ def ray_workers(ray) -> int:
 def run_ray(
     ray, spec: SweepSpec, chunks: Iterable[int], inject: InjectedFailure | None = None
 ) -> Iterator[tuple]:
-    """Submit every chunk as a Ray task (retried on failure); yield (chunk, columns) as each finishes."""
+    """Submit every chunk as a Ray task (retried on failure).
+
+    Yield (chunk, columns) as each finishes.
+    """
     task = ray.remote(num_cpus=1, max_retries=MAX_RETRIES, retry_exceptions=True)(attempt_chunk)
     spec_ref = ray.put(spec)
     pending = {task.remote(spec_ref, chunk, inject): chunk for chunk in chunks}

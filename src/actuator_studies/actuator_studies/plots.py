@@ -36,7 +36,10 @@ def _columns(table) -> dict[str, np.ndarray]:
 
 
 def _worst_grid(x, y, z, diverged):
-    """Return the unique x, y and the worst z per cell (NaN cell where any run diverged), and the diverged mask."""
+    """Return the unique x, y and the worst z per cell (NaN cell where any run diverged).
+
+    And the diverged mask.
+    """
     xs, ys = np.unique(x), np.unique(y)
     grid = np.full((ys.size, xs.size), -np.inf)
     bad = np.zeros_like(grid, dtype=bool)
@@ -93,7 +96,10 @@ def draw_maps(table, x_name: str, y_name: str, path: Path, grid: bool, title: st
 
 
 def draw_cdfs(table, path: Path, title: str = '') -> Path:
-    """Empirical CDFs of error, saturation and envelope violation over all runs into ``path`` (PNG)."""
+    """Empirical CDFs of error, saturation and envelope violation over all runs into ``path``.
+
+    PNG.
+    """
     c = _columns(table)
     diverged = c['diverged'] > 0
     n = diverged.size

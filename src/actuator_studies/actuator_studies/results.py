@@ -29,7 +29,10 @@ def chunk_path(out: Path, chunk: int) -> Path:
 
 
 def prepare_folder(out: Path, request: dict, resume: bool) -> None:
-    """Create ``out`` for a new study, or check that a resumed one asks exactly what it asked before."""
+    """Create ``out`` for a new study.
+
+    Or check that a resumed one asks exactly what it asked before.
+    """
     definition = out / 'study.json'
     if out.exists() and not resume:
         raise StudyInputError(
@@ -85,7 +88,10 @@ def _stats(x: np.ndarray) -> dict:
 
 
 def summarise(table: pa.Table, varied: list[str], extra: dict) -> dict:
-    """Summarise: counts of diverged, saturated and out-of-envelope runs, error statistics, worst run."""
+    """Summarise.
+
+    Counts of diverged, saturated and out-of-envelope runs, error statistics, worst run.
+    """
     col = {
         name: np.asarray(table.column(name).to_pylist(), dtype=float)
         for name in table.column_names
@@ -132,7 +138,10 @@ def write_summary(out: Path, summary: dict) -> Path:
 
 
 def tables_identical(a: pa.Table, b: pa.Table) -> bool:
-    """Check for the same schema and the same value in every cell, NaN equal to NaN (pyarrow's equals says NaN != NaN)."""
+    """Check for the same schema and the same value in every cell, NaN equal to NaN.
+
+    pyarrow's equals says NaN != NaN.
+    """
     if a.schema != b.schema or a.num_rows != b.num_rows:
         return False
     for name in a.column_names:

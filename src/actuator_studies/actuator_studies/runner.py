@@ -59,7 +59,10 @@ METRIC_COLUMNS = tuple(
 
 @dataclass(frozen=True)
 class SweepSpec:
-    """A whole study: base scenario, the design table (name -> one value per run), batch size and seed."""
+    """A whole study.
+
+    Base scenario, the design table (name -> one value per run), batch size and seed.
+    """
 
     base: BaseScenario
     table: dict
@@ -84,7 +87,10 @@ class SweepSpec:
 def run_batch(
     base: BaseScenario, values: dict[str, np.ndarray], seeds: np.ndarray
 ) -> list[tuple[RunMetrics, int]]:
-    """(metrics, paper-envelope violations) of n runs at once: ``values`` holds n values per varied quantity."""
+    """(metrics, paper-envelope violations) of n runs at once.
+
+    ``values`` holds n values per varied quantity.
+    """
     n = len(seeds)
     scenario = build_scenario(base, values, seeds=seeds, name='batch')
     loop = ClosedLoop(scenario, batch=n)
@@ -126,7 +132,10 @@ def run_batch(
 
 
 def paper_envelope_violations(t_s: np.ndarray, error_rad: np.ndarray, gains) -> int:
-    """Count the samples with e outside (-l rho(t), h rho(t)) of (8) from t = 0, restarts ignored (Table 4's PPF without one)."""
+    """Count the samples with e outside (-l rho(t), h rho(t)) of (8) from t = 0, restarts ignored.
+
+    Table 4's PPF without one.
+    """
     ppf = getattr(gains, 'ppf', None) or PrescribedPerformance()
     lower, upper = ppf.bounds(t_s)
     return int(np.count_nonzero(~((error_rad > lower) & (error_rad < upper))))
@@ -182,7 +191,10 @@ def run_chunk(spec: SweepSpec, chunk: int) -> dict[str, list]:
 
 
 def run_single(spec: SweepSpec, run: int) -> dict[str, Any]:
-    """Metric columns of run ``run`` of the study as one scalar ClosedLoop run (a reference for tests)."""
+    """Metric columns of run ``run`` of the study as one scalar ClosedLoop run.
+
+    a reference for tests.
+    """
     seed = run_seeds(spec.seed, np.array([run]))
     values = {name: float(column[run]) for name, column in spec.table.items()}
     scenario = build_scenario(spec.base, values, seeds=seed, name=f'run{run}')

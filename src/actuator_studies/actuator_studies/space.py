@@ -123,7 +123,10 @@ def quantities(controller: str) -> dict[str, Quantity]:
 
 
 def lookup(name: str, controller: str) -> Quantity:
-    """Return the quantity called ``name``; StudyInputError naming the nearest one when there is none."""
+    """Return the quantity called ``name``.
+
+    StudyInputError naming the nearest one when there is none.
+    """
     table = quantities(controller)
     if name in table:
         return table[name]
@@ -144,7 +147,10 @@ def lookup(name: str, controller: str) -> Quantity:
 
 @dataclass(frozen=True)
 class Axis:
-    """A varied quantity: explicit points (grid or lists), or a range [low, high] with a point count."""
+    """A varied quantity.
+
+    Explicit points (grid or lists), or a range [low, high] with a point count.
+    """
 
     name: str
     low: float = float('nan')
@@ -272,7 +278,10 @@ def run_seeds(seed: int, indices: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class BaseScenario:
-    """What every run of a study shares: controller, reference, condition, duration, gains, fixed values."""
+    """What every run of a study shares.
+
+    controller, reference, condition, duration, gains, fixed values.
+    """
 
     controller: str = 'pp_nftsmc_eso'
     reference: str = 'fast'
@@ -291,7 +300,10 @@ class BaseScenario:
 
 
 def _replace_nested(obj, changes: dict[tuple, Any]):
-    """``obj`` with the values of ``changes`` (path tuple -> value) put in, nested dataclasses rebuilt once each."""
+    """``obj`` with the values of ``changes`` (path tuple -> value) put in.
+
+    Nested dataclasses rebuilt once each.
+    """
     direct = {p[0]: v for p, v in changes.items() if len(p) == 1}
     inner: dict[str, dict] = {}
     for p, v in changes.items():

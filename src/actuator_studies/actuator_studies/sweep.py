@@ -135,7 +135,10 @@ def run_sweep(
     progress: bool = True,
     ray_session=None,
 ) -> dict:
-    """Run the whole command: check, (re)start the folder, run what is missing, join, summarise, draw."""
+    """Run the whole command.
+
+    check, (re)start the folder, run what is missing, join, summarise, draw.
+    """
     spec, names = build_spec(req)
     if ray_target:
         target, _ = distributed.parse_ray_target(ray_target)

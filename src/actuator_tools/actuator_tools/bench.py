@@ -60,7 +60,10 @@ def _percentiles_us(values_ns: np.ndarray, prefix: str) -> Figures:
 
 
 def period_figures(received_wall_ns: np.ndarray, period_ns: int) -> Figures:
-    """Summarise the controller tick periods (diff of arrival wall times): mean, p50/p99/max, p99 |deviation|, count > 2 periods."""
+    """Summarise the controller tick periods (diff of arrival wall times).
+
+    mean, p50/p99/max, p99 |deviation|, count > 2 periods.
+    """
     periods_ns = np.diff(np.asarray(received_wall_ns, dtype=np.int64))
     figures = _percentiles_us(periods_ns, 'period')
     if periods_ns.size == 0:
@@ -73,7 +76,10 @@ def period_figures(received_wall_ns: np.ndarray, period_ns: int) -> Figures:
 
 
 def latency_figures(latency_ns: np.ndarray, period_ns: int) -> Figures:
-    """Sensor-to-command latency (command wall time minus measurement stamp): p50/p99/max and count > 1 period."""
+    """Sensor-to-command latency (command wall time minus measurement stamp).
+
+    p50/p99/max and count > 1 period.
+    """
     latency_ns = np.asarray(latency_ns, dtype=np.int64)
     figures = _percentiles_us(latency_ns, 'latency')
     figures['latency_over_period'] = (
@@ -89,7 +95,10 @@ def latency_breakdown(
     received_wall_ns: np.ndarray,
     latency_ns: np.ndarray,
 ) -> Figures:
-    """Split the latency per sample (joined by stamp): plant timer lateness, transport, controller wait + compute."""
+    """Split the latency per sample (joined by stamp).
+
+    Plant timer lateness, transport, controller wait + compute.
+    """
     plant_stamp_ns, keep = np.unique(np.asarray(plant_stamp_ns, dtype=np.int64), return_index=True)
     published = np.asarray(published_wall_ns, dtype=np.int64)[keep]
     _, p_idx, c_idx = np.intersect1d(
@@ -116,7 +125,10 @@ def latency_breakdown(
 def held_command_fractions(
     stamp_ns: np.ndarray, held_command_stamp_ns: np.ndarray, period_ns: int
 ) -> Figures:
-    """Per plant sample after the first, % whose held command answered the previous sample (same), the one before (next), older, none."""
+    """Per plant sample after the first, % whose held command answered the previous sample (same).
+
+    The one before (next), older, none.
+    """
     stamp = np.asarray(stamp_ns, dtype=np.int64)[1:]
     held = np.asarray(held_command_stamp_ns, dtype=np.int64)[1:]
     keys = (
@@ -144,7 +156,10 @@ def held_command_fractions(
 
 
 def plant_figures(stamp_ns: np.ndarray, published_wall_ns: np.ndarray, period_ns: int) -> Figures:
-    """Measure the simulated seconds per wall second over the published span, and the plant's publish-interval spread."""
+    """Measure the simulated seconds per wall second over the published span.
+
+    And the plant's publish-interval spread.
+    """
     stamp = np.asarray(stamp_ns, dtype=np.int64)
     wall = np.asarray(published_wall_ns, dtype=np.int64)
     figures = _percentiles_us(np.diff(wall), 'plant_interval')
@@ -203,7 +218,10 @@ def error_ratios(figures: Figures, reference: Figures) -> Figures:
 
 
 def process_figures(cpu_percent: dict, peak_rss_mb: dict) -> Figures:
-    """CPU (% of one core) and peak resident memory (MB) per node, keyed cpu_<node>_pct and rss_<node>_mb."""
+    """CPU (% of one core) and peak resident memory (MB) per node.
+
+    Keyed cpu_<node>_pct and rss_<node>_mb.
+    """
     figures: Figures = {}
     for node in NODES:
         if node in peak_rss_mb:
@@ -213,7 +231,10 @@ def process_figures(cpu_percent: dict, peak_rss_mb: dict) -> Figures:
 
 
 def log_figures(run_dir: Path) -> Figures:
-    """From the node logs: how many of plant, ESO, controller got SCHED_FIFO; 1 if the controller latched safe stop."""
+    """From the node logs: how many of plant, ESO, controller got SCHED_FIFO.
+
+    1 if the controller latched safe stop.
+    """
     texts = {node: process_log(run_dir, node) for node in ('plant', 'eso', 'controller')}
     return {
         'fifo_nodes': float(sum('running under SCHED_FIFO' in t for t in texts.values())),
@@ -262,7 +283,10 @@ def run_dir_figures(run_dir: Path, mode: str, period_ns: int) -> Figures:
 
 
 def bag_figures(bag: Path) -> Figures:
-    """Tracking error of a recorded run (actuator_bag.analyze): max steady-state and RMS error, diverged."""
+    """Tracking error of a recorded run (actuator_bag.analyze).
+
+    Max steady-state and RMS error, diverged.
+    """
     from actuator_bag.analyze import analyze_run, load_run
 
     metrics = analyze_run(load_run(bag, quiet=True)).metrics
@@ -277,7 +301,10 @@ def bag_figures(bag: Path) -> Figures:
 
 
 def offline_speed(scenario_name: str, batch: Optional[int], sim_s: float) -> float:
-    """Total simulated seconds per wall second of ``ClosedLoop`` stepped for ``sim_s`` (``batch`` copies at once)."""
+    """Total simulated seconds per wall second of ``ClosedLoop`` stepped for ``sim_s``.
+
+    ``batch`` copies at once.
+    """
     from actuator_sim.loop import ClosedLoop
     from actuator_sim.params_yaml import all_scenarios
 
@@ -292,7 +319,10 @@ def offline_speed(scenario_name: str, batch: Optional[int], sim_s: float) -> flo
 
 
 def offline_figures(scenario_name: str, batches: Sequence[int], sim_s: float) -> Figures:
-    """Speed of the scalar ClosedLoop and of each batch size, keyed offline_scalar_x and offline_batch_<n>_x."""
+    """Speed of the scalar ClosedLoop and of each batch size.
+
+    Keyed offline_scalar_x and offline_batch_<n>_x.
+    """
     figures: Figures = {'offline_scalar_x': offline_speed(scenario_name, None, sim_s)}
     for n in batches:
         figures[f'offline_batch_{n}_x'] = offline_speed(scenario_name, n, sim_s)
@@ -350,7 +380,10 @@ def spread(values: Sequence[Optional[float]]) -> Spread:
 
 
 def verdict(target: Optional[Target], values: Sequence[Optional[float]]) -> str:
-    """'PASS k/n' or 'MISS k/n' by the median (k runs met the target), '' without a target, 'n/a' without data."""
+    """'PASS k/n' or 'MISS k/n' by the median (k runs met the target), '' without a target.
+
+    'n/a' without data.
+    """
     if target is None:
         return ''
     met = [target.met(v) for v in values]
@@ -532,7 +565,10 @@ def _cell(value: Optional[float], fmt: str) -> str:
 
 
 def format_table(sections: Sequence[tuple[str, list[Row], list[Figures]]]) -> str:
-    """Return the table (tabulate): per section (title, rows, per-run figures) one line per figure present in any run."""
+    """Return the table (tabulate).
+
+    Per section (title, rows, per-run figures) one line per figure present in any run.
+    """
     lines = []
     for title, rows, runs in sections:
         lines.append(
@@ -664,12 +700,18 @@ def progress(label: str, expected_s: float, quiet: bool) -> Iterator[None]:
 
 
 def expected_wall_s(variant: Variant, duration_s: float) -> float:
-    """Rough wall time of a run for the progress lines (start-up ~5 s; sim time at ~0.5x on a loaded 2-core VM)."""
+    """Rough wall time of a run for the progress lines.
+
+    Start-up ~5 s; sim time at ~0.5x on a loaded 2-core VM.
+    """
     return duration_s * (2.0 if variant.mode == 'sim' else 1.0) + 5.0
 
 
 def cpu_times() -> tuple[float, float]:
-    """(steal, total) CPU seconds of all CPUs (psutil; steal is 0 where the kernel does not report it)."""
+    """(steal, total) CPU seconds of all CPUs.
+
+    psutil; steal is 0 where the kernel does not report it.
+    """
     times = psutil.cpu_times()
     return getattr(times, 'steal', 0.0), sum(times)
 
@@ -730,7 +772,10 @@ def run_one(
 
 
 def floor_run(args: argparse.Namespace, base: Path, repeat: int, rt_priority: int) -> Figures:
-    """One middleware-floor run (actuator_tools.floor): echo and source as processes for --floor-s seconds."""
+    """One middleware-floor run (actuator_tools.floor).
+
+    Echo and source as processes for --floor-s seconds.
+    """
     from actuator_tools.bringup import wait_for_leader
     from actuator_tools.floor import hop_figures
     from actuator_tools.supervisor import ProcessFigures, RosProcess
@@ -851,7 +896,10 @@ def environment() -> dict:
 
 
 def _read_int(path: str) -> Optional[int]:
-    """Return an integer kernel setting (e.g. the SCHED_FIFO budget per second; -1 = unlimited), or None."""
+    """Return an integer kernel setting (e.g. the SCHED_FIFO budget per second; -1 = unlimited).
+
+    Or None.
+    """
     try:
         return int(Path(path).read_text().split()[0])
     except (OSError, ValueError, IndexError):
@@ -999,7 +1047,10 @@ def check_args(args: argparse.Namespace) -> Optional[str]:
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    """Run the benchmark, print the table, write summary.json and runs.csv; 1 if a run failed, 2 on bad input."""
+    """Run the benchmark, print the table, write summary.json and runs.csv.
+
+    1 if a run failed, 2 on bad input.
+    """
     parser = build_parser()
     args = parser.parse_args(argv)
     problem = check_args(args)

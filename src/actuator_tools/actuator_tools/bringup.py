@@ -166,7 +166,10 @@ def wait_for_leader(
     quiet: bool,
     leader: Optional[str],
 ) -> None:
-    """Poll until the leader exits at the end of the run; mark CPU baselines once it logs 'sampling started'."""
+    """Poll until the leader exits at the end of the run.
+
+    Mark CPU baselines once it logs 'sampling started'.
+    """
     marked = False
     deadline = time.monotonic() + (max(120.0, 30.0 * duration_s) if duration_s else float('inf'))
     last_note = started = time.monotonic()

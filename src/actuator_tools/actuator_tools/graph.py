@@ -190,7 +190,10 @@ def closed_loop(
 
 
 def ros_arguments(spec: NodeSpec, scenario_file: Optional[Path]) -> list[str]:
-    """``--ros-args`` of a process started directly (the runner): the file, then the node's parameters."""
+    """``--ros-args`` of a process started directly (the runner).
+
+    The file, then the node's parameters.
+    """
     args = ['--ros-args']
     if spec.scenario_file and scenario_file is not None:
         args += ['--params-file', str(scenario_file)]

@@ -270,13 +270,19 @@ atexit.register(stop_all_processes)
 
 
 def process_log(folder: Union[str, Path], name: str) -> str:
-    """Return what the RosProcess ``name`` wrote to ``folder`` (stdout, then stderr: ROS logs go to stderr)."""
+    """Return what the RosProcess ``name`` wrote to ``folder``.
+
+    stdout, then stderr: ROS logs go to stderr.
+    """
     parts = [Path(folder) / f'{name}.{stream}' for stream in ('stdout', 'stderr')]
     return ''.join(p.read_text(errors='replace') for p in parts if p.is_file())
 
 
 class ProcessFigures:
-    """CPU (% of one core, from a mark) and peak resident memory of one process, read through psutil."""
+    """CPU (% of one core, from a mark) and peak resident memory of one process.
+
+    Read through psutil.
+    """
 
     def __init__(self, pid: int):
         """Watch ``pid``."""
