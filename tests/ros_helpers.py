@@ -41,7 +41,10 @@ WORKSPACE = Path(__file__).resolve().parent.parent
 
 
 class _RandomStart:
-    """domain_coordinator's selector, started at a random id so parallel runs rarely collide on the first try."""
+    """domain_coordinator's selector, started at a random id.
+
+    So parallel runs rarely collide on the first try.
+    """
 
     def __init__(self, exclude: Iterable[int] = ()):
         self.value = random.randrange(100)
@@ -68,7 +71,10 @@ def isolated_ros_env(
     base: Optional[Mapping[str, str]] = None,
     log_dir: Optional[Union[str, Path]] = None,
 ) -> dict:
-    """Return an environment for a ROS subprocess that sees only processes of ``domain_id`` on this host."""
+    """Return an environment for a ROS subprocess.
+
+    It sees only processes of ``domain_id`` on this host.
+    """
     env = dict(os.environ if base is None else base)
     for name in ISOLATION_UNSET:
         env.pop(name, None)

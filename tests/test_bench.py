@@ -1,7 +1,10 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""The benchmark's figure computations on synthetic arrays, its input checks, and one short sim-time run."""
+"""The benchmark's figures, input checks and one short sim-time run.
+
+The figure computations run on synthetic arrays.
+"""
 
 from __future__ import annotations
 

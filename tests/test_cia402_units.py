@@ -79,7 +79,10 @@ def test_statusword_encoding_decodes_to_the_same_state(state):
 
 
 def test_statusword_bits_of_cia402_examples():
-    """Statusword values as drives report them (remote bit 9, voltage bit 4) decode to their states."""
+    """Statusword values as drives report them decode to their states.
+
+    With the remote bit 9 and the voltage bit 4 set.
+    """
     assert p.decode_state(0x0250) is p.State.SWITCH_ON_DISABLED
     assert p.decode_state(0x0231) is p.State.READY_TO_SWITCH_ON
     assert p.decode_state(0x0233) is p.State.SWITCHED_ON

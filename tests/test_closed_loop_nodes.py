@@ -21,7 +21,10 @@ from actuator_tools.supervisor import executable_path, process_log
 
 @pytest.fixture
 def isolated(ros_env, monkeypatch, tmp_path):
-    """Run bring-up code in this process with the test's isolated ROS environment and a scratch cwd."""
+    """Run bring-up code in this process.
+
+    With the test's isolated ROS environment and a scratch cwd.
+    """
     for key, value in ros_env.items():
         monkeypatch.setenv(key, value)
     monkeypatch.chdir(tmp_path)
@@ -59,7 +62,10 @@ def test_sim_mode_across_three_processes_equals_the_offline_core(isolated, contr
 
 
 def test_realtime_loop_stays_stable_for_the_whole_fast_deep_sea_run(isolated):
-    """The paper's 10 s fast deep-sea run, PP-NFTSMC-ESO, in real time: the loop closes and, under SCHED_FIFO, stays stable."""
+    """The paper's 10 s fast deep-sea run, PP-NFTSMC-ESO, in real time.
+
+    The loop closes and, under SCHED_FIFO, stays stable.
+    """
     from actuator_bag.analyze import analyze_run, load_run
     from actuator_tools.bringup import run_closed_loop
     from actuator_tools.main import timing_figures

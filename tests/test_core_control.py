@@ -238,7 +238,10 @@ def test_envelope_restarts_when_the_error_leaves_it_and_not_otherwise():
 def test_loop_recovers_from_a_40_ms_current_dropout_only_with_envelope_restarts(
     restart_margin, recovers
 ):
-    """40 ms of 0 A at t = 5 s (a drive watchdog after a controller stall) throws the error out of the envelope."""
+    """40 ms of 0 A at t = 5 s throws the error out of the envelope.
+
+    As a drive watchdog would after a controller stall.
+    """
     from actuator_controller.laws import PpNftsmcGains
     from actuator_controller.ppf import PrescribedPerformance
 

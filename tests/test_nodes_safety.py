@@ -334,7 +334,10 @@ def test_eso_refuses_non_finite_measurements_and_commands(harness, ros_process):
 
 
 def test_eso_repairs_its_state_when_a_command_comes_late(harness, ros_process):
-    """Sample 10's command comes after y(11): the step is substituted, then repaired to the exact pair."""
+    """Sample 10's command comes after y(11).
+
+    The step is substituted, then repaired to the exact pair.
+    """
     from actuator_eso.observer import EsoGains, eso_step
 
     eso = ros_process('actuator_eso', 'eso_node', AUTOSTART)
@@ -455,7 +458,10 @@ def test_nodes_stop_cleanly_on_signals(ros_process, package, executable, signal_
 def test_exit_waits_until_reliable_subscribers_have_everything(
     rclpy_context, ros_process, tmp_path
 ):
-    """wait_for_acknowledgements (run_node's exit): True once a RELIABLE subscriber has all, False when it does not answer."""
+    """wait_for_acknowledgements (run_node's exit).
+
+    True once a RELIABLE subscriber has all, False when it does not answer.
+    """
     import os
     import signal
 

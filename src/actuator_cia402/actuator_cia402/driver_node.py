@@ -304,7 +304,10 @@ class Cia402DriverNode(LifecycleNode):
         return fault
 
     def _bus_down(self, drive_too: bool = False) -> None:
-        """Disconnect the master's network; with ``drive_too`` also stop the simulated drive (node exit)."""
+        """Disconnect the master's network.
+
+        With ``drive_too`` also stop the simulated drive (node exit).
+        """
         things = [self.network] + ([self.drive] if drive_too else [])
         for thing in things:
             if thing is not None:

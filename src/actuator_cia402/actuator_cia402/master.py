@@ -223,7 +223,10 @@ class Cia402Master:
         return statusword, p.decode_state(statusword)
 
     def command(self, command: p.Command, wanted: tuple[p.State, ...]) -> p.State:
-        """Write a controlword command and wait (state_timeout_s) until the statusword shows one of ``wanted``."""
+        """Write a controlword command and wait for one of the ``wanted`` states.
+
+        Waits up to state_timeout_s until the statusword shows one of ``wanted``.
+        """
         timeout_s = self.state_timeout_s
         self._sdo(p.CONTROLWORD).raw = command.value
         deadline = time.monotonic() + timeout_s

@@ -78,7 +78,10 @@ class Scaling:
         return permille * self.rated_torque_nm / 1000.0
 
     def current_to_permille(self, current_a: float) -> int:
-        """Return the current actual 0x6078 [per mille of rated current 0x6075] of ``current_a``."""
+        """Return the current actual 0x6078 of ``current_a``.
+
+        In per mille of the rated current 0x6075.
+        """
         value = int(round(1000.0 * current_a / self.rated_current_a))
         return max(-INT16_MAX, min(INT16_MAX, value))
 

@@ -508,7 +508,10 @@ class ControllerNode(ManagedNode):
 
 
 def _estimate_problem(x2, x3, u, gain, current_limit_a: float) -> tuple[str, str]:
-    """(field, why) when an estimate's field is not physical, else ('', '') (ranges: actuator_core.limits)."""
+    """Return (field, why) when an estimate's field is not physical, else ('', '').
+
+    The ranges are those of actuator_core.limits.
+    """
     checks = (
         ('velocity_rad_s', x2, limits.VELOCITY_LIMIT_RAD_S),
         ('disturbance_rad_s2', x3, limits.DISTURBANCE_LIMIT_RAD_S2),

@@ -92,7 +92,10 @@ class PrescribedPerformance:
         ) + self.rho_inf_rad
 
     def rho_derivatives(self, t, rho0_rad=None):
-        """(rho, rho', rho'') at t [rad, rad/s, rad/s^2]; ``rho0_rad`` replaces rho0 after a restart."""
+        """Return (rho, rho', rho'') at t [rad, rad/s, rad/s^2].
+
+        ``rho0_rad`` replaces rho0 after a restart.
+        """
         rho0 = self.rho0_rad if rho0_rad is None else rho0_rad
         decay = (rho0 - self.rho_inf_rad) * xm.exp(-self.decay_rate_per_s * t)
         m = self.decay_rate_per_s

@@ -25,7 +25,10 @@ def spec(
     *,
     low_open: bool = False,
 ) -> Any:
-    """Return a dataclass field with a valid range [low, high] ((low, high] when ``low_open``) and a description."""
+    """Return a dataclass field with a valid range and a description.
+
+    The range is [low, high], or (low, high] when ``low_open``.
+    """
     return dataclasses.field(
         default=default,
         metadata={
@@ -73,7 +76,10 @@ def validate(obj: Any) -> None:
 
 
 def iter_specs(cls: type, prefix: str = '') -> Iterator[tuple[str, dataclasses.Field]]:
-    """Yield (dotted name, field) of every spec'd field of ``cls``, recursing into nested dataclasses."""
+    """Yield (dotted name, field) of every spec'd field of ``cls``.
+
+    Nested dataclasses are recursed into.
+    """
     for f in dataclasses.fields(cls):
         if dataclasses.is_dataclass(f.type) or (
             isinstance(f.type, str)

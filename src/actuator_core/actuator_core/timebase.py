@@ -48,7 +48,10 @@ class StampCheck:
         self.refused_future = self.ignored_old = self.jumps = 0
 
     def check(self, stamp_ns: int, now_ns: int) -> Verdict:
-        """Return the verdict on ``stamp_ns`` received when the receiver's clock read ``now_ns``."""
+        """Return the verdict on ``stamp_ns``.
+
+        ``now_ns`` is what the receiver's clock read when the stamp was received.
+        """
         if not self.sim and stamp_ns > now_ns + self.future_tolerance_ns:
             self.refused_future += 1
             return Verdict.FUTURE

@@ -23,5 +23,8 @@ def sample_time_s(elapsed_ns: int) -> float:
 
 
 def stamp_to_ns(stamp) -> int:
-    """Return a builtin_interfaces/Time (or any object with sec and nanosec) as integer nanoseconds."""
+    """Return a builtin_interfaces/Time as integer nanoseconds.
+
+    Any object with sec and nanosec is accepted.
+    """
     return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)

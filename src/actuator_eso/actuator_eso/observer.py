@@ -115,7 +115,10 @@ class ExtendedStateObserver:
         self.x1_hat, self.x2_hat, self.x3_hat = x_hat0
 
     def update(self, y, u) -> None:
-        """Advance x_hat(k) -> x_hat(k+1) with the measurement y(k) and the current u(k) commanded for it."""
+        """Advance x_hat(k) -> x_hat(k+1).
+
+        With the measurement y(k) and the current u(k) commanded for it.
+        """
         self.x1_hat, self.x2_hat, self.x3_hat = eso_step(
             self.x1_hat, self.x2_hat, self.x3_hat, y, u, self.dt_s, self.gains
         )

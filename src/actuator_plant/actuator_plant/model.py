@@ -284,7 +284,10 @@ class JointForces(NamedTuple):
 
 
 def joint_forces(t: float, velocity_rad_s, c: PlantConstants) -> JointForces:
-    """Parameters and loss torques at time ``t`` [s] and joint velocity q' [rad/s], eq. (6), (40)-(42)."""
+    """Parameters and loss torques, eq. (6), (40)-(42).
+
+    At time ``t`` [s] and joint velocity q' [rad/s].
+    """
     p = c.params
     n = p.nominal
     if p.with_drift:
@@ -344,7 +347,10 @@ class DisturbanceParts(NamedTuple):
 
 
 def disturbance_parts(t: float, velocity_rad_s, current_a, c: PlantConstants) -> DisturbanceParts:
-    """Return the true lumped disturbance d = q'' - theta1n u - theta2n q' and its parts, eq. (4)-(5)."""
+    """Return the true lumped disturbance and its parts, eq. (4)-(5).
+
+    d = q'' - theta1n u - theta2n q'.
+    """
     f = joint_forces(t, velocity_rad_s, c)
     n = c.params.nominal
     gear = n.gear_ratio
@@ -445,7 +451,10 @@ class JointPlant:
         return sample_time_s(self.sample_index * self.period_ns)
 
     def step(self, current_a, brake=False) -> None:
-        """Integrate eq. (1) over [t_k, t_k+1] with ``current_a`` held (and the brake where engaged); k -> k + 1."""
+        """Integrate eq. (1) over [t_k, t_k+1]; k -> k + 1.
+
+        With ``current_a`` held (and the brake where engaged).
+        """
         free = rk4_step(
             self.time_s,
             self.position_rad,

@@ -90,7 +90,10 @@ class OilProperties:
 
 
 def kinematic_viscosity_m2_s(temperature_c: float, oil: OilProperties) -> float:
-    """Kinematic viscosity [m^2/s] at ``temperature_c`` by ASTM D341 (Walther) through nu40 and nu100."""
+    """Kinematic viscosity [m^2/s] at ``temperature_c``.
+
+    By ASTM D341 (Walther) through nu40 and nu100.
+    """
     log_t40 = math.log10(40.0 + KELVIN_OFFSET)
     log_t100 = math.log10(100.0 + KELVIN_OFFSET)
     w40 = math.log10(math.log10(oil.nu40_mm2_s + 0.7))

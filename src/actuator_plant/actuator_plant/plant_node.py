@@ -294,7 +294,10 @@ class PlantNode(ManagedNode):
             self._advance(self.gate.hold(self.published_ns))
 
     def _now_ns(self) -> int:
-        """Return the gate's clock: system time in real time, the published sample's stamp in sim."""
+        """Return the gate's clock.
+
+        System time in real time, the published sample's stamp in sim.
+        """
         return self.published_ns if self.mode == 'sim' else time.time_ns()
 
     def _sampling_loop(self) -> None:

@@ -15,6 +15,9 @@ import signal
 
 
 def quiet_until_running() -> None:
-    """SIGINT and SIGTERM end the process at once with exit code 0 until the node installs its own."""
+    """Make SIGINT and SIGTERM end the process at once with exit code 0.
+
+    Until the node installs its own handlers.
+    """
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda *_: os._exit(0))

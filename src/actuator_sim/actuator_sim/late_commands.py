@@ -27,7 +27,10 @@ from actuator_core.metrics import STEADY_STATE_START_S
 
 
 def late_mask(samples: int, fraction: float, burst: int, seed: int) -> np.ndarray:
-    """Which samples' commands are late: bursts of ``burst`` samples starting with probability ``fraction``."""
+    """Return which samples' commands are late.
+
+    Bursts of ``burst`` samples starting with probability ``fraction``.
+    """
     rng = np.random.default_rng(seed)
     mask = np.zeros(samples, dtype=bool)
     left = 0
@@ -43,7 +46,10 @@ def late_mask(samples: int, fraction: float, burst: int, seed: int) -> np.ndarra
 def max_steady_error(
     mask: np.ndarray, eso_integrates_applied: bool, duration_s: float = 10.0
 ) -> float:
-    """Max |e| over [5 s, end) of the paper's fast deep-sea PP-NFTSMC-ESO run with ``mask``'s late commands; inf if latched."""
+    """Return max |e| over [5 s, end), inf if latched.
+
+    Of the paper's fast deep-sea PP-NFTSMC-ESO run with ``mask``'s late commands.
+    """
     loop = ClosedLoop(paper_scenario('late', 'pp_nftsmc_eso', 'fast', 'deep_sea', duration_s))
     start = int(round(STEADY_STATE_START_S / loop.scenario.common.dt_s))
     worst = 0.0

@@ -40,7 +40,10 @@ _REST = ReferenceSample(0.0, 0.0, 0.0)
 
 
 def linearised_gains(gains, t_s: float, error_amplitude_rad: float, z2_amplitude_rad_s: float):
-    """Return the gains with eta = 0 and the signed powers replaced by their slope at the operating amplitude."""
+    """Return the gains with eta = 0 and the signed powers linearised.
+
+    The signed powers are replaced by their slope at the operating amplitude.
+    """
     changes: dict = {}
     if hasattr(gains, 'eta_rad_s2'):
         changes['eta_rad_s2'] = 0.0

@@ -57,7 +57,10 @@ def batch_rate(batch: int, duration_s: float) -> float:
 
 
 def ray_rate(workers: int, runs: int, duration_s: float) -> tuple[float, float]:
-    """Measure (runs per second, Ray start seconds) of ``runs`` runs on a local Ray instance with ``workers`` CPUs."""
+    """Measure (runs per second, Ray start seconds) on a local Ray instance.
+
+    Of ``runs`` runs on a local Ray instance with ``workers`` CPUs.
+    """
     start = time.perf_counter()
     ray = distributed.start_ray(f'local:{workers}')
     started = time.perf_counter() - start

@@ -190,7 +190,10 @@ class Evaluator:
 
 
 def evaluate_slice(base: BaseScenario, values: dict[str, np.ndarray], seeds: np.ndarray):
-    """(max ss error with diverged as DIVERGED_ERROR_RAD, saturated fraction) of one vectorised batch."""
+    """Return (max ss error, saturated fraction) of one vectorised batch.
+
+    A diverged run counts as DIVERGED_ERROR_RAD.
+    """
     rows = [m for m, _ in run_batch(base, values, seeds)]
     err = np.array([DIVERGED_ERROR_RAD if m.diverged else m.max_steady_error_rad for m in rows])
     return np.where(np.isfinite(err), err, DIVERGED_ERROR_RAD), np.array(

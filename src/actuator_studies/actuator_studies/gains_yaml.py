@@ -24,7 +24,10 @@ from actuator_studies.space import StudyInputError
 
 
 def parameters_document(controller: str, gains, eso: EsoGains) -> dict:
-    """Return the two nodes' parameters for ``gains`` of ``controller`` and the observer ``eso``."""
+    """Return the two nodes' parameters.
+
+    For ``gains`` of ``controller`` and the observer ``eso``.
+    """
     return {
         'actuator_eso': {'ros__parameters': dataclasses.asdict(eso)},
         'actuator_controller': {
@@ -66,7 +69,10 @@ def _build_checked(cls: type, values: dict, where: str):
 
 
 def read_gains_yaml(path: Path) -> tuple[str, object, EsoGains]:
-    """Read (controller, gains, ESO gains) of a parameter file written by ``write_gains_yaml`` or the scenario files."""
+    """Read (controller, gains, ESO gains) of a parameter file.
+
+    One written by ``write_gains_yaml``, or the scenario files.
+    """
     try:
         doc = yaml.safe_load(Path(path).read_text())
         ctrl = doc['actuator_controller']['ros__parameters']

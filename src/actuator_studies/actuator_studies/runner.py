@@ -155,7 +155,10 @@ def metrics_row(metrics: RunMetrics, paper_violations: int = 0) -> dict[str, Any
 
 
 def _groups(spec: SweepSpec, indices: np.ndarray) -> list[np.ndarray]:
-    """Positions within ``indices`` sharing the values of every quantity that cannot vary inside a batch."""
+    """Positions within ``indices`` that can share a batch.
+
+    They share the values of every quantity that cannot vary inside a batch.
+    """
     table = quantities(spec.base.controller)
     scalar_names = [n for n in spec.table if not table[n].vector]
     if not scalar_names:

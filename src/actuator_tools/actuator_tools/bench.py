@@ -170,7 +170,10 @@ def plant_figures(stamp_ns: np.ndarray, published_wall_ns: np.ndarray, period_ns
 
 
 def coverage_figures(ctrl_stamp_ns: np.ndarray, plant_stamp_ns: np.ndarray) -> Figures:
-    """Return what the controller's timing log covers: % of plant samples it answered, and the span of its stamps [s]."""
+    """Return what the controller's timing log covers.
+
+    % of plant samples it answered, and the span of its stamps [s].
+    """
     ctrl = np.asarray(ctrl_stamp_ns, dtype=np.int64)
     span_s = float((ctrl[-1] - ctrl[0]) / 1e9) if ctrl.size else 0.0
     plant_n = np.asarray(plant_stamp_ns).size
@@ -330,7 +333,10 @@ def offline_figures(scenario_name: str, batches: Sequence[int], sim_s: float) ->
 
 
 def offline_reference(scenario_name: str, duration_s: float) -> Figures:
-    """Tracking error of the offline core (identical to a sim-time run) when no sim-time run was made."""
+    """Tracking error of the offline core when no sim-time run was made.
+
+    It is identical to a sim-time run.
+    """
     from actuator_sim.loop import ClosedLoop
     from actuator_sim.offline import trace_metrics
     from actuator_sim.params_yaml import all_scenarios
@@ -717,7 +723,10 @@ def cpu_times() -> tuple[float, float]:
 
 
 def steal_percent(before: tuple[float, float], after: tuple[float, float]) -> Optional[float]:
-    """Share of CPU time the hypervisor gave to other guests between two cpu_times() readings [%]."""
+    """Share of CPU time the hypervisor gave to other guests [%].
+
+    Between two cpu_times() readings.
+    """
     total = after[1] - before[1]
     return 100.0 * (after[0] - before[0]) / total if total > 0 else None
 

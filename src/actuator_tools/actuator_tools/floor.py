@@ -127,7 +127,10 @@ class SourceNode(Node):
 
 
 def hop_figures(rtt_ns: np.ndarray, sent: int) -> dict[str, float | None]:
-    """One-hop latency (round trip / 2) p50/p99/max [us] and the share of messages never echoed [%]."""
+    """One-hop latency (round trip / 2) p50/p99/max [us].
+
+    And the share of messages never echoed [%].
+    """
     if sent <= 0:
         return {}
     out: dict[str, float | None] = {'floor_lost_pct': 100.0 * (sent - rtt_ns.size) / sent}

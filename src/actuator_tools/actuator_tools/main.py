@@ -33,7 +33,10 @@ SCENARIO = 'case2_pp_nftsmc_eso'
 
 
 def timing_figures(result: RunResult) -> dict:
-    """Read the controller update period and sensor-to-command latency from the controller's timing log."""
+    """Read the controller update period and sensor-to-command latency.
+
+    From the controller's timing log.
+    """
     if not result.timing_log.is_file():
         return {}
     log = np.load(result.timing_log)

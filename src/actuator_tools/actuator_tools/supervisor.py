@@ -98,7 +98,10 @@ class RosProcess:
     def installed(
         cls, package: str, executable: str, args: Sequence[str] = (), **kwargs
     ) -> 'RosProcess':
-        """Start ``<prefix>/lib/<package>/<executable>`` (found as ``ros2 run`` would) with args."""
+        """Start ``<prefix>/lib/<package>/<executable>`` with args.
+
+        Found as ``ros2 run`` would.
+        """
         kwargs.setdefault('name', f'{package}.{executable}')
         return cls([executable_path(package, executable), *args], **kwargs)
 
