@@ -41,7 +41,8 @@ def _require_project_environment():
 
 def pytest_report_header(config):
     return (
-        f'ROS: {os.environ.get("ACTUATOR_ROS_MODE")} mode, RMW {os.environ.get("RMW_IMPLEMENTATION")}, '
+        f'ROS: {os.environ.get("ACTUATOR_ROS_MODE")} mode, RMW '
+        f'{os.environ.get("RMW_IMPLEMENTATION")}, '
         f'workspace {os.environ.get("ACTUATOR_WS")}'
     )
 

@@ -98,7 +98,10 @@ def check_project_environment() -> Optional[str]:
     prefixes = os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep)
     install = str(WORKSPACE / 'install')
     if not any(p.startswith(install) for p in prefixes):
-        return f'AMENT_PREFIX_PATH has no package of {install} (not built, or install/setup.bash not sourced)'
+        return (
+            f'AMENT_PREFIX_PATH has no package of {install} (not built, or '
+            'install/setup.bash not sourced)'
+        )
     return None
 
 

@@ -402,8 +402,10 @@ def test_end_to_end_fast_deep_sea_case_tracks_within_a_factor_of_the_offline_cor
     max_model, rms_model = window_errors(offline_drive(duration_s=duration))
     longest_gap_ms = float(np.max(np.diff(stamps))) / 1e6
     print(
-        f'end to end, t in [1, {duration:g}) s: max |e| {max_run:.2e} rad (offline core {max_offline:.2e}, '
-        f'offline with the drive model {max_model:.2e}), RMS {rms_run:.2e} rad (offline {rms_offline:.2e}, '
+        f'end to end, t in [1, {duration:g}) s: max |e| {max_run:.2e} rad (offline core '
+        f'{max_offline:.2e}, '
+        f'offline with the drive model {max_model:.2e}), RMS {rms_run:.2e} rad (offline '
+        f'{rms_offline:.2e}, '
         f'drive model {rms_model:.2e}); longest gap between samples {longest_gap_ms:.1f} ms'
     )
     assert max_run < 0.5  # the following-error limit: no latch

@@ -170,7 +170,8 @@ def test_an_interrupted_sweep_resumes_to_the_same_table(tmp_path):
     cmd = [
         sys.executable,
         '-c',
-        'import sys; from actuator_studies.cli import sweep_main; sys.exit(sweep_main(sys.argv[1:]))',
+        'import sys; from actuator_studies.cli import sweep_main; '
+        'sys.exit(sweep_main(sys.argv[1:]))',
         *args,
         '--out',
         str(tmp_path / 'cut'),

@@ -246,7 +246,8 @@ def test_ros_process_escalates_and_leaves_no_orphans(tmp_path):
     stubborn = (
         'import signal, subprocess, sys, time\n'
         'child = subprocess.Popen([sys.executable, "-c", "import signal, time; '
-        'signal.signal(signal.SIGINT, signal.SIG_IGN); signal.signal(signal.SIGTERM, signal.SIG_IGN); '
+        'signal.signal(signal.SIGINT, signal.SIG_IGN); signal.signal(signal.SIGTERM, '
+        'signal.SIG_IGN); '
         'time.sleep(300)"])\n'
         'signal.signal(signal.SIGINT, signal.SIG_IGN)\n'
         'print("child", child.pid, flush=True)\n'

@@ -31,7 +31,8 @@ setup(
     zip_safe=True,
     maintainer='Actuator control team',
     maintainer_email='actuator@example.com',
-    description='PP-NFTSMC-ESO joint controller and its baselines: ROS-free control laws and the controller node.',
+    description='PP-NFTSMC-ESO joint controller and its baselines: ROS-free control laws and '
+    'the controller node.',
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={

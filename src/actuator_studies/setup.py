@@ -20,7 +20,8 @@ setup(
     zip_safe=True,
     maintainer='Actuator control team',
     maintainer_email='actuator@example.com',
-    description='Envelope sweeps, Monte Carlo studies and robust gain design over the offline closed loop.',
+    description='Envelope sweeps, Monte Carlo studies and robust gain design over the offline '
+    'closed loop.',
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={

@@ -111,20 +111,25 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(json.dumps(results, indent=1))
         return 0
     print(
-        f'cia402 driver benchmark, {args.duration:g} s per rate, simulated drive, {os.cpu_count()} CPUs, {scheduling}'
+        f'cia402 driver benchmark, {args.duration:g} s per rate, simulated drive, '
+        f'{os.cpu_count()} CPUs, {scheduling}'
     )
     for r in results:
         print(
             f'{r["rate_hz"]:6.0f} Hz  load {r["load_average_1_5_15"]}: cycles {r["cycles"]} '
-            f'({r["cycles_held_percent"]:.1f} % of the grid), missed TPDO {r["missed_tpdo"]}, overruns {r["overruns"]}'
+            f'({r["cycles_held_percent"]:.1f} % of the grid), missed TPDO {r["missed_tpdo"]}, '
+            f'overruns {r["overruns"]}'
         )
         print(
-            f'          cycle thread CPU p50 {r["cpu_p50_us"]:.0f} us p99 {r["cpu_p99_us"]:.0f} us; '
-            f'SYNC->TPDO cycle wall p50 {r["cycle_wall_p50_us"]:.0f} us p99 {r["cycle_wall_p99_us"]:.0f} us'
+            f'          cycle thread CPU p50 {r["cpu_p50_us"]:.0f} us p99 {r["cpu_p99_us"]:.0f} '
+            'us; '
+            f'SYNC->TPDO cycle wall p50 {r["cycle_wall_p50_us"]:.0f} us p99 '
+            f'{r["cycle_wall_p99_us"]:.0f} us'
         )
         print(
             f'          wake-up late p50 {r["late_p50_us"]:.0f} us p99 {r["late_p99_us"]:.0f} us; '
-            f'process CPU {r["process_cpu_per_cycle_us"]:.0f} us per cycle ({r["process_cpu_percent"]:.0f} % of a core)'
+            f'process CPU {r["process_cpu_per_cycle_us"]:.0f} us per cycle '
+            f'({r["process_cpu_percent"]:.0f} % of a core)'
         )
     return 0
 

@@ -58,7 +58,8 @@ class BusLoad:
         """One line with the figure, e.g. '38.0 % of 1000 kbit/s (380 bits per 1 ms cycle)'."""
         return (
             f'{100.0 * self.fraction:.1f} % of {self.bitrate_bit_s / 1000:g} kbit/s '
-            f'({self.bits_per_cycle} bits per {self.cycle_period_s * 1e3:g} ms cycle, worst-case stuffing)'
+            f'({self.bits_per_cycle} bits per {self.cycle_period_s * 1e3:g} ms cycle, '
+            'worst-case stuffing)'
         )
 
 
@@ -101,5 +102,8 @@ def check_bus_load(
             f'raise the bitrate or lengthen sync_period_s'
         )
     if load.fraction > warn:
-        return f'bus load {load.text()} is above {100 * warn:g} %: little room left for SDO, EMCY or another joint'
+        return (
+            f'bus load {load.text()} is above {100 * warn:g} %: little room left for SDO, '
+            'EMCY or another joint'
+        )
     return None

@@ -69,11 +69,13 @@ class SimDriveSettings:
         validate(self)
         if self.working_condition not in CONDITIONS:
             raise ValueError(
-                f'sim.working_condition = {self.working_condition!r} refused: one of {", ".join(CONDITIONS)}'
+                f'sim.working_condition = {self.working_condition!r} refused: one of '
+                f'{", ".join(CONDITIONS)}'
             )
         if self.fault_kind not in ('none', *FAULT_CODES):
             raise ValueError(
-                f'sim.fault_kind = {self.fault_kind!r} refused: one of none, {", ".join(FAULT_CODES)}'
+                f'sim.fault_kind = {self.fault_kind!r} refused: one of none, '
+                f'{", ".join(FAULT_CODES)}'
             )
 
     def fault_plan(self) -> FaultPlan:
@@ -243,17 +245,20 @@ class DriverParameters:
             )
         if self.simulated_drive and self.interface != 'virtual':
             raise ValueError(
-                'simulated_drive = true needs interface = virtual (the simulated drive shares this '
+                'simulated_drive = true needs interface = virtual (the simulated drive shares '
+                'this '
                 'process; this kernel has no vcan)'
             )
         if self.mode != 'realtime':
             raise ValueError(
-                f'mode = {self.mode!r} refused: the CiA 402 driver runs in real time only (SYNC on '
+                f'mode = {self.mode!r} refused: the CiA 402 driver runs in real time only (SYNC '
+                'on '
                 'the system clock); use the simulated plant for sim mode'
             )
         if self.sample_time_s and abs(self.sample_time_s - self.sync_period_s) > 1e-12:
             raise ValueError(
-                f'sample_time_s = {self.sample_time_s} differs from sync_period_s = {self.sync_period_s}: '
+                f'sample_time_s = {self.sample_time_s} differs from sync_period_s = '
+                f'{self.sync_period_s}: '
                 'the drive samples once per SYNC'
             )
         check_bus_load(self.bitrate, self.sync_period_s, limit=self.bus_load_limit)

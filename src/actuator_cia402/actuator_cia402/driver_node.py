@@ -125,7 +125,8 @@ class Cia402DriverNode(LifecycleNode):
         self._next_diag_ns = 0
         self.wall = Clock(clock_type=ClockType.STEADY_TIME)
         self.get_logger().info(
-            f'node {self.cfg.node_id} on {self.cfg.interface}:{self.cfg.channel} at {self.cfg.bitrate / 1000:g} kbit/s, '
+            f'node {self.cfg.node_id} on {self.cfg.interface}:{self.cfg.channel} at '
+            f'{self.cfg.bitrate / 1000:g} kbit/s, '
             f'SYNC {1.0 / self.cfg.sync_period_s:g} Hz, bus load {self.bus_load.text()}'
             f'{", simulated drive (" + self.cfg.sim.working_condition + ")" if self.cfg.simulated_drive else ""}'
         )
@@ -183,7 +184,8 @@ class Cia402DriverNode(LifecycleNode):
                 self.network.connect(interface=cfg.interface, channel=cfg.channel, **kwargs)
             except (OSError, can.CanError) as exc:
                 raise Cia402Error(
-                    f'cannot open {cfg.interface} channel {cfg.channel!r} ({exc}); is the interface up? '
+                    f'cannot open {cfg.interface} channel {cfg.channel!r} ({exc}); is the '
+                    'interface up? '
                     f'ip link set {cfg.channel} up type can bitrate {cfg.bitrate}'
                 ) from None
             self.master = Cia402Master(

@@ -181,7 +181,8 @@ class Cia402Master:
         actual = self._sdo(index, subindex).raw
         if abs(actual - expected) > 0.01 * abs(expected):
             raise Cia402Error(
-                f'{what} 0x{index:04X} of the drive is {actual} {unit}, configured {expected} {unit}'
+                f'{what} 0x{index:04X} of the drive is {actual} {unit}, configured {expected} '
+                f'{unit}'
             )
 
     def _map_pdos(self) -> None:
@@ -237,7 +238,8 @@ class Cia402Master:
             if time.monotonic() > deadline:
                 names = ' or '.join(f"'{s.value}'" for s in wanted)
                 raise Cia402Error(
-                    f'{command.name.lower()}: the drive did not reach {names} within {timeout_s:g} s '
+                    f'{command.name.lower()}: the drive did not reach {names} within '
+                    f'{timeout_s:g} s '
                     f'(statusword 0x{statusword:04X} = {state.value if state else "undefined"})'
                 )
             time.sleep(0.002)

@@ -193,7 +193,8 @@ class ControllerNode(ManagedNode):
             0.0,
             10.0,
             's',
-            'realtime: inputs stamped later than now plus this are refused (clock offset between hosts)',
+            'realtime: inputs stamped later than now plus this are refused (clock offset '
+            'between hosts)',
         )
         self.joint_name = declare_text(
             self, 'joint_name', 'joint', 'name of the joint in joint_states'
@@ -298,7 +299,8 @@ class ControllerNode(ManagedNode):
                 stamp,
                 lambda: (
                     f'measurement refused (joint {self.joint_name!r} missing, '
-                    f'non-finite or beyond {limits.POSITION_LIMIT_RAD} rad): {list(msg.position)}; 0 A'
+                    f'non-finite or beyond {limits.POSITION_LIMIT_RAD} rad): '
+                    f'{list(msg.position)}; 0 A'
                 ),
             )
             return

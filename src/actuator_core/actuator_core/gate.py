@@ -97,7 +97,10 @@ class CommandGate:
                 self._current_a, self._stamp_ns, self._safe_stop = 0.0, -1, True
                 self._received_ns = received_ns
                 self.brake = True
-                return f'command {current_a} A refused (valid: finite, |u| <= {self.current_limit_a:g} A); applying 0 A'
+                return (
+                    f'command {current_a} A refused (valid: finite, |u| <= '
+                    f'{self.current_limit_a:g} A); applying 0 A'
+                )
             current_a = xm.where(valid, current_a, 0.0)  # a batch: refused elements get 0 A
         self._received_ns = received_ns
         self._stamp_ns = stamp_ns

@@ -64,7 +64,8 @@ def check_value(name: str, value: Any, meta: dict) -> None:
     )
     if not ok:
         raise ValueError(
-            f'{name} = {value} is outside its valid range {range_text(meta)}: {meta["description"]}'
+            f'{name} = {value} is outside its valid range {range_text(meta)}: '
+            f'{meta["description"]}'
         )
 
 

@@ -93,7 +93,8 @@ class EsoNode(ManagedNode):
             0.0,
             10.0,
             's',
-            'realtime: measurements stamped later than now plus this are refused (clock offset between hosts)',
+            'realtime: measurements stamped later than now plus this are refused (clock offset '
+            'between hosts)',
         )
         self.joint_name = declare_text(
             self, 'joint_name', 'joint', 'name of the joint in joint_states'

@@ -135,7 +135,8 @@ class PlantNode(ManagedNode):
             0,
             100,
             '',
-            'start sampling only once joint_states has this many subscribers (and current_command a publisher)',
+            'start sampling only once joint_states has this many subscribers (and '
+            'current_command a publisher)',
         )
         self.stop_after_s = declare_number(
             self,
@@ -200,8 +201,10 @@ class PlantNode(ManagedNode):
         self.timer = self.create_timer(0.1, self.on_tick, clock=self.wall)
         c = self.params.condition
         self.get_logger().info(
-            f'{self.mode} mode, {self.condition_name}: P = {c.pressure_pa / 1e6:.2f} MPa, T = {c.temperature_c:.1f} '
-            f'degC, mu = {self.plant.constants.viscosity_pa_s * 1e3:.1f} mPa s; current limit {self.current_limit_a} A'
+            f'{self.mode} mode, {self.condition_name}: P = {c.pressure_pa / 1e6:.2f} MPa, T = '
+            f'{c.temperature_c:.1f} '
+            f'degC, mu = {self.plant.constants.viscosity_pa_s * 1e3:.1f} mPa s; current limit '
+            f'{self.current_limit_a} A'
         )
 
     def start(self) -> None:

@@ -97,11 +97,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
     samples = int(round(args.duration * 1000))
     print(
-        f'max steady-state error [rad], fast deep-sea PP-NFTSMC-ESO, {args.duration:g} s, {args.seeds} seeds '
+        f'max steady-state error [rad], fast deep-sea PP-NFTSMC-ESO, {args.duration:g} s, '
+        f'{args.seeds} seeds '
         f'(inf = beyond {FOLLOWING_ERROR_LIMIT_RAD} rad, latched)'
     )
     print(
-        f'{"late":>6s} {"burst":>5s} {"late samples":>12s}  {"ESO integrates commanded u(k)":32s} ESO integrates held u(k-1)'
+        f'{"late":>6s} {"burst":>5s} {"late samples":>12s}  '
+        f'{"ESO integrates commanded u(k)":32s} ESO integrates held u(k-1)'
     )
     for fraction in args.fractions:
         for burst in args.bursts:
@@ -110,7 +112,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             held = [max_steady_error(m, True, args.duration) for m in masks]
             share = 100.0 * float(np.mean([m.mean() for m in masks]))
             print(
-                f'{fraction:6.2f} {burst:5d} {share:11.1f}%  {" ".join(f"{e:9.2e}" for e in commanded):32s} '
+                f'{fraction:6.2f} {burst:5d} {share:11.1f}%  '
+                f'{" ".join(f"{e:9.2e}" for e in commanded):32s} '
                 f'{" ".join(f"{e:9.2e}" for e in held)}'
             )
     return 0

@@ -90,7 +90,10 @@ def verdict(metrics: RunMetrics, radius: float) -> str:
     if metrics.diverged:
         return 'DIVERGED: no figure reported'
     if metrics.saturated_fraction > 0.5:
-        return f'NOT A RESULT: saturated {metrics.saturated_fraction:.0%} of samples (linearised radius {radius:.3g})'
+        return (
+            f'NOT A RESULT: saturated {metrics.saturated_fraction:.0%} of samples '
+            f'(linearised radius {radius:.3g})'
+        )
     note = (
         f' (at the current limit in {metrics.saturated_fraction:.0%} of samples)'
         if metrics.saturated_fraction >= 0.01

@@ -88,7 +88,8 @@ def run_bench(
         by_batch[b] = rate
         rows.append(('vectorised chunk', b, f'{rate:.2f}', f'{rate * duration_s:.1f}'))
     log(
-        f'Runs per second against batch size, one core ({duration_s:g} s simulated per run, 1 ms samples)'
+        f'Runs per second against batch size, one core ({duration_s:g} s simulated per run, 1 '
+        'ms samples)'
     )
     log(
         tabulate(
@@ -109,7 +110,8 @@ def run_bench(
         for n in workers
     ]
     log(
-        f'\nRuns per second against Ray workers (local instance, {runs} runs in chunks of {RUNS_PER_CHUNK})'
+        f'\nRuns per second against Ray workers (local instance, {runs} runs in chunks of '
+        f'{RUNS_PER_CHUNK})'
     )
     log(
         tabulate(
@@ -120,7 +122,8 @@ def run_bench(
     )
     load_after = os.getloadavg()
     log(
-        f'\nload average (1, 5, 15 min) before {load_before[0]:.2f} {load_before[1]:.2f} {load_before[2]:.2f}, '
+        f'\nload average (1, 5, 15 min) before {load_before[0]:.2f} {load_before[1]:.2f} '
+        f'{load_before[2]:.2f}, '
         f'after {load_after[0]:.2f} {load_after[1]:.2f} {load_after[2]:.2f}; {os.cpu_count()} CPUs'
     )
     return {

@@ -65,7 +65,8 @@ def sweep_main(argv: Sequence[str] | None = None) -> int:
         action='append',
         default=[],
         metavar='NAME=LOW:HIGH[:N]|V1,V2,...',
-        help='a varied quantity (grid: N points or the listed values; mc/lhs: uniform on the range)',
+        help='a varied quantity (grid: N points or the listed values; mc/lhs: uniform on the '
+        'range)',
     )
     p.add_argument(
         '--set', action='append', default=[], metavar='NAME=VALUE', help='a fixed quantity'
@@ -132,7 +133,8 @@ def sweep_main(argv: Sequence[str] | None = None) -> int:
         return 1
     err = summary['max_steady_error_rad']
     print(
-        f'sweep: {summary["runs"]} runs ({summary["chunks"]} chunks, {summary["chunks_resumed"]} resumed), '
+        f'sweep: {summary["runs"]} runs ({summary["chunks"]} chunks, '
+        f'{summary["chunks_resumed"]} resumed), '
         f'{summary["diverged"]} diverged, {summary["saturated_runs"]} saturated, '
         f'{summary["envelope_violated_runs"]} left the envelope; max ss error median '
         f'{err.get("median", float("nan")):.3e} rad, max {err.get("max", float("nan")):.3e} rad'
@@ -140,8 +142,10 @@ def sweep_main(argv: Sequence[str] | None = None) -> int:
     ex = summary['execution']
     if 'wall_s' in ex:
         print(
-            f'sweep: {ex["runs_this_call"]} runs in {ex["wall_s"]:.1f} s ({ex["runs_per_s"]:.1f} runs/s, '
-            f'{ex["executor"]}, {ex["workers"]} worker(s)); load average {ex["load_average"][0]:.2f}'
+            f'sweep: {ex["runs_this_call"]} runs in {ex["wall_s"]:.1f} s '
+            f'({ex["runs_per_s"]:.1f} runs/s, '
+            f'{ex["executor"]}, {ex["workers"]} worker(s)); load average '
+            f'{ex["load_average"][0]:.2f}'
         )
     print(f'sweep: {a.out}/runs.parquet, {a.out}/summary.json, ' + ', '.join(summary['figures']))
     return 0

@@ -206,7 +206,10 @@ def run_sweep(
 def _title(req: SweepRequest) -> str:
     """Figure title: controller, reference, condition and method."""
     draws = f' ({req.samples} draws, seed {req.seed})' if req.method != 'grid' else ''
-    return f'{req.controller}, {req.reference} trajectory, base {req.condition}, {req.duration_s:g} s; {req.method}{draws}'
+    return (
+        f'{req.controller}, {req.reference} trajectory, base {req.condition}, '
+        f'{req.duration_s:g} s; {req.method}{draws}'
+    )
 
 
 def table_arrays(out: Path) -> dict[str, np.ndarray]:

@@ -654,7 +654,10 @@ class Variant:
             if self.rt_priority
             else 'normal scheduling (SCHED_OTHER)'
         )
-        return f'realtime: {sched}{", pinned (plant CPU 0; ESO, controller CPU 1)" if self.pinned else ""}'
+        return (
+            'realtime: '
+            f'{sched}{", pinned (plant CPU 0; ESO, controller CPU 1)" if self.pinned else ""}'
+        )
 
 
 def make_variants(
@@ -955,7 +958,8 @@ def build_parser() -> OneLineParser:
         type=float,
         default=60.0,
         metavar='S',
-        help=f'length of each ROS run [s] (default 60; range {DURATION_RANGE_S[0]:g}-{DURATION_RANGE_S[1]:g}; '
+        help='length of each ROS run [s] (default 60; range '
+        f'{DURATION_RANGE_S[0]:g}-{DURATION_RANGE_S[1]:g}; '
         'the steady-state error needs more than 5 s)',
     )
     p.add_argument(
@@ -988,7 +992,8 @@ def build_parser() -> OneLineParser:
         type=int,
         default=50,
         metavar='P',
-        help='SCHED_FIFO priority of plant, ESO and controller in the fifo variants (1-99, default 50)',
+        help='SCHED_FIFO priority of plant, ESO and controller in the fifo variants (1-99, '
+        'default 50)',
     )
     p.add_argument(
         '--skip-offline', action='store_true', help='skip the offline ClosedLoop speed measurement'
@@ -998,7 +1003,8 @@ def build_parser() -> OneLineParser:
         type=float,
         default=10.0,
         metavar='S',
-        help='length of each middleware-floor run (echo of one message per sample, no control code) '
+        help='length of each middleware-floor run (echo of one message per sample, no control '
+        'code) '
         '[s]; 0 skips it (default 10)',
     )
     p.add_argument(
@@ -1020,7 +1026,8 @@ def build_parser() -> OneLineParser:
         '--out',
         type=Path,
         default=Path('results/bench'),
-        help='results folder; each invocation writes <out>/<UTC timestamp>/ (default results/bench)',
+        help='results folder; each invocation writes <out>/<UTC timestamp>/ (default '
+        'results/bench)',
     )
     p.add_argument('--quiet', action='store_true', help='no progress lines, only the table')
     return p
@@ -1076,7 +1083,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     env_start = environment()
     say = (lambda msg: None) if args.quiet else (lambda msg: print(f'[bench] {msg}', flush=True))
     say(
-        f'{args.scenario}: {len(variants)} variant(s) x {args.repeats} repeat(s) of {args.duration:g} s; '
+        f'{args.scenario}: {len(variants)} variant(s) x {args.repeats} repeat(s) of '
+        f'{args.duration:g} s; '
         f'{env_start["cpus"]} CPUs, load {env_start["load_avg_1_5_15"][0]:.2f}; results in {base}'
     )
     records: list[RunRecord] = []
@@ -1099,7 +1107,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         if args.floor_s:
             for repeat in range(1, args.repeats + 1):
                 say(
-                    f'middleware floor {repeat}/{args.repeats}: echo at 1 kHz for {args.floor_s:g} s'
+                    f'middleware floor {repeat}/{args.repeats}: echo at 1 kHz for '
+                    f'{args.floor_s:g} s'
                 )
                 try:
                     floor.append(floor_run(args, base, repeat, floor_priority))
@@ -1108,7 +1117,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         if not args.skip_offline:
             for repeat in range(1, args.repeats + 1):
                 say(
-                    f'offline speed {repeat}/{args.repeats}: scalar and batch {", ".join(map(str, args.batches))}, '
+                    f'offline speed {repeat}/{args.repeats}: scalar and batch '
+                    f'{", ".join(map(str, args.batches))}, '
                     f'{args.offline_sim_s:g} simulated s each'
                 )
                 offline.append(offline_figures(args.scenario, args.batches, args.offline_sim_s))
@@ -1159,7 +1169,8 @@ def report(
         sched = f'SCHED_FIFO {floor_priority}' if floor_priority else 'normal scheduling'
         sections.append(
             (
-                f'middleware floor: one message per sample echoed between two processes, no control '
+                'middleware floor: one message per sample echoed between two processes, no '
+                'control '
                 f'code, {sched}',
                 floor_rows(),
                 list(floor),
@@ -1177,7 +1188,8 @@ def report(
         )
     table = format_table([(title, rows, runs) for title, rows, runs, _ in sections])
     title = (
-        f'bench: {args.scenario}, {args.duration:g} s per ROS run, {args.repeats} repeat(s), medians [min, max]; '
+        f'bench: {args.scenario}, {args.duration:g} s per ROS run, {args.repeats} repeat(s), '
+        'medians [min, max]; '
         f'tracking reference: {reference_source}'
     )
     print(f'\n{title}\n{table}')
@@ -1203,7 +1215,8 @@ def report(
     write_csv(base / 'runs.csv', records, offline)
     (base / 'table.txt').write_text(f'{title}\n{table}\n')
     print(
-        f'\nsummary: {base / "summary.json"}; per-run figures: {base / "runs.csv"}; raw files: {base}/runs, {base}/bags'
+        f'\nsummary: {base / "summary.json"}; per-run figures: {base / "runs.csv"}; raw files: '
+        f'{base}/runs, {base}/bags'
     )
     if interrupted:
         return 130

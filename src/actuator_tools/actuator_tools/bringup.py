@@ -131,7 +131,8 @@ def run_closed_loop(
             figures[spec.key] = ProcessFigures(procs[spec.key].pid)
         if not quiet:
             print(
-                f'[bringup] {scenario} in {mode} mode: {", ".join(procs)} started; logs in {run_dir}',
+                f'[bringup] {scenario} in {mode} mode: {", ".join(procs)} started; logs in '
+                f'{run_dir}',
                 flush=True,
             )
         leader = next(s.key for s in specs if s.leader) if any(s.leader for s in specs) else None
@@ -183,7 +184,8 @@ def wait_for_leader(
         for key, proc in procs.items():
             if key != leader and not proc.running:
                 raise SystemExit(
-                    f'bringup: {key} exited early with code {proc.returncode}; see {proc.stderr_path}'
+                    f'bringup: {key} exited early with code {proc.returncode}; see '
+                    f'{proc.stderr_path}'
                 )
         if time.monotonic() > deadline:
             raise SystemExit('bringup: the run did not finish in time; see the logs')

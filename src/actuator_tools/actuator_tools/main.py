@@ -86,7 +86,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     scenario = all_scenarios()[SCENARIO]
     scenario.duration_s = args.duration
     print(
-        f'== {SCENARIO}: fast trajectory, deep sea (10 MPa, 2 degC), PP-NFTSMC-ESO, {args.duration:g} s at 1 kHz',
+        f'== {SCENARIO}: fast trajectory, deep sea (10 MPa, 2 degC), PP-NFTSMC-ESO, '
+        f'{args.duration:g} s at 1 kHz',
         flush=True,
     )
     offline = ClosedLoop(scenario).run()
@@ -105,7 +106,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
         if any(code != 0 for code in result.exit_codes.values()):
             print(
-                f'main: a node exited with an error: {result.exit_codes}; logs in {result.run_dir}',
+                f'main: a node exited with an error: {result.exit_codes}; logs in '
+                f'{result.run_dir}',
                 file=sys.stderr,
             )
             return 1
@@ -137,8 +139,10 @@ def print_run(mode: str, entry: dict, offline_error: float) -> None:
     m, t, c = entry['metrics'], entry['timing'], entry['offline_comparison']
     print(f'bag: {entry["bag"]}')
     print(
-        f'  max steady-state error [{m["steady_window_s"][0]:g}, {m["steady_window_s"][1]:.3g}] s: '
-        f'{m["max_steady_error_rad"]:.3e} rad (offline core: {offline_error:.3e}, paper Table 6: 6.96e-04)'
+        f'  max steady-state error [{m["steady_window_s"][0]:g}, {m["steady_window_s"][1]:.3g}] '
+        's: '
+        f'{m["max_steady_error_rad"]:.3e} rad (offline core: {offline_error:.3e}, paper Table '
+        '6: 6.96e-04)'
     )
     print(
         f'  RMS error: {m["rms_error_rad"]:.3e} rad; max |u|: {m["max_abs_current_a"]:.2f} A; '
@@ -147,16 +151,19 @@ def print_run(mode: str, entry: dict, offline_error: float) -> None:
     if 'period_us' in t:
         p = t['period_us']
         print(
-            f'  controller update period: mean {p["mean"]:.1f} us, p50 {p["p50"]:.1f} us, p99 {p["p99"]:.1f} us, '
+            f'  controller update period: mean {p["mean"]:.1f} us, p50 {p["p50"]:.1f} us, p99 '
+            f'{p["p99"]:.1f} us, '
             f'max {p["max"]:.1f} us; missed samples {t["missed_samples"]}'
         )
     if 'latency_us' in t:
         lat = t['latency_us']
         print(
-            f'  sensor-to-command latency: p50 {lat["p50"]:.0f} us, p99 {lat["p99"]:.0f} us, max {lat["max"]:.0f} us'
+            f'  sensor-to-command latency: p50 {lat["p50"]:.0f} us, p99 {lat["p99"]:.0f} us, '
+            f'max {lat["max"]:.0f} us'
         )
     print(
-        f'  vs offline core: {c["samples_compared"]} samples, max |de| {c["max_abs_error_diff_rad"]:.3e} rad '
+        f'  vs offline core: {c["samples_compared"]} samples, max |de| '
+        f'{c["max_abs_error_diff_rad"]:.3e} rad '
         f'({"identical" if c["identical"] else "differs"})'
     )
     cpu = ', '.join(
@@ -165,7 +172,8 @@ def print_run(mode: str, entry: dict, offline_error: float) -> None:
     rss = ', '.join(f'{k} {v:.0f} MB' for k, v in entry['peak_rss_mb'].items())
     print(f'  CPU (of one core): {cpu}; peak RSS: {rss}')
     print(
-        f'  figures: {", ".join(Path(f).name for f in entry["figures"])} in {Path(entry["figures"][0]).parent}'
+        f'  figures: {", ".join(Path(f).name for f in entry["figures"])} in '
+        f'{Path(entry["figures"][0]).parent}'
     )
 
 

@@ -250,7 +250,8 @@ class RosProcess:
             return '\n'.join(text.splitlines()[-tail:])
 
         return (
-            f'--- {self.name}: {" ".join(self.cmd)} (pid {self.popen.pid if self.popen else None}, '
+            f'--- {self.name}: {" ".join(self.cmd)} (pid '
+            f'{self.popen.pid if self.popen else None}, '
             f'returncode {self.returncode}, stopped_by {self.stopped_by})\n'
             f'--- stdout:\n{last(self.stdout)}\n--- stderr:\n{last(self.stderr)}'
         )
