@@ -146,8 +146,8 @@ def generate_launch_description():
                 default_value='plant',
                 choices=list(JOINTS),
                 description='plant: simulated joint; cia402_sim: CANopen driver with its '
-                'simulated '
-                'drive; cia402: the driver on a real bus; none: a driver started elsewhere',
+                'simulated drive; cia402: the driver on a real bus; none: a driver started '
+                'elsewhere',
             ),
             DeclareLaunchArgument(
                 'plant',

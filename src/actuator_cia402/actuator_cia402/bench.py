@@ -121,10 +121,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             f'overruns {r["overruns"]}'
         )
         print(
-            f'          cycle thread CPU p50 {r["cpu_p50_us"]:.0f} us p99 {r["cpu_p99_us"]:.0f} '
-            'us; '
-            f'SYNC->TPDO cycle wall p50 {r["cycle_wall_p50_us"]:.0f} us p99 '
-            f'{r["cycle_wall_p99_us"]:.0f} us'
+            f'          cycle thread CPU p50 {r["cpu_p50_us"]:.0f} us '
+            f'p99 {r["cpu_p99_us"]:.0f} us; '
+            f'SYNC->TPDO cycle wall p50 {r["cycle_wall_p50_us"]:.0f} us '
+            f'p99 {r["cycle_wall_p99_us"]:.0f} us'
         )
         print(
             f'          wake-up late p50 {r["late_p50_us"]:.0f} us p99 {r["late_p99_us"]:.0f} us; '

@@ -245,15 +245,13 @@ class DriverParameters:
             )
         if self.simulated_drive and self.interface != 'virtual':
             raise ValueError(
-                'simulated_drive = true needs interface = virtual (the simulated drive shares '
-                'this '
-                'process; this kernel has no vcan)'
+                'simulated_drive = true needs interface = virtual '
+                '(the simulated drive shares this process; this kernel has no vcan)'
             )
         if self.mode != 'realtime':
             raise ValueError(
-                f'mode = {self.mode!r} refused: the CiA 402 driver runs in real time only (SYNC '
-                'on '
-                'the system clock); use the simulated plant for sim mode'
+                f'mode = {self.mode!r} refused: the CiA 402 driver runs in real time only '
+                '(SYNC on the system clock); use the simulated plant for sim mode'
             )
         if self.sample_time_s and abs(self.sample_time_s - self.sync_period_s) > 1e-12:
             raise ValueError(

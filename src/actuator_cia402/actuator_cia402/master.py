@@ -181,8 +181,8 @@ class Cia402Master:
         actual = self._sdo(index, subindex).raw
         if abs(actual - expected) > 0.01 * abs(expected):
             raise Cia402Error(
-                f'{what} 0x{index:04X} of the drive is {actual} {unit}, configured {expected} '
-                f'{unit}'
+                f'{what} 0x{index:04X} of the drive is {actual} {unit}, '
+                f'configured {expected} {unit}'
             )
 
     def _map_pdos(self) -> None:

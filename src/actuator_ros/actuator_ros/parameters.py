@@ -219,16 +219,15 @@ def declare_common(node: Node) -> None:
         node,
         'allow_unknown_parameters',
         False,
-        'accept names this node does not declare (a /** section shared by several nodes) with a '
-        'warning '
-        'instead of refusing them',
+        'accept names this node does not declare (a /** section shared by several nodes) '
+        'with a warning instead of refusing them',
     )
     declare_flag(
         node,
         'autostart',
         False,
-        'configure and activate at start-up (without it: ros2 lifecycle set <node> configure, '
-        'activate)',
+        'configure and activate at start-up '
+        '(without it: ros2 lifecycle set <node> configure, activate)',
     )
 
 
@@ -244,10 +243,9 @@ def only_while_unconfigured(node) -> None:
             return SetParametersResult(
                 successful=False,
                 reason=(
-                    f'{names}: parameters are read at configure; deactivate and clean up the '
-                    'node first '
-                    '(ros2 lifecycle set <node> deactivate, cleanup), set them, then configure '
-                    'again'
+                    f'{names}: parameters are read at configure; '
+                    'deactivate and clean up the node first '
+                    '(ros2 lifecycle set <node> deactivate, cleanup), set them, then configure again'
                 ),
             )
         return SetParametersResult(successful=True)

@@ -36,8 +36,8 @@ class RealtimeSettings:
         out = []
         if not isinstance(self.thread_priority, int) or not 0 <= self.thread_priority <= 99:
             out.append(
-                f"parameter 'thread_priority' = {self.thread_priority!r} refused: an integer in "
-                '[0, 99]'
+                f"parameter 'thread_priority' = {self.thread_priority!r} refused: "
+                'an integer in [0, 99]'
             )
         if self.executor not in EXECUTORS:
             out.append(
@@ -47,9 +47,8 @@ class RealtimeSettings:
             self.cpus()
         except ValueError:
             out.append(
-                f"parameter 'cpu_affinity' = {self.cpu_affinity!r} refused: a comma-separated "
-                'CPU list '
-                'such as "1" or "0,1"'
+                f"parameter 'cpu_affinity' = {self.cpu_affinity!r} refused: "
+                'a comma-separated CPU list such as "1" or "0,1"'
             )
         return out
 
@@ -77,8 +76,8 @@ class RealtimeSettings:
             except OSError as exc:
                 notes.append(
                     f'SCHED_FIFO priority {self.thread_priority} refused by the kernel ({exc}); '
-                    'running '
-                    'with normal scheduling (grant CAP_SYS_NICE or an rtprio limit to enable it)'
+                    'running with normal scheduling '
+                    '(grant CAP_SYS_NICE or an rtprio limit to enable it)'
                 )
         return '; '.join(notes) or None
 

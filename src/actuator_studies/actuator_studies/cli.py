@@ -65,8 +65,8 @@ def sweep_main(argv: Sequence[str] | None = None) -> int:
         action='append',
         default=[],
         metavar='NAME=LOW:HIGH[:N]|V1,V2,...',
-        help='a varied quantity (grid: N points or the listed values; mc/lhs: uniform on the '
-        'range)',
+        help='a varied quantity '
+        '(grid: N points or the listed values; mc/lhs: uniform on the range)',
     )
     p.add_argument(
         '--set', action='append', default=[], metavar='NAME=VALUE', help='a fixed quantity'

@@ -360,12 +360,11 @@ def run_design(req: DesignRequest, out: Path, ray_target: str = '', log=print) -
         gains, eso = split_gains(best)
         c = comparison['designed']
         header = (
-            f'PP-NFTSMC-ESO gains by design_gains (Optuna TPE, seed {req.seed}, {req.trials} '
-            'trials):\n'
+            f'PP-NFTSMC-ESO gains by design_gains '
+            f'(Optuna TPE, seed {req.seed}, {req.trials} trials):\n'
             f'radius <= {target} at 0/1/2 samples of command delay '
-            f'({", ".join(f"{x:.4f}" for x in c["radius_by_delay"].values())}); worst max ss '
-            'error '
-            f'{c["worst_error_rad"]:.3e} rad over {c["corners"]} corners; '
+            f'({", ".join(f"{x:.4f}" for x in c["radius_by_delay"].values())}); '
+            f'worst max ss error {c["worst_error_rad"]:.3e} rad over {c["corners"]} corners; '
             f'max saturated fraction {c["max_saturated_fraction"]:.3f}.\n'
             'Load with the scenario file: --params-file <scenario>.yaml --params-file this.yaml'
         )

@@ -655,8 +655,8 @@ class Variant:
             else 'normal scheduling (SCHED_OTHER)'
         )
         return (
-            'realtime: '
-            f'{sched}{", pinned (plant CPU 0; ESO, controller CPU 1)" if self.pinned else ""}'
+            f'realtime: {sched}'
+            f'{", pinned (plant CPU 0; ESO, controller CPU 1)" if self.pinned else ""}'
         )
 
 
@@ -1003,9 +1003,8 @@ def build_parser() -> OneLineParser:
         type=float,
         default=10.0,
         metavar='S',
-        help='length of each middleware-floor run (echo of one message per sample, no control '
-        'code) '
-        '[s]; 0 skips it (default 10)',
+        help='length of each middleware-floor run '
+        '(echo of one message per sample, no control code) [s]; 0 skips it (default 10)',
     )
     p.add_argument(
         '--batches',
@@ -1169,9 +1168,8 @@ def report(
         sched = f'SCHED_FIFO {floor_priority}' if floor_priority else 'normal scheduling'
         sections.append(
             (
-                'middleware floor: one message per sample echoed between two processes, no '
-                'control '
-                f'code, {sched}',
+                'middleware floor: one message per sample echoed between two processes, '
+                f'no control code, {sched}',
                 floor_rows(),
                 list(floor),
                 'floor',

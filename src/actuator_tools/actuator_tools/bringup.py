@@ -131,8 +131,8 @@ def run_closed_loop(
             figures[spec.key] = ProcessFigures(procs[spec.key].pid)
         if not quiet:
             print(
-                f'[bringup] {scenario} in {mode} mode: {", ".join(procs)} started; logs in '
-                f'{run_dir}',
+                f'[bringup] {scenario} in {mode} mode: {", ".join(procs)} started; '
+                f'logs in {run_dir}',
                 flush=True,
             )
         leader = next(s.key for s in specs if s.leader) if any(s.leader for s in specs) else None

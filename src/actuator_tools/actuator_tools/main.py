@@ -139,10 +139,9 @@ def print_run(mode: str, entry: dict, offline_error: float) -> None:
     m, t, c = entry['metrics'], entry['timing'], entry['offline_comparison']
     print(f'bag: {entry["bag"]}')
     print(
-        f'  max steady-state error [{m["steady_window_s"][0]:g}, {m["steady_window_s"][1]:.3g}] '
-        's: '
-        f'{m["max_steady_error_rad"]:.3e} rad (offline core: {offline_error:.3e}, paper Table '
-        '6: 6.96e-04)'
+        f'  max steady-state error [{m["steady_window_s"][0]:g}, {m["steady_window_s"][1]:.3g}] s: '
+        f'{m["max_steady_error_rad"]:.3e} rad '
+        f'(offline core: {offline_error:.3e}, paper Table 6: 6.96e-04)'
     )
     print(
         f'  RMS error: {m["rms_error_rad"]:.3e} rad; max |u|: {m["max_abs_current_a"]:.2f} A; '
