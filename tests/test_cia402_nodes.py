@@ -372,7 +372,8 @@ def test_end_to_end_fast_deep_sea_case_tracks_within_a_factor_of_the_offline_cor
     assert stamps.size > 0.8 * duration * 1000 and np.all(stamps % 1_000_000 == 0)
     answered = samples['held_command_stamp_ns'] > 0
     assert answered.mean() > 0.8  # a command was applied on most SYNCs
-    # the command applied over [t_k-1, t_k) answers a sample a few SYNCs older (one SYNC of bus delay)
+    # the command applied over [t_k-1, t_k) answers a sample a few SYNCs older
+    # (one SYNC of bus delay)
     lag_ms = (stamps[answered] - samples['held_command_stamp_ns'][answered]) / 1e6
     assert np.median(lag_ms) <= 3.0, np.median(lag_ms)
     assert 'safe stop latched' not in procs['controller'].output
@@ -412,14 +413,15 @@ def test_end_to_end_fast_deep_sea_case_tracks_within_a_factor_of_the_offline_cor
     if 'running under SCHED_FIFO' not in procs['driver'].output or longest_gap_ms > 10.0:
         # Tracking is claimed for runs the machine let keep time (SCHED_FIFO, no stall beyond the
         # 10 ms command timeout): other sessions' SCHED_FIFO jobs on these 2 cores stalled runs by
-        # 30-55 ms, which cost an envelope restart and up to 0.3 rad, as they would the simulated plant.
+        # 30-55 ms, which cost an envelope restart and up to 0.3 rad, as they would the
+        # simulated plant.
         return
-    # Measured here under SCHED_FIFO (load 2): max 1.21e-3 rad against 9.7e-4 for the offline core and
-    # the simulated plant in real time, and 1.20e-3 for the offline core with the drive model
+    # Measured here under SCHED_FIFO (load 2): max 1.21e-3 rad against 9.7e-4 for the offline core
+    # and the simulated plant in real time, and 1.20e-3 for the offline core with the drive model
     # (actuator_cia402.offline: encoder quantisation 1.5e-5 rad, a 0.2 ms torque loop, and one SYNC
     # of command delay, the RPDO being applied at the next SYNC, which costs most); RMS 3.74e-4
-    # against 3.68e-4. With other jobs on the 2 cores single runs reached 2e-3 and 9.6e-3 rad:
-    # the bounds are generous on purpose (rho_inf for the peak, 4x for the RMS).
+    # against 3.68e-4. With other jobs on the 2 cores single runs reached 2e-3 and 9.6e-3 rad: the
+    # bounds are generous on purpose (rho_inf for the peak, 4x for the RMS).
     assert analyze_run(run).metrics.bounds_kept
     assert rms_run < 4.0 * rms_offline
     assert max_run < 0.05  # rho_inf, the final envelope half-width

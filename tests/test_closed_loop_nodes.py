@@ -210,8 +210,8 @@ def test_launch_description_builds_the_processes_of_the_description():
 
     Starts exactly graph.closed_loop's processes.
     """
-    # launch_ros, not launch: the symlink install puts build/actuator_bringup (with its launch/ folder)
-    # on sys.path, where a bare `import launch` finds that folder as a namespace package.
+    # launch_ros, not launch: the symlink install puts build/actuator_bringup (with its launch/
+    # folder) on sys.path, where a bare `import launch` finds that folder as a namespace package.
     pytest.importorskip(
         'launch_ros',
         reason='launch and launch_ros are not on PyPI: this runs on a Jazzy install '

@@ -71,7 +71,8 @@ def test_constants_survive_in_generated_code():
 
 
 def test_status_codes_are_the_core_status_enum():
-    # One place says what each code means (actuator_core/status.py); the message carries the same numbers.
+    # One place says what each code means (actuator_core/status.py);
+    # the message carries the same numbers.
     from actuator_core.status import Status
 
     state = _class('ControllerState')

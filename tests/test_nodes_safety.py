@@ -13,7 +13,8 @@ from actuator_ros.conversions import ns_to_stamp
 
 pytestmark = pytest.mark.usefixtures('rclpy_context')
 
-#: Managed nodes configure and activate themselves, as `ros2 run ... --ros-args -p autostart:=true` does.
+#: Managed nodes configure and activate themselves,
+#: as `ros2 run ... --ros-args -p autostart:=true` does.
 AUTOSTART = ['--ros-args', '-p', 'autostart:=true']
 
 

@@ -116,8 +116,9 @@ def test_grid_rows_equal_single_closed_loop_runs_of_the_same_points(tmp_path):
     summary = run_sweep(req, tmp_path / 'grid', progress=False)
     rows = table_arrays(tmp_path / 'grid')
     assert summary['runs'] == 16 and list(rows['run']) == list(range(16))
-    # 4000 m: the seal friction wins, the joint falls behind and the following-error stop latches, as the
-    # controller node does (the loop holds the same ControlSampleAssembly): diverged, never a number.
+    # 4000 m: the seal friction wins, the joint falls behind and the following-error stop latches,
+    # as the controller node does (the loop holds the same ControlSampleAssembly):
+    # diverged, never a number.
     assert (
         list(rows['diverged']) == [d == 4000.0 for d in rows['depth_m']]
         and summary['saturated_runs'] >= 8

@@ -20,7 +20,8 @@ from actuator_cia402.sim_drive import FAULT_CODES, FaultPlan
 
 INTERFACES = ('virtual', 'socketcan')
 CONDITIONS = ('deep_sea', 'lab')
-#: Rated current of the joint motor [A] and its rated torque k_tn * I_rated [N m] (EDS 0x6075, 0x6076).
+#: Rated current of the joint motor [A] and its rated torque k_tn * I_rated [N m]
+#: (EDS 0x6075, 0x6076).
 RATED_CURRENT_A = 10.0
 RATED_TORQUE_NM = RATED_CURRENT_A * limits.NOMINAL_TORQUE_CONSTANT_NM_A
 

@@ -96,13 +96,14 @@ class Cia402DriverNode(LifecycleNode):
             )
         self.bus_load = cycle_load(self.cfg.bitrate, self.cfg.sync_period_s)
         self.gate = CommandGate(self.cfg.current_limit_a, self.cfg.command_timeout_s)
-        # offer (executor thread) and hold (cycle thread) never interleave: one command's current with another's stamp.
+        # offer (executor thread) and hold (cycle thread) never interleave:
+        # one command's current with another's stamp.
         self.gate_lock = threading.Lock()
         self.brake_delay_ns = int(round(self.cfg.brake_delay_s * 1e9))
         self._brake_since_ns: Optional[int] = None
         self.brake_commanded = True
-        # Per published sample, as the plant node logs it: stamp, wall time of publication, stamp of the
-        # command held over the preceding SYNC interval (-1: none).
+        # Per published sample, as the plant node logs it: stamp, wall time of publication, stamp
+        # of the command held over the preceding SYNC interval (-1: none).
         self.samples_log = SampleLog(('stamp_ns', 'published_wall_ns', 'held_command_stamp_ns'))
         self._held_stamps = [-1, -1]  # command stamps written in the previous and this cycle
         qos = control_qos('realtime')

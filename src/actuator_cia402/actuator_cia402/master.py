@@ -270,7 +270,8 @@ class Cia402Master:
         self.command(p.Command.ENABLE_OPERATION, (p.State.OPERATION_ENABLED,))
         self.feedback = None
         self.node.nmt.state = 'OPERATIONAL'
-        # NMT has no answer; an SDO round trip after it (same bus, in order) shows the drive took it.
+        # NMT has no answer; an SDO round trip after it (same bus, in order) shows the drive
+        # took it.
         statusword, state = self.read_state()
         if state is not p.State.OPERATION_ENABLED:
             raise Cia402Error(

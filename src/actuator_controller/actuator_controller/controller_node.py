@@ -207,7 +207,7 @@ class ControllerNode(ManagedNode):
                 "parameter 'use_sim_time' must be true in sim mode (the plant owns /clock)"
             )
 
-    # --- lifecycle --------------------------------------------------------------------------------
+    # --- lifecycle -------------------------------------------------------------------------------
     def build(self) -> None:
         """Law, reference, assembly, stamp checks, topics and the watchdog."""
         self.period_ns = period_ns(self.common.dt_s)
@@ -264,7 +264,7 @@ class ControllerNode(ManagedNode):
         for pub in (self.cmd_pub, self.state_pub):
             self.destroy_lifecycle_publisher(pub)
 
-    # --- inputs -----------------------------------------------------------------------------------
+    # --- inputs ----------------------------------------------------------------------------------
     def _refuse(self, key: str, stamp: int, why) -> None:
         """Count and log a refused input; answer its sample with 0 A."""
         self.refused += 1
@@ -394,7 +394,7 @@ class ControllerNode(ManagedNode):
         self.log.warn('stale', lambda: f'{status.name.lower().replace("_", " ")}: commanding 0 A')
         self._publish(self.assembly.safe_sample(now, status), 0)
 
-    # --- output -----------------------------------------------------------------------------------
+    # --- output ----------------------------------------------------------------------------------
     def _control(self, sample: ControlSample | None) -> None:
         """Publish a control update the assembly produced.
 
@@ -471,7 +471,7 @@ class ControllerNode(ManagedNode):
             s.saturated = bool(out.saturated)
         self.state_pub.publish(s)
 
-    # --- shutdown ---------------------------------------------------------------------------------
+    # --- shutdown --------------------------------------------------------------------------------
     def timing_summary(self) -> dict:
         """Period, latency and compute-time percentiles of the control updates so far."""
         rows = self.timing.array()

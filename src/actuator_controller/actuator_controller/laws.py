@@ -181,7 +181,8 @@ class Controller:
     """
 
     name = ''
-    #: Sign of d(current)/d(integral state); decides which integration drives further into saturation.
+    #: Sign of d(current)/d(integral state);
+    #: decides which integration drives further into saturation.
     integral_current_sign = -1.0
     #: Whether the controller has an integral state at all.
     has_integral = True

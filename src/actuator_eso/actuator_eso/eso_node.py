@@ -103,7 +103,7 @@ class EsoNode(ManagedNode):
             self, 'stats_log', 'pairing counts (.json) written at shutdown'
         )
 
-    # --- lifecycle --------------------------------------------------------------------------------
+    # --- lifecycle -------------------------------------------------------------------------------
     def build(self) -> None:
         """Observer, pairing, stamp checks and topics."""
         self.period_ns = period_ns(self.dt_s)
@@ -144,7 +144,7 @@ class EsoNode(ManagedNode):
             self.destroy_subscription(sub)
         self.destroy_lifecycle_publisher(self.pub)
 
-    # --- inputs -----------------------------------------------------------------------------------
+    # --- inputs ----------------------------------------------------------------------------------
     def on_graph_check(self) -> None:
         """10 Hz.
 

@@ -163,7 +163,7 @@ class PlantNode(ManagedNode):
             self, 'timing_log', 'per-sample log (.npz) written at shutdown'
         )
 
-    # --- lifecycle --------------------------------------------------------------------------------
+    # --- lifecycle -------------------------------------------------------------------------------
     def build(self) -> None:
         """Model, gate, topics and the 10 Hz start-up/watchdog timer; nothing published yet."""
         self.plant = JointPlant(self.params, self.dt_s, position_rad=self.initial_position_rad)
@@ -228,7 +228,7 @@ class PlantNode(ManagedNode):
                 self.destroy_lifecycle_publisher(pub)
         self.plant = None
 
-    # --- sampling ---------------------------------------------------------------------------------
+    # --- sampling --------------------------------------------------------------------------------
     def _graph_ready(self) -> bool:
         """Everyone expected has joined (only checked before sample 0)."""
         return self.state_pub.get_subscription_count() >= self.wait_for_subscribers and (
@@ -391,7 +391,7 @@ class PlantNode(ManagedNode):
         m.brake_engaged = bool(self.held.brake)
         self.truth_pub.publish(m)
 
-    # --- commands ---------------------------------------------------------------------------------
+    # --- commands --------------------------------------------------------------------------------
     def on_command(self, msg: CurrentCommand) -> None:
         """Stamp check, then the gate; sim: step when the command answers the waiting sample."""
         if not self.active or self.start_ns is None:

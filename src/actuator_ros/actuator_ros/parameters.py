@@ -62,7 +62,8 @@ def _declare(
     With type and range refusals as one ParameterError line.
     """
     try:
-        # Declared once at construction; read again at configure (a ros2 param set may have changed it).
+        # Declared once at construction; read again at configure
+        # (a ros2 param set may have changed it).
         value = (
             node.get_parameter(name)
             if node.has_parameter(name)
@@ -245,7 +246,8 @@ def only_while_unconfigured(node) -> None:
                 reason=(
                     f'{names}: parameters are read at configure; '
                     'deactivate and clean up the node first '
-                    '(ros2 lifecycle set <node> deactivate, cleanup), set them, then configure again'
+                    '(ros2 lifecycle set <node> deactivate, cleanup), '
+                    'set them, then configure again'
                 ),
             )
         return SetParametersResult(successful=True)

@@ -35,7 +35,8 @@ from actuator_studies.space import StudyInputError
 MAX_RETRIES = 3
 #: Seconds to wait for a TCP connection to a Ray address before calling it unreachable.
 CONNECT_TIMEOUT_S = 3.0
-#: Object store of a local instance [bytes]: chunks are small, keep the shared machine's memory free.
+#: Object store of a local instance [bytes]:
+#: chunks are small, keep the shared machine's memory free.
 LOCAL_OBJECT_STORE_BYTES = 200 * 1024 * 1024
 
 

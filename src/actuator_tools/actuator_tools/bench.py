@@ -300,7 +300,7 @@ def bag_figures(bag: Path) -> Figures:
     }
 
 
-# --- offline core speed ---------------------------------------------------------------------------
+# --- offline core speed --------------------------------------------------------------------------
 
 
 def offline_speed(scenario_name: str, batch: Optional[int], sim_s: float) -> float:
@@ -349,7 +349,7 @@ def offline_reference(scenario_name: str, duration_s: float) -> Figures:
     }
 
 
-# --- aggregation and targets ----------------------------------------------------------------------
+# --- aggregation and targets ---------------------------------------------------------------------
 
 
 @dataclass(frozen=True)
@@ -562,7 +562,7 @@ def offline_rows(batches: Sequence[int]) -> list[Row]:
     ]
 
 
-# --- table ----------------------------------------------------------------------------------------
+# --- table ---------------------------------------------------------------------------------------
 
 
 def _cell(value: Optional[float], fmt: str) -> str:
@@ -623,7 +623,7 @@ def section_summary(rows: list[Row], runs: list[Figures]) -> dict:
     return out
 
 
-# --- runs -----------------------------------------------------------------------------------------
+# --- runs ----------------------------------------------------------------------------------------
 
 
 @dataclass(frozen=True)
@@ -877,7 +877,7 @@ def tracking_reference(
     ), 'offline core (ClosedLoop), no sim-time run made'
 
 
-# --- output ---------------------------------------------------------------------------------------
+# --- output --------------------------------------------------------------------------------------
 
 
 def environment() -> dict:
@@ -939,7 +939,7 @@ def write_csv(path: Path, records: list[RunRecord], offline: list[Figures]) -> N
         writer.writerows(rows)
 
 
-# --- CLI ------------------------------------------------------------------------------------------
+# --- CLI -----------------------------------------------------------------------------------------
 
 
 class OneLineParser(argparse.ArgumentParser):

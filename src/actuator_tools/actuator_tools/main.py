@@ -139,7 +139,8 @@ def print_run(mode: str, entry: dict, offline_error: float) -> None:
     m, t, c = entry['metrics'], entry['timing'], entry['offline_comparison']
     print(f'bag: {entry["bag"]}')
     print(
-        f'  max steady-state error [{m["steady_window_s"][0]:g}, {m["steady_window_s"][1]:.3g}] s: '
+        f'  max steady-state error '
+        f'[{m["steady_window_s"][0]:g}, {m["steady_window_s"][1]:.3g}] s: '
         f'{m["max_steady_error_rad"]:.3e} rad '
         f'(offline core: {offline_error:.3e}, paper Table 6: 6.96e-04)'
     )
