@@ -7,9 +7,9 @@ Everything here expects the project environment (``source scripts/env.sh``; ``ma
 does it). The pytest fixtures built on it live in ``tests/conftest.py``.
 
 Isolation: each test gets its own ``ROS_DOMAIN_ID``, reserved with ``domain_coordinator`` (the
-pinned ROS 2 package launch_testing uses) so that parallel pytest processes never share one, and discovery restricted to
-this host (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, no static peers, no discovery
-server, no deprecated ``ROS_LOCALHOST_ONLY``).
+pinned ROS 2 package launch_testing uses) so that parallel pytest processes never share one, and
+discovery restricted to this host (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, no static peers, no
+discovery server, no deprecated ``ROS_LOCALHOST_ONLY``).
 """
 
 from __future__ import annotations

@@ -1,7 +1,10 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""ros2 launch actuator_bringup closed_loop.launch.py [scenario:=...] [mode:=realtime|sim] [duration:=S] ...
+"""Launch file of one closed-loop run.
+
+    ros2 launch actuator_bringup closed_loop.launch.py [scenario:=...] [mode:=realtime|sim]
+        [duration:=S] ...
 
 One closed-loop run: the joint (simulated plant, or the CiA 402 driver), the ESO, the controller
 and the recorder as separate processes, built from ``actuator_tools.graph.closed_loop``, the

@@ -1,10 +1,11 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""The driver's parameters as specs (unit, valid range, description): one declaration for ROS and docs.
+"""The driver's parameters as specs (unit, valid range, description).
 
-ROS-free: the driver node declares them with actuator_ros.parameters.declare_spec_parameters,
-launch_spec builds them for a closed-loop run, the README lists them.
+One declaration for ROS and docs. ROS-free: the driver node declares them with
+actuator_ros.parameters.declare_spec_parameters, launch_spec builds them for a closed-loop run, the
+README lists them.
 """
 
 from __future__ import annotations

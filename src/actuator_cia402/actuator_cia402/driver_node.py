@@ -125,11 +125,17 @@ class Cia402DriverNode(LifecycleNode):
         self._settle_until_ns: Optional[int] = None
         self._next_diag_ns = 0
         self.wall = Clock(clock_type=ClockType.STEADY_TIME)
+        # (The conditional part is computed first only because it is longer than a line.)
+        simulated = (
+            ', simulated drive (' + self.cfg.sim.working_condition + ')'
+            if self.cfg.simulated_drive
+            else ''
+        )
         self.get_logger().info(
             f'node {self.cfg.node_id} on {self.cfg.interface}:{self.cfg.channel} at '
             f'{self.cfg.bitrate / 1000:g} kbit/s, '
             f'SYNC {1.0 / self.cfg.sync_period_s:g} Hz, bus load {self.bus_load.text()}'
-            f'{", simulated drive (" + self.cfg.sim.working_condition + ")" if self.cfg.simulated_drive else ""}'
+            f'{simulated}'
         )
         note = check_bus_load(
             self.cfg.bitrate, self.cfg.sync_period_s, limit=self.cfg.bus_load_limit

@@ -39,8 +39,9 @@ def driver_parameters(
     autostart: bool = True,
     **overrides: Any,
 ) -> dict[str, Any]:
-    """Flat ROS parameters of the driver for a closed-loop run (checked: raises ValueError when refused).
+    """Flat ROS parameters of the driver for a closed-loop run.
 
+    Checked: raises ValueError when refused.
     ``simulated``: the simulated drive in the driver's process on a virtual bus named after
     the node id (channel default 'sim_joint_<node_id>'); otherwise socketcan on ``channel``
     (default can0). ``overrides`` are further parameters by their ROS names, e.g.

@@ -1,10 +1,13 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""Joint controller node (managed): PP-NFTSMC-ESO (or PI, SMC-ESO, NFTSMC-ESO) at the sensor's 1 kHz.
+"""Joint controller node (managed): PP-NFTSMC-ESO at the sensor's 1 kHz.
+
+(Or PI, SMC-ESO, NFTSMC-ESO.)
 
 subscribes joint_states (sensor_msgs/JointState), eso/estimate (actuator_msgs/StateEstimate)
-publishes  current_command (actuator_msgs/CurrentCommand), controller/state (actuator_msgs/ControllerState)
+publishes  current_command (actuator_msgs/CurrentCommand),
+           controller/state (actuator_msgs/ControllerState)
 
 The node holds the control law and its ``ControlSampleAssembly`` (actuator_core), the same
 objects as the offline loop: sample k is controlled as soon as y(k) and x_hat(k) are both in

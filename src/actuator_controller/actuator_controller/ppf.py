@@ -23,8 +23,8 @@ band, and the error stayed at 0.2-0.6 rad for the remaining 13 s; in real time t
 happened after 17 ms machine stalls. So when e leaves the band at t_v, the controller
 restarts (8) there: rho0 becomes max(rho0, restart_margin |e| / min(l, h)) and t counts from
 t_v, the paper's own start-up transient, and the same run recovered to 9.7e-4 rad within
-1 s (see docs/paper-resolutions.md, 22). restart_margin = 0 keeps the paper's behaviour; a run that never leaves the band (every
-paper case) is unchanged to the bit.
+1 s (see docs/paper-resolutions.md, 22). restart_margin = 0 keeps the paper's behaviour; a run
+that never leaves the band (every paper case) is unchanged to the bit.
 """
 
 from __future__ import annotations

@@ -1,9 +1,10 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""What each controller status code means: the one place (ControllerState.msg carries the same numbers).
+"""What each controller status code means: the one place.
 
-A test checks these against the message constants, so the two cannot drift apart.
+ControllerState.msg carries the same numbers. A test checks these against the message constants, so
+the two cannot drift apart.
 """
 
 from __future__ import annotations

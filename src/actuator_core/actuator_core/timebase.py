@@ -1,9 +1,10 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""The time base of one input stream: every stamp checked against the receiver's clock and the sample grid.
+"""The time base of one input stream.
 
-Held by each node for each 1 kHz input. ``check`` sorts a stamp into:
+Every stamp is checked against the receiver's clock and the sample grid. Held by each node for each
+1 kHz input. ``check`` sorts a stamp into:
   OK       the next sample, or a later one on the same grid (missed samples are not an error);
   FUTURE   real time: beyond the receiver's clock plus ``future_tolerance_ns``; sim: beyond the
            next expected sample. Refused, never integrated: one stamp 1000 s ahead used to end
@@ -11,8 +12,8 @@ Held by each node for each 1 kHz input. ``check`` sorts a stamp into:
   OLD      a duplicate or an out-of-order sample a little in the past: ignored;
   JUMP     a discontinuity (a restarted sensor or driver): off the grid, or back in time (by
            more than ``jump_samples`` in real time, by any amount in sim, where nothing comes
-           late), or ahead by more than ``jump_samples``. The stamp becomes the new grid origin and the
-           receiver applies its restart policy (README "Safety").
+           late), or ahead by more than ``jump_samples``. The stamp becomes the new grid
+           origin and the receiver applies its restart policy (README "Safety").
 """
 
 from __future__ import annotations

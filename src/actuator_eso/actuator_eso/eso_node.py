@@ -1,7 +1,9 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""Extended state observer node (managed): pairs each measurement with the current commanded for it.
+"""Extended state observer node (managed).
+
+It pairs each measurement with the current commanded for it.
 
 subscribes joint_states (sensor_msgs/JointState) and current_command (actuator_msgs/CurrentCommand)
 publishes  eso/estimate (actuator_msgs/StateEstimate)

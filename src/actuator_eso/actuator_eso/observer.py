@@ -86,11 +86,12 @@ def eso_step(x1_hat, x2_hat, x3_hat, y, u, dt_s: float, gains: EsoGains):
 
 
 def input_current_correction(du_a, steps: int, dt_s: float, gains: EsoGains):
-    """Change of x_hat(k+1+steps) when u(k) of step k changes by ``du_a`` [A], eq. (15) by forward Euler.
+    """Change of x_hat(k+1+steps) when u(k) of step k changes by ``du_a`` [A].
 
-    The step puts dt * theta1n * du on x2_hat; each further step carries that change by the
-    observer's error dynamics (d y = 0, d u = 0). Exact, since (15) is linear: adding the
-    result to a state stepped with the wrong current gives the state stepped with the right one.
+    Eq. (15) by forward Euler. The step puts dt * theta1n * du on x2_hat; each further step carries
+    that change by the observer's error dynamics (d y = 0, d u = 0). Exact, since (15) is linear:
+    adding the result to a state stepped with the wrong current gives the state stepped with the
+    right one.
     """
     beta1, beta2, beta3 = gains.beta
     d1, d2, d3 = 0.0 * du_a, dt_s * gains.theta1n * du_a, 0.0 * du_a

@@ -1,7 +1,9 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""Simulated joint node (managed): integrates the joint model and publishes only what a position sensor gives.
+"""Simulated joint node (managed).
+
+It integrates the joint model and publishes only what a position sensor gives.
 
 Topics (the contract a hardware driver implements, README "Nodes and topic contract"):
   publishes  joint_states (sensor_msgs/JointState: name, position; stamp = sample time t_k)
@@ -304,11 +306,12 @@ class PlantNode(ManagedNode):
         return self.published_ns if self.mode == 'sim' else time.time_ns()
 
     def _sampling_loop(self) -> None:
-        """realtime: sleep until the next instant of the sample grid, sample, repeat (ros2_control's loop).
+        """Realtime: sleep until the next instant of the sample grid, sample, repeat.
 
-        One thread wake per sample, against two for an rclpy timer (its timer thread, then the
-        executor); it inherits the process's SCHED_FIFO priority. An exception ends the run
-        with the error (run_node exits 1) instead of leaving a node that no longer samples.
+        As ros2_control's loop does. One thread wake per sample, against two for an rclpy timer
+        (its timer thread, then the executor); it inherits the process's SCHED_FIFO priority. An
+        exception ends the run with the error (run_node exits 1) instead of leaving a node that no
+        longer samples.
         """
         try:
             while not self.finished and not self.stop_sampling.is_set():
@@ -321,7 +324,7 @@ class PlantNode(ManagedNode):
             self.finished = True
 
     def _realtime_tick(self) -> None:
-        """Integrate every whole period elapsed since the last sample, then publish the newest sample.
+        """Integrate every whole period elapsed since the last sample, then publish the newest.
 
         After a stall the samples it covered are integrated one by one, each with what the gate
         says at its start (a 40 ms stall holds the current for the 10 ms timeout, then 0 A and

@@ -92,10 +92,11 @@ def declare_spec_parameters(
     read_only: bool = False,
     **fixed: Any,
 ) -> Any:
-    """Declare every spec'd field of dataclass ``cls`` as ``prefix + dotted name`` and build ``cls``.
+    """Declare every spec'd field of dataclass ``cls`` and build ``cls``.
 
-    ``exclude`` names fields not declared (their value comes from ``fixed`` or the default);
-    ``read_only`` for a node that reads its parameters once, at start-up (the CiA 402 driver).
+    Each is declared as ``prefix + dotted name``. ``exclude`` names fields not declared (their
+    value comes from ``fixed`` or the default); ``read_only`` for a node that reads its parameters
+    once, at start-up (the CiA 402 driver).
     """
     values: dict[str, Any] = dict(fixed)
     skip = set(exclude)

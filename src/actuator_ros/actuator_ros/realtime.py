@@ -1,15 +1,16 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""Real-time settings as node parameters (ros2_control's thread_priority, cpu_affinity), applied before rclpy.init.
+"""Real-time settings as node parameters, applied before rclpy.init.
 
-SCHED_FIFO must be set before ``rclpy.init``: the middleware's threads (Fast DDS receive and
-event threads), which every message passes through, inherit the policy only if it is set
-before they exist (measured: plant-to-controller delivery p99 9.3 ms -> 0.17 ms). A node
-cannot read its parameters before init, so ``pre_init_settings`` reads these three from the
-same sources rcl will (``-p name:=value`` and ``--params-file`` sections for this node or
-``/**``), and the node declares them again afterwards so that ``ros2 param`` shows them.
-Memory is not locked (ros2_control's lock_memory): mlockall made 300-400 MB resident per node.
+They are ros2_control's thread_priority and cpu_affinity. SCHED_FIFO must be set before
+``rclpy.init``: the middleware's threads (Fast DDS receive and event threads), which every message
+passes through, inherit the policy only if it is set before they exist (measured:
+plant-to-controller delivery p99 9.3 ms -> 0.17 ms). A node cannot read its parameters before init,
+so ``pre_init_settings`` reads these three from the same sources rcl will (``-p name:=value`` and
+``--params-file`` sections for this node or ``/**``), and the node declares them again afterwards
+so that ``ros2 param`` shows them. Memory is not locked (ros2_control's lock_memory): mlockall made
+300-400 MB resident per node.
 """
 
 from __future__ import annotations

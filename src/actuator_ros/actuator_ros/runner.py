@@ -140,12 +140,12 @@ def run_node(
 
 
 def wait_for_acknowledgements(node: Node, timeout_s: float = ACK_TIMEOUT_S) -> bool:
-    """Before exit: let RELIABLE subscribers (the sim-mode recorder) receive all this node published.
+    """Before exit: let RELIABLE subscribers receive all this node published.
 
-    A process that exits takes the samples it has not delivered with it, and at the end of a
-    sim run the recorder is the furthest behind (2 s runs ended with the bag missing the last
-    68-159 samples). BEST_EFFORT publishers return at once. Logs, and returns False, when a
-    topic stayed unacknowledged.
+    Such as the sim-mode recorder. A process that exits takes the samples it has not delivered with
+    it, and at the end of a sim run the recorder is the furthest behind (2 s runs ended with the
+    bag missing the last 68-159 samples). BEST_EFFORT publishers return at once. Logs, and returns
+    False, when a topic stayed unacknowledged.
     """
     deadline = time.monotonic() + timeout_s
     unacked = []

@@ -7,8 +7,8 @@ Sample k (see docs/architecture.md), each step the same call a node makes:
   1. the plant samples y(k) = q(t_k)                      (plant node: ``JointPlant``);
   2. the observer pairing takes y(k)                      (ESO node: ``ObserverInputPairing``);
   3. the controller assembly takes x_hat(k) and y(k) and
-     runs the law for u(k)                                (controller node: ``ControlSampleAssembly``);
-  4. the drive's gate takes u(k) and holds it             (plant node: ``CommandGate``);
+     runs the law for u(k)                 (controller node: ``ControlSampleAssembly``);
+  4. the drive's gate takes u(k) and holds it (plant node: ``CommandGate``);
   5. the pairing takes u(k): one observer step to x_hat(k+1);
   6. the plant integrates [t_k, t_k+1) with the held current.
 The nodes hold these same classes (``actuator_core``), so a run in deterministic sim time

@@ -149,10 +149,11 @@ def radius_along_envelope(
 def largest_stable_scale(
     controller_name: str, gains, fields: Sequence[str], target_radius: float = 0.95, **kwargs
 ) -> float | None:
-    """Largest factor s on a log grid in [1e-4, 1] such that scaling ``fields`` by s gives radius <= target.
+    """Largest factor s on a log grid in [1e-4, 1] that meets the target.
 
-    The radius is not monotonic in s (small gains leave slow poles near 1), so the grid is
-    scanned from 1 downwards; None when no factor reaches the target.
+    That is: scaling ``fields`` by s gives radius <= target. The radius is not monotonic in s
+    (small gains leave slow poles near 1), so the grid is scanned from 1 downwards; None when no
+    factor reaches the target.
     """
     for scale in np.logspace(0.0, -4.0, 161):
         scaled = dataclasses.replace(gains, **{f: getattr(gains, f) * scale for f in fields})

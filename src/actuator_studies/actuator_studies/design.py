@@ -12,10 +12,10 @@ constrained TPE, a trial is feasible when every value is <= 0):
      at frozen times along the PPF envelope and with each corner's stirring loss, at most
      the target radius;
   2. current: at most SATURATED_FRACTION_LIMIT of the samples at the current limit, every corner.
-Trials are asked ``parallel`` at a time (constant liar) and their corners run as one
-vectorised batch (gains are per-run arrays), locally or split into one Ray task per
-worker (retried like a sweep's chunks); corner i has the same encoder noise seed in every trial. A trial that
-fails the margin is not simulated. The paper's Table 4 gains are the first trial.
+Trials are asked ``parallel`` at a time (constant liar) and their corners run as one vectorised
+batch (gains are per-run arrays), locally or split into one Ray task per worker (retried like a
+sweep's chunks); corner i has the same encoder noise seed in every trial. A trial that fails the
+margin is not simulated. The paper's Table 4 gains are the first trial.
 
 python-control is not used: the margin is the eigenvalues of the Jacobian that
 ``actuator_sim.stability`` builds; ``numpy.linalg.eigvals`` on it is what python-control's
@@ -151,10 +151,11 @@ class Evaluator:
         ]
 
     def run(self, gain_sets: list[dict[str, float]]) -> list[dict[str, np.ndarray]]:
-        """Per gain set: arrays over the corners of max ss error (diverged -> DIVERGED_ERROR_RAD) and saturation.
+        """Per gain set: arrays over the corners of max ss error and saturation.
 
-        Corner i draws its encoder noise from seed run_seeds(0, [i]) for every gain set, so trials
-        are compared on the same noise; the runs are split into one slice per worker.
+        A diverged run counts as DIVERGED_ERROR_RAD. Corner i draws its encoder noise from seed
+        run_seeds(0, [i]) for every gain set, so trials are compared on the same noise; the runs
+        are split into one slice per worker.
         """
         if not gain_sets:
             return []

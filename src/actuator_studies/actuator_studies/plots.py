@@ -3,14 +3,14 @@
 
 """Figures of a study (matplotlib, Agg): maps over two chosen quantities, CDFs over random draws.
 
-Map: three panels over (x, y): max steady-state error (log10, rad), fraction of samples at
-the current limit, fraction of samples outside the PPF envelope (8) as
-prescribed from t = 0 (the controller's restarts of resolution 22 are not counted as a new envelope). A grid study is drawn
-cell by cell (one cell per grid point, labelled with its values, whatever their spacing),
-each cell the worst over every other varied quantity; a random study as a
-scatter. Diverged runs are drawn in black and counted in the panel title.
-CDF: empirical distribution of the same three figures over all runs; a diverged run counts
-as an infinite error, so the error CDF ends below 1 by the diverged fraction.
+Map: three panels over (x, y): max steady-state error (log10, rad), fraction of samples at the
+current limit, fraction of samples outside the PPF envelope (8) as prescribed from t = 0 (the
+controller's restarts of resolution 22 are not counted as a new envelope). A grid study is drawn
+cell by cell (one cell per grid point, labelled with its values, whatever their spacing), each cell
+the worst over every other varied quantity; a random study as a scatter. Diverged runs are drawn in
+black and counted in the panel title. CDF: empirical distribution of the same three figures over
+all runs; a diverged run counts as an infinite error, so the error CDF ends below 1 by the diverged
+fraction.
 """
 
 from __future__ import annotations

@@ -1,12 +1,13 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""A study's folder: its definition, one Parquet file per finished chunk, the joined table and summary.
+"""A study's folder.
 
-Layout of ``out/``: ``study.json`` (the request, to check a resumed run asks the same),
-``chunks/chunk_NNNNN.parquet`` (written to a temporary name and renamed, so a chunk file is
-either complete or absent), ``runs.parquet`` (every row, by run index), ``summary.json`` and
-``figures/``. A rerun with ``--resume`` keeps the finished chunks and runs only the others.
+Its definition, one Parquet file per finished chunk, the joined table and summary. Layout of
+``out/``: ``study.json`` (the request, to check a resumed run asks the same),
+``chunks/chunk_NNNNN.parquet`` (written to a temporary name and renamed, so a chunk file is either
+complete or absent), ``runs.parquet`` (every row, by run index), ``summary.json`` and ``figures/``.
+A rerun with ``--resume`` keeps the finished chunks and runs only the others.
 """
 
 from __future__ import annotations

@@ -1,14 +1,14 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""Study space: the scenario quantities a sweep may vary, how they are sampled, and the batch scenario.
+"""Study space: the quantities a sweep may vary, how they are sampled, the batch scenario.
 
-A quantity is named as the nodes name their parameters: ``depth_m``, the plant's
-``condition.temperature_c``, ``drift.inertia_amplitude``, ``external.mean_nm``, ...; the
-observer's under ``eso.`` (``eso.omega0_rad_s``); the controller's under its name
-(``pp_nftsmc_eso.k0_per_s``); ``common.current_limit_a``; the encoder's ``encoder.counts_per_rev``
-and ``encoder.noise_std_rad``; and ``command_delay_samples``. Units, ranges and descriptions
-come from the same ``spec`` declarations the models use.
+The quantities are those of the scenario. A quantity is named as the nodes name their parameters:
+``depth_m``, the plant's ``condition.temperature_c``, ``drift.inertia_amplitude``,
+``external.mean_nm``, ...; the observer's under ``eso.`` (``eso.omega0_rad_s``); the controller's
+under its name (``pp_nftsmc_eso.k0_per_s``); ``common.current_limit_a``; the encoder's
+``encoder.counts_per_rev`` and ``encoder.noise_std_rad``; and ``command_delay_samples``. Units,
+ranges and descriptions come from the same ``spec`` declarations the models use.
 
 Sampling: a grid (the Cartesian product of each quantity's points, the first quantity
 varying slowest), a seeded Monte Carlo draw (independent uniforms), or a seeded Latin

@@ -89,9 +89,10 @@ def execute(
     progress: bool = True,
     ray_session=None,
 ) -> dict:
-    """Run the pending chunks (locally or on Ray), writing each as it finishes; return run statistics.
+    """Run the pending chunks (locally or on Ray), writing each as it finishes.
 
-    ``ray_session``: an already started ray module to use (and leave running), e.g. a test fixture's.
+    Return run statistics. ``ray_session``: an already started ray module to use (and leave
+    running), e.g. a test fixture's.
     """
     start = time.perf_counter()
     ray = ray_session or (distributed.start_ray(ray_target) if ray_target else None)

@@ -86,11 +86,12 @@ def run_closed_loop(
     joint: str = 'plant',
     joint_parameters: dict | None = None,
 ) -> RunResult:
-    """Start the nodes of ``scenario`` in ``mode``, run to the end, stop everything, return the result.
+    """Start the nodes of ``scenario`` in ``mode``, run to the end, stop everything.
 
-    ``duration_s`` None runs the scenario's own length (10 s for the paper's cases), never forever.
-    ``thread_priority`` > 0: SCHED_FIFO for the ESO and controller, one level above for the joint
-    (graph.closed_loop). ``cpus`` pins by key ('joint', 'eso', 'controller').
+    Return the result. ``duration_s`` None runs the scenario's own length (10 s for the paper's
+    cases), never forever. ``thread_priority`` > 0: SCHED_FIFO for the ESO and controller, one
+    level above for the joint (graph.closed_loop). ``cpus`` pins by key ('joint', 'eso',
+    'controller').
     """
     if duration_s is None:
         duration_s = scenario_duration(scenario)

@@ -3,16 +3,17 @@
 
 """Middleware floor: what one message hop costs on this machine with no control code at all.
 
-Two processes stand in for two of our nodes. ``source`` publishes an ``actuator_msgs/CurrentCommand``
-on an absolute grid (as the plant samples) and ``echo`` republishes each one unchanged (as the
-ESO and controller answer a sample). The source logs every round trip; one hop is taken as
-half of it. The echo's CPU is the price of one subscription and one publication per sample;
-each of our loop nodes handles two or three of each. The benchmark (``bench``) runs this before
-the closed loop, so its latency and CPU targets can be read against what the middleware alone
-costs here.
+Two processes stand in for two of our nodes. ``source`` publishes an
+``actuator_msgs/CurrentCommand`` on an absolute grid (as the plant samples) and ``echo``
+republishes each one unchanged (as the ESO and controller answer a sample). The source logs every
+round trip; one hop is taken as half of it. The echo's CPU is the price of one subscription and one
+publication per sample; each of our loop nodes handles two or three of each. The benchmark
+(``bench``) runs this before the closed loop, so its latency and CPU targets can be read against
+what the middleware alone costs here.
 
     python -m actuator_tools.floor echo   [--ros-args -p thread_priority:=N ...]
-    python -m actuator_tools.floor source --ros-args -p thread_priority:=N -p duration_s:=10 -p output:=rtt.npz
+    python -m actuator_tools.floor source --ros-args -p thread_priority:=N -p duration_s:=10
+        -p output:=rtt.npz
 """
 
 from __future__ import annotations

@@ -1,11 +1,12 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""The one description of a closed-loop run: which nodes, with which parameters and real-time settings.
+"""The one description of a closed-loop run.
 
-Both the runner (``bringup``, actuator_tools.bringup) and the launch file
-(``actuator_bringup closed_loop.launch.py``) build their processes from ``closed_loop``, so the
-two cannot drift apart. Pure data, no launch import: the runner has no launch here.
+Which nodes, with which parameters and real-time settings. Both the runner (``bringup``,
+actuator_tools.bringup) and the launch file (``actuator_bringup closed_loop.launch.py``) build
+their processes from ``closed_loop``, so the two cannot drift apart. Pure data, no launch import:
+the runner has no launch here.
 
 Real-time settings are node parameters (actuator_ros.realtime), as ros2_control makes them:
 ``thread_priority`` (the ESO and controller at the given SCHED_FIFO priority, the plant or
@@ -72,11 +73,12 @@ def closed_loop(
     joint_parameters: Optional[dict] = None,
     autostart: bool = True,
 ) -> list[NodeSpec]:
-    """Return the processes of one run in start order (the joint last: it starts sampling when all are there).
+    """Return the processes of one run in start order.
 
-    ``logs``: folder for the per-node timing files the benchmark reads (controller_timing.npz,
-    eso_stats.json, plant_samples.npz). ``autostart``: the nodes configure and activate
-    themselves (the runner); the launch file drives the transitions instead.
+    The joint is last: it starts sampling when all are there. ``logs``: folder for the per-node
+    timing files the benchmark reads (controller_timing.npz, eso_stats.json, plant_samples.npz).
+    ``autostart``: the nodes configure and activate themselves (the runner); the launch file drives
+    the transitions instead.
     """
     if joint not in JOINTS:
         raise ValueError(f'joint must be one of {", ".join(JOINTS)}, got {joint!r}')

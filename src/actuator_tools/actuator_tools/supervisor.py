@@ -1,12 +1,13 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""The one process supervisor: start installed executables as ``ros2 run`` does, watch, stop, measure.
+"""The one process supervisor.
 
-Used by the runner (``bringup``), the benchmark and the tests alike. A ``RosProcess`` runs in
-its own session (process group), so stopping it reaches its children too: SIGINT (what Ctrl-C
-and ``ros2 launch`` send), then SIGTERM, then SIGKILL. ``ProcessFigures`` reads CPU time and
-peak resident memory through psutil while the process lives.
+Start installed executables as ``ros2 run`` does, watch, stop, measure. Used by the runner
+(``bringup``), the benchmark and the tests alike. A ``RosProcess`` runs in its own session (process
+group), so stopping it reaches its children too: SIGINT (what Ctrl-C and ``ros2 launch`` send),
+then SIGTERM, then SIGKILL. ``ProcessFigures`` reads CPU time and peak resident memory through
+psutil while the process lives.
 
     python -m actuator_tools.supervisor which PACKAGE EXECUTABLE    # the path ros2 run would start
 """
