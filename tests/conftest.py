@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Fixtures shared by every test of the project (tooling in tests/ros_helpers.py).
 
     ros_domain_id   a ROS domain id reserved for this test alone (ros_helpers.reserve_domain)
@@ -29,14 +32,19 @@ import ros_helpers  # noqa: E402
 def _require_project_environment():
     problem = ros_helpers.check_project_environment()
     if problem:
-        pytest.fail(f'the project environment is not active ({problem}). Run the tests with '
-                    f'`make test` or `scripts/test.sh`, or `source scripts/env.sh` first.',
-                    pytrace=False)
+        pytest.fail(
+            f'the project environment is not active ({problem}). Run the tests with '
+            f'`make test` or `scripts/test.sh`, or `source scripts/env.sh` first.',
+            pytrace=False,
+        )
 
 
 def pytest_report_header(config):
-    return (f'ROS: {os.environ.get("ACTUATOR_ROS_MODE")} mode, RMW {os.environ.get("RMW_IMPLEMENTATION")}, '
-            f'workspace {os.environ.get("ACTUATOR_WS")}')
+    return (
+        f'ROS: {os.environ.get("ACTUATOR_ROS_MODE")} mode, RMW '
+        f'{os.environ.get("RMW_IMPLEMENTATION")}, '
+        f'workspace {os.environ.get("ACTUATOR_WS")}'
+    )
 
 
 @pytest.fixture
@@ -76,8 +84,13 @@ def ros_process(ros_env, tmp_path):
 
     def start(package, executable, args=(), env=None, **kwargs):
         proc = ros_helpers.RosProcess.installed(
-            package, executable, args, env=ros_env if env is None else env,
-            log_dir=tmp_path / 'processes', **kwargs)
+            package,
+            executable,
+            args,
+            env=ros_env if env is None else env,
+            log_dir=tmp_path / 'processes',
+            **kwargs,
+        )
         started.append(proc)
         return proc
 
@@ -105,7 +118,10 @@ ROS_FIXTURES = {'ros_domain_id', 'ros_env', 'rclpy_context', 'ros_process'}
 
 
 def pytest_collection_modifyitems(config, items):
-    """Mark each test: ros when it uses a ROS fixture (or says so), realtime implies ros, else unit."""
+    """Mark each test.
+
+    ros when it uses a ROS fixture (or says so), realtime implies ros, else unit.
+    """
     for item in items:
         marks = {m.name for m in item.iter_markers()}
         if 'realtime' in marks or ROS_FIXTURES & set(getattr(item, 'fixturenames', ())):

@@ -1,12 +1,15 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Publisher / subscriber process for the message exchange tests (run with the venv's python).
 
-    msg_exchange.py pub --package actuator_msgs --types A,B --seed 7
-        publishes one message of each type, filled by ros_helpers.fill_message(seed + i),
-        on topic exchange/<Type> (reliable, transient local, depth 1), prints
-        "READY" and keeps serving them until SIGINT, then exits 0.
-    msg_exchange.py sub --package actuator_msgs --types A,B --timeout 30
-        waits for one message of each type and prints "RECEIVED <json>", the leaves of
-        every message (ros_helpers.message_leaves), then exits 0; exits 2 on timeout.
+msg_exchange.py pub --package actuator_msgs --types A,B --seed 7
+    publishes one message of each type, filled by ros_helpers.fill_message(seed + i),
+    on topic exchange/<Type> (reliable, transient local, depth 1), prints
+    "READY" and keeps serving them until SIGINT, then exits 0.
+msg_exchange.py sub --package actuator_msgs --types A,B --timeout 30
+    waits for one message of each type and prints "RECEIVED <json>", the leaves of
+    every message (ros_helpers.message_leaves), then exits 0; exits 2 on timeout.
 """
 
 from __future__ import annotations
@@ -26,8 +29,9 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E
 
 import ros_helpers  # noqa: E402
 
-QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                 durability=DurabilityPolicy.TRANSIENT_LOCAL)
+QOS = QoSProfile(
+    depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
+)
 
 
 def topic_of(type_name: str) -> str:
@@ -64,10 +68,15 @@ def main(argv=None) -> int:
         def make_callback(name):
             def callback(msg):
                 received.setdefault(name, ros_helpers.message_leaves(msg))
+
             return callback
 
-        subscriptions = [node.create_subscription(getattr(module, name), topic_of(name),
-                                                  make_callback(name), QOS) for name in types]
+        subscriptions = [
+            node.create_subscription(
+                getattr(module, name), topic_of(name), make_callback(name), QOS
+            )
+            for name in types
+        ]
         print('SUBSCRIBED', len(subscriptions), flush=True)
         deadline = time.monotonic() + args.timeout
         while len(received) < len(types) and time.monotonic() < deadline:

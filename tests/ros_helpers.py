@@ -1,12 +1,15 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Shared test tooling: isolated ROS domains, installed executables, managed processes.
 
 Everything here expects the project environment (``source scripts/env.sh``; ``make test``
 does it). The pytest fixtures built on it live in ``tests/conftest.py``.
 
 Isolation: each test gets its own ``ROS_DOMAIN_ID``, reserved with ``domain_coordinator`` (the
-pinned ROS 2 package launch_testing uses) so that parallel pytest processes never share one, and discovery restricted to
-this host (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, no static peers, no discovery
-server, no deprecated ``ROS_LOCALHOST_ONLY``).
+pinned ROS 2 package launch_testing uses) so that parallel pytest processes never share one, and
+discovery restricted to this host (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, no static peers, no
+discovery server, no deprecated ``ROS_LOCALHOST_ONLY``).
 """
 
 from __future__ import annotations
@@ -21,6 +24,14 @@ from typing import Iterable, Mapping, Optional, Union
 
 import domain_coordinator
 
+# The process supervisor is the product's own (actuator_tools.supervisor), shared with the runner.
+from actuator_tools.supervisor import (
+    RosProcess,
+    executable_path,
+    live_processes,
+    stop_all_processes,
+)
+
 #: Variables that decide whom a ROS process can discover. ``isolated_ros_env`` sets or
 #: removes every one of them.
 ISOLATION_SET = ('ROS_DOMAIN_ID', 'ROS_AUTOMATIC_DISCOVERY_RANGE', 'ROS_STATIC_PEERS')
@@ -30,7 +41,10 @@ WORKSPACE = Path(__file__).resolve().parent.parent
 
 
 class _RandomStart:
-    """domain_coordinator's selector, started at a random id so parallel runs rarely collide on the first try."""
+    """domain_coordinator's selector, started at a random id.
+
+    So parallel runs rarely collide on the first try.
+    """
 
     def __init__(self, exclude: Iterable[int] = ()):
         self.value = random.randrange(100)
@@ -45,13 +59,22 @@ class _RandomStart:
 
 
 def reserve_domain(exclude: Iterable[int] = ()):
-    """A ROS_DOMAIN_ID in 1..100 held for this process alone (domain_coordinator: a bound port per id)."""
+    """Return a ROS_DOMAIN_ID in 1..100 held for this process alone.
+
+    domain_coordinator: a bound port per id.
+    """
     return domain_coordinator.domain_id(selector=_RandomStart(exclude))
 
 
-def isolated_ros_env(domain_id: int, base: Optional[Mapping[str, str]] = None,
-                     log_dir: Optional[Union[str, Path]] = None) -> dict:
-    """An environment for a ROS subprocess that sees only processes of ``domain_id`` on this host."""
+def isolated_ros_env(
+    domain_id: int,
+    base: Optional[Mapping[str, str]] = None,
+    log_dir: Optional[Union[str, Path]] = None,
+) -> dict:
+    """Return an environment for a ROS subprocess.
+
+    It sees only processes of ``domain_id`` on this host.
+    """
     env = dict(os.environ if base is None else base)
     for name in ISOLATION_UNSET:
         env.pop(name, None)
@@ -75,7 +98,10 @@ def check_project_environment() -> Optional[str]:
     prefixes = os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep)
     install = str(WORKSPACE / 'install')
     if not any(p.startswith(install) for p in prefixes):
-        return f'AMENT_PREFIX_PATH has no package of {install} (not built, or install/setup.bash not sourced)'
+        return (
+            f'AMENT_PREFIX_PATH has no package of {install} (not built, or '
+            'install/setup.bash not sourced)'
+        )
     return None
 
 
@@ -101,19 +127,22 @@ def env_without_workspace(env: Mapping[str, str], workspace: Union[str, Path] = 
     return out
 
 
-# The process supervisor is the product's own (actuator_tools.supervisor), shared with the runner.
-from actuator_tools.supervisor import RosProcess, executable_path, live_processes, stop_all_processes
-
 __all__ = ['RosProcess', 'executable_path', 'live_processes', 'stop_all_processes']
 
 
 # -- messages ---------------------------------------------------------------------------------
 _INT_RANGES = {
-    'int8': (-2**7, 2**7 - 1), 'uint8': (0, 2**8 - 1),
-    'int16': (-2**15, 2**15 - 1), 'uint16': (0, 2**16 - 1),
-    'int32': (-2**31, 2**31 - 1), 'uint32': (0, 2**32 - 1),
-    'int64': (-2**63, 2**63 - 1), 'uint64': (0, 2**64 - 1),
-    'octet': (0, 255), 'byte': (0, 255), 'char': (0, 255),
+    'int8': (-(2**7), 2**7 - 1),
+    'uint8': (0, 2**8 - 1),
+    'int16': (-(2**15), 2**15 - 1),
+    'uint16': (0, 2**16 - 1),
+    'int32': (-(2**31), 2**31 - 1),
+    'uint32': (0, 2**32 - 1),
+    'int64': (-(2**63), 2**63 - 1),
+    'uint64': (0, 2**64 - 1),
+    'octet': (0, 255),
+    'byte': (0, 255),
+    'char': (0, 255),
 }
 _ARRAY_RE = re.compile(r'^(?P<base>.+?)\[(?P<size>\d+)\]$')
 _SEQ_RE = re.compile(r'^sequence<(?P<base>.+?)(?:,\s*(?P<bound>\d+))?>$')
@@ -149,7 +178,7 @@ def _scalar(type_name: str, counter: _Counter):
     if m:
         text = f'v{k}-éx' if m.group('kind') == 'wstring' else f'v{k}-x'
         bound = m.group('bound')
-        return text[:int(bound)] if bound else text
+        return text[: int(bound)] if bound else text
     raise ValueError(f'no test value for type {type_name!r}')
 
 
@@ -175,18 +204,25 @@ def _value_for(type_name: str, current, counter: _Counter):
     m = _ARRAY_RE.match(type_name)
     if m:
         size = int(m.group('size'))
-        items = [_value_for(m.group('base'), _element_template(current, m.group('base')), counter)
-                 for _ in range(size)]
+        items = [
+            _value_for(m.group('base'), _element_template(current, m.group('base')), counter)
+            for _ in range(size)
+        ]
         return items
     m = _SEQ_RE.match(type_name)
     if m:
         bound = m.group('bound')
         size = min(3, int(bound)) if bound else 3
-        return [_value_for(m.group('base'), _element_template(current, m.group('base')), counter)
-                for _ in range(size)]
+        return [
+            _value_for(m.group('base'), _element_template(current, m.group('base')), counter)
+            for _ in range(size)
+        ]
     if '/' in type_name:  # nested message: fill a fresh instance of the field's class
-        nested = type(current)() if current is not None and not isinstance(current, (list, tuple)) \
+        nested = (
+            type(current)()
+            if current is not None and not isinstance(current, (list, tuple))
             else _message_class(type_name)()
+        )
         _fill(nested, counter)
         return nested
     value = _scalar(type_name, counter)
@@ -202,13 +238,17 @@ def _element_template(current, base_type: str):
 def _message_class(type_name: str):
     """'pkg/Type' or 'pkg/msg/Type' to the Python class."""
     import importlib
+
     parts = type_name.split('/')
     pkg, name = parts[0], parts[-1]
     return getattr(importlib.import_module(f'{pkg}.msg'), name)
 
 
 def message_leaves(msg, prefix: str = '') -> dict:
-    """Flatten a message into {'field.sub[2].x': plain value} (numbers, bools, str, bytes as ints)."""
+    """Flatten a message into {'field.sub[2].x': plain value}.
+
+    Numbers, bools, str, bytes as ints.
+    """
     out = {}
     for field, type_name in msg.get_fields_and_field_types().items():
         _leaves(getattr(msg, field), f'{prefix}{field}', out)
@@ -244,7 +284,9 @@ def leaves_equal(a: dict, b: dict) -> 'list[str]':
             diffs.append(f'{key}: only in {"first" if key in a else "second"}')
             continue
         x, y = a[key], b[key]
-        same = x == y or (isinstance(x, float) and isinstance(y, float) and math.isnan(x) and math.isnan(y))
+        same = x == y or (
+            isinstance(x, float) and isinstance(y, float) and math.isnan(x) and math.isnan(y)
+        )
         if not same:
             diffs.append(f'{key}: {x!r} != {y!r}')
     return diffs

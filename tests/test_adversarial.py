@@ -1,5 +1,10 @@
-"""The running loop attacked as an adversarial user would: the loop keeps tracking, or stops safely
-with the reason logged and resumes as the policy says (README "Safety").
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""The running loop attacked as an adversarial user would.
+
+The loop keeps tracking, or stops safely with the reason logged and resumes as the policy says
+(README "Safety").
 
 Each test runs plant, ESO, controller and recorder in real time (SCHED_FIFO where the kernel
 allows) on an isolated domain, attacks the loop from this process at about 3 s, and judges the
@@ -28,15 +33,23 @@ TRACKING_RAD = 0.05
 
 
 class Loop:
-    """The closed loop as processes, from the one description (graph.closed_loop), with restarts."""
+    """The closed loop as processes, from the one description (graph.closed_loop).
+
+    With restarts.
+    """
 
     def __init__(self, env: dict, tmp: Path):
         from ament_index_python.packages import get_package_share_directory
 
         self.env, self.tmp = env, tmp
-        self.params = Path(get_package_share_directory('actuator_bringup')) / 'config' / f'{SCENARIO}.yaml'
+        self.params = (
+            Path(get_package_share_directory('actuator_bringup')) / 'config' / f'{SCENARIO}.yaml'
+        )
         self.bag = tmp / 'bag'
-        self.specs = {s.key: s for s in closed_loop('realtime', 0.0, record=True, bag=self.bag, thread_priority=50)}
+        self.specs = {
+            s.key: s
+            for s in closed_loop('realtime', 0.0, record=True, bag=self.bag, thread_priority=50)
+        }
         self.procs: dict[str, RosProcess] = {}
         self.starts: dict[str, int] = {}
         for key in self.specs:
@@ -45,8 +58,14 @@ class Loop:
     def start(self, key: str) -> RosProcess:
         spec = self.specs[key]
         n = self.starts[key] = self.starts.get(key, 0) + 1
-        proc = RosProcess.installed(spec.package, spec.executable, ros_arguments(spec, self.params), env=self.env,
-                                    log_dir=self.tmp / 'logs', name=f'{key}{n}')
+        proc = RosProcess.installed(
+            spec.package,
+            spec.executable,
+            ros_arguments(spec, self.params),
+            env=self.env,
+            log_dir=self.tmp / 'logs',
+            name=f'{key}{n}',
+        )
         self.procs[key] = proc
         return proc
 
@@ -58,7 +77,9 @@ class Loop:
 
     def log(self, key: str) -> str:
         """Everything every process of ``key`` (the first and any restarted one) wrote."""
-        return ''.join(process_log(self.tmp / 'logs', f'{key}{n}') for n in range(1, self.starts[key] + 1))
+        return ''.join(
+            process_log(self.tmp / 'logs', f'{key}{n}') for n in range(1, self.starts[key] + 1)
+        )
 
     def stop(self) -> dict:
         return {k: p.stop() for k, p in reversed(list(self.procs.items()))}
@@ -75,12 +96,18 @@ class Attacker:
         from actuator_ros.qos import control_qos
         from sensor_msgs.msg import JointState
 
-        self.types = {'joint_states': JointState, 'eso/estimate': StateEstimate, 'current_command': CurrentCommand}
+        self.types = {
+            'joint_states': JointState,
+            'eso/estimate': StateEstimate,
+            'current_command': CurrentCommand,
+        }
         self.node = Node('attacker', context=context)
         self.qos = control_qos('realtime')
         self.states: list = []
         self.truth: list = []
-        self.node.create_subscription(ControllerState, 'controller/state', self.states.append, self.qos)
+        self.node.create_subscription(
+            ControllerState, 'controller/state', self.states.append, self.qos
+        )
         self.node.create_subscription(PlantTruth, 'plant/truth', self.truth.append, self.qos)
         self.executor = SingleThreadedExecutor(context=context)
         self.executor.add_node(self.node)
@@ -111,7 +138,7 @@ class Attacker:
 
 def tracking_again(attacker: Attacker, seconds: float = 1.0) -> float:
     """Max |e| of the controlled samples in the last ``seconds`` (inf when none was controlled)."""
-    recent = attacker.states[-int(seconds * 1000):]
+    recent = attacker.states[-int(seconds * 1000) :]
     errors = [abs(s.error_rad) for s in recent if s.status == 0 and math.isfinite(s.error_rad)]
     return max(errors) if len(errors) > 0.5 * len(recent) else math.inf
 
@@ -139,14 +166,16 @@ def _assert_recovered(running: Loop, attacker: Attacker) -> None:
 def test_future_and_past_stamps_on_every_input_are_refused_and_tracking_goes_on(loop):
     running, attacker = loop
     now = attacker.newest_stamp_ns()
-    js, est, cmd = (attacker.publisher(t) for t in ('joint_states', 'eso/estimate', 'current_command'))
-    future = ns_to_stamp(now + 1000 * 10 ** 9)
+    js, est, cmd = (
+        attacker.publisher(t) for t in ('joint_states', 'eso/estimate', 'current_command')
+    )
+    future = ns_to_stamp(now + 1000 * 10**9)
     m = attacker.types['joint_states'](name=['joint'], position=[0.0])
     m.header.stamp = future
-    js.publish(m)                                          # one measurement 1000 s ahead
-    for k in range(100):                                   # 100 estimates ahead
+    js.publish(m)  # one measurement 1000 s ahead
+    for k in range(100):  # 100 estimates ahead
         e = attacker.types['eso/estimate'](velocity_rad_s=0.0, input_current_gain=0.03)
-        e.header.stamp = ns_to_stamp(now + (1000 + k) * 10 ** 9)
+        e.header.stamp = ns_to_stamp(now + (1000 + k) * 10**9)
         est.publish(e)
     c = attacker.types['current_command'](current_a=5.0)
     c.header.stamp = future
@@ -163,11 +192,15 @@ def test_nan_and_absurd_values_in_each_field_are_refused(loop):
     est = attacker.publisher('eso/estimate')
     attacker.spin(0.3)
     now = attacker.newest_stamp_ns()
-    for field, value in (('input_current_a', math.nan), ('velocity_rad_s', 1.0e9), ('input_current_gain', 1.0e12),
-                         ('disturbance_rad_s2', math.inf)):
+    for field, value in (
+        ('input_current_a', math.nan),
+        ('velocity_rad_s', 1.0e9),
+        ('input_current_gain', 1.0e12),
+        ('disturbance_rad_s2', math.inf),
+    ):
         e = attacker.types['eso/estimate'](input_current_gain=0.03)
         setattr(e, field, value)
-        e.header.stamp = ns_to_stamp(now + 2 * 10 ** 6)
+        e.header.stamp = ns_to_stamp(now + 2 * 10**6)
         est.publish(e)
     attacker.node.destroy_publisher(est)
     _assert_recovered(running, attacker)
@@ -181,7 +214,7 @@ def test_a_second_publisher_stops_control_safely_until_it_leaves(loop, topic, gu
     running, attacker = loop
     rogue = attacker.publisher(topic)
     end = time.monotonic() + 0.6
-    while time.monotonic() < end:                          # a rogue script drives the topic for 0.6 s
+    while time.monotonic() < end:  # a rogue script drives the topic for 0.6 s
         m = attacker.types[topic]()
         if topic == 'current_command':
             m.current_a = 5.0
@@ -190,20 +223,28 @@ def test_a_second_publisher_stops_control_safely_until_it_leaves(loop, topic, gu
         m.header.stamp = ns_to_stamp(attacker.newest_stamp_ns())
         rogue.publish(m)
         attacker.spin(0.002)
-    assert any(s.status == 7 for s in attacker.states[-1000:]), 'the controller never reported the conflict'
+    assert any(s.status == 7 for s in attacker.states[-1000:]), (
+        'the controller never reported the conflict'
+    )
     attacker.node.destroy_publisher(rogue)
     _assert_recovered(running, attacker)
     assert f'2 publishers on {topic}' in running.log(guard)
     assert f'2 publishers on {topic}' in running.log('controller')
 
 
-@pytest.mark.parametrize('key, what', [('plant', 'time base jumped'), ('eso', 'the observer restarted'),
-                                       ('controller', '')])
+@pytest.mark.parametrize(
+    'key, what',
+    [('plant', 'time base jumped'), ('eso', 'the observer restarted'), ('controller', '')],
+)
 def test_a_restarted_node_resumes_control(loop, key, what):
     running, attacker = loop
     running.restart(key)
     end = time.monotonic() + 60.0
-    while time.monotonic() < end and running.procs[key].running and 'active' not in running.procs[key].output:
+    while (
+        time.monotonic() < end
+        and running.procs[key].running
+        and 'active' not in running.procs[key].output
+    ):
         attacker.spin(0.2)
     attacker.spin(2.0)
     _assert_recovered(running, attacker)

@@ -31,8 +31,12 @@ def case2(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[Path, obj
     root = tmp_path_factory.mktemp('case2')
     bags = {}
     for seed, name in enumerate(CONTROLLERS):
-        run = synthetic_run(duration_s=6.0, seed=seed, envelope=name == 'pp_nftsmc_eso',
-                            drop_joint=(2000, 3000) if name == 'pi' else ())
+        run = synthetic_run(
+            duration_s=6.0,
+            seed=seed,
+            envelope=name == 'pp_nftsmc_eso',
+            drop_joint=(2000, 3000) if name == 'pi' else (),
+        )
         bags[name] = (write_run_bag(root / name, run, controller=name), run)
     return bags
 
@@ -52,9 +56,12 @@ def test_figures_match_the_recorded_arrays(case2) -> None:
     assert m.max_abs_current_a == pytest.approx(np.max(np.abs(run.current)))
     assert m.rms_current_a == pytest.approx(_rms(run.current))
     assert m.bounds_kept and m.bounds_violations == 0
-    assert m.rms_velocity_estimate_error_rad_s == pytest.approx(_rms(run.est_velocity - run.truth_velocity))
+    assert m.rms_velocity_estimate_error_rad_s == pytest.approx(
+        _rms(run.est_velocity - run.truth_velocity)
+    )
     assert m.rms_disturbance_estimate_error_rad_s2 == pytest.approx(
-        _rms(run.est_disturbance - run.truth_disturbance))
+        _rms(run.est_disturbance - run.truth_disturbance)
+    )
     latency = run.latency_ns * 1e-9
     assert report.timing['command_latency']['p50_s'] == pytest.approx(np.percentile(latency, 50))
     assert report.timing['command_latency']['max_s'] == pytest.approx(latency.max())
@@ -76,29 +83,54 @@ def test_gaps_violations_and_missing_envelope(case2, tmp_path: Path) -> None:
 
 def test_without_truth_estimation_is_not_reported(tmp_path: Path) -> None:
     """A hardware bag (no plant/truth) is analysed; estimation figures are left out, not invented."""
-    path = write_run_bag(tmp_path / 'hw', synthetic_run(duration_s=1.0),
-                         topics=('joint', 'command', 'estimate', 'state'))
+    path = write_run_bag(
+        tmp_path / 'hw',
+        synthetic_run(duration_s=1.0),
+        topics=('joint', 'command', 'estimate', 'state'),
+    )
     report = analyze_run(load_run(path, quiet=True))
     assert report.metrics.rms_velocity_estimate_error_rad_s is None
     assert report.run.velocity_error is None
 
 
-def test_cli_case2_table_json_and_figures(case2, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+def test_cli_case2_table_json_and_figures(
+    case2, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
     """Four bags: one table column each, JSON with the same figures, the five PNG figures."""
     bags = [str(case2[name][0]) for name in CONTROLLERS]
     out = tmp_path / 'fig'
-    code = main([*bags, '--out', str(out), '--json', str(tmp_path / 'r.json'), '--steady-start', '4.5',
-                 '--msg-path', str(REPO / 'src')])
+    code = main(
+        [
+            *bags,
+            '--out',
+            str(out),
+            '--json',
+            str(tmp_path / 'r.json'),
+            '--steady-start',
+            '4.5',
+            '--msg-path',
+            str(REPO / 'src'),
+        ]
+    )
     captured = capsys.readouterr()
     assert code == 0, captured.err
     lines = captured.out.splitlines()
     assert lines[0].split() == ['bag', *CONTROLLERS]
     assert any(line.startswith('steady window') and '4.5-' in line for line in lines)
-    assert any(line.startswith('PPF bounds') and 'kept' in line and 'n/a (no envelope)' in line for line in lines)
+    assert any(
+        line.startswith('PPF bounds') and 'kept' in line and 'n/a (no envelope)' in line
+        for line in lines
+    )
     doc = json.loads((tmp_path / 'r.json').read_text())
     assert [d['controller'] for d in doc] == list(CONTROLLERS)
     assert doc[0]['metrics']['steady_window_s'][0] == 4.5
-    for name in ('position', 'tracking_error', 'velocity_estimate', 'disturbance_estimate', 'control_input'):
+    for name in (
+        'position',
+        'tracking_error',
+        'velocity_estimate',
+        'disturbance_estimate',
+        'control_input',
+    ):
         png = out / f'{name}.png'
         assert png.is_file() and png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
     assert 'bag_analyze pp_nftsmc_eso: 100 %' in captured.err
@@ -106,17 +138,26 @@ def test_cli_case2_table_json_and_figures(case2, tmp_path: Path, capsys: pytest.
 
 def _cli(*args: str) -> subprocess.CompletedProcess:
     """Run bag_analyze as a separate process."""
-    return subprocess.run([sys.executable, '-m', 'actuator_bag.analyze', '-q', *args],
-                          capture_output=True, text=True, timeout=120)
+    return subprocess.run(
+        [sys.executable, '-m', 'actuator_bag.analyze', '-q', *args],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
 
 
-@pytest.mark.parametrize('case', ['missing', 'not_a_bag', 'text_file', 'truncated', 'no_topics', 'interrupted'])
+@pytest.mark.parametrize(
+    'case', ['missing', 'not_a_bag', 'text_file', 'truncated', 'no_topics', 'interrupted']
+)
 def test_bad_input_is_one_line_error(case2, tmp_path: Path, case: str) -> None:
     """Bad input: one line naming the problem, exit code 1, never a traceback."""
     target = tmp_path / 'bag'
     expect = {
-        'missing': 'does not exist', 'not_a_bag': 'not a rosbag2 bag', 'text_file': 'not a bag',
-        'truncated': 'truncated', 'no_topics': 'no actuator_msgs/msg/ControllerState topic',
+        'missing': 'does not exist',
+        'not_a_bag': 'not a rosbag2 bag',
+        'text_file': 'not a bag',
+        'truncated': 'truncated',
+        'no_topics': 'no actuator_msgs/msg/ControllerState topic',
         'interrupted': 'bag_repair',
     }[case]
     if case == 'not_a_bag':
@@ -139,7 +180,9 @@ def test_bad_input_is_one_line_error(case2, tmp_path: Path, case: str) -> None:
     assert proc.returncode == 1
     assert 'Traceback' not in proc.stderr
     lines = proc.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith('bag_analyze: error: ') and expect in lines[0], proc.stderr
+    assert (
+        len(lines) == 1 and lines[0].startswith('bag_analyze: error: ') and expect in lines[0]
+    ), proc.stderr
     assert str(target) in lines[0]
 
 

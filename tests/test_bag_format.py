@@ -17,20 +17,41 @@ from rosbags.highlevel import AnyReader  # noqa: E402
 from rosbags.rosbag2 import Reader  # noqa: E402
 
 from actuator_bag.bag_format import (  # noqa: E402
-    BagWriter, QosProfile, TopicSpec, mcap_name, qos_from_yaml, topic_spec,
+    BagWriter,
+    QosProfile,
+    TopicSpec,
+    mcap_name,
+    qos_from_yaml,
+    topic_spec,
 )
 from actuator_bag.errors import BagWriteError, DefinitionError  # noqa: E402
 from actuator_bag.msgdefs import DefinitionSource, msg_dependencies, normalize_msgtype  # noqa: E402
 from test_bag_support import SOURCE, TOPICS, synthetic_run, write_run_bag  # noqa: E402
 
 V9_TOP_KEYS = {
-    'version', 'storage_identifier', 'duration', 'starting_time', 'message_count',
-    'topics_with_message_count', 'compression_format', 'compression_mode', 'relative_file_paths',
-    'files', 'custom_data', 'ros_distro',
+    'version',
+    'storage_identifier',
+    'duration',
+    'starting_time',
+    'message_count',
+    'topics_with_message_count',
+    'compression_format',
+    'compression_mode',
+    'relative_file_paths',
+    'files',
+    'custom_data',
+    'ros_distro',
 }
 QOS_KEYS = {
-    'history', 'depth', 'reliability', 'durability', 'deadline', 'lifespan', 'liveliness',
-    'liveliness_lease_duration', 'avoid_ros_namespace_conventions',
+    'history',
+    'depth',
+    'reliability',
+    'durability',
+    'deadline',
+    'lifespan',
+    'liveliness',
+    'liveliness_lease_duration',
+    'avoid_ros_namespace_conventions',
 }
 
 
@@ -59,7 +80,13 @@ def test_layout_and_metadata_v9(run_bag) -> None:
     seen = {}
     for entry in info['topics_with_message_count']:
         meta = entry['topic_metadata']
-        assert set(meta) == {'name', 'type', 'serialization_format', 'offered_qos_profiles', 'type_description_hash'}
+        assert set(meta) == {
+            'name',
+            'type',
+            'serialization_format',
+            'offered_qos_profiles',
+            'type_description_hash',
+        }
         assert meta['serialization_format'] == 'cdr'
         assert isinstance(meta['offered_qos_profiles'], list)
         assert set(meta['offered_qos_profiles'][0]) == QOS_KEYS
@@ -72,7 +99,9 @@ def test_mcap_records_match_rosbag2(run_bag) -> None:
     """Profile ros2, ros2msg schemas with dependencies, cdr channels with QoS + hash, rosbag2 record, zstd chunks."""
     path, _ = run_bag
     info = yaml.safe_load((path / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
-    topics = {e['topic_metadata']['name']: e['topic_metadata'] for e in info['topics_with_message_count']}
+    topics = {
+        e['topic_metadata']['name']: e['topic_metadata'] for e in info['topics_with_message_count']
+    }
     with open(path / mcap_name(path), 'rb') as bio:
         reader = mcap_reader.make_reader(bio)
         assert reader.get_header().profile == 'ros2'
@@ -91,7 +120,9 @@ def test_mcap_records_match_rosbag2(run_bag) -> None:
             assert channel.metadata['topic_type_hash'] == meta['type_description_hash']
             qos = yaml.safe_load(channel.metadata['offered_qos_profiles'])
             assert qos == meta['offered_qos_profiles']
-        assert summary.chunk_indexes and all(c.compression == 'zstd' for c in summary.chunk_indexes)
+        assert summary.chunk_indexes and all(
+            c.compression == 'zstd' for c in summary.chunk_indexes
+        )
         assert len(summary.chunk_indexes) > 1
         records = list(reader.iter_metadata())
     assert [r.name for r in records] == ['rosbag2']
@@ -105,12 +136,17 @@ def test_rosbags_reads_back_bytes_and_types(tmp_path: Path) -> None:
     written = []
     path = tmp_path / 'bytes'
     with BagWriter(path, chunk_size=2048) as writer:
-        handle = writer.add_topic(topic_spec('/ns/current_command', 'actuator_msgs/msg/CurrentCommand', SOURCE))
+        handle = writer.add_topic(
+            topic_spec('/ns/current_command', 'actuator_msgs/msg/CurrentCommand', SOURCE)
+        )
         for k in range(500):
             msg = types['actuator_msgs/msg/CurrentCommand'](
                 header=types['std_msgs/msg/Header'](
-                    stamp=types['builtin_interfaces/msg/Time'](sec=3, nanosec=k), frame_id='f'),
-                current_a=k * 0.01, safe_stop=k % 2 == 0)
+                    stamp=types['builtin_interfaces/msg/Time'](sec=3, nanosec=k), frame_id='f'
+                ),
+                current_a=k * 0.01,
+                safe_stop=k % 2 == 0,
+            )
             data = bytes(store.serialize_cdr(msg, 'actuator_msgs/msg/CurrentCommand'))
             writer.write(handle, 1_000 + k, data)
             written.append((1_000 + k, data))
@@ -184,14 +220,19 @@ def test_qos_yaml_round_trip() -> None:
     """A channel's offered_qos_profiles string parses back to the same profiles."""
     from actuator_bag.bag_format import qos_to_yaml
 
-    profiles = (QosProfile(reliability='best_effort', depth=1000), QosProfile(durability='transient_local'))
+    profiles = (
+        QosProfile(reliability='best_effort', depth=1000),
+        QosProfile(durability='transient_local'),
+    )
     assert qos_from_yaml(qos_to_yaml(profiles)) == profiles
     assert qos_from_yaml('') == ()
 
 
 def test_dependency_parsing() -> None:
     """Field types resolve to pkg/Type; primitives, arrays, bounds and comments are handled."""
-    text = 'std_msgs/Header header  # c\nfloat64[] a\nstring<=5 s\nOther[3] o\nuint8 K=1\n# Foo bar\n'
+    text = (
+        'std_msgs/Header header  # c\nfloat64[] a\nstring<=5 s\nOther[3] o\nuint8 K=1\n# Foo bar\n'
+    )
     assert msg_dependencies(text, 'pkg') == ['pkg/Other', 'std_msgs/Header']
 
 

@@ -43,13 +43,18 @@ def publish(argv: list[str]) -> int:
     parser = argparse.ArgumentParser()
     parser.add_argument('count', type=int)
     parser.add_argument('--reliability', choices=('reliable', 'best_effort'), default='reliable')
-    parser.add_argument('--clock', action='store_true', help='publish /clock and stamp in sim time')
+    parser.add_argument(
+        '--clock', action='store_true', help='publish /clock and stamp in sim time'
+    )
     args = parser.parse_args(argv)
     rclpy.init()
     node = Node('bag_test_publisher')
     qos = QoSProfile(
-        history=HistoryPolicy.KEEP_LAST, depth=args.count,
-        reliability=ReliabilityPolicy.RELIABLE if args.reliability == 'reliable' else ReliabilityPolicy.BEST_EFFORT,
+        history=HistoryPolicy.KEEP_LAST,
+        depth=args.count,
+        reliability=ReliabilityPolicy.RELIABLE
+        if args.reliability == 'reliable'
+        else ReliabilityPolicy.BEST_EFFORT,
     )
     pubs, msgs = [], []
     for topic, (module, name) in TOPICS.items():
@@ -107,8 +112,13 @@ N = 3000
 
 def _publisher(ros_env: dict, tmp_path: Path, *args: str) -> RosProcess:
     """Start the load publisher (this file as a script)."""
-    return RosProcess.python(Path(__file__), [str(a) for a in args], env=ros_env, log_dir=tmp_path / 'processes',
-                             name='load_publisher')
+    return RosProcess.python(
+        Path(__file__),
+        [str(a) for a in args],
+        env=ros_env,
+        log_dir=tmp_path / 'processes',
+        name='load_publisher',
+    )
 
 
 def _start_recorder(ros_process, out: Path, *extra: str) -> RosProcess:
@@ -133,7 +143,9 @@ def _stamps(path: Path) -> dict[str, list[int]]:
     out: dict[str, list[int]] = {}
     with AnyReader([path]) as reader:
         for conn, _, raw in reader.messages():
-            out.setdefault(conn.topic, []).append(reader.deserialize(raw, conn.msgtype).header.stamp.nanosec)
+            out.setdefault(conn.topic, []).append(
+                reader.deserialize(raw, conn.msgtype).header.stamp.nanosec
+            )
     return out
 
 
@@ -182,7 +194,10 @@ def test_sim_time_log_times_follow_clock(ros_env, ros_process, tmp_path: Path) -
             stamp = reader.deserialize(raw, conn.msgtype).header.stamp
             lags.append(log_ns - (stamp.sec * 1_000_000_000 + stamp.nanosec))
     assert len(lags) > 4000
-    assert all(-5_000_000 <= lag <= 2_000_000_000 for lag in lags), (min(lags), max(lags))  # wall time: ~1.8e18
+    assert all(-5_000_000 <= lag <= 2_000_000_000 for lag in lags), (
+        min(lags),
+        max(lags),
+    )  # wall time: ~1.8e18
 
 
 def test_sigterm_closes_the_bag(ros_env, ros_process, tmp_path: Path) -> None:
@@ -215,8 +230,13 @@ def test_sigkill_mid_run_then_repair(ros_env, ros_process, tmp_path: Path) -> No
     before = hashlib.sha256(mcap.read_bytes()).hexdigest()
     with pytest.raises(Exception):
         Reader(bag).open()
-    repair = RosProcess.installed('actuator_bag', 'bag_repair', [str(bag), '-o', str(tmp_path / 'fixed')],
-                                  env=ros_env, log_dir=tmp_path / 'processes')
+    repair = RosProcess.installed(
+        'actuator_bag',
+        'bag_repair',
+        [str(bag), '-o', str(tmp_path / 'fixed')],
+        env=ros_env,
+        log_dir=tmp_path / 'processes',
+    )
     assert repair.wait(60) == 0, repair.describe()
     assert repair.stdout.startswith('repaired ')
     messages = _bag_messages(tmp_path / 'fixed')
@@ -237,13 +257,21 @@ def test_replay_reproduces_the_recording(ros_env, ros_process, tmp_path: Path) -
     # Reliable on both ends: the comparison is about the bytes, and a reliable pair cannot drop
     # a message even when the machine is loaded (best effort may, by design).
     recorder2 = _start_recorder(ros_process, second, '--reliability', 'reliable')
-    player = ros_process('actuator_bag', 'player', [str(first), '--wait-for-subscribers', '1', '--start-delay', '2.0'])
+    player = ros_process(
+        'actuator_bag',
+        'player',
+        [str(first), '--wait-for-subscribers', '1', '--start-delay', '2.0'],
+    )
     assert player.wait(60) == 0, player.describe()
     assert 'player: done: published 10000 messages' in player.stdout
     time.sleep(0.5)
     assert recorder2.stop() == 0, recorder2.describe()
     a, b = _bag_messages(first), _bag_messages(second)
-    assert {k: len(v) for k, v in b.items()} == {k: len(v) for k, v in a.items()} == {t: 2000 for t in TOPICS}
+    assert (
+        {k: len(v) for k, v in b.items()}
+        == {k: len(v) for k, v in a.items()}
+        == {t: 2000 for t in TOPICS}
+    )
     assert all(a[t] == b[t] for t in TOPICS)
     with Reader(first) as ra, Reader(second) as rb:
         assert abs(rb.duration - ra.duration) < 0.2 * ra.duration
@@ -256,9 +284,22 @@ def test_player_rate_and_topic_selection(ros_env, ros_process, tmp_path: Path) -
     src = write_run_bag(tmp_path / 'src', synthetic_run(duration_s=2.0))
     out = tmp_path / 'sel'
     recorder = _start_recorder(ros_process, out)
-    player = ros_process('actuator_bag', 'player', [
-        str(src), '--rate', '2', '--topics', 'controller/state', '/joint_states',
-        '--wait-for-subscribers', '1', '--start-delay', '1.0'])
+    player = ros_process(
+        'actuator_bag',
+        'player',
+        [
+            str(src),
+            '--rate',
+            '2',
+            '--topics',
+            'controller/state',
+            '/joint_states',
+            '--wait-for-subscribers',
+            '1',
+            '--start-delay',
+            '1.0',
+        ],
+    )
     assert player.wait(60) == 0, player.describe()
     line = next(x for x in player.stdout.splitlines() if x.startswith('player: done'))
     seconds = float(line.split(' in ')[1].split(' s ')[0])
@@ -266,18 +307,26 @@ def test_player_rate_and_topic_selection(ros_env, ros_process, tmp_path: Path) -
     time.sleep(0.5)
     assert recorder.stop() == 0
     with Reader(out) as reader:
-        assert {c.topic: c.msgcount for c in reader.connections} == {'/controller/state': 2000, '/joint_states': 2000}
+        assert {c.topic: c.msgcount for c in reader.connections} == {
+            '/controller/state': 2000,
+            '/joint_states': 2000,
+        }
 
 
-@pytest.mark.parametrize('exe, args, expect', [
-    ('recorder', ['-o', '{tmp}'], 'exists already'),
-    ('recorder', ['--topics', 'mystery'], "topic 'mystery' is not a system topic"),
-    ('recorder', ['--topics', 'x:nowhere_msgs/msg/Nothing'], 'not installed'),
-    ('player', ['{tmp}/missing'], 'does not exist'),
-    ('player', ['{tmp}', '--rate', '0'], 'rate must be'),
-    ('player', [], 'no bag given'),
-])
-def test_bad_input_one_line_error(ros_process, tmp_path: Path, exe: str, args: list, expect: str) -> None:
+@pytest.mark.parametrize(
+    'exe, args, expect',
+    [
+        ('recorder', ['-o', '{tmp}'], 'exists already'),
+        ('recorder', ['--topics', 'mystery'], "topic 'mystery' is not a system topic"),
+        ('recorder', ['--topics', 'x:nowhere_msgs/msg/Nothing'], 'not installed'),
+        ('player', ['{tmp}/missing'], 'does not exist'),
+        ('player', ['{tmp}', '--rate', '0'], 'rate must be'),
+        ('player', [], 'no bag given'),
+    ],
+)
+def test_bad_input_one_line_error(
+    ros_process, tmp_path: Path, exe: str, args: list, expect: str
+) -> None:
     """Bad arguments: exit code 1, one error line naming the problem, no traceback."""
     proc = ros_process('actuator_bag', exe, [a.replace('{tmp}', str(tmp_path)) for a in args])
     assert proc.wait(30) == 1, proc.describe()
@@ -293,7 +342,10 @@ def test_player_unknown_topic(ros_process, tmp_path: Path) -> None:
     src = write_run_bag(tmp_path / 'src', synthetic_run(duration_s=0.1), topics=('state',))
     proc = ros_process('actuator_bag', 'player', [str(src), '--topics', 'nope'])
     assert proc.wait(30) == 1
-    assert 'no topic /nope; the bag has: /controller/state' in proc.stderr and 'Traceback' not in proc.stderr
+    assert (
+        'no topic /nope; the bag has: /controller/state' in proc.stderr
+        and 'Traceback' not in proc.stderr
+    )
 
 
 @pytest.mark.parametrize('exe', ['recorder', 'player', 'bag_repair', 'bag_analyze'])
@@ -312,7 +364,9 @@ def test_full_disk_stops_the_recorder_at_once(ros_env, ros_process, tmp_path: Pa
 
     bag = tmp_path / 'full'
     env = {**ros_env, FULL_AFTER_ENV: '60000'}
-    recorder = ros_process('actuator_bag', 'recorder', ['-o', str(bag), '--flush-interval', '0.2'], env=env)
+    recorder = ros_process(
+        'actuator_bag', 'recorder', ['-o', str(bag), '--flush-interval', '0.2'], env=env
+    )
     recorder.wait_for_output(r'recording \d+ topics', timeout=30)
     pub = _publisher(ros_env, tmp_path, 4000)
     pub.wait_for_output('publishing', timeout=30)
@@ -321,28 +375,40 @@ def test_full_disk_stops_the_recorder_at_once(ros_env, ros_process, tmp_path: Pa
     assert code == 1 and recorder.stopped_by == 'exit', recorder.describe()
     assert time.monotonic() - started < 4.0 and pub.running  # noticed mid-run, not at the end
     errors = [x for x in recorder.stderr.splitlines() if x.startswith('recorder: error:')]
-    assert len(errors) == 1 and 'No space left on device (ENOSPC)' in errors[0], recorder.describe()
+    assert len(errors) == 1 and 'No space left on device (ENOSPC)' in errors[0], (
+        recorder.describe()
+    )
     assert f'run bag_repair {bag}' in errors[0] and 'Traceback' not in recorder.stderr
     on_disk = int(errors[0].split('recording stopped: ')[1].split(' messages are on disk')[0])
     assert on_disk > 0 and (bag / mcap_name(bag)).stat().st_size <= 60000
     assert not (bag / 'metadata.yaml').exists()
     pub.stop()
-    repair = RosProcess.installed('actuator_bag', 'bag_repair', [str(bag), '-o', str(tmp_path / 'fixed'), '-q'],
-                                  env=ros_env, log_dir=tmp_path / 'processes')
+    repair = RosProcess.installed(
+        'actuator_bag',
+        'bag_repair',
+        [str(bag), '-o', str(tmp_path / 'fixed'), '-q'],
+        env=ros_env,
+        log_dir=tmp_path / 'processes',
+    )
     assert repair.wait(60) == 0, repair.describe()
     assert sum(len(v) for v in _bag_messages(tmp_path / 'fixed').values()) == on_disk
     assert '0 bytes not recoverable, 0 messages lost' in repair.stdout
 
 
-@pytest.mark.parametrize('args, names', [
-    (['-p', 'queue_depth:=many'], ['queue_depth']),
-    (['-p', 'queue_depth:=0'], ['queue_depth', '[1, ']),
-    (['-p', 'flush_interval:=true'], ['flush_interval']),
-    (['-p', 'reliability:=sometimes'], ['reliability', 'best_effort']),
-    (['-p', 'topics:=7'], ['topics']),
-    (['-p', 'queu_depth:=5'], ['queu_depth', "did you mean 'queue_depth'"]),
-])
-def test_recorder_refuses_bad_parameters(ros_process, tmp_path: Path, args: list, names: list) -> None:
+@pytest.mark.parametrize(
+    'args, names',
+    [
+        (['-p', 'queue_depth:=many'], ['queue_depth']),
+        (['-p', 'queue_depth:=0'], ['queue_depth', '[1, ']),
+        (['-p', 'flush_interval:=true'], ['flush_interval']),
+        (['-p', 'reliability:=sometimes'], ['reliability', 'best_effort']),
+        (['-p', 'topics:=7'], ['topics']),
+        (['-p', 'queu_depth:=5'], ['queu_depth', "did you mean 'queue_depth'"]),
+    ],
+)
+def test_recorder_refuses_bad_parameters(
+    ros_process, tmp_path: Path, args: list, names: list
+) -> None:
     """A wrong type, a value out of range or a misspelled name: one line naming it, exit 2, no bag created."""
     bag = tmp_path / 'never'
     proc = ros_process('actuator_bag', 'recorder', ['-o', str(bag), '--ros-args', *args])
@@ -355,8 +421,15 @@ def test_recorder_refuses_bad_parameters(ros_process, tmp_path: Path, args: list
 def test_recorder_allows_unknown_parameters_when_asked(ros_process, tmp_path: Path) -> None:
     """allow_unknown_parameters:=true turns a misspelled name into a warning; the recorder runs."""
     bag = tmp_path / 'ok'
-    proc = _start_recorder(ros_process, bag, '--ros-args', '-p', 'allow_unknown_parameters:=true',
-                           '-p', 'queu_depth:=5')
+    proc = _start_recorder(
+        ros_process,
+        bag,
+        '--ros-args',
+        '-p',
+        'allow_unknown_parameters:=true',
+        '-p',
+        'queu_depth:=5',
+    )
     assert proc.stop() == 0 and (bag / 'metadata.yaml').is_file(), proc.describe()
     assert 'queu_depth' in proc.stderr + proc.stdout
 
@@ -365,11 +438,21 @@ def test_recorder_parameters_have_descriptions(rclpy_context, tmp_path: Path) ->
     """Every parameter the recorder declares has a description (ros2 param describe shows it)."""
     from actuator_bag.recorder_node import RecorderNode, build_parser
 
-    node = RecorderNode(build_parser().parse_args(['-o', str(tmp_path / 'desc')]), context=rclpy_context)
+    node = RecorderNode(
+        build_parser().parse_args(['-o', str(tmp_path / 'desc')]), context=rclpy_context
+    )
     try:
         names = sorted(n for n in node._parameters if n != 'use_sim_time')  # noqa: SLF001
-        assert {'topics', 'record_clock', 'output', 'queue_depth', 'reliability', 'flush_interval', 'chunk_size',
-                'allow_unknown_parameters'} <= set(names)
+        assert {
+            'topics',
+            'record_clock',
+            'output',
+            'queue_depth',
+            'reliability',
+            'flush_interval',
+            'chunk_size',
+            'allow_unknown_parameters',
+        } <= set(names)
         assert all(d.description for d in node.describe_parameters(names)), names
         node.finish()
     finally:
@@ -382,12 +465,23 @@ def test_entry_point_quiets_signals_before_rclpy(exe: str) -> None:
     import importlib.metadata
     import subprocess
 
-    scripts = {ep.name: ep.value for ep in importlib.metadata.distribution('actuator_bag').entry_points
-               if ep.group == 'console_scripts'}
+    scripts = {
+        ep.name: ep.value
+        for ep in importlib.metadata.distribution('actuator_bag').entry_points
+        if ep.group == 'console_scripts'
+    }
     assert scripts[exe] == f'actuator_bag.entry:{exe}'
-    probe = subprocess.run([sys.executable, '-c', 'import sys, actuator_bag.entry; '
-                            'print(sorted(m for m in sys.modules if m.split(".")[0] in ("rclpy", "rosbags")))'],
-                           capture_output=True, text=True, timeout=60)
+    probe = subprocess.run(
+        [
+            sys.executable,
+            '-c',
+            'import sys, actuator_bag.entry; '
+            'print(sorted(m for m in sys.modules if m.split(".")[0] in ("rclpy", "rosbags")))',
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert probe.returncode == 0 and probe.stdout.strip() == '[]', probe.stdout + probe.stderr
 
 
@@ -402,9 +496,13 @@ def _catches(pid: int, signum: int) -> bool:
 
 
 @pytest.mark.parametrize('exe', ['recorder', 'player'])
-@pytest.mark.parametrize('delay, signame', [(0.0, 'SIGINT'), (0.1, 'SIGTERM'), (0.3, 'SIGINT'), (0.6, 'SIGTERM'),
-                                            (None, 'SIGINT')])
-def test_signal_at_any_moment_exits_0(ros_process, tmp_path: Path, exe: str, delay, signame: str) -> None:
+@pytest.mark.parametrize(
+    'delay, signame',
+    [(0.0, 'SIGINT'), (0.1, 'SIGTERM'), (0.3, 'SIGINT'), (0.6, 'SIGTERM'), (None, 'SIGINT')],
+)
+def test_signal_at_any_moment_exits_0(
+    ros_process, tmp_path: Path, exe: str, delay, signame: str
+) -> None:
     """SIGINT/SIGTERM during imports, start-up or the run: exit 0, no traceback; an opened bag is closed."""
     from test_bag_support import synthetic_run, write_run_bag
 
@@ -415,12 +513,16 @@ def test_signal_at_any_moment_exits_0(ros_process, tmp_path: Path, exe: str, del
         args = [str(write_run_bag(tmp_path / 'src', synthetic_run(duration_s=0.2))), '--loop']
     proc = ros_process('actuator_bag', exe, args)
     if delay is None:
-        proc.wait_for_output(r'recording \d+ topics' if exe == 'recorder' else 'playing', timeout=30)
+        proc.wait_for_output(
+            r'recording \d+ topics' if exe == 'recorder' else 'playing', timeout=30
+        )
     else:
         # Delays count from the entry point (it handles SIGTERM from its first line: Python alone does not);
         # the interpreter start and console-script wrapper before it are not this code's.
         deadline = time.monotonic() + 20
-        while not _catches(proc.pid, signal.SIGTERM) and proc.running and time.monotonic() < deadline:
+        while (
+            not _catches(proc.pid, signal.SIGTERM) and proc.running and time.monotonic() < deadline
+        ):
             time.sleep(0.005)
         time.sleep(delay)
     proc.popen.send_signal(getattr(signal, signame))

@@ -46,8 +46,11 @@ def _interrupted_bag(path: Path, flushed: int, unflushed: int) -> list[bytes]:
     for k in range(flushed + unflushed):
         msg = types[MSGTYPE](
             header=types['std_msgs/msg/Header'](
-                stamp=types['builtin_interfaces/msg/Time'](sec=1, nanosec=k), frame_id=''),
-            current_a=0.001 * k, safe_stop=False)
+                stamp=types['builtin_interfaces/msg/Time'](sec=1, nanosec=k), frame_id=''
+            ),
+            current_a=0.001 * k,
+            safe_stop=False,
+        )
         data = bytes(store.serialize_cdr(msg, MSGTYPE))
         payloads.append(data)
         writer.write(handle, 10_000 + k, data)
@@ -94,7 +97,7 @@ def test_truncated_anywhere_stops_cleanly(tmp_path: Path, cut: int) -> None:
     result = repair_bag(bag, tmp_path / 'fixed', quiet=True)
     got = _read(tmp_path / 'fixed')
     assert 0 < len(got) <= 600
-    assert got == payloads[:len(got)]
+    assert got == payloads[: len(got)]
     assert 'truncated' in result.line() or 'without MCAP footer' in result.line()
 
 
@@ -105,7 +108,7 @@ def test_corrupt_chunk_keeps_what_precedes_it(tmp_path: Path) -> None:
     mcap = bag / mcap_name(bag)
     data = bytearray(mcap.read_bytes())
     middle = len(data) // 2
-    data[middle:middle + 64] = bytes(64)
+    data[middle : middle + 64] = bytes(64)
     mcap.write_bytes(bytes(data))
     result = repair_bag(bag, tmp_path / 'fixed', quiet=True)
     got = _read(tmp_path / 'fixed')
@@ -125,8 +128,11 @@ def test_complete_bag_repairs_to_same_messages(tmp_path: Path) -> None:
         handle = writer.add_topic(topic_spec('/current_command', MSGTYPE, SOURCE))
         msg = store.types[MSGTYPE](
             header=store.types['std_msgs/msg/Header'](
-                stamp=store.types['builtin_interfaces/msg/Time'](sec=1, nanosec=2), frame_id=''),
-            current_a=1.0, safe_stop=True)
+                stamp=store.types['builtin_interfaces/msg/Time'](sec=1, nanosec=2), frame_id=''
+            ),
+            current_a=1.0,
+            safe_stop=True,
+        )
         for k in range(20):
             writer.write(handle, k, bytes(store.serialize_cdr(msg, MSGTYPE)))
     result = repair_bag(src, tmp_path / 'again', quiet=True)
@@ -139,7 +145,10 @@ def test_complete_bag_repairs_to_same_messages(tmp_path: Path) -> None:
 def _cli(*args: str) -> subprocess.CompletedProcess:
     """Run bag_repair as a separate process."""
     return subprocess.run(
-        [sys.executable, '-m', 'actuator_bag.repair', *args], capture_output=True, text=True, timeout=120,
+        [sys.executable, '-m', 'actuator_bag.repair', *args],
+        capture_output=True,
+        text=True,
+        timeout=120,
     )
 
 
@@ -155,13 +164,19 @@ def test_cli_reports_progress_and_result(tmp_path: Path) -> None:
     assert (tmp_path / 'r.json').is_file()
 
 
-@pytest.mark.parametrize('case', ['missing', 'not_mcap', 'empty_dir', 'output_exists', 'header_only', 'empty_file'])
+@pytest.mark.parametrize(
+    'case', ['missing', 'not_mcap', 'empty_dir', 'output_exists', 'header_only', 'empty_file']
+)
 def test_cli_bad_input_is_one_line_error(tmp_path: Path, case: str) -> None:
     """Each kind of bad input gives one line naming the problem and exit code 1, never a traceback."""
     target = tmp_path / 'bag'
     expect = {
-        'missing': 'does not exist', 'not_mcap': 'not an MCAP file', 'empty_dir': 'no .mcap file',
-        'output_exists': 'exists already', 'header_only': 'nothing recoverable', 'empty_file': 'not an MCAP file',
+        'missing': 'does not exist',
+        'not_mcap': 'not an MCAP file',
+        'empty_dir': 'no .mcap file',
+        'output_exists': 'exists already',
+        'header_only': 'nothing recoverable',
+        'empty_file': 'not an MCAP file',
     }[case]
     if case == 'not_mcap':
         target.mkdir()
@@ -183,7 +198,9 @@ def test_cli_bad_input_is_one_line_error(tmp_path: Path, case: str) -> None:
     assert proc.returncode == 1
     assert 'Traceback' not in proc.stderr
     lines = [x for x in proc.stderr.splitlines() if not x.startswith('bag_repair ')]
-    assert len(lines) == 1 and lines[0].startswith('bag_repair: error: ') and expect in lines[0], proc.stderr
+    assert len(lines) == 1 and lines[0].startswith('bag_repair: error: ') and expect in lines[0], (
+        proc.stderr
+    )
 
 
 def test_help() -> None:
@@ -233,7 +250,9 @@ def _chunk_messages(path: Path) -> list[int]:
     return counts
 
 
-def _damaged(tmp_path: Path, damage) -> tuple[Path, list[bytes], list[tuple[int, int, int]], list[int]]:
+def _damaged(
+    tmp_path: Path, damage
+) -> tuple[Path, list[bytes], list[tuple[int, int, int]], list[int]]:
     """An interrupted bag of 6+ chunks damaged by damage(data, chunks): its payloads, records, messages per chunk."""
     bag = tmp_path / 'run'
     payloads = _interrupted_bag(bag, flushed=600, unflushed=0)
@@ -248,16 +267,17 @@ def _damaged(tmp_path: Path, damage) -> tuple[Path, list[bytes], list[tuple[int,
 
 def test_resyncs_after_a_chunk_failing_its_crc(tmp_path: Path) -> None:
     """Chunk 3 fails its CRC: exactly it is skipped, later chunks recovered, its range and message count reported."""
+
     def damage(data: bytearray, chunks: list) -> None:
         _, start, end = chunks[2]
         middle = (start + end) // 2
-        data[middle:middle + 16] = bytes(b ^ 0x5A for b in data[middle:middle + 16])
+        data[middle : middle + 16] = bytes(b ^ 0x5A for b in data[middle : middle + 16])
 
     bag, payloads, records, per_chunk = _damaged(tmp_path, damage)
     _, start, end = [r for r in records if r[0] == CHUNK][2]
     before = sum(per_chunk[:2])
     result = repair_bag(bag, tmp_path / 'fixed', quiet=True)
-    assert _read(tmp_path / 'fixed') == payloads[:before] + payloads[before + per_chunk[2]:]
+    assert _read(tmp_path / 'fixed') == payloads[:before] + payloads[before + per_chunk[2] :]
     scan = result.scans[0]
     assert [(x.start, x.end, x.messages) for x in scan.losses] == [(start, end, per_chunk[2])]
     assert 'CRC' in scan.losses[0].reason.upper() and result.messages_lost == per_chunk[2]
@@ -268,7 +288,12 @@ def test_resyncs_after_a_chunk_failing_its_crc(tmp_path: Path) -> None:
     doc = json.loads((tmp_path / 'r.json').read_text())
     assert doc['bytes_lost'] == end - start and doc['messages_lost'] == per_chunk[2]
     loss = doc['scans'][0]['losses'][0]
-    assert (loss['start'], loss['end'], loss['bytes'], loss['messages']) == (start, end, end - start, per_chunk[2])
+    assert (loss['start'], loss['end'], loss['bytes'], loss['messages']) == (
+        start,
+        end,
+        end - start,
+        per_chunk[2],
+    )
 
 
 def test_resyncs_after_garbage_over_a_record_header(tmp_path: Path) -> None:
@@ -277,15 +302,20 @@ def test_resyncs_after_garbage_over_a_record_header(tmp_path: Path) -> None:
 
     def damage(data: bytearray, chunks: list) -> None:
         start = chunks[3][1]
-        data[start:start + 48] = bytes(rng.randrange(256) for _ in range(48))
+        data[start : start + 48] = bytes(rng.randrange(256) for _ in range(48))
 
     bag, payloads, records, per_chunk = _damaged(tmp_path, damage)
     chunk_pos = [i for i, r in enumerate(records) if r[0] == CHUNK][3]
-    start, resume = records[chunk_pos][1], records[chunk_pos + 1][1]  # its first message index record
+    start, resume = (
+        records[chunk_pos][1],
+        records[chunk_pos + 1][1],
+    )  # its first message index record
     before = sum(per_chunk[:3])
     result = repair_bag(bag, tmp_path / 'fixed', quiet=True)
-    assert _read(tmp_path / 'fixed') == payloads[:before] + payloads[before + per_chunk[3]:]
-    assert [(x.start, x.end, x.messages) for x in result.scans[0].losses] == [(start, resume, None)]
+    assert _read(tmp_path / 'fixed') == payloads[:before] + payloads[before + per_chunk[3] :]
+    assert [(x.start, x.end, x.messages) for x in result.scans[0].losses] == [
+        (start, resume, None)
+    ]
     assert result.messages_lost is None and 'an unknown number of messages lost' in result.line()
     assert result.scans[0].as_dict()['losses'][0]['messages'] == 'unknown'
 
@@ -297,33 +327,45 @@ def test_garbage_inserted_between_chunks_loses_no_message(tmp_path: Path) -> Non
 
     def damage(data: bytearray, chunks: list) -> None:
         inserted.append(chunks[5][1])
-        data[chunks[5][1]:chunks[5][1]] = bytes(rng.randrange(256) for _ in range(1000))
+        data[chunks[5][1] : chunks[5][1]] = bytes(rng.randrange(256) for _ in range(1000))
 
     bag, payloads, _, _ = _damaged(tmp_path, damage)
     result = repair_bag(bag, tmp_path / 'fixed', quiet=True)
     assert _read(tmp_path / 'fixed') == payloads
-    assert [(x.start, x.end) for x in result.scans[0].losses] == [(inserted[0], inserted[0] + 1000)]
+    assert [(x.start, x.end) for x in result.scans[0].losses] == [
+        (inserted[0], inserted[0] + 1000)
+    ]
     assert result.bytes_lost == 1000
 
 
 def test_two_damaged_places_are_both_reported(tmp_path: Path) -> None:
     """A CRC-failing chunk and a damaged header later: both ranges reported, the counted messages as a lower bound."""
+
     def damage(data: bytearray, chunks: list) -> None:
         _, start, end = chunks[1]
         data[(start + end) // 2] ^= 0xFF
-        data[chunks[4][1]:chunks[4][1] + 30] = b'\xff' * 30
+        data[chunks[4][1] : chunks[4][1] + 30] = b'\xff' * 30
 
     bag, payloads, records, per_chunk = _damaged(tmp_path, damage)
     chunks = [r for r in records if r[0] == CHUNK]
     result = repair_bag(bag, tmp_path / 'fixed', quiet=True)
     losses = result.scans[0].losses
-    assert [(x.start, x.messages) for x in losses] == [(chunks[1][1], per_chunk[1]), (chunks[4][1], None)]
+    assert [(x.start, x.messages) for x in losses] == [
+        (chunks[1][1], per_chunk[1]),
+        (chunks[4][1], None),
+    ]
     assert losses[0].end == chunks[1][2]
     assert f'at least {per_chunk[1]} messages lost' in result.line()
-    assert result.as_dict()['messages_lost'] == 'unknown' and result.as_dict()['messages_lost_counted'] == per_chunk[1]
+    assert (
+        result.as_dict()['messages_lost'] == 'unknown'
+        and result.as_dict()['messages_lost_counted'] == per_chunk[1]
+    )
     first, second = sum(per_chunk[:1]), sum(per_chunk[:4])
-    assert _read(tmp_path / 'fixed') == (payloads[:first] + payloads[first + per_chunk[1]:second]
-                                         + payloads[second + per_chunk[4]:])
+    assert _read(tmp_path / 'fixed') == (
+        payloads[:first]
+        + payloads[first + per_chunk[1] : second]
+        + payloads[second + per_chunk[4] :]
+    )
 
 
 def test_complete_bag_with_a_corrupt_chunk_reaches_its_end(tmp_path: Path) -> None:
@@ -335,8 +377,11 @@ def test_complete_bag_with_a_corrupt_chunk_reaches_its_end(tmp_path: Path) -> No
         for k in range(400):
             msg = store.types[MSGTYPE](
                 header=store.types['std_msgs/msg/Header'](
-                    stamp=store.types['builtin_interfaces/msg/Time'](sec=1, nanosec=k), frame_id=''),
-                current_a=float(k), safe_stop=False)
+                    stamp=store.types['builtin_interfaces/msg/Time'](sec=1, nanosec=k), frame_id=''
+                ),
+                current_a=float(k),
+                safe_stop=False,
+            )
             writer.write(handle, k, bytes(store.serialize_cdr(msg, MSGTYPE)))
     mcap = src / mcap_name(src)
     per_chunk = _chunk_messages(mcap)
@@ -353,6 +398,7 @@ def test_complete_bag_with_a_corrupt_chunk_reaches_its_end(tmp_path: Path) -> No
 
 def test_adjacent_corrupt_chunks_are_each_counted(tmp_path: Path) -> None:
     """Chunks 2 and 3 both fail their CRC: two exact ranges, each with its own message count, the rest recovered."""
+
     def damage(data: bytearray, chunks: list) -> None:
         for _, start, end in chunks[2:4]:
             data[(start + end) // 2] ^= 0xFF
@@ -361,10 +407,15 @@ def test_adjacent_corrupt_chunks_are_each_counted(tmp_path: Path) -> None:
     chunks = [r for r in records if r[0] == CHUNK]
     result = repair_bag(bag, tmp_path / 'fixed', quiet=True)
     assert [(x.start, x.end, x.messages) for x in result.scans[0].losses] == [
-        (chunks[2][1], chunks[2][2], per_chunk[2]), (chunks[3][1], chunks[3][2], per_chunk[3])]
+        (chunks[2][1], chunks[2][2], per_chunk[2]),
+        (chunks[3][1], chunks[3][2], per_chunk[3]),
+    ]
     assert result.messages_lost == per_chunk[2] + per_chunk[3]
     before = sum(per_chunk[:2])
-    assert _read(tmp_path / 'fixed') == payloads[:before] + payloads[before + per_chunk[2] + per_chunk[3]:]
+    assert (
+        _read(tmp_path / 'fixed')
+        == payloads[:before] + payloads[before + per_chunk[2] + per_chunk[3] :]
+    )
 
 
 def test_closed_bag_with_its_first_chunk_lost_keeps_the_rest(tmp_path: Path) -> None:
@@ -377,8 +428,11 @@ def test_closed_bag_with_its_first_chunk_lost_keeps_the_rest(tmp_path: Path) -> 
         for k in range(300):
             msg = store.types[MSGTYPE](
                 header=store.types['std_msgs/msg/Header'](
-                    stamp=store.types['builtin_interfaces/msg/Time'](sec=1, nanosec=k), frame_id=''),
-                current_a=float(k), safe_stop=False)
+                    stamp=store.types['builtin_interfaces/msg/Time'](sec=1, nanosec=k), frame_id=''
+                ),
+                current_a=float(k),
+                safe_stop=False,
+            )
             payloads.append(bytes(store.serialize_cdr(msg, MSGTYPE)))
             writer.write(handle, k, payloads[-1])
     mcap = src / mcap_name(src)
@@ -388,12 +442,13 @@ def test_closed_bag_with_its_first_chunk_lost_keeps_the_rest(tmp_path: Path) -> 
     data[(first[1] + first[2]) // 2] ^= 0xFF
     mcap.write_bytes(bytes(data))
     result = repair_bag(src, tmp_path / 'again', quiet=True)
-    assert _read(tmp_path / 'again') == payloads[per_chunk[0]:]
+    assert _read(tmp_path / 'again') == payloads[per_chunk[0] :]
     assert result.scans[0].without_channel == 0 and result.messages_lost == per_chunk[0]
 
 
 def test_lost_channel_definition_is_reported(tmp_path: Path) -> None:
     """Interrupted bag, chunk defining the channel lost: later messages are counted as without channel, not hidden."""
+
     def damage(data: bytearray, chunks: list) -> None:
         _, start, end = chunks[0]
         data[(start + end) // 2] ^= 0xFF
@@ -401,5 +456,8 @@ def test_lost_channel_definition_is_reported(tmp_path: Path) -> None:
     bag, _, _, per_chunk = _damaged(tmp_path, damage)
     with pytest.raises(RepairError, match='nothing recoverable') as err:
         repair_bag(bag, tmp_path / 'fixed', quiet=True)
-    assert f'{600 - per_chunk[0]} messages of intact chunks whose channel was defined in a lost part' in str(err.value)
+    assert (
+        f'{600 - per_chunk[0]} messages of intact chunks whose channel was defined in a lost part'
+        in str(err.value)
+    )
     assert not (tmp_path / 'fixed').exists()

@@ -33,21 +33,31 @@ MSGTYPE = 'actuator_msgs/msg/CurrentCommand'
 
 def _tree(root: Path) -> dict[str, str]:
     """Every file under root (relative path -> SHA-256), to show a folder was not touched."""
-    return {str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
-            for p in sorted(root.rglob('*')) if p.is_file()}
+    return {
+        str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(root.rglob('*'))
+        if p.is_file()
+    }
 
 
 def _run(module: str, *args: str, env: dict | None = None) -> subprocess.CompletedProcess:
     """Run a bag tool (python -m actuator_bag.<module>) as a separate process."""
-    return subprocess.run([sys.executable, '-m', f'actuator_bag.{module}', *args], capture_output=True, text=True,
-                          timeout=120, env=env)
+    return subprocess.run(
+        [sys.executable, '-m', f'actuator_bag.{module}', *args],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=env,
+    )
 
 
 def _one_error(proc: subprocess.CompletedProcess, prog: str, expect: str) -> None:
     """The process printed exactly one error line containing ``expect`` and no traceback."""
     assert 'Traceback' not in proc.stderr, proc.stderr
     lines = [x for x in proc.stderr.splitlines() if not x.startswith(f'{prog} ')]
-    assert len(lines) == 1 and lines[0].startswith(f'{prog}: error: ') and expect in lines[0], proc.stderr
+    assert len(lines) == 1 and lines[0].startswith(f'{prog}: error: ') and expect in lines[0], (
+        proc.stderr
+    )
 
 
 @pytest.fixture(scope='module')
@@ -64,8 +74,13 @@ def _interrupted(path: Path, count: int = 300) -> Path:
     writer.open()
     handle = writer.add_topic(topic_spec('/current_command', MSGTYPE, SOURCE))
     for k in range(count):
-        msg = types[MSGTYPE](header=types['std_msgs/msg/Header'](
-            stamp=types['builtin_interfaces/msg/Time'](sec=1, nanosec=k), frame_id=''), current_a=0.1, safe_stop=False)
+        msg = types[MSGTYPE](
+            header=types['std_msgs/msg/Header'](
+                stamp=types['builtin_interfaces/msg/Time'](sec=1, nanosec=k), frame_id=''
+            ),
+            current_a=0.1,
+            safe_stop=False,
+        )
         writer.write(handle, 1000 + k, bytes(store.serialize_cdr(msg, MSGTYPE)))
     writer.flush()
     writer.abort()
@@ -73,9 +88,22 @@ def _interrupted(path: Path, count: int = 300) -> Path:
 
 
 # ------------------------------------------------------------------------------ bag_analyze
-@pytest.mark.parametrize('case', ['json_inside', 'json_is_mcap', 'json_links_to_input', 'out_inside', 'out_is_bag',
-                                  'out_figure_links_to_input', 'json_folder_missing', 'json_under_a_file'])
-def test_analyze_refuses_output_locations_before_work(bag: Path, tmp_path: Path, case: str) -> None:
+@pytest.mark.parametrize(
+    'case',
+    [
+        'json_inside',
+        'json_is_mcap',
+        'json_links_to_input',
+        'out_inside',
+        'out_is_bag',
+        'out_figure_links_to_input',
+        'json_folder_missing',
+        'json_under_a_file',
+    ],
+)
+def test_analyze_refuses_output_locations_before_work(
+    bag: Path, tmp_path: Path, case: str
+) -> None:
     """bag_analyze refuses an output inside/over an input bag (links too) or unwritable: one line, exit 2, no work."""
     before = _tree(bag)
     mcap = bag / mcap_name(bag)
@@ -92,9 +120,17 @@ def test_analyze_refuses_output_locations_before_work(bag: Path, tmp_path: Path,
         'json_links_to_input': ('--json', link, 'would overwrite the input file'),
         'out_inside': ('--out', bag / 'figures', 'inside the source bag'),
         'out_is_bag': ('--out', bag, 'inside the source bag'),
-        'out_figure_links_to_input': ('--out', tmp_path / 'figs', 'would overwrite the input file'),
+        'out_figure_links_to_input': (
+            '--out',
+            tmp_path / 'figs',
+            'would overwrite the input file',
+        ),
         'json_folder_missing': ('--json', tmp_path / 'nowhere' / 'r.json', 'does not exist'),
-        'json_under_a_file': ('--json', tmp_path / 'afile' / 'r.json', 'does not exist or is not a folder'),
+        'json_under_a_file': (
+            '--json',
+            tmp_path / 'afile' / 'r.json',
+            'does not exist or is not a folder',
+        ),
     }[case]
     proc = _run('analyze', str(bag), option, str(target))
     assert proc.returncode == 2, proc.stderr
@@ -105,13 +141,23 @@ def test_analyze_refuses_output_locations_before_work(bag: Path, tmp_path: Path,
 
 def test_analyze_writes_next_to_a_bag(bag: Path, tmp_path: Path) -> None:
     """Outputs beside the bag (a sibling folder, a file in the bag's parent) are accepted."""
-    proc = _run('analyze', '-q', str(bag), '--json', str(tmp_path / 'r.json'), '--out', str(tmp_path / 'figs'))
+    proc = _run(
+        'analyze',
+        '-q',
+        str(bag),
+        '--json',
+        str(tmp_path / 'r.json'),
+        '--out',
+        str(tmp_path / 'figs'),
+    )
     assert proc.returncode == 0, proc.stderr
     assert (tmp_path / 'r.json').is_file() and (tmp_path / 'figs' / 'position.png').is_file()
 
 
 # ------------------------------------------------------------------------------- bag_repair
-@pytest.mark.parametrize('case', ['out_inside', 'out_is_bag', 'json_inside', 'out_under_a_file', 'json_is_mcap'])
+@pytest.mark.parametrize(
+    'case', ['out_inside', 'out_is_bag', 'json_inside', 'out_under_a_file', 'json_is_mcap']
+)
 def test_repair_refuses_output_locations_before_work(tmp_path: Path, case: str) -> None:
     """bag_repair refuses -o/--json inside or over the bag, or an -o it cannot create: exit 2, no work, nothing made."""
     src = _interrupted(tmp_path / 'run')
@@ -121,7 +167,10 @@ def test_repair_refuses_output_locations_before_work(tmp_path: Path, case: str) 
         'out_inside': (['-o', str(src / 'fixed')], 'inside the source bag'),
         'out_is_bag': (['-o', str(src)], 'inside the source bag'),
         'json_inside': (['--json', str(src / 'r.json')], 'inside the source bag'),
-        'out_under_a_file': (['-o', str(tmp_path / 'afile' / 'fixed')], 'is not a writable folder'),
+        'out_under_a_file': (
+            ['-o', str(tmp_path / 'afile' / 'fixed')],
+            'is not a writable folder',
+        ),
         'json_is_mcap': (['--json', str(src / mcap_name(src))], 'would overwrite the input file'),
     }[case]
     proc = _run('repair', str(src), *args)
@@ -135,7 +184,15 @@ def test_repair_refuses_output_locations_before_work(tmp_path: Path, case: str) 
 def test_repair_report_may_go_into_the_new_output(tmp_path: Path) -> None:
     """--json inside the -o folder repair creates is accepted (that folder is new, not a source)."""
     src = _interrupted(tmp_path / 'run')
-    proc = _run('repair', '-q', str(src), '-o', str(tmp_path / 'fixed'), '--json', str(tmp_path / 'fixed' / 'r.json'))
+    proc = _run(
+        'repair',
+        '-q',
+        str(src),
+        '-o',
+        str(tmp_path / 'fixed'),
+        '--json',
+        str(tmp_path / 'fixed' / 'r.json'),
+    )
     assert proc.returncode == 0, proc.stderr
     assert json.loads((tmp_path / 'fixed' / 'r.json').read_text())['messages_lost'] == 0
 
@@ -162,8 +219,9 @@ def test_repair_of_a_file_in_its_bag_folder_writes_beside_the_folder(tmp_path: P
 
 # -------------------------------------------------------------------------------- full disk
 @pytest.mark.parametrize('limit', [5000, 12345, 20000])
-def test_writer_full_disk_is_one_error_and_leaves_a_repairable_file(tmp_path: Path, limit: int,
-                                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+def test_writer_full_disk_is_one_error_and_leaves_a_repairable_file(
+    tmp_path: Path, limit: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """Disk full mid-write: one BagIOError (ENOSPC), file cut to a record end, repair recovers exactly `durable`."""
     monkeypatch.setenv(FULL_AFTER_ENV, str(limit))
     store = SOURCE.typestore([MSGTYPE])
@@ -173,9 +231,13 @@ def test_writer_full_disk_is_one_error_and_leaves_a_repairable_file(tmp_path: Pa
     handle = writer.add_topic(topic_spec('/current_command', MSGTYPE, SOURCE))
     with pytest.raises(BagIOError) as err:
         for k in range(100_000):
-            msg = types[MSGTYPE](header=types['std_msgs/msg/Header'](
-                stamp=types['builtin_interfaces/msg/Time'](sec=1, nanosec=k), frame_id=''),
-                current_a=0.5, safe_stop=False)
+            msg = types[MSGTYPE](
+                header=types['std_msgs/msg/Header'](
+                    stamp=types['builtin_interfaces/msg/Time'](sec=1, nanosec=k), frame_id=''
+                ),
+                current_a=0.5,
+                safe_stop=False,
+            )
             writer.write(handle, 1000 + k, bytes(store.serialize_cdr(msg, MSGTYPE)))
     assert err.value.errno == errno.ENOSPC and 'No space left on device' in str(err.value)
     assert not writer.is_open and 0 < writer.durable <= sum(writer.counts)
@@ -191,7 +253,9 @@ def test_writer_full_disk_is_one_error_and_leaves_a_repairable_file(tmp_path: Pa
     assert result.summary.message_count == writer.durable and result.bytes_lost == 0
 
 
-def test_writer_that_cannot_start_leaves_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_writer_that_cannot_start_leaves_nothing(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """A disk full from the first byte: open() raises BagIOError and removes the folders it created."""
     monkeypatch.setenv(FULL_AFTER_ENV, '0')
     with pytest.raises(BagIOError, match='No space left on device'):
@@ -206,7 +270,9 @@ def test_repair_onto_a_full_disk(tmp_path: Path, limit: str) -> None:
     (src / 'metadata.yaml').unlink()
     before = _tree(src)
     env = {**os.environ, FULL_AFTER_ENV: limit}
-    proc = _run('repair', '-q', str(src), '-o', str(tmp_path / 'new' / 'deeper' / 'fixed'), env=env)
+    proc = _run(
+        'repair', '-q', str(src), '-o', str(tmp_path / 'new' / 'deeper' / 'fixed'), env=env
+    )
     assert proc.returncode == 1, proc.stderr
     _one_error(proc, 'bag_repair', 'No space left on device (ENOSPC)')
     assert not (tmp_path / 'new').exists()

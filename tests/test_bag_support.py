@@ -79,9 +79,18 @@ def synthetic_run(
     keep = np.ones(n, dtype=bool)
     keep[list(drop_joint)] = False
     return SyntheticRun(
-        t=t, stamps_ns=stamps, reference=reference, error=error, lower=lower, upper=upper,
-        current=current, truth_velocity=truth_velocity, truth_disturbance=truth_disturbance,
-        est_velocity=est_velocity, est_disturbance=est_disturbance, latency_ns=latency,
+        t=t,
+        stamps_ns=stamps,
+        reference=reference,
+        error=error,
+        lower=lower,
+        upper=upper,
+        current=current,
+        truth_velocity=truth_velocity,
+        truth_disturbance=truth_disturbance,
+        est_velocity=est_velocity,
+        est_disturbance=est_disturbance,
+        latency_ns=latency,
         joint_stamps_ns=stamps[keep],
     )
 
@@ -99,12 +108,17 @@ def write_run_bag(
     time_t, header_t = types['builtin_interfaces/msg/Time'], types['std_msgs/msg/Header']
 
     def header(ns: int):
-        return header_t(stamp=time_t(sec=int(ns // 1_000_000_000), nanosec=int(ns % 1_000_000_000)), frame_id='')
+        return header_t(
+            stamp=time_t(sec=int(ns // 1_000_000_000), nanosec=int(ns % 1_000_000_000)),
+            frame_id='',
+        )
 
     nan = float('nan')
     with BagWriter(path, chunk_size=chunk_size) as writer:
         handles = {
-            k: writer.add_topic(topic_spec(TOPICS[k][0], TOPICS[k][1], SOURCE, [QosProfile(depth=100)]))
+            k: writer.add_topic(
+                topic_spec(TOPICS[k][0], TOPICS[k][1], SOURCE, [QosProfile(depth=100)])
+            )
             for k in topics
         }
         joint_stamps = set(run.joint_stamps_ns.tolist())
@@ -116,35 +130,103 @@ def write_run_bag(
 
         for k, ns in enumerate(run.stamps_ns.tolist()):
             if ns in joint_stamps:
-                put('joint', ns + 50_000, types['sensor_msgs/msg/JointState'](
-                    header=header(ns), name=['joint'], position=np.array([run.reference[k] + run.error[k]]),
-                    velocity=np.empty(0), effort=np.empty(0)))
-            put('estimate', ns + 60_000, types['actuator_msgs/msg/StateEstimate'](
-                header=header(ns), position_rad=run.reference[k] + run.error[k],
-                velocity_rad_s=run.est_velocity[k], disturbance_rad_s2=run.est_disturbance[k],
-                input_stamp=time_t(sec=0, nanosec=0), input_position_rad=0.0, input_current_a=0.0, input_current_gain=0.0,
-                initial=k == 0, current_substituted=False, missing_current_count=0))
-            put('command', ns + int(run.latency_ns[k]), types['actuator_msgs/msg/CurrentCommand'](
-                header=header(ns), current_a=run.current[k], safe_stop=False))
-            put('state', ns + int(run.latency_ns[k]) + 1000, types['actuator_msgs/msg/ControllerState'](
-                header=header(ns), controller_name=controller,
-                reference_position_rad=run.reference[k], reference_velocity_rad_s=0.0,
-                reference_acceleration_rad_s2=0.0, measured_position_rad=run.reference[k] + run.error[k],
-                estimated_velocity_rad_s=run.est_velocity[k], estimated_disturbance_rad_s2=run.est_disturbance[k],
-                error_rad=run.error[k], rho_rad=run.upper[k], lower_bound_rad=run.lower[k],
-                upper_bound_rad=run.upper[k], bounds_kept=bool(run.lower[k] < run.error[k] < run.upper[k]),
-                z1=nan, z2_rad_s=nan, alpha_rad_s=nan, alpha_dot_rad_s2=nan, sigma_rad_s=nan,
-                u_eq_rad_s2=nan, u_sw_rad_s2=nan, u_b_rad_s2=nan, proportional_a=nan, integral_a=nan,
-                current_unlimited_a=run.current[k], current_a=run.current[k], saturated=False,
-                status=0, compute_time_s=1e-5, late_samples=0, missed_samples=0))
-            put('truth', ns + 40_000, types['actuator_msgs/msg/PlantTruth'](
-                header=header(ns), position_rad=run.reference[k] + run.error[k],
-                velocity_rad_s=run.truth_velocity[k], acceleration_rad_s2=0.0, current_a=run.current[k],
-                disturbance_rad_s2=run.truth_disturbance[k], parametric_rad_s2=0.0, stirring_rad_s2=0.0,
-                external_rad_s2=0.0, seal_rad_s2=0.0, stirring_torque_nm=0.0, external_torque_nm=0.0,
-                seal_torque_nm=0.0, inertia_kg_m2=0.0, torque_constant_nm_a=0.0,
-                viscous_coefficient_nm_s_rad=0.0, viscosity_pa_s=0.0, pressure_pa=0.0, temperature_degc=0.0,
-                brake_engaged=False))
+                put(
+                    'joint',
+                    ns + 50_000,
+                    types['sensor_msgs/msg/JointState'](
+                        header=header(ns),
+                        name=['joint'],
+                        position=np.array([run.reference[k] + run.error[k]]),
+                        velocity=np.empty(0),
+                        effort=np.empty(0),
+                    ),
+                )
+            put(
+                'estimate',
+                ns + 60_000,
+                types['actuator_msgs/msg/StateEstimate'](
+                    header=header(ns),
+                    position_rad=run.reference[k] + run.error[k],
+                    velocity_rad_s=run.est_velocity[k],
+                    disturbance_rad_s2=run.est_disturbance[k],
+                    input_stamp=time_t(sec=0, nanosec=0),
+                    input_position_rad=0.0,
+                    input_current_a=0.0,
+                    input_current_gain=0.0,
+                    initial=k == 0,
+                    current_substituted=False,
+                    missing_current_count=0,
+                ),
+            )
+            put(
+                'command',
+                ns + int(run.latency_ns[k]),
+                types['actuator_msgs/msg/CurrentCommand'](
+                    header=header(ns), current_a=run.current[k], safe_stop=False
+                ),
+            )
+            put(
+                'state',
+                ns + int(run.latency_ns[k]) + 1000,
+                types['actuator_msgs/msg/ControllerState'](
+                    header=header(ns),
+                    controller_name=controller,
+                    reference_position_rad=run.reference[k],
+                    reference_velocity_rad_s=0.0,
+                    reference_acceleration_rad_s2=0.0,
+                    measured_position_rad=run.reference[k] + run.error[k],
+                    estimated_velocity_rad_s=run.est_velocity[k],
+                    estimated_disturbance_rad_s2=run.est_disturbance[k],
+                    error_rad=run.error[k],
+                    rho_rad=run.upper[k],
+                    lower_bound_rad=run.lower[k],
+                    upper_bound_rad=run.upper[k],
+                    bounds_kept=bool(run.lower[k] < run.error[k] < run.upper[k]),
+                    z1=nan,
+                    z2_rad_s=nan,
+                    alpha_rad_s=nan,
+                    alpha_dot_rad_s2=nan,
+                    sigma_rad_s=nan,
+                    u_eq_rad_s2=nan,
+                    u_sw_rad_s2=nan,
+                    u_b_rad_s2=nan,
+                    proportional_a=nan,
+                    integral_a=nan,
+                    current_unlimited_a=run.current[k],
+                    current_a=run.current[k],
+                    saturated=False,
+                    status=0,
+                    compute_time_s=1e-5,
+                    late_samples=0,
+                    missed_samples=0,
+                ),
+            )
+            put(
+                'truth',
+                ns + 40_000,
+                types['actuator_msgs/msg/PlantTruth'](
+                    header=header(ns),
+                    position_rad=run.reference[k] + run.error[k],
+                    velocity_rad_s=run.truth_velocity[k],
+                    acceleration_rad_s2=0.0,
+                    current_a=run.current[k],
+                    disturbance_rad_s2=run.truth_disturbance[k],
+                    parametric_rad_s2=0.0,
+                    stirring_rad_s2=0.0,
+                    external_rad_s2=0.0,
+                    seal_rad_s2=0.0,
+                    stirring_torque_nm=0.0,
+                    external_torque_nm=0.0,
+                    seal_torque_nm=0.0,
+                    inertia_kg_m2=0.0,
+                    torque_constant_nm_a=0.0,
+                    viscous_coefficient_nm_s_rad=0.0,
+                    viscosity_pa_s=0.0,
+                    pressure_pa=0.0,
+                    temperature_degc=0.0,
+                    brake_engaged=False,
+                ),
+            )
         run.counts = writer.summary().counts
     return path
 
@@ -155,6 +237,9 @@ def test_synthetic_bag_counts(tmp_path: Path) -> None:
     write_run_bag(tmp_path / 'run', run)
     n = run.t.size
     assert run.counts == {
-        '/joint_states': n - 2, '/current_command': n, '/eso/estimate': n, '/controller/state': n,
+        '/joint_states': n - 2,
+        '/current_command': n,
+        '/eso/estimate': n,
+        '/controller/state': n,
         '/plant/truth': n,
     }

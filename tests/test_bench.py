@@ -1,4 +1,10 @@
-"""The benchmark's figure computations on synthetic arrays, its input checks, and one short sim-time run."""
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""The benchmark's figures, input checks and one short sim-time run.
+
+The figure computations run on synthetic arrays.
+"""
 
 from __future__ import annotations
 
@@ -29,7 +35,9 @@ def test_period_gap_of_2_5_ms_counts_once():
 
 
 def test_period_of_exactly_2_ms_is_not_over():
-    assert bench.period_figures(ticks_ns([1000.0, 2000.0, 1000.0]), PERIOD_NS)['periods_over_2x'] == 0
+    assert (
+        bench.period_figures(ticks_ns([1000.0, 2000.0, 1000.0]), PERIOD_NS)['periods_over_2x'] == 0
+    )
 
 
 def test_period_p99_deviation_is_of_the_absolute_deviation():
@@ -46,26 +54,30 @@ def test_period_of_too_few_ticks_is_missing():
 
 def test_latency_percentiles_and_late_count():
     latency_ns = np.arange(1, 101, dtype=np.int64) * 10_000  # 10 us .. 1000 us
-    latency_ns[-1] = 1_500_000                                  # one command 1.5 ms after its stamp
+    latency_ns[-1] = 1_500_000  # one command 1.5 ms after its stamp
     f = bench.latency_figures(latency_ns, PERIOD_NS)
-    assert f['latency_p50_us'] == pytest.approx(505.0)          # linear interpolation between 500 and 510
+    assert f['latency_p50_us'] == pytest.approx(505.0)  # linear interpolation between 500 and 510
     assert f['latency_p99_us'] == pytest.approx(990.0 + 0.01 * (1500.0 - 990.0))
     assert f['latency_max_us'] == pytest.approx(1500.0)
     assert f['latency_over_period'] == 1
 
 
 def test_missed_samples_from_stamp_gaps():
-    stamps = np.array([0, 1, 2, 5, 6, 6, 8], dtype=np.int64) * PERIOD_NS  # a repeated stamp is no gap
+    stamps = (
+        np.array([0, 1, 2, 5, 6, 6, 8], dtype=np.int64) * PERIOD_NS
+    )  # a repeated stamp is no gap
     assert bench.missed_samples(stamps, PERIOD_NS) == 3
 
 
 def test_held_command_fractions():
     stamps = np.arange(11, dtype=np.int64) * PERIOD_NS
-    age = np.array([0, 1, 1, 1, 1, 1, 2, 2, 3, 0, 0])           # sample 0 is left out; ages of samples 1..10
+    age = np.array(
+        [0, 1, 1, 1, 1, 1, 2, 2, 3, 0, 0]
+    )  # sample 0 is left out; ages of samples 1..10
     held = stamps - age * PERIOD_NS
     held[0] = -1
-    held[9] = -1                                                # no command held (timeout)
-    held[10] = stamps[10] - 1                                   # not on the grid: odd
+    held[9] = -1  # no command held (timeout)
+    held[10] = stamps[10] - 1  # not on the grid: odd
     f = bench.held_command_fractions(stamps, held, PERIOD_NS)
     assert f['held_same_pct'] == pytest.approx(50.0)
     assert f['held_next_pct'] == pytest.approx(20.0)
@@ -77,7 +89,7 @@ def test_held_command_fractions():
 
 def test_sim_speed_from_plant_span():
     stamps = 1_000_000_000 + np.arange(1001, dtype=np.int64) * PERIOD_NS  # 1 s simulated
-    wall = 5_000 + np.arange(1001, dtype=np.int64) * 250_000                # in 0.25 s of wall time
+    wall = 5_000 + np.arange(1001, dtype=np.int64) * 250_000  # in 0.25 s of wall time
     f = bench.plant_figures(stamps, wall, PERIOD_NS)
     assert f['speed_x'] == pytest.approx(4.0)
     assert f['plant_interval_p50_us'] == pytest.approx(250.0)
@@ -85,10 +97,10 @@ def test_sim_speed_from_plant_span():
 
 def test_latency_breakdown_joins_by_stamp():
     stamps = np.arange(5, dtype=np.int64) * PERIOD_NS
-    published = stamps + 20_000                                 # plant 20 us late
-    ctrl_stamps = stamps[1:]                                    # controller never saw sample 0
-    received = ctrl_stamps + 20_000 + 100_000                   # 100 us transport
-    latency = np.full(4, 20_000 + 100_000 + 30_000)             # 30 us in the controller
+    published = stamps + 20_000  # plant 20 us late
+    ctrl_stamps = stamps[1:]  # controller never saw sample 0
+    received = ctrl_stamps + 20_000 + 100_000  # 100 us transport
+    latency = np.full(4, 20_000 + 100_000 + 30_000)  # 30 us in the controller
     f = bench.latency_breakdown(stamps, published, ctrl_stamps, received, latency)
     assert f['plant_late_p99_us'] == pytest.approx(20.0)
     assert f['transport_p99_us'] == pytest.approx(100.0)
@@ -96,21 +108,32 @@ def test_latency_breakdown_joins_by_stamp():
 
 
 def test_coverage_of_the_controller_log():
-    f = bench.coverage_figures(np.arange(500, dtype=np.int64) * PERIOD_NS, np.arange(2000, dtype=np.int64) * PERIOD_NS)
+    f = bench.coverage_figures(
+        np.arange(500, dtype=np.int64) * PERIOD_NS, np.arange(2000, dtype=np.int64) * PERIOD_NS
+    )
     assert f['controlled_pct'] == pytest.approx(25.0)
     assert f['controlled_span_s'] == pytest.approx(0.499)
 
 
 def test_log_figures(tmp_path):
     (tmp_path / 'plant.stderr').write_text('[INFO] running under SCHED_FIFO priority 50\n')
-    (tmp_path / 'controller.stderr').write_text('[ERROR] |error| 0.501 rad beyond following_error_limit_rad 0.5: '
-                                             'safe stop latched (0 A) until restart\n')
+    (tmp_path / 'controller.stderr').write_text(
+        '[ERROR] |error| 0.501 rad beyond following_error_limit_rad 0.5: '
+        'safe stop latched (0 A) until restart\n'
+    )
     assert bench.log_figures(tmp_path) == {'fifo_nodes': 1.0, 'safe_stop': 1.0}
 
 
 def test_eso_figures():
-    f = bench.eso_figures({'steps': 200, 'exact_pairs': 150, 'substituted_pairs': 50, 'repaired_pairs': 40,
-                           'refused_inputs': 2})
+    f = bench.eso_figures(
+        {
+            'steps': 200,
+            'exact_pairs': 150,
+            'substituted_pairs': 50,
+            'repaired_pairs': 40,
+            'refused_inputs': 2,
+        }
+    )
     assert f['eso_exact_pct'] == pytest.approx(75.0)
     assert f['eso_exact_or_repaired_pct'] == pytest.approx(95.0) and f['eso_repaired'] == 40
     assert f['eso_substituted'] == 50 and f['eso_refused'] == 2
@@ -118,8 +141,10 @@ def test_eso_figures():
 
 
 def test_error_ratios():
-    r = bench.error_ratios({'max_steady_error_rad': 1.1e-3, 'rms_error_rad': 4e-4},
-                           {'max_steady_error_rad': 1e-3, 'rms_error_rad': float('nan')})
+    r = bench.error_ratios(
+        {'max_steady_error_rad': 1.1e-3, 'rms_error_rad': 4e-4},
+        {'max_steady_error_rad': 1e-3, 'rms_error_rad': float('nan')},
+    )
     assert r['error_ratio_max_steady'] == pytest.approx(1.1)
     assert r['error_ratio_rms'] is None
 
@@ -136,9 +161,15 @@ def test_spread_and_verdict():
 
 
 def test_table_lines_carry_target_and_verdict():
-    rows = [bench.Row('latency_p99_us', 'latency p99', 'us', '.1f', bench.Target('<= 300', high=300.0)),
-            bench.Row('absent', 'absent figure', 'us')]
-    table = bench.format_table([('realtime', rows, [{'latency_p99_us': 250.0}, {'latency_p99_us': 400.0}])])
+    rows = [
+        bench.Row(
+            'latency_p99_us', 'latency p99', 'us', '.1f', bench.Target('<= 300', high=300.0)
+        ),
+        bench.Row('absent', 'absent figure', 'us'),
+    ]
+    table = bench.format_table(
+        [('realtime', rows, [{'latency_p99_us': 250.0}, {'latency_p99_us': 400.0}])]
+    )
     line = next(line for line in table.splitlines() if 'latency p99' in line)
     assert '325.0' in line and '250.0' in line and '400.0' in line and 'MISS 1/2' in line
     assert 'absent figure' not in table
@@ -155,8 +186,17 @@ def test_offline_speed_is_positive():
     assert bench.offline_speed('case2_pp_nftsmc_eso', 10, 0.02) > 0
 
 
-@pytest.mark.parametrize('argv', [['--scenario', 'no_such_scenario'], ['--duration', '0'], ['--duration', '4000'],
-                                  ['--repeats', '0'], ['--rt-priority', '100'], ['--floor-s', '0.5']])
+@pytest.mark.parametrize(
+    'argv',
+    [
+        ['--scenario', 'no_such_scenario'],
+        ['--duration', '0'],
+        ['--duration', '4000'],
+        ['--repeats', '0'],
+        ['--rt-priority', '100'],
+        ['--floor-s', '0.5'],
+    ],
+)
 def test_bad_input_is_one_line_and_exit_2(argv, capsys, tmp_path):
     assert bench.main([*argv, '--out', str(tmp_path)]) == 2
     err = capsys.readouterr().err
@@ -182,9 +222,28 @@ def test_steal_share_between_two_readings():
 
 def test_short_sim_run_end_to_end(ros_env, tmp_path):
     out = tmp_path / 'bench'
-    proc = subprocess.run([sys.executable, '-m', 'actuator_tools.bench', '--duration', '2', '--repeats', '1',
-                           '--skip-offline', '--modes', 'sim', '--floor-s', '2', '--out', str(out)],
-                          env=ros_env, capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            '-m',
+            'actuator_tools.bench',
+            '--duration',
+            '2',
+            '--repeats',
+            '1',
+            '--skip-offline',
+            '--modes',
+            'sim',
+            '--floor-s',
+            '2',
+            '--out',
+            str(out),
+        ],
+        env=ros_env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert 'speed: sim s / wall s' in proc.stdout and '>= 3' in proc.stdout
     assert '[bench] run 1/1' in proc.stdout

@@ -1,4 +1,10 @@
-"""CiA 402 driver, ROS-free units: scaling, state machine coding, bus load, parameter checks (fast, no processes)."""
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""CiA 402 driver, ROS-free units.
+
+scaling, state machine coding, bus load, parameter checks (fast, no processes).
+"""
 
 import math
 
@@ -11,8 +17,13 @@ from actuator_cia402.config import DriverParameters, SimDriveSettings
 from actuator_cia402.launch_spec import driver_arguments, driver_parameters
 from actuator_cia402.scaling import Scaling
 
-SCALING = Scaling(encoder_counts_per_rev=4096, gear_ratio=100.0, rated_torque_nm=1.05, rated_current_a=10.0,
-                  torque_constant_nm_a=0.105)
+SCALING = Scaling(
+    encoder_counts_per_rev=4096,
+    gear_ratio=100.0,
+    rated_torque_nm=1.05,
+    rated_current_a=10.0,
+    torque_constant_nm_a=0.105,
+)
 
 
 # --- scaling ---------------------------------------------------------------------------------
@@ -34,16 +45,21 @@ def test_one_joint_revolution_is_counts_times_gear_ratio():
 def test_current_torque_round_trip_is_within_one_per_mille(current_a):
     """0x6071/0x6078: A -> per mille -> A is within half a per mille."""
     permille = SCALING.current_to_torque_permille(current_a)
-    assert abs(SCALING.torque_permille_to_current(permille) - current_a) <= 0.5 * SCALING.current_resolution_a + 1e-12
-    assert SCALING.permille_to_current(SCALING.current_to_permille(current_a)) == pytest.approx(current_a, abs=0.005)
+    assert (
+        abs(SCALING.torque_permille_to_current(permille) - current_a)
+        <= 0.5 * SCALING.current_resolution_a + 1e-12
+    )
+    assert SCALING.permille_to_current(SCALING.current_to_permille(current_a)) == pytest.approx(
+        current_a, abs=0.005
+    )
 
 
 def test_rated_current_is_one_thousand_per_mille_of_rated_torque():
     """k_t I_rated = T_rated is 1000 per mille; INTEGER16 clipping."""
-    assert SCALING.current_to_torque_permille(10.0) == 1000      # k_t * 10 A = 1.05 N m = T_rated
+    assert SCALING.current_to_torque_permille(10.0) == 1000  # k_t * 10 A = 1.05 N m = T_rated
     assert SCALING.current_to_torque_permille(limits.CURRENT_LIMIT_A) == 2000
     assert SCALING.torque_permille_to_nm(1000) == pytest.approx(1.05)
-    assert SCALING.current_to_torque_permille(1e6) == 32767      # clipped to INTEGER16
+    assert SCALING.current_to_torque_permille(1e6) == 32767  # clipped to INTEGER16
 
 
 def test_scaling_refuses_nonphysical_constants():
@@ -63,21 +79,33 @@ def test_statusword_encoding_decodes_to_the_same_state(state):
 
 
 def test_statusword_bits_of_cia402_examples():
-    """Statusword values as drives report them (remote bit 9, voltage bit 4) decode to their states."""
+    """Statusword values as drives report them decode to their states.
+
+    With the remote bit 9 and the voltage bit 4 set.
+    """
     assert p.decode_state(0x0250) is p.State.SWITCH_ON_DISABLED
     assert p.decode_state(0x0231) is p.State.READY_TO_SWITCH_ON
     assert p.decode_state(0x0233) is p.State.SWITCHED_ON
     assert p.decode_state(0x0237) is p.State.OPERATION_ENABLED
     assert p.decode_state(0x0217) is p.State.QUICK_STOP_ACTIVE
     assert p.decode_state(0x0218) is p.State.FAULT
-    assert p.decode_state(0x0001) is None                           # undefined pattern
+    assert p.decode_state(0x0001) is None  # undefined pattern
     assert p.encode_statusword(p.State.FAULT) & p.SW_FAULT
 
 
-@pytest.mark.parametrize('controlword, command', [(0x06, p.Command.SHUTDOWN), (0x07, p.Command.SWITCH_ON),
-                                                  (0x0F, p.Command.ENABLE_OPERATION), (0x00, p.Command.DISABLE_VOLTAGE),
-                                                  (0x02, p.Command.QUICK_STOP), (0x80, p.Command.FAULT_RESET),
-                                                  (0x1F, p.Command.ENABLE_OPERATION), (0x0B, p.Command.QUICK_STOP)])
+@pytest.mark.parametrize(
+    'controlword, command',
+    [
+        (0x06, p.Command.SHUTDOWN),
+        (0x07, p.Command.SWITCH_ON),
+        (0x0F, p.Command.ENABLE_OPERATION),
+        (0x00, p.Command.DISABLE_VOLTAGE),
+        (0x02, p.Command.QUICK_STOP),
+        (0x80, p.Command.FAULT_RESET),
+        (0x1F, p.Command.ENABLE_OPERATION),
+        (0x0B, p.Command.QUICK_STOP),
+    ],
+)
 def test_controlword_decoding(controlword, command):
     """Controlword bit patterns to CiA 402 commands, extra bits ignored."""
     assert p.decode_command(controlword) is command
@@ -90,9 +118,12 @@ def test_enable_sequence_reaches_operation_enabled_and_quick_stop_and_fault_rese
         state = p.next_state(state, command)
     assert state is p.State.OPERATION_ENABLED
     assert p.next_state(state, p.Command.QUICK_STOP) is p.State.QUICK_STOP_ACTIVE
-    assert p.next_state(state, p.Command.SWITCH_ON) is p.State.SWITCHED_ON         # disable operation
+    assert p.next_state(state, p.Command.SWITCH_ON) is p.State.SWITCHED_ON  # disable operation
     assert p.next_state(state, p.Command.DISABLE_VOLTAGE) is p.State.SWITCH_ON_DISABLED
-    assert p.next_state(p.State.SWITCH_ON_DISABLED, p.Command.ENABLE_OPERATION) is p.State.SWITCH_ON_DISABLED
+    assert (
+        p.next_state(p.State.SWITCH_ON_DISABLED, p.Command.ENABLE_OPERATION)
+        is p.State.SWITCH_ON_DISABLED
+    )
     assert p.next_state(p.State.FAULT, p.Command.ENABLE_OPERATION) is p.State.FAULT
     assert p.next_state(p.State.FAULT, p.Command.FAULT_RESET) is p.State.SWITCH_ON_DISABLED
 
@@ -119,7 +150,7 @@ def test_one_joint_at_1_khz_is_38_percent_of_1_mbit_and_76_percent_of_500_kbit()
     assert check_bus_load(1_000_000, 1e-3) is None
     warning = check_bus_load(500_000, 1e-3)
     assert warning and '76.0 %' in warning
-    assert cycle_load(500_000, 2e-3).fraction == pytest.approx(0.38)   # 500 Hz on 500 kbit/s
+    assert cycle_load(500_000, 2e-3).fraction == pytest.approx(0.38)  # 500 Hz on 500 kbit/s
     assert cycle_load(1_000_000, 1e-3, joints=2).fraction == pytest.approx(0.705)
 
 
@@ -135,21 +166,27 @@ def test_impossible_bus_load_is_refused_with_the_figure_in_one_line():
 def test_driver_defaults_are_the_project_limits():
     """Defaults come from actuator_core.limits; COB-IDs from the pre-defined connection set."""
     cfg = DriverParameters()
-    assert cfg.current_limit_a == limits.CURRENT_LIMIT_A and cfg.command_timeout_s == limits.COMMAND_TIMEOUT_S
+    assert (
+        cfg.current_limit_a == limits.CURRENT_LIMIT_A
+        and cfg.command_timeout_s == limits.COMMAND_TIMEOUT_S
+    )
     assert cfg.sync_period_s == limits.SAMPLE_TIME_S
     assert cfg.cob_ids == (0x201, 0x181, 0x281)
     assert DriverParameters(node_id=5, rpdo_cob_id=0x300).cob_ids == (0x300, 0x185, 0x285)
 
 
-@pytest.mark.parametrize('build, words', [
-    (lambda: DriverParameters(interface='pcan'), 'interface'),
-    (lambda: DriverParameters(interface='socketcan', simulated_drive=True), 'simulated_drive'),
-    (lambda: DriverParameters(bitrate=125_000), '304.0 %'),
-    (lambda: DriverParameters(node_id=0), 'node_id'),
-    (lambda: DriverParameters(sync_period_s=0.0), 'sync_period_s'),
-    (lambda: SimDriveSettings(working_condition='moon'), 'working_condition'),
-    (lambda: SimDriveSettings(fault_kind='meltdown'), 'fault_kind'),
-])
+@pytest.mark.parametrize(
+    'build, words',
+    [
+        (lambda: DriverParameters(interface='pcan'), 'interface'),
+        (lambda: DriverParameters(interface='socketcan', simulated_drive=True), 'simulated_drive'),
+        (lambda: DriverParameters(bitrate=125_000), '304.0 %'),
+        (lambda: DriverParameters(node_id=0), 'node_id'),
+        (lambda: DriverParameters(sync_period_s=0.0), 'sync_period_s'),
+        (lambda: SimDriveSettings(working_condition='moon'), 'working_condition'),
+        (lambda: SimDriveSettings(fault_kind='meltdown'), 'fault_kind'),
+    ],
+)
 def test_driver_parameter_values_and_combinations_are_refused(build, words):
     """Out-of-range values and impossible combinations raise ValueError naming them."""
     with pytest.raises(ValueError, match=words):
@@ -157,12 +194,19 @@ def test_driver_parameter_values_and_combinations_are_refused(build, words):
 
 
 def test_launch_spec_gives_checked_parameters_for_a_closed_loop_run():
-    """driver_parameters for the lead: simulated or socketcan, checked, as command-line arguments."""
+    """driver_parameters for the lead.
+
+    Simulated or socketcan, checked, as command-line arguments.
+    """
     params = driver_parameters(simulated=True, working_condition='lab', stop_after_s=3.0)
     assert params['simulated_drive'] is True and params['interface'] == 'virtual'
     assert params['sim.working_condition'] == 'lab' and params['autostart'] is True
     hardware = driver_parameters(simulated=False)
-    assert hardware['interface'] == 'socketcan' and hardware['channel'] == 'can0' and 'sim.working_condition' not in hardware
+    assert (
+        hardware['interface'] == 'socketcan'
+        and hardware['channel'] == 'can0'
+        and 'sim.working_condition' not in hardware
+    )
     args = driver_arguments(params)
     assert args[0] == '--ros-args' and '-p' in args and 'simulated_drive:=true' in args
     with pytest.raises(ValueError, match='kbit/s'):
@@ -180,26 +224,43 @@ def test_pdo_codec_packs_the_eds_tpdo1_layout_like_canopen_and_refuses_unaligned
 
     from actuator_cia402.pdo_codec import PdoCodec
 
-    eds = Path(__file__).resolve().parent.parent / 'src' / 'actuator_cia402' / 'eds' / 'sim_joint_drive.eds'
+    eds = (
+        Path(__file__).resolve().parent.parent
+        / 'src'
+        / 'actuator_cia402'
+        / 'eds'
+        / 'sim_joint_drive.eds'
+    )
     node = canopen.LocalNode(1, str(eds))
     tpdo1 = node.tpdo[1]
-    for index in (p.STATUSWORD, p.POSITION_ACTUAL, p.TORQUE_ACTUAL):    # the EDS default mapping of TPDO1
+    for index in (
+        p.STATUSWORD,
+        p.POSITION_ACTUAL,
+        p.TORQUE_ACTUAL,
+    ):  # the EDS default mapping of TPDO1
         tpdo1.add_variable(index)
     tpdo1.cob_id = 0x181
     codec = PdoCodec.compile(tpdo1)
     assert codec is not None and codec.cob_id == 0x181 and codec.struct.size == 8
     data = codec.pack((0x0237, -123456, -42))
     tpdo1.data = bytearray(data)
-    assert (tpdo1[p.STATUSWORD].raw, tpdo1[p.POSITION_ACTUAL].raw, tpdo1[p.TORQUE_ACTUAL].raw) == (0x0237, -123456, -42)
+    assert (tpdo1[p.STATUSWORD].raw, tpdo1[p.POSITION_ACTUAL].raw, tpdo1[p.TORQUE_ACTUAL].raw) == (
+        0x0237,
+        -123456,
+        -42,
+    )
     assert codec.unpack(data) == (0x0237, -123456, -42)
     tpdo1.clear()
-    tpdo1.add_variable(p.STATUSWORD, length=12)                 # a 12-bit field: not byte aligned
+    tpdo1.add_variable(p.STATUSWORD, length=12)  # a 12-bit field: not byte aligned
     assert PdoCodec.compile(tpdo1) is None
 
 
 # --- offline drive model ---------------------------------------------------------------------
 def test_offline_drive_model_without_effects_is_the_offline_core_and_the_sync_delay_costs_most():
-    """The drive model reduces to the offline core; one SYNC of delay costs most, two give a limit cycle."""
+    """The drive model reduces to the offline core.
+
+    One SYNC of delay costs most, two give a limit cycle.
+    """
     import numpy as np
 
     from actuator_cia402.offline import run, window_errors
@@ -214,13 +275,16 @@ def test_offline_drive_model_without_effects_is_the_offline_core_and_the_sync_de
     quantised = window_errors(run(duration_s=2.0, delay_syncs=0, tau_s=0.0))
     drive = window_errors(run(duration_s=2.0))
     late = window_errors(run(duration_s=2.0, delay_syncs=2))
-    assert window_errors(bare)[0] < drive[0] < late[0]            # the bus delay, not quantisation, costs
+    assert window_errors(bare)[0] < drive[0] < late[0]  # the bus delay, not quantisation, costs
     assert abs(quantised[1] - window_errors(bare)[1]) < 0.05 * window_errors(bare)[1]
-    assert late[0] > 5 * drive[0]                                  # two SYNCs of delay: a limit cycle
+    assert late[0] > 5 * drive[0]  # two SYNCs of delay: a limit cycle
 
 
 def test_every_driver_parameter_is_a_spec_with_description_and_numeric_range():
-    """Each field of DriverParameters (and sim.*) declares a description; numbers a finite range and a unit or none."""
+    """Each field of DriverParameters (and sim.*) declares a description.
+
+    Numbers a finite range and a unit or none.
+    """
     import dataclasses
     import math as m
 

@@ -1,4 +1,10 @@
-"""The closed loop across processes: sim time equals the offline core, real time runs, the main job reports."""
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""The closed loop across processes.
+
+Sim time equals the offline core, real time runs, the main job reports.
+"""
 
 import json
 import os
@@ -15,7 +21,10 @@ from actuator_tools.supervisor import executable_path, process_log
 
 @pytest.fixture
 def isolated(ros_env, monkeypatch, tmp_path):
-    """Run bring-up code in this process with the test's isolated ROS environment and a scratch cwd."""
+    """Run bring-up code in this process.
+
+    With the test's isolated ROS environment and a scratch cwd.
+    """
     for key, value in ros_env.items():
         monkeypatch.setenv(key, value)
     monkeypatch.chdir(tmp_path)
@@ -31,8 +40,15 @@ def test_sim_mode_across_three_processes_equals_the_offline_core(isolated, contr
     from actuator_sim.params_yaml import all_scenarios
 
     scenario_name = f'case2_{controller}'
-    result = run_closed_loop(scenario_name, 'sim', 2.0, record=True, bag_root=isolated / 'bags',
-                             results_root=isolated / 'runs', quiet=True)
+    result = run_closed_loop(
+        scenario_name,
+        'sim',
+        2.0,
+        record=True,
+        bag_root=isolated / 'bags',
+        results_root=isolated / 'runs',
+        quiet=True,
+    )
     assert all(code == 0 for code in result.exit_codes.values()), result.exit_codes
     scenario = all_scenarios()[scenario_name]
     scenario.duration_s = 2.0
@@ -40,60 +56,97 @@ def test_sim_mode_across_three_processes_equals_the_offline_core(isolated, contr
     run = load_run(result.bag, quiet=True)
     comparison = compare_with_offline(run, offline)
     assert comparison['samples_compared'] == 2000
-    assert comparison['identical'], comparison        # bit for bit, sample by sample
+    assert comparison['identical'], comparison  # bit for bit, sample by sample
     eso = json.loads((result.run_dir / 'eso_stats.json').read_text())
     assert eso['substituted_pairs'] == 0 and eso['exact_pairs'] >= 2000
 
 
 def test_realtime_loop_stays_stable_for_the_whole_fast_deep_sea_run(isolated):
-    """The paper's 10 s fast deep-sea run, PP-NFTSMC-ESO, in real time: the loop closes and, under SCHED_FIFO, stays stable."""
+    """The paper's 10 s fast deep-sea run, PP-NFTSMC-ESO, in real time.
+
+    The loop closes and, under SCHED_FIFO, stays stable.
+    """
     from actuator_bag.analyze import analyze_run, load_run
     from actuator_tools.bringup import run_closed_loop
     from actuator_tools.main import timing_figures
 
-    result = run_closed_loop('case2_pp_nftsmc_eso', 'realtime', None, record=True, bag_root=isolated / 'bags',
-                             results_root=isolated / 'runs', quiet=True, thread_priority=50)
+    result = run_closed_loop(
+        'case2_pp_nftsmc_eso',
+        'realtime',
+        None,
+        record=True,
+        bag_root=isolated / 'bags',
+        results_root=isolated / 'runs',
+        quiet=True,
+        thread_priority=50,
+    )
     assert all(code == 0 for code in result.exit_codes.values()), result.exit_codes
     timing = timing_figures(result)
-    assert timing['updates'] > 500                      # the loop closed
+    assert timing['updates'] > 500  # the loop closed
     assert 0.0 < timing['latency_us']['p50'] < 1.0e5
     run = load_run(result.bag, quiet=True)
     assert np.all(np.isfinite(run.current)) and np.max(np.abs(run.current)) <= 20.0 + 1e-9
-    assert analyze_run(run).metrics.samples > 0         # recorded and readable
+    assert analyze_run(run).metrics.samples > 0  # recorded and readable
     plant = np.load(result.run_dir / 'plant_samples.npz')
     assert plant['stamp_ns'].size > 9000 and np.all(np.diff(plant['stamp_ns']) % 1_000_000 == 0)
     assert all(v is None or v < 400.0 for v in result.cpu_percent.values())
     assert all(0.0 < v < 1000.0 for v in result.peak_rss_mb.values())
     logs = {key: process_log(result.run_dir, key) for key in ('plant', 'eso', 'controller')}
     if not all('running under SCHED_FIFO' in text for text in logs.values()):
-        pytest.skip('SCHED_FIFO refused on this machine: real-time stability is only claimed under it '
-                    '(normal scheduling latches; see README, Performance)')
+        pytest.skip(
+            'SCHED_FIFO refused on this machine: real-time stability is only claimed under it '
+            '(normal scheduling latches; see README, Performance)'
+        )
     # Stable for the whole run: never latched, the error stays inside the paper's initial
     # envelope (rho0 = 0.25 rad; 9 runs here: at most 4.6e-2 rad), and the observer integrated
     # the commanded current on time or by repair for nearly every sample.
     assert 'safe stop latched' not in logs['controller']
-    controlled = run.status == 0                       # safe-stop samples carry no error (NaN)
-    assert controlled.mean() > 0.9 and np.max(np.abs(run.error[controlled])) < 0.25, np.max(np.abs(run.error))
+    controlled = run.status == 0  # safe-stop samples carry no error (NaN)
+    assert controlled.mean() > 0.9 and np.max(np.abs(run.error[controlled])) < 0.25, np.max(
+        np.abs(run.error)
+    )
     eso = json.loads((result.run_dir / 'eso_stats.json').read_text())
     assert eso['exact_pairs'] + eso['repaired_pairs'] >= 0.9 * eso['steps'], eso
 
 
 def test_main_job_prints_the_report_and_writes_figures(ros_env, tmp_path):
     env = dict(ros_env)
-    proc = subprocess.run([sys.executable, '-m', 'actuator_tools.main', '--duration', '6', '--modes', 'sim',
-                           '--out', str(tmp_path / 'out')], env=env, cwd=tmp_path, capture_output=True, text=True,
-                          timeout=300)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            '-m',
+            'actuator_tools.main',
+            '--duration',
+            '6',
+            '--modes',
+            'sim',
+            '--out',
+            str(tmp_path / 'out'),
+        ],
+        env=env,
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert 'max steady-state error [5, 6] s' in proc.stdout
     assert 'identical' in proc.stdout and 'PPF bounds kept' in proc.stdout
     report = json.loads((tmp_path / 'out' / 'report.json').read_text())
     sim = report['runs']['sim']
     assert sim['offline_comparison']['identical']
-    assert sim['metrics']['max_steady_error_rad'] == pytest.approx(report['offline']['max_steady_error_rad'])
-    assert {Path(f).name for f in sim['figures']} == {'position.png', 'tracking_error.png', 'velocity_estimate.png',
-                                                      'disturbance_estimate.png', 'control_input.png'}
+    assert sim['metrics']['max_steady_error_rad'] == pytest.approx(
+        report['offline']['max_steady_error_rad']
+    )
+    assert {Path(f).name for f in sim['figures']} == {
+        'position.png',
+        'tracking_error.png',
+        'velocity_estimate.png',
+        'disturbance_estimate.png',
+        'control_input.png',
+    }
     assert all(Path(f).stat().st_size > 10_000 for f in sim['figures'])
-    assert list((tmp_path / 'bags').iterdir())          # the run was recorded under bags/
+    assert list((tmp_path / 'bags').iterdir())  # the run was recorded under bags/
 
 
 def test_installed_scenario_files_match_the_scenarios():
@@ -104,39 +157,66 @@ def test_installed_scenario_files_match_the_scenarios():
     config = Path(get_package_share_directory('actuator_bringup')) / 'config'
     scenarios = all_scenarios()
     assert {p.stem for p in config.glob('*.yaml')} == set(scenarios)
-    assert len(scenarios) == 9                           # Case 1's four runs, Case 2's four + SMC as printed
+    assert len(scenarios) == 9  # Case 1's four runs, Case 2's four + SMC as printed
     for name, scenario in scenarios.items():
-        assert yaml.safe_load((config / f'{name}.yaml').read_text()) == scenario_parameters(scenario), name
+        assert yaml.safe_load((config / f'{name}.yaml').read_text()) == scenario_parameters(
+            scenario
+        ), name
 
 
 def test_closed_loop_description_is_one_for_runner_and_launch():
-    """graph.closed_loop: the processes, their parameters and real-time settings, as both starters use them."""
+    """graph.closed_loop.
+
+    The processes, their parameters and real-time settings, as both starters use them.
+    """
     from actuator_tools.graph import closed_loop, ros_arguments
 
     specs = closed_loop('realtime', 5.0, record=True, thread_priority=50, cpus={'joint': '0'})
     by_key = {s.key: s for s in specs}
-    assert list(by_key) == ['recorder', 'controller', 'eso', 'plant']         # the joint starts last
+    assert list(by_key) == ['recorder', 'controller', 'eso', 'plant']  # the joint starts last
     assert [s.key for s in specs if s.leader] == ['plant']
-    assert by_key['plant'].parameters['thread_priority'] == 51                # the sampling hardware, one above
-    assert by_key['eso'].parameters['thread_priority'] == by_key['controller'].parameters['thread_priority'] == 50
-    assert 'thread_priority' not in by_key['recorder'].parameters             # normal scheduling
-    assert by_key['plant'].parameters['cpu_affinity'] == '0' and by_key['plant'].parameters['stop_after_s'] == 5.0
+    assert by_key['plant'].parameters['thread_priority'] == 51  # the sampling hardware, one above
+    assert (
+        by_key['eso'].parameters['thread_priority']
+        == by_key['controller'].parameters['thread_priority']
+        == 50
+    )
+    assert 'thread_priority' not in by_key['recorder'].parameters  # normal scheduling
+    assert (
+        by_key['plant'].parameters['cpu_affinity'] == '0'
+        and by_key['plant'].parameters['stop_after_s'] == 5.0
+    )
     assert by_key['plant'].parameters['wait_for_subscribers'] == 3
-    assert not by_key['recorder'].managed and all(s.managed for k, s in by_key.items() if k != 'recorder')
+    assert not by_key['recorder'].managed and all(
+        s.managed for k, s in by_key.items() if k != 'recorder'
+    )
     args = ros_arguments(by_key['eso'], Path('/x/case.yaml'))
-    assert args[:3] == ['--ros-args', '--params-file', '/x/case.yaml'] and '-p' in args and 'autostart:=true' in args
+    assert (
+        args[:3] == ['--ros-args', '--params-file', '/x/case.yaml']
+        and '-p' in args
+        and 'autostart:=true' in args
+    )
     sim = {s.key: s for s in closed_loop('sim', 2.0, record=False)}
-    assert sim['controller'].parameters['use_sim_time'] is True and sim['plant'].parameters['wait_for_subscribers'] == 2
+    assert (
+        sim['controller'].parameters['use_sim_time'] is True
+        and sim['plant'].parameters['wait_for_subscribers'] == 2
+    )
     for spec in specs:
         assert os.access(executable_path(spec.package, spec.executable), os.X_OK)
 
 
 def test_launch_description_builds_the_processes_of_the_description():
-    """The installed launch file, loaded through the launch API, starts exactly graph.closed_loop's processes."""
-    # launch_ros, not launch: the symlink install puts build/actuator_bringup (with its launch/ folder)
-    # on sys.path, where a bare `import launch` finds that folder as a namespace package.
-    pytest.importorskip('launch_ros', reason='launch and launch_ros are not on PyPI: this runs on a Jazzy install '
-                                             'or a checkout prepared as ../shared/real-ros2-tools.md says')
+    """The installed launch file, loaded through the launch API.
+
+    Starts exactly graph.closed_loop's processes.
+    """
+    # launch_ros, not launch: the symlink install puts build/actuator_bringup (with its launch/
+    # folder) on sys.path, where a bare `import launch` finds that folder as a namespace package.
+    pytest.importorskip(
+        'launch_ros',
+        reason='launch and launch_ros are not on PyPI: this runs on a Jazzy install '
+        'or a checkout prepared as ../shared/real-ros2-tools.md says',
+    )
     import launch
     from ament_index_python.packages import get_package_share_directory
     from launch.launch_description_sources import PythonLaunchDescriptionSource
@@ -144,46 +224,87 @@ def test_launch_description_builds_the_processes_of_the_description():
 
     from actuator_tools.graph import closed_loop
 
-    path = Path(get_package_share_directory('actuator_bringup')) / 'launch' / 'closed_loop.launch.py'
-    description = PythonLaunchDescriptionSource(str(path)).get_launch_description(launch.LaunchContext())
+    path = (
+        Path(get_package_share_directory('actuator_bringup')) / 'launch' / 'closed_loop.launch.py'
+    )
+    description = PythonLaunchDescriptionSource(str(path)).get_launch_description(
+        launch.LaunchContext()
+    )
     context = launch.LaunchContext()
     for entity in description.entities:
         if isinstance(entity, launch.actions.DeclareLaunchArgument):
             entity.execute(context)
-    context.launch_configurations.update({'duration': '5', 'mode': 'realtime', 'thread_priority': '50'})
+    context.launch_configurations.update(
+        {'duration': '5', 'mode': 'realtime', 'thread_priority': '50'}
+    )
     (opaque,) = [e for e in description.entities if isinstance(e, launch.actions.OpaqueFunction)]
     actions = opaque.execute(context)
     nodes = [a for a in actions if isinstance(a, Node)]
     expected = closed_loop('realtime', 5.0, thread_priority=50, autostart=False)
-    assert [(n.node_package, n.node_executable) for n in nodes] == [(s.package, s.executable) for s in expected]
+    assert [(n.node_package, n.node_executable) for n in nodes] == [
+        (s.package, s.executable) for s in expected
+    ]
 
 
 @pytest.mark.ros
 def test_offline_sim_cli_writes_json_and_refuses_bad_input(tmp_path):
     exe = executable_path('actuator_sim', 'offline_sim')
     out = tmp_path / 'run.json'
-    proc = subprocess.run([exe, 'run', '--controller', 'pi', '--duration', '6', '--json', str(out),
-                           '--traces', str(tmp_path / 'traces')], capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [
+            exe,
+            'run',
+            '--controller',
+            'pi',
+            '--duration',
+            '6',
+            '--json',
+            str(out),
+            '--traces',
+            str(tmp_path / 'traces'),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert proc.returncode == 0, proc.stderr
     data = json.loads(out.read_text())
     metrics = data['runs'][0]['metrics']
-    assert metrics['samples'] == 6000 and not metrics['diverged'] and metrics['max_steady_error_rad'] > 0.0
+    assert (
+        metrics['samples'] == 6000
+        and not metrics['diverged']
+        and metrics['max_steady_error_rad'] > 0.0
+    )
     trace = np.load(tmp_path / 'traces' / 'run' / 'run_pi_fast_deep_sea.npz')
     assert trace['error_rad'].shape == (6000,)
-    bad = subprocess.run([exe, 'run', '--duration', '-1'], capture_output=True, text=True, timeout=60)
+    bad = subprocess.run(
+        [exe, 'run', '--duration', '-1'], capture_output=True, text=True, timeout=60
+    )
     assert bad.returncode == 2 and 'duration' in bad.stderr and 'Traceback' not in bad.stderr
 
 
 @pytest.mark.ros
 def test_stability_check_cli_verdicts():
     exe = executable_path('actuator_sim', 'stability_check')
-    stable = subprocess.run([exe, '--controller', 'pp_nftsmc_eso'], capture_output=True, text=True, timeout=120)
+    stable = subprocess.run(
+        [exe, '--controller', 'pp_nftsmc_eso'], capture_output=True, text=True, timeout=120
+    )
     assert stable.returncode == 0 and 'STABLE' in stable.stdout
-    late = subprocess.run([exe, '--controller', 'pp_nftsmc_eso', '--eso-delay', '1', '--json'],
-                          capture_output=True, text=True, timeout=120)
+    late = subprocess.run(
+        [exe, '--controller', 'pp_nftsmc_eso', '--eso-delay', '1', '--json'],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert late.returncode == 1 and json.loads(late.stdout)['stable'] is False
-    smc = subprocess.run([exe, '--controller', 'smc_eso'], capture_output=True, text=True, timeout=120)
+    smc = subprocess.run(
+        [exe, '--controller', 'smc_eso'], capture_output=True, text=True, timeout=120
+    )
     assert smc.returncode == 1 and 'UNSTABLE' in smc.stdout
-    wrong = subprocess.run([exe, '--controller', 'pi', '--set', 'k0_per_s=5'], capture_output=True, text=True,
-                           timeout=60)
+    wrong = subprocess.run(
+        [exe, '--controller', 'pi', '--set', 'k0_per_s=5'],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert wrong.returncode != 0 and 'k0_per_s' in wrong.stderr

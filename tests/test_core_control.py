@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Controllers, closed loop and stability: behaviour of the control core without ROS."""
 
 import dataclasses
@@ -10,16 +13,33 @@ from actuator_core.metrics import compute_run_metrics
 from actuator_sim.offline import run_scenario
 from actuator_sim.scenarios import case1, paper_scenario
 from actuator_sim.stability import radius_along_envelope
-from actuator_controller.laws import (CONTROLLER_NAMES, CommonConfig, NftsmcGains, PiGains, SmcGains,
-                                      make_controller, tanh_sq_over)
-from actuator_controller.reference import ReferenceSample, fast_trajectory, make_reference, slow_trajectory
+from actuator_controller.laws import (
+    CONTROLLER_NAMES,
+    CommonConfig,
+    NftsmcGains,
+    PiGains,
+    SmcGains,
+    make_controller,
+    tanh_sq_over,
+)
+from actuator_controller.reference import (
+    ReferenceSample,
+    fast_trajectory,
+    make_reference,
+    slow_trajectory,
+)
 from actuator_plant.model import PlantParameters
 
 
 @pytest.mark.parametrize('name', CONTROLLER_NAMES)
 def test_each_controller_holds_zero_error_with_zero_command_on_ideal_plant_at_rest(name):
-    scenario = Scenario(name='rest', controller=name, reference='step', plant=PlantParameters().ideal(),
-                        duration_s=0.5)
+    scenario = Scenario(
+        name='rest',
+        controller=name,
+        reference='step',
+        plant=PlantParameters().ideal(),
+        duration_s=0.5,
+    )
     loop = ClosedLoop(scenario)
     loop.assembly.reference = type(loop.assembly.reference)(amplitude_rad=0.0)
     trace = loop.run()
@@ -28,12 +48,16 @@ def test_each_controller_holds_zero_error_with_zero_command_on_ideal_plant_at_re
     assert np.all(trace['measured_position_rad'] == 0.0)
 
 
-@pytest.mark.parametrize('reference', [slow_trajectory(), fast_trajectory(), make_reference('sine')])
+@pytest.mark.parametrize(
+    'reference', [slow_trajectory(), fast_trajectory(), make_reference('sine')]
+)
 def test_reference_derivatives_are_analytic(reference):
     t = np.linspace(0.0, 3.0, 30001)
     s = reference.sample(t)
     assert np.allclose(np.gradient(s.position_rad, t)[5:-5], s.velocity_rad_s[5:-5], atol=1e-4)
-    assert np.allclose(np.gradient(s.velocity_rad_s, t)[5:-5], s.acceleration_rad_s2[5:-5], atol=2e-3)
+    assert np.allclose(
+        np.gradient(s.velocity_rad_s, t)[5:-5], s.acceleration_rad_s2[5:-5], atol=2e-3
+    )
 
 
 def test_unknown_reference_and_controller_are_refused():
@@ -55,11 +79,11 @@ def test_current_limit_and_anti_windup():
     common = CommonConfig(current_limit_a=1.0)
     pi = make_controller('pi', PiGains(), common)
     ref = ReferenceSample(1.0, 0.0, 0.0)
-    for _ in range(2000):                       # 2 s of a 1 rad error: far into saturation
+    for _ in range(2000):  # 2 s of a 1 rad error: far into saturation
         out = pi.update(0.0, 0.0, 0.0, 0.0, ref)
         assert out.current_a == 1.0 and out.saturated
-    assert pi.integral == 0.0                   # frozen: integrating would push further into the limit
-    out = pi.update(0.0, 1.5, 0.0, 0.0, ref)    # reversed and saturated low: still frozen
+    assert pi.integral == 0.0  # frozen: integrating would push further into the limit
+    out = pi.update(0.0, 1.5, 0.0, 0.0, ref)  # reversed and saturated low: still frozen
     assert out.current_a == -1.0 and pi.integral == 0.0
     out = pi.update(0.0, 1.001, 0.0, 0.0, ref)  # back inside the limit: integrates again at once
     assert -1.0 < out.current_a < 0.0 and not out.saturated
@@ -76,16 +100,21 @@ def test_non_finite_input_gives_zero_current_and_keeps_the_integral():
 def test_stability_check_reproduces_the_known_facts():
     worst = {c: max(r for _, r in radius_along_envelope(c)) for c in ('pp_nftsmc_eso', 'smc_eso')}
     assert worst['pp_nftsmc_eso'] < 1.0
-    assert worst['smc_eso'] > 10.0              # printed SMC-ESO gains cannot run at 1 kHz
+    assert worst['smc_eso'] > 10.0  # printed SMC-ESO gains cannot run at 1 kHz
     late_eso = max(r for _, r in radius_along_envelope('pp_nftsmc_eso', eso_delay=1))
-    assert late_eso > 1.0                       # an ESO one current behind diverges
-    slow_loop = max(r for _, r in radius_along_envelope('smc_eso', SmcGains(k1_per_s=200.0, k2_per_s=100.0)))
+    assert late_eso > 1.0  # an ESO one current behind diverges
+    slow_loop = max(
+        r for _, r in radius_along_envelope('smc_eso', SmcGains(k1_per_s=200.0, k2_per_s=100.0))
+    )
     assert slow_loop < 1.0
 
 
 def test_late_eso_current_diverges_in_the_closed_loop_too():
-    """The linearised verdict holds in the nonlinear loop: fed u(k-1), the ESO drives the loop into a
-    limit cycle held only by the current limit, with several times the normal error."""
+    """The linearised verdict holds in the nonlinear loop.
+
+    Fed u(k-1), the ESO drives the loop into a limit cycle held only by the current limit, with
+    several times the normal error.
+    """
     loop = ClosedLoop(paper_scenario('late', 'pp_nftsmc_eso', 'fast', 'deep_sea', duration_s=3.0))
     update = loop.eso.update
     previous = {'u': 0.0}
@@ -93,10 +122,15 @@ def test_late_eso_current_diverges_in_the_closed_loop_too():
     def late_update(y, u):
         update(y, previous['u'])
         previous['u'] = u
+
     loop.eso.update = late_update
     trace = loop.run()
-    m = compute_run_metrics(trace['t_s'], trace['error_rad'], trace['current_a'], saturated=trace['saturated'])
-    normal = ClosedLoop(paper_scenario('ok', 'pp_nftsmc_eso', 'fast', 'deep_sea', duration_s=3.0)).run()
+    m = compute_run_metrics(
+        trace['t_s'], trace['error_rad'], trace['current_a'], saturated=trace['saturated']
+    )
+    normal = ClosedLoop(
+        paper_scenario('ok', 'pp_nftsmc_eso', 'fast', 'deep_sea', duration_s=3.0)
+    ).run()
     assert m.diverged or m.saturated_fraction > 0.3
     assert not np.any(normal['saturated'])
     assert np.max(np.abs(trace['error_rad'])) > 3.0 * np.max(np.abs(normal['error_rad'][1000:]))
@@ -104,14 +138,18 @@ def test_late_eso_current_diverges_in_the_closed_loop_too():
 
 @pytest.fixture(scope='module')
 def case2_metrics():
-    return {c: run_scenario(paper_scenario(c, c, 'fast', 'deep_sea'))[1]
-            for c in ('pi', 'nftsmc_eso', 'pp_nftsmc_eso')}
+    return {
+        c: run_scenario(paper_scenario(c, c, 'fast', 'deep_sea'))[1]
+        for c in ('pi', 'nftsmc_eso', 'pp_nftsmc_eso')
+    }
 
 
 def test_case2_ordering_with_margins(case2_metrics):
-    pp, nft, pi = (case2_metrics[c].max_steady_error_rad for c in ('pp_nftsmc_eso', 'nftsmc_eso', 'pi'))
+    pp, nft, pi = (
+        case2_metrics[c].max_steady_error_rad for c in ('pp_nftsmc_eso', 'nftsmc_eso', 'pi')
+    )
     assert not any(case2_metrics[c].diverged for c in case2_metrics)
-    assert pp * 5.0 < nft                      # paper: almost 10x
+    assert pp * 5.0 < nft  # paper: almost 10x
     assert nft * 1.5 < pi
 
 
@@ -133,7 +171,9 @@ def test_batch_run_matches_single_runs():
 
 
 def test_four_substeps_are_enough_in_closed_loop():
-    coarse = run_scenario(paper_scenario('c', 'pp_nftsmc_eso', 'fast', 'deep_sea', duration_s=6.0))[1]
+    coarse = run_scenario(
+        paper_scenario('c', 'pp_nftsmc_eso', 'fast', 'deep_sea', duration_s=6.0)
+    )[1]
     fine_scenario = paper_scenario('f', 'pp_nftsmc_eso', 'fast', 'deep_sea', duration_s=6.0)
     fine_scenario.plant = dataclasses.replace(fine_scenario.plant, substeps=32)
     fine = run_scenario(fine_scenario)[1]
@@ -150,7 +190,10 @@ def test_gains_refuse_out_of_range_values_with_the_name():
 
 
 def test_late_commands_bursts_and_the_eso_integrating_the_commanded_current():
-    """Late bursts have the asked length; the ESO integrating u(k) tolerates what integrating u(k-1) does not."""
+    """Late bursts have the asked length.
+
+    The ESO integrating u(k) tolerates what integrating u(k-1) does not.
+    """
     from actuator_sim.late_commands import late_mask, max_steady_error
 
     mask = late_mask(20000, 0.1, 3, seed=1)
@@ -164,40 +207,58 @@ def test_late_commands_bursts_and_the_eso_integrating_the_commanded_current():
 
 
 def test_envelope_restarts_when_the_error_leaves_it_and_not_otherwise():
-    """e beyond h rho restarts (8) at t with rho0 = max(rho0, margin |e|); restart_margin 0 keeps the paper's clamp."""
+    """An error e beyond h rho restarts (8) at t with rho0 = max(rho0, margin |e|).
+
+    restart_margin 0 keeps the paper's clamp.
+    """
     from actuator_controller.laws import PpNftsmcGains, make_controller
     from actuator_controller.ppf import PrescribedPerformance
     from actuator_controller.reference import ReferenceSample
 
     ref = ReferenceSample(0.0, 0.0, 0.0)
     ctrl = make_controller('pp_nftsmc_eso')
-    out = ctrl.update(6.0, 0.01, 0.0, 0.0, ref)              # inside (rho(6) ~ 0.06): no restart
+    out = ctrl.update(6.0, 0.01, 0.0, 0.0, ref)  # inside (rho(6) ~ 0.06): no restart
     assert bool(out.bounds_kept) and ctrl.envelope_restarts == 0
-    out = ctrl.update(6.001, 0.3, 0.0, 0.0, ref)             # beyond: restarted at t = 6.001 with rho0 = 0.6
+    out = ctrl.update(6.001, 0.3, 0.0, 0.0, ref)  # beyond: restarted at t = 6.001 with rho0 = 0.6
     assert ctrl.envelope_restarts == 1 and ctrl.envelope_start_s == 6.001
-    assert out.rho_rad == pytest.approx(0.6) and not bool(out.bounds_kept)   # the violation is still reported
+    assert out.rho_rad == pytest.approx(0.6) and not bool(
+        out.bounds_kept
+    )  # the violation is still reported
     assert bool(ctrl.update(6.002, 0.3, 0.0, 0.0, ref).bounds_kept) and ctrl.envelope_restarts == 1
     ctrl.reset()
     assert ctrl.envelope_start_s == 0.0 and ctrl.envelope_rho0_rad == 0.25
-    paper = make_controller('pp_nftsmc_eso', PpNftsmcGains(ppf=PrescribedPerformance(restart_margin=0.0)))
+    paper = make_controller(
+        'pp_nftsmc_eso', PpNftsmcGains(ppf=PrescribedPerformance(restart_margin=0.0))
+    )
     out = paper.update(6.001, 0.3, 0.0, 0.0, ref)
     assert not bool(out.bounds_kept) and paper.envelope_restarts == 0 and out.rho_rad < 0.1
 
 
 @pytest.mark.parametrize('restart_margin, recovers', [(2.0, True), (0.0, False)])
-def test_loop_recovers_from_a_40_ms_current_dropout_only_with_envelope_restarts(restart_margin, recovers):
-    """40 ms of 0 A at t = 5 s (a drive watchdog after a controller stall) throws the error out of the envelope."""
+def test_loop_recovers_from_a_40_ms_current_dropout_only_with_envelope_restarts(
+    restart_margin, recovers
+):
+    """40 ms of 0 A at t = 5 s throws the error out of the envelope.
+
+    As a drive watchdog would after a controller stall.
+    """
     from actuator_controller.laws import PpNftsmcGains
     from actuator_controller.ppf import PrescribedPerformance
 
-    scenario = paper_scenario('dropout', 'pp_nftsmc_eso', 'fast', 'deep_sea', 8.0,
-                              gains=PpNftsmcGains(ppf=PrescribedPerformance(restart_margin=restart_margin)))
+    scenario = paper_scenario(
+        'dropout',
+        'pp_nftsmc_eso',
+        'fast',
+        'deep_sea',
+        8.0,
+        gains=PpNftsmcGains(ppf=PrescribedPerformance(restart_margin=restart_margin)),
+    )
     loop = ClosedLoop(scenario)
     errors = []
     for k in range(scenario.samples):
         if k == 5000:
-            loop.last_current = 0.0        # the plant holds 0 A over the next 40 samples
+            loop.last_current = 0.0  # the plant holds 0 A over the next 40 samples
         errors.append(abs(float(loop.step(command_lost=5000 <= k < 5040)['error_rad'])))
     worst_late = max(errors[7000:])
-    assert max(errors[5000:5200]) > 0.05                     # the dropout did throw it out
+    assert max(errors[5000:5200]) > 0.05  # the dropout did throw it out
     assert (worst_late < 2e-3) == recovers, worst_late

@@ -1,4 +1,10 @@
-"""The core imports and runs with rclpy and launch made unimportable: it is ROS-free by construction."""
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""The core imports and runs with rclpy and launch made unimportable.
+
+It is ROS-free by construction.
+"""
 
 import importlib
 import pkgutil
@@ -9,8 +15,14 @@ import pytest
 BLOCKED = ('rclpy', 'launch', 'launch_ros', 'rosidl_runtime_py', 'actuator_msgs', 'actuator_ros')
 #: Every ROS-free package, and the ROS-free modules of the node packages.
 ROS_FREE_PACKAGES = ('actuator_core', 'actuator_sim')
-ROS_FREE_MODULES = ('actuator_plant.model', 'actuator_plant.oil', 'actuator_eso.observer',
-                    'actuator_controller.laws', 'actuator_controller.ppf', 'actuator_controller.reference')
+ROS_FREE_MODULES = (
+    'actuator_plant.model',
+    'actuator_plant.oil',
+    'actuator_eso.observer',
+    'actuator_controller.laws',
+    'actuator_controller.ppf',
+    'actuator_controller.reference',
+)
 
 
 class _Refuse:
@@ -25,8 +37,11 @@ class _Refuse:
 @pytest.fixture
 def without_ros(monkeypatch):
     """Fresh imports of the project's modules with the blocked packages unimportable."""
-    saved = {name: mod for name, mod in sys.modules.items()
-             if name.split('.')[0] in BLOCKED or name.startswith('actuator_')}
+    saved = {
+        name: mod
+        for name, mod in sys.modules.items()
+        if name.split('.')[0] in BLOCKED or name.startswith('actuator_')
+    }
     for name in saved:
         monkeypatch.delitem(sys.modules, name)
     monkeypatch.setattr(sys, 'meta_path', [_Refuse(), *sys.meta_path])
@@ -47,5 +62,7 @@ def test_core_and_sim_import_and_run_without_rclpy_or_launch(without_ros):
     assert len(names) > 15
     loop_module = importlib.import_module('actuator_sim.loop')
     scenarios = importlib.import_module('actuator_sim.scenarios')
-    trace = loop_module.ClosedLoop(scenarios.paper_scenario('x', 'pp_nftsmc_eso', 'fast', 'deep_sea', 0.2)).run()
+    trace = loop_module.ClosedLoop(
+        scenarios.paper_scenario('x', 'pp_nftsmc_eso', 'fast', 'deep_sea', 0.2)
+    ).run()
     assert len(trace['t_s']) == 200 and abs(trace['error_rad']).max() < 0.1

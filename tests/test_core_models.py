@@ -1,4 +1,10 @@
-"""Plant, loss models, ESO and PPF: the ROS-free core against hand calculations and known signals."""
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""Plant, loss models, ESO and PPF.
+
+The ROS-free core against hand calculations and known signals.
+"""
 
 import math
 
@@ -6,11 +12,27 @@ import numpy as np
 import pytest
 
 from actuator_controller.ppf import PrescribedPerformance, inverse_transform, transform_error
-from actuator_eso.observer import EsoGains, ExtendedStateObserver, eso_step, input_current_correction
-from actuator_plant.model import (JointPlant, PlantParameters, WorkingCondition, derive_constants,
-                                  disturbance_parts, joint_forces)
-from actuator_plant.oil import (MotorGeometry, OilProperties, dynamic_viscosity_pa_s, kinematic_viscosity_m2_s,
-                                stirring_geometry_constant_m3)
+from actuator_eso.observer import (
+    EsoGains,
+    ExtendedStateObserver,
+    eso_step,
+    input_current_correction,
+)
+from actuator_plant.model import (
+    JointPlant,
+    PlantParameters,
+    WorkingCondition,
+    derive_constants,
+    disturbance_parts,
+    joint_forces,
+)
+from actuator_plant.oil import (
+    MotorGeometry,
+    OilProperties,
+    dynamic_viscosity_pa_s,
+    kinematic_viscosity_m2_s,
+    stirring_geometry_constant_m3,
+)
 
 
 def test_walther_passes_through_its_two_data_points():
@@ -28,7 +50,9 @@ def test_viscosity_at_paper_conditions_by_hand():
     nu2 = 10 ** (10 ** (a - b * math.log10(275.15))) - 0.7
     rho2 = 870.0 / (1.0 + 6.5e-4 * (2.0 - 15.0))
     alpha = 1.0 / (4.49e7 + 1.6e-2 * 10.0)
-    assert dynamic_viscosity_pa_s(2.0, 10.0e6, oil) == pytest.approx(rho2 * nu2 * 1e-6 * math.exp(alpha * 10.0e6))
+    assert dynamic_viscosity_pa_s(2.0, 10.0e6, oil) == pytest.approx(
+        rho2 * nu2 * 1e-6 * math.exp(alpha * 10.0e6)
+    )
     # Lab: no pressure, so exp(alpha P) = 1, and mu0(25 degC) is about 36 mPa s.
     assert dynamic_viscosity_pa_s(25.0, 0.0, oil) == pytest.approx(0.0365, rel=0.02)
     assert dynamic_viscosity_pa_s(2.0, 10.0e6, oil) > dynamic_viscosity_pa_s(2.0, 0.0, oil)
@@ -36,11 +60,13 @@ def test_viscosity_at_paper_conditions_by_hand():
 
 def test_stirring_geometry_constant_by_hand():
     k = stirring_geometry_constant_m3(MotorGeometry())
-    flank = math.pi * 0.0155 * 0.0375 ** 3 / (4 * 0.0003)
-    disk = math.pi * (0.063 ** 4 - 0.0375 ** 4) / (32 * 0.038)
+    flank = math.pi * 0.0155 * 0.0375**3 / (4 * 0.0003)
+    disk = math.pi * (0.063**4 - 0.0375**4) / (32 * 0.038)
     assert k == pytest.approx(flank + disk, rel=1e-12)
     with pytest.raises(ValueError, match='d2'):
-        MotorGeometry(rotor_end_diameter_m=0.063, housing_end_diameter_m=0.0375)  # Table 3 as printed
+        MotorGeometry(
+            rotor_end_diameter_m=0.063, housing_end_diameter_m=0.0375
+        )  # Table 3 as printed
 
 
 def test_losses_at_one_state_by_hand():
@@ -48,17 +74,31 @@ def test_losses_at_one_state_by_hand():
     c = derive_constants(params)
     t, v, u = 0.7, 2.0, 3.0
     f = joint_forces(t, v, c)
-    k_mu = stirring_geometry_constant_m3(MotorGeometry()) * dynamic_viscosity_pa_s(2.0, 10e6, OilProperties())
-    assert f.stirring_torque_nm == pytest.approx(k_mu * 100.0 * v)                      # (6), rotor speed N q'
-    assert f.external_torque_nm == pytest.approx(20.0 * (1 + 0.5 * math.sin(0.5 * math.pi * t)))  # (40)
-    assert f.seal_torque_nm == pytest.approx(1 + math.exp(0.3591 * v) + math.exp(0.1504 * 10.0))  # (42)
-    assert f.inertia_kg_m2 == pytest.approx(3.34e-5 * (1 + 0.2 * math.sin(0.5 * math.pi * t)))   # (41)
+    k_mu = stirring_geometry_constant_m3(MotorGeometry()) * dynamic_viscosity_pa_s(
+        2.0, 10e6, OilProperties()
+    )
+    assert f.stirring_torque_nm == pytest.approx(k_mu * 100.0 * v)  # (6), rotor speed N q'
+    assert f.external_torque_nm == pytest.approx(
+        20.0 * (1 + 0.5 * math.sin(0.5 * math.pi * t))
+    )  # (40)
+    assert f.seal_torque_nm == pytest.approx(
+        1 + math.exp(0.3591 * v) + math.exp(0.1504 * 10.0)
+    )  # (42)
+    assert f.inertia_kg_m2 == pytest.approx(
+        3.34e-5 * (1 + 0.2 * math.sin(0.5 * math.pi * t))
+    )  # (41)
     parts = disturbance_parts(t, v, u, c)
     assert parts.disturbance_rad_s2 == pytest.approx(
-        parts.parametric_rad_s2 + parts.stirring_rad_s2 + parts.external_rad_s2 + parts.seal_rad_s2)
+        parts.parametric_rad_s2 + parts.stirring_rad_s2 + parts.external_rad_s2 + parts.seal_rad_s2
+    )
     # (1) solved for q'' equals the nominal model (5) plus d.
     j, kt, kb = f.inertia_kg_m2, f.torque_constant_nm_a, f.viscous_coefficient_nm_s_rad
-    qdd = (kt * u - kb * 100 * v - f.stirring_torque_nm - (f.external_torque_nm + f.seal_torque_nm) / 100) / (j * 100)
+    qdd = (
+        kt * u
+        - kb * 100 * v
+        - f.stirring_torque_nm
+        - (f.external_torque_nm + f.seal_torque_nm) / 100
+    ) / (j * 100)
     assert parts.acceleration_rad_s2 == pytest.approx(qdd)
     # Seal friction range of Fig. 4 at rest-limit: 3 N m in the lab, 6.5 N m in the deep sea.
     lab = derive_constants(PlantParameters(condition=WorkingCondition.lab()))
@@ -89,7 +129,10 @@ def test_ideal_plant_matches_closed_form_with_current_held():
 
 
 def test_full_plant_converges_with_substeps():
-    coarse, fine = JointPlant(PlantParameters(substeps=4), 1e-3), JointPlant(PlantParameters(substeps=64), 1e-3)
+    coarse, fine = (
+        JointPlant(PlantParameters(substeps=4), 1e-3),
+        JointPlant(PlantParameters(substeps=64), 1e-3),
+    )
     for k in range(2000):
         u = 5.0 * math.sin(8.0 * k * 1e-3)
         coarse.step(u)
@@ -112,7 +155,10 @@ def test_eso_gains_follow_bandwidth_parametrisation_and_refuse_non_hurwitz():
 
 
 def test_eso_converges_on_a_known_signal():
-    """Truth: x'' = theta1n u + theta2n x' + d with a slowly varying d; the ESO must find x' and d."""
+    """Truth.
+
+    x'' = theta1n u + theta2n x' + d with a slowly varying d; the ESO must find x' and d.
+    """
     gains = EsoGains()
     dt = 1e-4
     eso = ExtendedStateObserver(gains, dt)
@@ -129,22 +175,27 @@ def test_eso_converges_on_a_known_signal():
         d_next = -40.0 + 10.0 * math.sin(2.0 * (t + dt))
         errors.append((eso.x1_hat - x1, eso.x2_hat - x2, eso.x3_hat - d_next))
     err = np.abs(np.array(errors))
-    assert err[:100, 2].max() > 10.0            # it starts far off (x_hat(0) = 0, d = -40) ...
-    assert err[-5000:, 0].max() < 1e-5          # ... and converges: d' = 20 cos gives a small lag only
+    assert err[:100, 2].max() > 10.0  # it starts far off (x_hat(0) = 0, d = -40) ...
+    assert err[-5000:, 0].max() < 1e-5  # ... and converges: d' = 20 cos gives a small lag only
     assert err[-5000:, 1].max() < 5e-3
     assert err[-5000:, 2].max() < 0.5
 
 
 @pytest.mark.parametrize('steps', [0, 1, 4])
 def test_late_current_correction_equals_stepping_with_the_right_current(steps):
-    """A step taken with a substituted current, repaired `steps` steps later, equals the exact run."""
+    """A step taken with a substituted current, repaired `steps` steps later.
+
+    Equals the exact run.
+    """
     gains, dt = EsoGains(), 1e-3
     rng = np.random.default_rng(7)
     ys, us = rng.normal(0.0, 0.1, 8), rng.normal(0.0, 5.0, 8)
     exact, wrong = (0.01, -0.2, 3.0), (0.01, -0.2, 3.0)
     for k in range(1 + steps):
         exact = eso_step(*exact, ys[k], us[k], dt, gains)
-        wrong = eso_step(*wrong, ys[k], (us[k] - 2.5) if k == 0 else us[k], dt, gains)   # sample 0 substituted
+        wrong = eso_step(
+            *wrong, ys[k], (us[k] - 2.5) if k == 0 else us[k], dt, gains
+        )  # sample 0 substituted
     assert not np.allclose(wrong, exact, rtol=0.0, atol=1e-9)
     repaired = np.add(wrong, input_current_correction(2.5, steps, dt, gains))
     assert np.allclose(repaired, exact, rtol=1e-12, atol=1e-12)
@@ -154,13 +205,13 @@ def test_ppf_transform_inverse_and_r_against_numerical_derivative():
     ppf = PrescribedPerformance()
     t = np.linspace(0.0, 8.0, 801)
     rho, rho_d, _ = ppf.rho_derivatives(t)
-    e = 0.8 * rho * np.sin(3.0 * t)                        # inside the envelope
+    e = 0.8 * rho * np.sin(3.0 * t)  # inside the envelope
     e_dot = 0.8 * (rho_d * np.sin(3.0 * t) + rho * 3.0 * np.cos(3.0 * t))
     tr = transform_error(e, rho, ppf)
     assert np.all(tr.inside)
     assert np.allclose(inverse_transform(tr.z, rho, ppf), e, atol=1e-12)
     z_dot_numeric = np.gradient(tr.z, t)
-    z_dot_12 = tr.r * (e_dot - rho_d * e / rho)          # eq. (12) with the corrected r
+    z_dot_12 = tr.r * (e_dot - rho_d * e / rho)  # eq. (12) with the corrected r
     assert np.allclose(z_dot_12[5:-5], z_dot_numeric[5:-5], rtol=2e-3, atol=1e-3)
     assert ppf.rho(0.0) == pytest.approx(0.25) and ppf.rho(100.0) == pytest.approx(0.05)
 

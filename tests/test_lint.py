@@ -1,14 +1,77 @@
-"""Static checks: no unused imports, undefined names or other pyflakes findings in the project's Python."""
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
 
+"""Static checks as ROS 2 packages run them: ament_flake8/ament_pep257 (ruff) and ament_copyright.
+
+The rules live in the repository's ruff.toml; its extend-exclude list is also the list of files
+the header check skips.
+"""
+
+import fnmatch
 import subprocess
 import sys
+import tomllib
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+CONFIG = ROOT / 'ruff.toml'
+CHECKED = ('src', 'tests')
+HEADER = ('# Copyright 2026 Actuator control team', '# SPDX-License-Identifier: Apache-2.0')
 
 
-def test_pyflakes_finds_nothing():
-    files = sorted(str(p) for p in (ROOT / 'src').rglob('*.py') if 'build' not in p.parts) + \
-        sorted(str(p) for p in (ROOT / 'tests').glob('*.py'))
-    proc = subprocess.run([sys.executable, '-m', 'pyflakes', *files], capture_output=True, text=True)
+def ruff(*args):
+    """Run the venv's ruff with the repository's configuration, from the repository root."""
+    cmd = [sys.executable, '-m', 'ruff', *args, '--config', str(CONFIG), *CHECKED]
+    return subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
+
+
+def excluded(rel):
+    """Whether ruff.toml's extend-exclude names the file or one of its folders.
+
+    A pattern with a slash is a glob on the path from the repository root; one without, a glob
+    on any single path component (ruff's rules for these patterns).
+    """
+    patterns = tomllib.loads(CONFIG.read_text())['extend-exclude']
+    parts = rel.split('/')
+    prefixes = ['/'.join(parts[: i + 1]) for i in range(len(parts))]
+    for pattern in patterns:
+        pattern = pattern.rstrip('/')
+        if '/' in pattern:
+            if any(fnmatch.fnmatchcase(p, pattern) for p in prefixes):
+                return True
+        elif any(fnmatch.fnmatchcase(part, pattern) for part in parts):
+            return True
+    return False
+
+
+def python_files():
+    """List the .py files under src/ and tests/ that ruff.toml does not exclude (root-relative)."""
+    files = set()
+    for top in CHECKED:
+        for path in (ROOT / top).rglob('*.py'):
+            rel = path.relative_to(ROOT).as_posix()
+            if not excluded(rel):
+                files.add(rel)
+    return sorted(files)
+
+
+def test_ruff_finds_nothing():
+    proc = ruff('check', '--no-cache', '--output-format', 'concise')
     assert proc.returncode == 0, proc.stdout + proc.stderr
+
+
+def test_every_python_file_has_the_license_header():
+    files = python_files()
+    # The same files as ruff checks: the exclusions are read alike.
+    proc = ruff('check', '--no-cache', '--show-files')
+    assert proc.returncode == 0, proc.stderr
+    shown = sorted(Path(line).relative_to(ROOT).as_posix() for line in proc.stdout.splitlines())
+    assert files == shown
+    missing = []
+    for rel in files:
+        lines = (ROOT / rel).read_text().splitlines()
+        if lines and lines[0].startswith('#!'):
+            lines = lines[1:]
+        if tuple(lines[: len(HEADER)]) != HEADER:
+            missing.append(rel)
+    assert not missing, 'no license header (' + ' / '.join(HEADER) + ') in: ' + ', '.join(missing)

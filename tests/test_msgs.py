@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """actuator_msgs: every type is built, serialises losslessly and crosses between processes.
 
 The types come from the ament index (what the build registered), the fields from each
@@ -68,25 +71,39 @@ def test_constants_survive_in_generated_code():
 
 
 def test_status_codes_are_the_core_status_enum():
-    # One place says what each code means (actuator_core/status.py); the message carries the same numbers.
+    # One place says what each code means (actuator_core/status.py);
+    # the message carries the same numbers.
     from actuator_core.status import Status
+
     state = _class('ControllerState')
-    codes = {k[len('STATUS_'):]: getattr(state, k) for k in dir(state) if k.startswith('STATUS_')}
+    codes = {k[len('STATUS_') :]: getattr(state, k) for k in dir(state) if k.startswith('STATUS_')}
     assert codes == {s.name: int(s) for s in Status}
 
 
 def test_every_type_crosses_between_two_processes(ros_env, tmp_path):
     names = _types()
     seed = 11
-    expected = {name: ros_helpers.message_leaves(ros_helpers.fill_message(_class(name)(), seed + i))
-                for i, name in enumerate(names)}
+    expected = {
+        name: ros_helpers.message_leaves(ros_helpers.fill_message(_class(name)(), seed + i))
+        for i, name in enumerate(names)
+    }
     script = HERE / 'msg_exchange.py'
     common = ['--package', PACKAGE, '--types', ','.join(names)]
-    with ros_helpers.RosProcess.python(script, ['pub', *common, '--seed', str(seed)], env=ros_env,
-                                       log_dir=tmp_path, name='publisher') as pub:
+    with ros_helpers.RosProcess.python(
+        script,
+        ['pub', *common, '--seed', str(seed)],
+        env=ros_env,
+        log_dir=tmp_path,
+        name='publisher',
+    ) as pub:
         pub.wait_for_output(r'^READY$', timeout=30)
-        with ros_helpers.RosProcess.python(script, ['sub', *common, '--timeout', '30'], env=ros_env,
-                                           log_dir=tmp_path, name='subscriber') as sub:
+        with ros_helpers.RosProcess.python(
+            script,
+            ['sub', *common, '--timeout', '30'],
+            env=ros_env,
+            log_dir=tmp_path,
+            name='subscriber',
+        ) as sub:
             rc = sub.wait(timeout=60)
         assert rc == 0, sub.describe()
         assert pub.running, pub.describe()
@@ -95,7 +112,7 @@ def test_every_type_crosses_between_two_processes(ros_env, tmp_path):
     assert pub.returncode == 0, pub.describe()
 
     line = [ln for ln in sub.stdout.splitlines() if ln.startswith('RECEIVED ')][-1]
-    received = json.loads(line[len('RECEIVED '):])
+    received = json.loads(line[len('RECEIVED ') :])
     assert sorted(received) == names
     for name in names:
         assert ros_helpers.leaves_equal(expected[name], received[name]) == [], name

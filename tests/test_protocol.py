@@ -1,4 +1,10 @@
-"""The sample protocol without processes: observer pairing, controller sample assembly, drive gate."""
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""The sample protocol without processes.
+
+Observer pairing, controller sample assembly, drive gate.
+"""
 
 import math
 
@@ -26,12 +32,14 @@ def test_pairing_steps_only_on_the_pair_of_the_same_stamp_in_either_order():
     pair, eso = pairing()
     first = pair.add_measurement(0, 0.0)
     assert len(first) == 1 and first[0].initial and first[0].sample_ns == 0
-    assert pair.add_command(0, 2.0)[0].sample_ns == P          # y(0) then u(0): x_hat(1)
-    assert pair.add_command(P, 3.0) == []                     # u(1) before y(1): waits
+    assert pair.add_command(0, 2.0)[0].sample_ns == P  # y(0) then u(0): x_hat(1)
+    assert pair.add_command(P, 3.0) == []  # u(1) before y(1): waits
     out = pair.add_measurement(P, 0.01)
     assert [e.sample_ns for e in out] == [2 * P] and not out[0].substituted
-    expected = eso_step(*eso_step(0.0, 0.0, 0.0, 0.0, 2.0, 1e-3, EsoGains()), 0.01, 3.0, 1e-3, EsoGains())
-    assert out[0].x_hat == expected                           # exactly the two Euler steps of (15)
+    expected = eso_step(
+        *eso_step(0.0, 0.0, 0.0, 0.0, 2.0, 1e-3, EsoGains()), 0.01, 3.0, 1e-3, EsoGains()
+    )
+    assert out[0].x_hat == expected  # exactly the two Euler steps of (15)
 
 
 def test_pairing_substitutes_a_missing_command_and_repairs_it_exactly_when_it_comes():
@@ -39,9 +47,9 @@ def test_pairing_substitutes_a_missing_command_and_repairs_it_exactly_when_it_co
     pair.add_measurement(0, 0.0)
     pair.add_command(0, 1.0)
     pair.add_measurement(P, 0.0)
-    out = pair.add_measurement(2 * P, 0.0)                    # u(1) never came in time
+    out = pair.add_measurement(2 * P, 0.0)  # u(1) never came in time
     assert len(out) == 1 and out[0].substituted and out[0].input_current_a == 1.0
-    pair.add_command(P, 5.0)                                  # ... and now it does
+    pair.add_command(P, 5.0)  # ... and now it does
     assert pair.repaired == 1
     exact, _ = pairing()
     exact.add_measurement(0, 0.0)
@@ -62,14 +70,14 @@ def test_pairing_ignores_duplicates_and_stale_samples_and_bounds_its_work():
     pair, _ = pairing(patience=1000)
     pair.add_measurement(0, 0.0)
     pair.add_command(0, 0.0)
-    assert pair.add_measurement(P, 0.0) == [] and pair.add_measurement(P, 0.5) == []   # duplicate
-    assert pair.add_measurement(0, 0.0) == []                                          # older than x_hat
+    assert pair.add_measurement(P, 0.0) == [] and pair.add_measurement(P, 0.5) == []  # duplicate
+    assert pair.add_measurement(0, 0.0) == []  # older than x_hat
     assert pair.ignored == 2
     for k in range(2, 60):
         pair.add_measurement(k * P, 0.0)
     for k in range(2, 60):
         pair.add_command(k * P, 0.0)
-    out = pair.add_command(P, 0.0)                            # frees 59 samples: at most MAX per call
+    out = pair.add_command(P, 0.0)  # frees 59 samples: at most MAX per call
     assert len(out) == MAX_STEPS_PER_CALL
 
 
@@ -77,31 +85,38 @@ def test_pairing_restart_starts_the_observer_from_the_measurement():
     pair, eso = pairing()
     pair.add_measurement(0, 0.0)
     pair.add_command(0, 1.0)
-    out, = pair.restart(10 ** 12, 0.7)
-    assert out.initial and out.sample_ns == 10 ** 12 and eso.state == (0.7, 0.0, 0.0) and pair.restarts == 1
-    assert pair.add_command(10 ** 12 + 10 ** 9, 1.0) == []    # a command far ahead of x_hat: ignored
-    assert pair.add_command(10 ** 12, 1.0)[0].sample_ns == 10 ** 12 + P
+    (out,) = pair.restart(10**12, 0.7)
+    assert (
+        out.initial
+        and out.sample_ns == 10**12
+        and eso.state == (0.7, 0.0, 0.0)
+        and pair.restarts == 1
+    )
+    assert pair.add_command(10**12 + 10**9, 1.0) == []  # a command far ahead of x_hat: ignored
+    assert pair.add_command(10**12, 1.0)[0].sample_ns == 10**12 + P
 
 
 def test_stamp_check_sorts_future_old_and_jumps_in_real_time():
     c = StampCheck(P, sim=False, future_tolerance_ns=50 * P)
-    now = 10 ** 12
+    now = 10**12
     assert c.check(now, now) is Verdict.OK
-    assert c.check(now + 1000 * 10 ** 9, now) is Verdict.FUTURE          # 1000 s ahead: refused
-    assert c.check(now + 3 * P, now + 3 * P) is Verdict.OK               # two missed samples: fine
-    assert c.check(now + 2 * P, now + 3 * P) is Verdict.OLD              # late or duplicate
-    assert c.check(now + 3 * P + 1234, now + 4 * P) is Verdict.JUMP      # a new grid: restarted sensor
-    assert c.check(now + 4 * P + 1234, now + 5 * P) is Verdict.OK        # ... which is the grid from now on
-    assert c.check(now - 10 ** 10, now + 5 * P) is Verdict.JUMP          # 10 s back
+    assert c.check(now + 1000 * 10**9, now) is Verdict.FUTURE  # 1000 s ahead: refused
+    assert c.check(now + 3 * P, now + 3 * P) is Verdict.OK  # two missed samples: fine
+    assert c.check(now + 2 * P, now + 3 * P) is Verdict.OLD  # late or duplicate
+    assert c.check(now + 3 * P + 1234, now + 4 * P) is Verdict.JUMP  # a new grid: restarted sensor
+    assert (
+        c.check(now + 4 * P + 1234, now + 5 * P) is Verdict.OK
+    )  # ... which is the grid from now on
+    assert c.check(now - 10**10, now + 5 * P) is Verdict.JUMP  # 10 s back
     assert (c.refused_future, c.ignored_old, c.jumps) == (1, 1, 2)
 
 
 def test_stamp_check_in_sim_allows_only_the_next_sample_and_treats_any_step_back_as_a_restart():
     c = StampCheck(P, sim=True, future_tolerance_ns=0)
-    assert c.check(10 ** 9, 0) is Verdict.OK
-    assert c.check(10 ** 9 + P, 0) is Verdict.OK
-    assert c.check(10 ** 9 + 3 * P, 0) is Verdict.FUTURE
-    assert c.check(10 ** 9, 0) is Verdict.JUMP                           # a restarted plant starts again
+    assert c.check(10**9, 0) is Verdict.OK
+    assert c.check(10**9 + P, 0) is Verdict.OK
+    assert c.check(10**9 + 3 * P, 0) is Verdict.FUTURE
+    assert c.check(10**9, 0) is Verdict.JUMP  # a restarted plant starts again
 
 
 def assembly(controller='pp_nftsmc_eso', **kwargs):
@@ -114,17 +129,19 @@ def test_assembly_controls_a_sample_once_both_halves_are_in():
     assert a.add_measurement(0, 0.0) is None
     s = a.add_estimate(0, 0.0, 0.0)
     assert s.stamp_ns == 0 and s.status is Status.OK and math.isfinite(s.current_a)
-    assert a.add_estimate(P, 0.0, 0.0) is None                # estimate first, then its measurement
+    assert a.add_estimate(P, 0.0, 0.0) is None  # estimate first, then its measurement
     assert a.add_measurement(P, 1e-4).stamp_ns == P
     pi = assembly('pi')
-    assert pi.add_measurement(0, 0.0).status is Status.OK     # PI needs no estimate
+    assert pi.add_measurement(0, 0.0).status is Status.OK  # PI needs no estimate
 
 
 def test_assembly_corrects_an_estimate_integrated_with_a_substituted_current():
     a = assembly()
     a.add_estimate(0, 0.0, 0.0)
     commanded = a.add_measurement(0, 0.0).current_a
-    a.add_estimate(P, 0.5, 1.0, input_ns=0, input_current_a=commanded + 2.0, input_current_gain=0.03)
+    a.add_estimate(
+        P, 0.5, 1.0, input_ns=0, input_current_a=commanded + 2.0, input_current_gain=0.03
+    )
     s = a.add_measurement(P, 0.0)
     assert s.estimate == pytest.approx((0.5 - 2.0 * 0.03, 1.0)) and a.corrected == 1
 
@@ -132,8 +149,8 @@ def test_assembly_corrects_an_estimate_integrated_with_a_substituted_current():
 def test_assembly_counts_unanswered_and_missed_samples():
     a = assembly()
     a.add_measurement(0, 0.0)
-    a.add_measurement(P, 0.0)                                 # y(0) never got its estimate
-    a.add_measurement(4 * P, 0.0)                             # samples 2 and 3 never came
+    a.add_measurement(P, 0.0)  # y(0) never got its estimate
+    a.add_measurement(4 * P, 0.0)  # samples 2 and 3 never came
     assert a.unanswered == 2 and a.missed == 2
 
 
@@ -154,7 +171,7 @@ def test_assembly_latches_on_following_error_and_on_non_finite_output():
 
 def test_assembly_watchdog_reports_stale_inputs():
     a = assembly()
-    assert a.watchdog(10 ** 9, 5 * P, 5 * P) is None          # not started: nothing to guard
+    assert a.watchdog(10**9, 5 * P, 5 * P) is None  # not started: nothing to guard
     a.add_estimate(0, 0.0, 0.0)
     a.add_measurement(0, 0.0)
     assert a.watchdog(4 * P, 5 * P, 5 * P) is None
@@ -165,32 +182,32 @@ def test_assembly_resync_holds_zero_then_restarts_the_reference_from_the_held_an
     a = assembly()
     a.add_estimate(0, 0.0, 0.0)
     a.add_measurement(0, 0.0)
-    base = 10 ** 12
-    a.add_estimate(base, 0.0, 0.0, initial=True)              # the observer restarted
+    base = 10**12
+    a.add_estimate(base, 0.0, 0.0, initial=True)  # the observer restarted
     held = a.add_measurement(base, 0.3)
     assert held.status is Status.RESYNC and held.current_a == 0.0
     after = base + RESYNC_SAMPLES * P
     a.add_estimate(after, 0.0, 0.0)
     s = a.add_measurement(after, 0.3)
     assert s.status is Status.OK and s.t_s == 0.0
-    assert s.output.error_rad == pytest.approx(0.0)           # the reference starts where the joint is
+    assert s.output.error_rad == pytest.approx(0.0)  # the reference starts where the joint is
 
 
 def test_assembly_resyncs_when_estimates_resume_after_a_long_gap():
     a = assembly()
     a.add_estimate(0, 0.0, 0.0)
     a.add_measurement(0, 0.0)
-    for k in range(1, 300):                                   # the observer is gone; measurements go on
+    for k in range(1, 300):  # the observer is gone; measurements go on
         a.add_measurement(k * P, 0.0)
     a.add_measurement(300 * P, 0.2)
-    s = a.add_estimate(300 * P, 0.0, 0.0)                     # a new observer, its initial estimate lost
+    s = a.add_estimate(300 * P, 0.0, 0.0)  # a new observer, its initial estimate lost
     assert s.status is Status.RESYNC and a.resyncs == 1
 
 
 def test_assembly_started_away_from_the_reference_start_tracks_from_there():
     a = assembly()
     a.add_estimate(0, 0.0, 0.0)
-    s = a.add_measurement(0, 0.4)                              # a controller restarted at 0.4 rad
+    s = a.add_measurement(0, 0.4)  # a controller restarted at 0.4 rad
     assert s.status is Status.OK and s.output.error_rad == pytest.approx(0.0)
 
 
@@ -201,15 +218,20 @@ def test_gate_honours_safe_stop_limit_timeout_and_brake():
     g.activate()
     assert g.hold(0).brake and g.hold(0).reason == 'no command yet'
     assert g.offer(5.0, 0, False, 0) is None
-    assert g.hold(P) == (5.0, 0, False, '')                   # first valid command releases the brake
+    assert g.hold(P) == (5.0, 0, False, '')  # first valid command releases the brake
     assert g.offer(5.0, P, True, P) is None
-    assert g.hold(2 * P) == (0.0, P, True, 'safe stop')       # safe_stop: 0 A whatever current_a says
+    assert g.hold(2 * P) == (0.0, P, True, 'safe stop')  # safe_stop: 0 A whatever current_a says
     assert 'refused' in g.offer(limits.CURRENT_LIMIT_A + 1.0, 2 * P, False, 2 * P)
     assert g.hold(3 * P).current_a == 0.0 and g.refused == 1
     assert 'refused' in g.offer(float('nan'), 3 * P, False, 3 * P)
     g.offer(2.0, 4 * P, False, 4 * P)
     assert g.hold(4 * P + 10 * P).current_a == 2.0
     late = g.hold(4 * P + 11 * P)
-    assert late.current_a == 0.0 and late.brake and late.reason == 'command timeout' and g.timeouts == 1
+    assert (
+        late.current_a == 0.0
+        and late.brake
+        and late.reason == 'command timeout'
+        and g.timeouts == 1
+    )
     g.deactivate()
     assert g.hold(0).reason == 'inactive' and g.offer(1.0, 0, False, 0) is not None

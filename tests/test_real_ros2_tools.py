@@ -1,4 +1,7 @@
-"""The real ROS 2 Jazzy tools on the project: ros2 launch, ros2 run, ros2 param, ros2 lifecycle, ros2 bag.
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""The real ROS 2 Jazzy tools on the project: ros2 launch, run, param, lifecycle and bag.
 
 These need ros2cli and launch_ros (and rosbag2 for ``ros2 bag``), which are not on PyPI: they run
 on a machine with /opt/ros/jazzy, or in a checkout prepared as ../shared/real-ros2-tools.md says,
@@ -21,21 +24,40 @@ pytestmark = pytest.mark.ros
 
 HAVE_CLI = shutil.which('ros2') is not None and importlib.util.find_spec('ros2cli') is not None
 HAVE_LAUNCH = HAVE_CLI and importlib.util.find_spec('launch_ros') is not None
-NEEDS_CLI = pytest.mark.skipif(not HAVE_CLI, reason='ros2cli is not installed (not on PyPI): a Jazzy install or a '
-                                                    'checkout prepared as ../shared/real-ros2-tools.md says')
-NEEDS_LAUNCH = pytest.mark.skipif(not HAVE_LAUNCH, reason='ros2 launch is not installed (not on PyPI): a Jazzy '
-                                                          'install or a checkout prepared as real-ros2-tools.md says')
-NODES = [('actuator_plant', 'plant_node', '/actuator_plant'), ('actuator_eso', 'eso_node', '/actuator_eso'),
-         ('actuator_controller', 'controller_node', '/actuator_controller')]
+NEEDS_CLI = pytest.mark.skipif(
+    not HAVE_CLI,
+    reason='ros2cli is not installed (not on PyPI): a Jazzy install or a '
+    'checkout prepared as ../shared/real-ros2-tools.md says',
+)
+NEEDS_LAUNCH = pytest.mark.skipif(
+    not HAVE_LAUNCH,
+    reason='ros2 launch is not installed (not on PyPI): a Jazzy '
+    'install or a checkout prepared as real-ros2-tools.md says',
+)
+NODES = [
+    ('actuator_plant', 'plant_node', '/actuator_plant'),
+    ('actuator_eso', 'eso_node', '/actuator_eso'),
+    ('actuator_controller', 'controller_node', '/actuator_controller'),
+]
 EXECUTABLES = ('plant_node', 'eso_node', 'controller_node', 'recorder')
 
 
 def ros2(env, *args, timeout=60.0) -> subprocess.CompletedProcess:
-    """One ros2 command, its output captured; no daemon (one left from another test's domain answers stale)."""
+    """Run one ros2 command, its output captured.
+
+    Without the daemon: one left from another test's domain answers stale.
+    """
     args = list(args)
-    if args[:2] in (['lifecycle', 'get'], ['lifecycle', 'set'], ['param', 'list'], ['param', 'describe']):
+    if args[:2] in (
+        ['lifecycle', 'get'],
+        ['lifecycle', 'set'],
+        ['param', 'list'],
+        ['param', 'describe'],
+    ):
         args.insert(2, '--no-daemon')
-    return subprocess.run(['ros2', *args], env=env, capture_output=True, text=True, timeout=timeout)
+    return subprocess.run(
+        ['ros2', *args], env=env, capture_output=True, text=True, timeout=timeout
+    )
 
 
 def ours_running() -> list:
@@ -50,23 +72,46 @@ def ours_running() -> list:
 
 @NEEDS_LAUNCH
 def test_ros2_launch_ends_a_sim_run_by_itself_with_every_exit_code_0(ros_env, tmp_path):
-    proc = subprocess.run(['ros2', 'launch', 'actuator_bringup', 'closed_loop.launch.py', 'duration:=3', 'mode:=sim',
-                           f'bag:={tmp_path / "bag"}'], env=ros_env, capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [
+            'ros2',
+            'launch',
+            'actuator_bringup',
+            'closed_loop.launch.py',
+            'duration:=3',
+            'mode:=sim',
+            f'bag:={tmp_path / "bag"}',
+        ],
+        env=ros_env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     out = proc.stdout + proc.stderr
     assert proc.returncode == 0, out[-3000:]
     assert 'plant_node-4 exited with code 0: ending the run' in out
     assert out.count('process has finished cleanly') == 4, out[-3000:]
-    assert 'configured' in out and 'active' in out               # the lifecycle driven by launch_ros
+    assert 'configured' in out and 'active' in out  # the lifecycle driven by launch_ros
     assert (tmp_path / 'bag' / 'metadata.yaml').is_file()
     assert not ours_running()
 
 
 @NEEDS_LAUNCH
 def test_sigint_to_ros2_launch_leaves_no_process_behind(ros_env, tmp_path):
-    launch = RosProcess(['ros2', 'launch', 'actuator_bringup', 'closed_loop.launch.py', f'bag:={tmp_path / "bag"}'],
-                        env=ros_env, log_dir=tmp_path, name='launch')
+    launch = RosProcess(
+        [
+            'ros2',
+            'launch',
+            'actuator_bringup',
+            'closed_loop.launch.py',
+            f'bag:={tmp_path / "bag"}',
+        ],
+        env=ros_env,
+        log_dir=tmp_path,
+        name='launch',
+    )
     launch.wait_for_output('sampling started', timeout=60.0)
-    os.kill(launch.pid, signal.SIGINT)                           # Ctrl-C to the launch process only
+    os.kill(launch.pid, signal.SIGINT)  # Ctrl-C to the launch process only
     assert launch.wait(30.0) == 0, launch.describe()
     deadline = time.monotonic() + 10.0
     while ours_running() and time.monotonic() < deadline:
@@ -78,8 +123,13 @@ def test_sigint_to_ros2_launch_leaves_no_process_behind(ros_env, tmp_path):
 @NEEDS_LAUNCH
 @pytest.mark.parametrize('argument', ['record:=yes', 'plant:=maybe'])
 def test_ros2_launch_refuses_a_boolean_it_cannot_read(ros_env, argument):
-    proc = subprocess.run(['ros2', 'launch', 'actuator_bringup', 'closed_loop.launch.py', argument], env=ros_env,
-                          capture_output=True, text=True, timeout=60)
+    proc = subprocess.run(
+        ['ros2', 'launch', 'actuator_bringup', 'closed_loop.launch.py', argument],
+        env=ros_env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert proc.returncode != 0
     assert 'yes' in proc.stdout + proc.stderr or 'maybe' in proc.stdout + proc.stderr
     assert not ours_running()
@@ -87,8 +137,12 @@ def test_ros2_launch_refuses_a_boolean_it_cannot_read(ros_env, argument):
 
 @NEEDS_CLI
 @pytest.mark.parametrize('package, executable, node', NODES)
-def test_ros2_param_describe_shows_a_description_for_every_parameter(ros_env, tmp_path, package, executable, node):
-    with RosProcess(['ros2', 'run', package, executable], env=ros_env, log_dir=tmp_path, name=executable):
+def test_ros2_param_describe_shows_a_description_for_every_parameter(
+    ros_env, tmp_path, package, executable, node
+):
+    with RosProcess(
+        ['ros2', 'run', package, executable], env=ros_env, log_dir=tmp_path, name=executable
+    ):
         deadline = time.monotonic() + 30.0
         names = []
         while not names and time.monotonic() < deadline:
@@ -98,35 +152,66 @@ def test_ros2_param_describe_shows_a_description_for_every_parameter(ros_env, tm
         described = ros2(ros_env, 'param', 'describe', node, *names)
         blocks = described.stdout.split('Parameter name: ')[1:]
         assert len(blocks) == len(names)
-        missing = [b.splitlines()[0] for b in blocks if 'Description: ' not in b or
-                   not b.split('Description: ', 1)[1].split('\n', 1)[0].strip()]
+        missing = [
+            b.splitlines()[0]
+            for b in blocks
+            if 'Description: ' not in b
+            or not b.split('Description: ', 1)[1].split('\n', 1)[0].strip()
+        ]
         assert not missing, missing
 
 
 @NEEDS_CLI
 @pytest.mark.parametrize('package, executable, node', NODES)
-def test_ros2_lifecycle_takes_each_node_through_its_states(ros_env, tmp_path, package, executable, node):
-    with RosProcess(['ros2', 'run', package, executable, '--ros-args', '-p',
-                     'use_sim_time:=false'], env=ros_env, log_dir=tmp_path, name=executable) as proc:
+def test_ros2_lifecycle_takes_each_node_through_its_states(
+    ros_env, tmp_path, package, executable, node
+):
+    with RosProcess(
+        ['ros2', 'run', package, executable, '--ros-args', '-p', 'use_sim_time:=false'],
+        env=ros_env,
+        log_dir=tmp_path,
+        name=executable,
+    ) as proc:
         deadline = time.monotonic() + 30.0
         state = ''
         while 'unconfigured' not in state and time.monotonic() < deadline:
             state = ros2(ros_env, 'lifecycle', 'get', node).stdout
         assert 'unconfigured' in state
-        for transition, expected in (('configure', 'inactive'), ('activate', 'active'), ('deactivate', 'inactive'),
-                                     ('cleanup', 'unconfigured'), ('shutdown', 'finalized')):
+        for transition, expected in (
+            ('configure', 'inactive'),
+            ('activate', 'active'),
+            ('deactivate', 'inactive'),
+            ('cleanup', 'unconfigured'),
+            ('shutdown', 'finalized'),
+        ):
             result = ros2(ros_env, 'lifecycle', 'set', node, transition)
-            assert 'Transitioning successful' in result.stdout, (transition, result.stdout + result.stderr)
+            assert 'Transitioning successful' in result.stdout, (
+                transition,
+                result.stdout + result.stderr,
+            )
             assert ros2(ros_env, 'lifecycle', 'get', node).stdout.startswith(expected)
         assert proc.stop() == 0 and 'Traceback' not in proc.output
 
 
-@pytest.mark.skipif(not HAVE_CLI or subprocess.run(['ros2', 'bag', '--help'], capture_output=True).returncode != 0
-                    if HAVE_CLI else True,
-                    reason='rosbag2 (ros2 bag) is not installed: 45 minutes of C++ on 2 cores, see real-ros2-tools.md')
+HAVE_BAG = HAVE_CLI and subprocess.run(['ros2', 'bag', '--help'], capture_output=True).returncode == 0
+
+
+@pytest.mark.skipif(
+    not HAVE_BAG,
+    reason='rosbag2 (ros2 bag) is not installed: 45 minutes of C++ on 2 cores (real-ros2-tools.md)',
+)
 def test_ros2_bag_info_reads_a_fresh_bag(ros_env, tmp_path):
     from actuator_tools.bringup import run_closed_loop
-    result = run_closed_loop('case2_pp_nftsmc_eso', 'sim', 1.0, bag_root=tmp_path / 'bags',
-                             results_root=tmp_path / 'runs', quiet=True)
+
+    result = run_closed_loop(
+        'case2_pp_nftsmc_eso',
+        'sim',
+        1.0,
+        bag_root=tmp_path / 'bags',
+        results_root=tmp_path / 'runs',
+        quiet=True,
+    )
     info = ros2(ros_env, 'bag', 'info', str(result.bag))
-    assert info.returncode == 0 and 'Messages:' in info.stdout and '/controller/state' in info.stdout
+    assert (
+        info.returncode == 0 and 'Messages:' in info.stdout and '/controller/state' in info.stdout
+    )

@@ -1,4 +1,10 @@
-"""SampleLog: rows survive chunk boundaries, the cap counts instead of growing, files round-trip."""
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""SampleLog.
+
+Rows survive chunk boundaries, the cap counts instead of growing, files round-trip.
+"""
 
 import numpy as np
 

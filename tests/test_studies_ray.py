@@ -1,4 +1,10 @@
-"""actuator_studies on Ray (one local instance, two workers): equal to a local run, failed chunks retried, never missing."""
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""actuator_studies on Ray (one local instance, two workers).
+
+Equal to a local run, failed chunks retried, never missing.
+"""
 
 import pyarrow.parquet as pq
 import pytest
@@ -14,7 +20,7 @@ SHORT_S = 5.2
 
 @pytest.fixture(scope='module')
 def ray_session():
-    """A private local Ray instance with two workers for the whole module."""
+    """Return a private local Ray instance with two workers for the whole module."""
     ray = distributed.start_ray('local:2')
     assert distributed.ray_workers(ray) == 2
     yield ray
@@ -22,17 +28,26 @@ def ray_session():
 
 
 def _request(**changes) -> SweepRequest:
-    """A small Monte Carlo with encoder noise (so the per-run seeds matter)."""
-    fields = dict(vary=['condition.temperature_c=-2:30', 'drift.torque_constant_amplitude=0:0.6',
-                        'encoder.noise_std_rad=0:2e-4'], method='lhs', samples=6, seed=5, batch=2,
-                  duration_s=SHORT_S)
+    """Return a small Monte Carlo with encoder noise (so the per-run seeds matter)."""
+    fields = dict(
+        vary=[
+            'condition.temperature_c=-2:30',
+            'drift.torque_constant_amplitude=0:0.6',
+            'encoder.noise_std_rad=0:2e-4',
+        ],
+        method='lhs',
+        samples=6,
+        seed=5,
+        batch=2,
+        duration_s=SHORT_S,
+    )
     fields.update(changes)
     return SweepRequest(**fields)
 
 
 @pytest.fixture(scope='module')
 def local_table(tmp_path_factory):
-    """The same study run in this process."""
+    """Return the same study run in this process."""
     out = tmp_path_factory.mktemp('local') / 'study'
     run_sweep(_request(), out, progress=False)
     return pq.read_table(out / 'runs.parquet')
@@ -47,19 +62,33 @@ def test_ray_run_equals_the_local_run_row_for_row(ray_session, local_table, tmp_
 
 
 @pytest.mark.parametrize('mode', ['raise', 'exit'])
-def test_a_chunk_whose_first_attempt_fails_or_loses_its_worker_is_retried(ray_session, local_table, tmp_path, mode):
+def test_a_chunk_whose_first_attempt_fails_or_loses_its_worker_is_retried(
+    ray_session, local_table, tmp_path, mode
+):
     marker = tmp_path / 'failed-once'
-    run_sweep(_request(), tmp_path / 'ray', progress=False, ray_session=ray_session,
-              inject=InjectedFailure(chunk=1, marker=str(marker), mode=mode))
-    assert marker.exists()                                    # the first attempt did fail
+    run_sweep(
+        _request(),
+        tmp_path / 'ray',
+        progress=False,
+        ray_session=ray_session,
+        inject=InjectedFailure(chunk=1, marker=str(marker), mode=mode),
+    )
+    assert marker.exists()  # the first attempt did fail
     assert tables_identical(pq.read_table(tmp_path / 'ray' / 'runs.parquet'), local_table)
 
 
-def test_a_chunk_failing_every_attempt_ends_the_study_with_an_error_not_a_gap(ray_session, tmp_path):
+def test_a_chunk_failing_every_attempt_ends_the_study_with_an_error_not_a_gap(
+    ray_session, tmp_path
+):
     out = tmp_path / 'ray'
     with pytest.raises(ChunkFailed, match='chunk 2'):
-        run_sweep(_request(), out, progress=False, ray_session=ray_session,
-                  inject=InjectedFailure(chunk=2, marker=str(tmp_path / 'm'), mode='always'))
+        run_sweep(
+            _request(),
+            out,
+            progress=False,
+            ray_session=ray_session,
+            inject=InjectedFailure(chunk=2, marker=str(tmp_path / 'm'), mode='always'),
+        )
     assert not (out / 'runs.parquet').exists() and not (out / 'summary.json').exists()
     assert not (out / 'chunks' / 'chunk_00002.parquet').exists()
 
@@ -68,9 +97,18 @@ def test_design_batches_on_ray_equal_the_local_batch(ray_session):
     import numpy as np
     from actuator_studies.design import Evaluator, corner_table
     from actuator_studies.space import BaseScenario
+
     corners = corner_table(['depth_m=0,1000', 'encoder.noise_std_rad=1e-4'], 'pp_nftsmc_eso')
-    sets = [{'pp_nftsmc_eso.k0_per_s': k0, 'pp_nftsmc_eso.k1': 1000.0, 'pp_nftsmc_eso.k2': 20.0,
-             'pp_nftsmc_eso.k3_per_s': 200.0, 'eso.omega0_rad_s': 60.0} for k0 in (60.0, 100.0)]
+    sets = [
+        {
+            'pp_nftsmc_eso.k0_per_s': k0,
+            'pp_nftsmc_eso.k1': 1000.0,
+            'pp_nftsmc_eso.k2': 20.0,
+            'pp_nftsmc_eso.k3_per_s': 200.0,
+            'eso.omega0_rad_s': 60.0,
+        }
+        for k0 in (60.0, 100.0)
+    ]
     base = BaseScenario(duration_s=SHORT_S)
     local = Evaluator(base, corners).run(sets)
     remote = Evaluator(base, corners, ray_session, workers=2).run(sets)

@@ -1,5 +1,11 @@
-"""The workspace itself: it builds from a clean clone, every executable is where `ros2 run`
-looks, and the shared test tooling (isolated domains, RosProcess) does what it promises."""
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""The workspace itself.
+
+It builds from a clean clone, every executable is where `ros2 run` looks, and the shared test
+tooling (isolated domains, RosProcess) does what it promises.
+"""
 
 from __future__ import annotations
 
@@ -19,15 +25,22 @@ import ros_helpers
 
 WS = ros_helpers.WORKSPACE
 HERE = Path(__file__).resolve().parent
-COLCON = [sys.executable, '-c',
-          'import sys; sys.argv[0] = "colcon"; from colcon_core.command import main; sys.exit(main())']
+COLCON = [
+    sys.executable,
+    '-c',
+    'import sys; sys.argv[0] = "colcon"; from colcon_core.command import main; sys.exit(main())',
+]
 
 
 def _source_packages(src: Path):
     """{name: build_type} of every package.xml under src (not below a COLCON_IGNORE)."""
     packages = {}
     for xml in sorted(src.rglob('package.xml')):
-        if any((parent / 'COLCON_IGNORE').exists() for parent in xml.parents if src in parent.parents or parent == src):
+        if any(
+            (parent / 'COLCON_IGNORE').exists()
+            for parent in xml.parents
+            if src in parent.parents or parent == src
+        ):
             continue
         root = ET.parse(xml).getroot()
         build_type = root.findtext('export/build_type') or 'catkin'
@@ -36,7 +49,7 @@ def _source_packages(src: Path):
 
 
 def _is_alive(pid: int) -> bool:
-    """True for a running process, False for a gone or zombie one."""
+    """Return True for a running process, False for a gone or zombie one."""
     try:
         with open(f'/proc/{pid}/stat') as f:
             state = f.read().rsplit(')', 1)[1].split()[0]
@@ -48,9 +61,14 @@ def _is_alive(pid: int) -> bool:
 # -- the workspace ------------------------------------------------------------------------------
 @pytest.mark.ros
 def test_workspace_builds_from_a_clean_clone(tmp_path):
-    """`git clone` of HEAD, then `colcon build` of its src/ with the same tools, and the
-    result works: messages import and packages resolve to the clone's install/."""
-    if subprocess.run(['git', '-C', str(WS), 'rev-parse', 'HEAD'], capture_output=True).returncode != 0:
+    """`git clone` of HEAD, then `colcon build` of its src/ with the same tools.
+
+    The result works: messages import and packages resolve to the clone's install/.
+    """
+    if (
+        subprocess.run(['git', '-C', str(WS), 'rev-parse', 'HEAD'], capture_output=True).returncode
+        != 0
+    ):
         pytest.skip('the workspace is not a git checkout, so there is no HEAD to clone')
     clone = tmp_path / 'clone'
     subprocess.run(['git', 'clone', '--quiet', '--no-local', str(WS), str(clone)], check=True)
@@ -60,11 +78,28 @@ def test_workspace_builds_from_a_clean_clone(tmp_path):
 
     started = time.monotonic()
     build = subprocess.run(
-        [*COLCON, '--log-base', 'log', 'build', '--base-paths', 'src', '--symlink-install',
-         '--cmake-args', '-DBUILD_TESTING=OFF'],
-        cwd=clone, env=env, capture_output=True, text=True, timeout=1200, stdin=subprocess.DEVNULL)
+        [
+            *COLCON,
+            '--log-base',
+            'log',
+            'build',
+            '--base-paths',
+            'src',
+            '--symlink-install',
+            '--cmake-args',
+            '-DBUILD_TESTING=OFF',
+        ],
+        cwd=clone,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=1200,
+        stdin=subprocess.DEVNULL,
+    )
     elapsed = time.monotonic() - started
-    assert build.returncode == 0, f'colcon build failed in the clone:\n{build.stdout[-6000:]}\n{build.stderr[-6000:]}'
+    assert build.returncode == 0, (
+        f'colcon build failed in the clone:\n{build.stdout[-6000:]}\n{build.stderr[-6000:]}'
+    )
     summary = re.search(r'Summary: (\d+) packages? finished', build.stdout)
     assert summary and int(summary.group(1)) == len(expected), build.stdout[-3000:]
     print(f'clean-clone colcon build of {len(expected)} packages: {elapsed:.1f} s')
@@ -73,10 +108,16 @@ def test_workspace_builds_from_a_clean_clone(tmp_path):
         'import json, actuator_msgs.msg\n'
         'from ament_index_python.packages import get_package_prefix\n'
         f'names = {sorted(expected)!r}\n'
-        'print(json.dumps({n: get_package_prefix(n) for n in names}))\n')
+        'print(json.dumps({n: get_package_prefix(n) for n in names}))\n'
+    )
     run = subprocess.run(
         ['bash', '-c', 'source install/setup.bash && exec "$0" -c "$1"', sys.executable, probe],
-        cwd=clone, env=env, capture_output=True, text=True, timeout=120)
+        cwd=clone,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert run.returncode == 0, run.stderr
     prefixes = json.loads(run.stdout.strip().splitlines()[-1])
     for name, prefix in prefixes.items():
@@ -84,8 +125,11 @@ def test_workspace_builds_from_a_clean_clone(tmp_path):
 
 
 def test_every_console_script_is_where_ros2_run_looks():
-    """For every ament_python package in src/, each console_scripts entry point of its
-    installed metadata is the executable lib/<pkg>/<exe> under the ament-index prefix."""
+    """Every console_scripts entry point is an executable lib/<pkg>/<exe>.
+
+    For every ament_python package in src/, each console_scripts entry point of its installed
+    metadata is the executable lib/<pkg>/<exe> under the ament-index prefix.
+    """
     packages = _source_packages(WS / 'src')
     python_packages = sorted(n for n, bt in packages.items() if bt == 'ament_python')
     assert python_packages, 'no ament_python package in src/'
@@ -94,10 +138,15 @@ def test_every_console_script_is_where_ros2_run_looks():
         from ament_index_python.packages import get_package_prefix, get_package_share_directory
 
         prefix = Path(get_package_prefix(package))
-        assert prefix == WS / 'install' / package, f'{package} resolves to {prefix}, not this workspace'
+        assert prefix == WS / 'install' / package, (
+            f'{package} resolves to {prefix}, not this workspace'
+        )
         assert (Path(get_package_share_directory(package)) / 'package.xml').is_file()
-        scripts = [ep for ep in importlib.metadata.distribution(package).entry_points
-                   if ep.group == 'console_scripts']
+        scripts = [
+            ep
+            for ep in importlib.metadata.distribution(package).entry_points
+            if ep.group == 'console_scripts'
+        ]
         for ep in scripts:
             path = Path(ros_helpers.executable_path(package, ep.name))
             assert path == prefix / 'lib' / package / ep.name
@@ -105,7 +154,9 @@ def test_every_console_script_is_where_ros2_run_looks():
             shebang = path.read_text().splitlines()[0]
             interpreter = Path(shebang[2:].strip().split()[0])
             # The venv's interpreter, which sees the venv's packages (rosbags, mcap, ...).
-            assert shebang.startswith('#!') and interpreter.parent == Path(sys.prefix) / 'bin', shebang
+            assert shebang.startswith('#!') and interpreter.parent == Path(sys.prefix) / 'bin', (
+                shebang
+            )
             assert f"'{ep.name}'" in path.read_text() or ep.value.split(':')[0] in path.read_text()
             checked += 1
     assert checked > 0, 'no console_scripts declared by any package'
@@ -122,8 +173,11 @@ def test_every_package_in_src_is_installed():
 
 # -- the test tooling ------------------------------------------------------------------------
 def test_isolated_domains_do_not_see_each_other(rclpy_context, ros_env, tmp_path):
-    """A node in this process hears a publisher process on its own domain and never one
-    on another test's domain, though both publish the same topic and type on this host."""
+    """A node in this process hears a publisher on its own domain, never one on another.
+
+    A node in this process hears a publisher process on its own domain and never one on another
+    test's domain, though both publish the same topic and type on this host.
+    """
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -141,19 +195,34 @@ def test_isolated_domains_do_not_see_each_other(rclpy_context, ros_env, tmp_path
         assert other != int(ros_env['ROS_DOMAIN_ID'])
         other_env = ros_helpers.isolated_ros_env(other, log_dir=tmp_path / 'other_log')
         args = ['pub', '--types', 'CurrentCommand']
-        with ros_helpers.RosProcess.python(script, [*args, '--seed', '1'], env=ros_env,
-                                           log_dir=tmp_path, name='same_domain') as same, \
-             ros_helpers.RosProcess.python(script, [*args, '--seed', '2'], env=other_env,
-                                           log_dir=tmp_path, name='other_domain') as foreign:
+        with (
+            ros_helpers.RosProcess.python(
+                script, [*args, '--seed', '1'], env=ros_env, log_dir=tmp_path, name='same_domain'
+            ) as same,
+            ros_helpers.RosProcess.python(
+                script,
+                [*args, '--seed', '2'],
+                env=other_env,
+                log_dir=tmp_path,
+                name='other_domain',
+            ) as foreign,
+        ):
             same.wait_for_output('^READY$', timeout=30)
             foreign.wait_for_output('^READY$', timeout=30)
 
             node = rclpy.create_node('isolation_probe', context=rclpy_context)
             got = []
-            qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
-            node.create_subscription(CurrentCommand, 'exchange/CurrentCommand',
-                                     lambda m: got.append(ros_helpers.message_leaves(m)), qos)
+            qos = QoSProfile(
+                depth=1,
+                reliability=ReliabilityPolicy.RELIABLE,
+                durability=DurabilityPolicy.TRANSIENT_LOCAL,
+            )
+            node.create_subscription(
+                CurrentCommand,
+                'exchange/CurrentCommand',
+                lambda m: got.append(ros_helpers.message_leaves(m)),
+                qos,
+            )
             executor = SingleThreadedExecutor(context=rclpy_context)
             executor.add_node(node)
             try:
@@ -177,12 +246,16 @@ def test_ros_process_escalates_and_leaves_no_orphans(tmp_path):
     stubborn = (
         'import signal, subprocess, sys, time\n'
         'child = subprocess.Popen([sys.executable, "-c", "import signal, time; '
-        'signal.signal(signal.SIGINT, signal.SIG_IGN); signal.signal(signal.SIGTERM, signal.SIG_IGN); '
+        'signal.signal(signal.SIGINT, signal.SIG_IGN); signal.signal(signal.SIGTERM, '
+        'signal.SIG_IGN); '
         'time.sleep(300)"])\n'
         'signal.signal(signal.SIGINT, signal.SIG_IGN)\n'
         'print("child", child.pid, flush=True)\n'
-        'time.sleep(300)\n')
-    proc = ros_helpers.RosProcess([sys.executable, '-c', stubborn], log_dir=tmp_path, name='stubborn')
+        'time.sleep(300)\n'
+    )
+    proc = ros_helpers.RosProcess(
+        [sys.executable, '-c', stubborn], log_dir=tmp_path, name='stubborn'
+    )
     with proc:
         child_pid = int(proc.wait_for_output(r'^child (\d+)$', timeout=20).group(1))
         assert _is_alive(child_pid)
@@ -191,10 +264,15 @@ def test_ros_process_escalates_and_leaves_no_orphans(tmp_path):
     assert proc.stopped_by == 'SIGTERM'
     assert rc == -15
     assert time.monotonic() - started < 8
-    assert ros_helpers.wait_until(lambda: not _is_alive(child_pid), timeout=5), 'grandchild survived'
+    assert ros_helpers.wait_until(lambda: not _is_alive(child_pid), timeout=5), (
+        'grandchild survived'
+    )
 
-    quick = ros_helpers.RosProcess([sys.executable, '-c', 'print("hello"); raise SystemExit(3)'],
-                                   log_dir=tmp_path, name='quick')
+    quick = ros_helpers.RosProcess(
+        [sys.executable, '-c', 'print("hello"); raise SystemExit(3)'],
+        log_dir=tmp_path,
+        name='quick',
+    )
     assert quick.wait(timeout=30) == 3
     assert quick.stopped_by == 'exit' and quick.stdout.strip() == 'hello'
     assert (tmp_path / 'quick.stdout').read_text().strip() == 'hello'

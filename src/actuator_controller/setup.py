@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Set-up of the ament_python package actuator_controller."""
 
 import os
@@ -28,7 +31,8 @@ setup(
     zip_safe=True,
     maintainer='Actuator control team',
     maintainer_email='actuator@example.com',
-    description='PP-NFTSMC-ESO joint controller and its baselines: ROS-free control laws and the controller node.',
+    description='PP-NFTSMC-ESO joint controller and its baselines: ROS-free control laws and '
+    'the controller node.',
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={

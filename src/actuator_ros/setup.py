@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Set-up of the ament_python package actuator_ros."""
 
 import os
@@ -32,7 +35,6 @@ setup(
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={
-        'console_scripts': [
-        ],
+        'console_scripts': [],
     },
 )

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Set-up of the ament_python package actuator_studies."""
 
 from setuptools import find_packages, setup
@@ -17,7 +20,8 @@ setup(
     zip_safe=True,
     maintainer='Actuator control team',
     maintainer_email='actuator@example.com',
-    description='Envelope sweeps, Monte Carlo studies and robust gain design over the offline closed loop.',
+    description='Envelope sweeps, Monte Carlo studies and robust gain design over the offline '
+    'closed loop.',
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={

@@ -43,8 +43,13 @@ PLANT_TRUTH = 'actuator_msgs/msg/PlantTruth'
 CURRENT_COMMAND = 'actuator_msgs/msg/CurrentCommand'
 JOINT_STATE = 'sensor_msgs/msg/JointState'
 #: The files draw_figures writes (the velocity and disturbance figures only when a bag has estimates).
-FIGURE_FILES = ('position.png', 'tracking_error.png', 'velocity_estimate.png', 'disturbance_estimate.png',
-                'control_input.png')
+FIGURE_FILES = (
+    'position.png',
+    'tracking_error.png',
+    'velocity_estimate.png',
+    'disturbance_estimate.png',
+    'control_input.png',
+)
 
 
 @dataclass
@@ -79,7 +84,11 @@ class RunData:
     def has_envelope(self) -> bool:
         """True when the prescribed-performance bounds are finite at every controlled sample (status OK)."""
         ok = self.status == Status.OK
-        return bool(ok.any() and np.all(np.isfinite(self.lower[ok])) and np.all(np.isfinite(self.upper[ok])))
+        return bool(
+            ok.any()
+            and np.all(np.isfinite(self.lower[ok]))
+            and np.all(np.isfinite(self.upper[ok]))
+        )
 
 
 @dataclass
@@ -104,7 +113,9 @@ class RunReport:
         }
 
 
-def load_run(path: os.PathLike | str, source: Optional[DefinitionSource] = None, quiet: bool = False) -> RunData:
+def load_run(
+    path: os.PathLike | str, source: Optional[DefinitionSource] = None, quiet: bool = False
+) -> RunData:
     """Read the topics of one bag into a RunData; AnalysisError when controller/state is missing or empty."""
     path = Path(path)
     with open_bag(path) as reader:
@@ -134,7 +145,9 @@ def load_run(path: os.PathLike | str, source: Optional[DefinitionSource] = None,
             try:
                 msg = store.deserialize_cdr(raw, conn.msgtype)
             except Exception as err:  # noqa: BLE001 - any decode failure is a bad bag
-                raise AnalysisError(f'{path}: a {conn.topic} message does not decode ({err})') from None
+                raise AnalysisError(
+                    f'{path}: a {conn.topic} message does not decode ({err})'
+                ) from None
             rows[kind].append(_extract(kind, msg, log_ns))
             done += 1
             if done % 1000 == 0:
@@ -162,9 +175,16 @@ def _extract(kind: str, msg: Any, log_ns: int) -> tuple:
     """The fields of one message that the analysis uses."""
     if kind == 'state':
         return (
-            stamp_to_ns(msg.header.stamp), msg.controller_name, int(msg.status),
-            msg.reference_position_rad, msg.measured_position_rad, msg.error_rad,
-            msg.lower_bound_rad, msg.upper_bound_rad, msg.current_a, bool(msg.saturated),
+            stamp_to_ns(msg.header.stamp),
+            msg.controller_name,
+            int(msg.status),
+            msg.reference_position_rad,
+            msg.measured_position_rad,
+            msg.error_rad,
+            msg.lower_bound_rad,
+            msg.upper_bound_rad,
+            msg.current_a,
+            bool(msg.saturated),
         )
     if kind == 'estimate':
         return (stamp_to_ns(msg.header.stamp), msg.velocity_rad_s, msg.disturbance_rad_s2)
@@ -177,7 +197,9 @@ def _assemble(path: Path, rows: dict[str, list[tuple]]) -> RunData:
     """Turn message rows into time-aligned arrays."""
     states = sorted((r for r in rows['state'] if r[2] != Status.WAITING), key=lambda r: r[0])
     if not states:
-        raise AnalysisError(f'{path}: controller/state has no samples past start-up (all Status.WAITING or none)')
+        raise AnalysisError(
+            f'{path}: controller/state has no samples past start-up (all Status.WAITING or none)'
+        )
     t0 = states[0][0]
     names = sorted({r[1] for r in states if r[1]})
     cols = list(zip(*states))
@@ -210,13 +232,19 @@ def _assemble(path: Path, rows: dict[str, list[tuple]]) -> RunData:
         run.truth_disturbance = np.array([r[2] for r in ordered], dtype=float)
     common = sorted(set(estimates) & set(truths))
     if common:
-        run.velocity_error = np.array([estimates[s][1] - truths[s][1] for s in common], dtype=float)
-        run.disturbance_error = np.array([estimates[s][2] - truths[s][2] for s in common], dtype=float)
+        run.velocity_error = np.array(
+            [estimates[s][1] - truths[s][1] for s in common], dtype=float
+        )
+        run.disturbance_error = np.array(
+            [estimates[s][2] - truths[s][2] for s in common], dtype=float
+        )
     joint = sorted({r[0] for r in rows.get('joint', [])})
     if len(joint) > 1:
         run.sample_period_s = np.diff(np.asarray(joint, dtype=np.int64)) * 1e-9
     if rows.get('command'):
-        run.command_latency_s = np.array([(log - stamp) * 1e-9 for stamp, log in rows['command']], dtype=float)
+        run.command_latency_s = np.array(
+            [(log - stamp) * 1e-9 for stamp, log in rows['command']], dtype=float
+        )
     return run
 
 
@@ -259,8 +287,10 @@ def analyze_run(run: RunData, steady_state_start_s: float = STEADY_STATE_START_S
     if period.size:
         nominal_ns = int(round(float(np.median(period)) * 1e9))
         if nominal_ns > 0:
-            missed = missed_samples(np.concatenate(([0], np.cumsum(np.rint(period * 1e9).astype(np.int64)))),
-                                    nominal_ns)
+            missed = missed_samples(
+                np.concatenate(([0], np.cumsum(np.rint(period * 1e9).astype(np.int64)))),
+                nominal_ns,
+            )
     timing = {'sample_period': _stats(period), 'command_latency': _stats(run.command_latency_s)}
     return RunReport(run=run, metrics=metrics, timing=timing, missed_samples=missed)
 
@@ -276,7 +306,9 @@ def _timing(stats: Optional[dict[str, float]]) -> str:
     """p50/p99/max in ms, or n/a."""
     if not stats:
         return 'n/a'
-    return '{:.3f}/{:.3f}/{:.3f} ms'.format(stats['p50_s'] * 1e3, stats['p99_s'] * 1e3, stats['max_s'] * 1e3)
+    return '{:.3f}/{:.3f}/{:.3f} ms'.format(
+        stats['p50_s'] * 1e3, stats['p99_s'] * 1e3, stats['max_s'] * 1e3
+    )
 
 
 def format_table(reports: Sequence[RunReport]) -> str:
@@ -288,9 +320,15 @@ def format_table(reports: Sequence[RunReport]) -> str:
 
     add('bag', [r.run.name for r in reports])
     add('controller', [r.run.controller for r in reports])
-    add('samples / duration', [f'{r.metrics.samples} / {r.metrics.duration_s:.3f} s' for r in reports])
+    add(
+        'samples / duration',
+        [f'{r.metrics.samples} / {r.metrics.duration_s:.3f} s' for r in reports],
+    )
     add('diverged', ['YES' if r.metrics.diverged else 'no' for r in reports])
-    add('status not OK', [f'{100 * np.mean(r.run.status != Status.OK):.2f} % of samples' for r in reports])
+    add(
+        'status not OK',
+        [f'{100 * np.mean(r.run.status != Status.OK):.2f} % of samples' for r in reports],
+    )
     add('steady window', ['{:.1f}-{:.3f} s'.format(*r.metrics.steady_window_s) for r in reports])
     add('max |e| in steady window', [_num(r.metrics.max_steady_error_rad, 'rad') for r in reports])
     add('RMS e in steady window', [_num(r.metrics.rms_steady_error_rad, 'rad') for r in reports])
@@ -298,27 +336,55 @@ def format_table(reports: Sequence[RunReport]) -> str:
     add('max |u|', [_num(r.metrics.max_abs_current_a, 'A', '.4f') for r in reports])
     add('RMS u', [_num(r.metrics.rms_current_a, 'A', '.4f') for r in reports])
     add('saturated', [f'{100 * r.metrics.saturated_fraction:.2f} %' for r in reports])
-    add('PPF bounds', [
-        ('kept' if r.metrics.bounds_kept else f'VIOLATED at {r.metrics.bounds_violations} samples')
-        if r.run.has_envelope else 'n/a (no envelope)'
-        for r in reports
-    ])
-    add('RMS velocity est. error', [
-        _num(r.metrics.rms_velocity_estimate_error_rad_s, 'rad/s') if r.run.velocity_error is not None
-        else 'n/a (no truth)' for r in reports
-    ])
-    add('RMS disturbance est. error', [
-        _num(r.metrics.rms_disturbance_estimate_error_rad_s2, 'rad/s^2') if r.run.disturbance_error is not None
-        else 'n/a (no truth)' for r in reports
-    ])
+    add(
+        'PPF bounds',
+        [
+            (
+                'kept'
+                if r.metrics.bounds_kept
+                else f'VIOLATED at {r.metrics.bounds_violations} samples'
+            )
+            if r.run.has_envelope
+            else 'n/a (no envelope)'
+            for r in reports
+        ],
+    )
+    add(
+        'RMS velocity est. error',
+        [
+            _num(r.metrics.rms_velocity_estimate_error_rad_s, 'rad/s')
+            if r.run.velocity_error is not None
+            else 'n/a (no truth)'
+            for r in reports
+        ],
+    )
+    add(
+        'RMS disturbance est. error',
+        [
+            _num(r.metrics.rms_disturbance_estimate_error_rad_s2, 'rad/s^2')
+            if r.run.disturbance_error is not None
+            else 'n/a (no truth)'
+            for r in reports
+        ],
+    )
     add('sample period p50/p99/max', [_timing(r.timing['sample_period']) for r in reports])
-    add('missed samples', [str(r.missed_samples) if r.timing['sample_period'] else 'n/a' for r in reports])
+    add(
+        'missed samples',
+        [str(r.missed_samples) if r.timing['sample_period'] else 'n/a' for r in reports],
+    )
     # The recorder's receive time minus the stamp: the recorder's own delay (it runs at normal
     # scheduling), not the loop's latency, which the controller measures (timing log).
-    add('recorder delay (log - stamp) p50/p99/max', [_timing(r.timing['command_latency']) for r in reports])
+    add(
+        'recorder delay (log - stamp) p50/p99/max',
+        [_timing(r.timing['command_latency']) for r in reports],
+    )
     (_, names), body = rows[0], rows[1:]
-    return tabulate([(label, *cells) for label, cells in body], headers=('bag', *names), tablefmt='simple',
-                    disable_numparse=True)
+    return tabulate(
+        [(label, *cells) for label, cells in body],
+        headers=('bag', *names),
+        tablefmt='simple',
+        disable_numparse=True,
+    )
 
 
 def _labels(runs: Sequence[RunData]) -> list[str]:
@@ -359,29 +425,56 @@ def draw_figures(runs: Sequence[RunData], out: Path) -> list[Path]:
     fig, (ax, zoom) = plt.subplots(2, 1, figsize=(8, 7))
     steady_peak = 0.0
     for run, label in zip(runs, labels):
-        line, = ax.plot(run.t, run.error, linewidth=0.9, label=label)
+        (line,) = ax.plot(run.t, run.error, linewidth=0.9, label=label)
         if run.has_envelope:
             ax.plot(run.t, run.upper, ':', color=line.get_color(), linewidth=1.0)
-            ax.plot(run.t, run.lower, ':', color=line.get_color(), linewidth=1.0, label=f'{label} bounds')
+            ax.plot(
+                run.t,
+                run.lower,
+                ':',
+                color=line.get_color(),
+                linewidth=1.0,
+                label=f'{label} bounds',
+            )
         steady = (run.t >= STEADY_STATE_START_S) & np.isfinite(run.error)
-        zoom.plot(run.t[steady], run.error[steady], linewidth=0.9, color=line.get_color(), label=label)
+        zoom.plot(
+            run.t[steady], run.error[steady], linewidth=0.9, color=line.get_color(), label=label
+        )
         if steady.any():
             steady_peak = max(steady_peak, float(np.max(np.abs(run.error[steady]))))
-    ax.set(xlabel='time [s]', ylabel='tracking error e [rad]', title='Tracking error and prescribed performance bounds')
+    ax.set(
+        xlabel='time [s]',
+        ylabel='tracking error e [rad]',
+        title='Tracking error and prescribed performance bounds',
+    )
     ax.legend(loc='best', fontsize='small')
     ax.grid(True, alpha=0.3)
     if steady_peak > 0.0:
         zoom.set_ylim(-1.2 * steady_peak, 1.2 * steady_peak)
-    zoom.set(xlabel='time [s]', ylabel='tracking error e [rad]',
-             title=f'Steady window (t >= {STEADY_STATE_START_S:g} s) at its own scale')
+    zoom.set(
+        xlabel='time [s]',
+        ylabel='tracking error e [rad]',
+        title=f'Steady window (t >= {STEADY_STATE_START_S:g} s) at its own scale',
+    )
     zoom.ticklabel_format(axis='y', style='sci', scilimits=(-2, 2))
     zoom.grid(True, alpha=0.3)
     save(fig, 'tracking_error.png')
 
     for name, title, unit, est_attr, truth_attr in (
-        ('velocity_estimate.png', 'Velocity estimate vs truth', 'velocity [rad/s]', 'est_velocity', 'truth_velocity'),
-        ('disturbance_estimate.png', 'Disturbance estimate vs truth', 'disturbance [rad/s^2]',
-         'est_disturbance', 'truth_disturbance'),
+        (
+            'velocity_estimate.png',
+            'Velocity estimate vs truth',
+            'velocity [rad/s]',
+            'est_velocity',
+            'truth_velocity',
+        ),
+        (
+            'disturbance_estimate.png',
+            'Disturbance estimate vs truth',
+            'disturbance [rad/s^2]',
+            'est_disturbance',
+            'truth_disturbance',
+        ),
     ):
         with_data = [(r, lab) for r, lab in zip(runs, labels) if getattr(r, est_attr).size]
         if not with_data:
@@ -389,9 +482,17 @@ def draw_figures(runs: Sequence[RunData], out: Path) -> list[Path]:
         fig, ax = plt.subplots(figsize=(8, 4.5))
         for run, label in with_data:
             if getattr(run, truth_attr).size:
-                ax.plot(run.truth_t, getattr(run, truth_attr), 'k-', linewidth=1.0, alpha=0.6,
-                        label=f'truth ({label})' if len(with_data) > 1 else 'truth')
-            ax.plot(run.est_t, getattr(run, est_attr), '--', linewidth=0.9, label=f'estimate ({label})')
+                ax.plot(
+                    run.truth_t,
+                    getattr(run, truth_attr),
+                    'k-',
+                    linewidth=1.0,
+                    alpha=0.6,
+                    label=f'truth ({label})' if len(with_data) > 1 else 'truth',
+                )
+            ax.plot(
+                run.est_t, getattr(run, est_attr), '--', linewidth=0.9, label=f'estimate ({label})'
+            )
         ax.set(xlabel='time [s]', ylabel=unit, title=title)
         ax.legend(loc='best', fontsize='small')
         ax.grid(True, alpha=0.3)
@@ -412,20 +513,37 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog='bag_analyze',
         description='Compare recorded runs: tracking, control effort, PPF bound compliance, estimation error '
-        'and loop timing per bag, read offline from rosbag2/MCAP bags. Draws the paper\'s figures with --out.',
+        "and loop timing per bag, read offline from rosbag2/MCAP bags. Draws the paper's figures with --out.",
     )
-    parser.add_argument('bags', nargs='+', type=Path, metavar='BAG', help='bag folders (or .mcap files)')
-    parser.add_argument('--out', type=Path,
-                        help='write position, tracking error, estimate and input figures (PNG) here '
-                        '(never inside an input bag)')
-    parser.add_argument('--json', type=Path, help='write the figures of every bag as JSON to this file '
-                        '(never inside an input bag)')
     parser.add_argument(
-        '--steady-start', type=float, default=STEADY_STATE_START_S, metavar='SECONDS',
+        'bags', nargs='+', type=Path, metavar='BAG', help='bag folders (or .mcap files)'
+    )
+    parser.add_argument(
+        '--out',
+        type=Path,
+        help='write position, tracking error, estimate and input figures (PNG) here '
+        '(never inside an input bag)',
+    )
+    parser.add_argument(
+        '--json',
+        type=Path,
+        help='write the figures of every bag as JSON to this file (never inside an input bag)',
+    )
+    parser.add_argument(
+        '--steady-start',
+        type=float,
+        default=STEADY_STATE_START_S,
+        metavar='SECONDS',
         help='start of the steady-state window after the run start [s] (default: %(default)s)',
     )
-    parser.add_argument('--msg-path', type=Path, action='append', default=[], metavar='DIR',
-                        help='extra folder holding <pkg>/msg/<Type>.msg (searched first)')
+    parser.add_argument(
+        '--msg-path',
+        type=Path,
+        action='append',
+        default=[],
+        metavar='DIR',
+        help='extra folder holding <pkg>/msg/<Type>.msg (searched first)',
+    )
     parser.add_argument('-q', '--quiet', action='store_true', help='no progress lines')
     return parser
 
@@ -445,7 +563,9 @@ def _main(argv: Optional[Sequence[str]]) -> int:
     """Load, analyse, print, and write the optional JSON and figures."""
     args = build_parser().parse_args(argv)
     if not math.isfinite(args.steady_start) or args.steady_start < 0:
-        raise AnalysisError(f'--steady-start must be a finite number >= 0, not {args.steady_start}')
+        raise AnalysisError(
+            f'--steady-start must be a finite number >= 0, not {args.steady_start}'
+        )
     # Output locations first: nothing is read or computed for a run whose results could not be written.
     if args.json:
         check_output_file('--json', args.json, args.bags)
@@ -460,7 +580,9 @@ def _main(argv: Optional[Sequence[str]]) -> int:
     if args.json:
         doc = _jsonable([r.as_dict() for r in reports])
         try:
-            args.json.write_text(json.dumps(doc, indent=2, default=str, allow_nan=False) + '\n', encoding='utf-8')
+            args.json.write_text(
+                json.dumps(doc, indent=2, default=str, allow_nan=False) + '\n', encoding='utf-8'
+            )
         except OSError as err:
             raise BagError(f'cannot write {args.json}: {err.strerror}') from None
     if args.out:

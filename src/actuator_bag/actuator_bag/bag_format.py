@@ -30,9 +30,22 @@ from .errors import BagIOError, BagWriteError
 from .msgdefs import DefinitionSource, normalize_msgtype
 
 __all__ = [
-    'DEFAULT_CHUNK_SIZE', 'DEFAULT_FLUSH_INTERVAL_S', 'DURATION_INFINITE', 'METADATA_VERSION', 'ROS_DISTRO',
-    'BagSummary', 'BagWriter', 'QosProfile', 'TopicSpec', 'bag_metadata', 'dump_yaml', 'mcap_name',
-    'qos_from_yaml', 'qos_to_yaml', 'topic_spec', 'write_metadata_file',
+    'DEFAULT_CHUNK_SIZE',
+    'DEFAULT_FLUSH_INTERVAL_S',
+    'DURATION_INFINITE',
+    'METADATA_VERSION',
+    'ROS_DISTRO',
+    'BagSummary',
+    'BagWriter',
+    'QosProfile',
+    'TopicSpec',
+    'bag_metadata',
+    'dump_yaml',
+    'mcap_name',
+    'qos_from_yaml',
+    'qos_to_yaml',
+    'topic_spec',
+    'write_metadata_file',
 ]
 
 #: rosbag2 metadata format version written (Jazzy).
@@ -73,10 +86,14 @@ class TopicSpec:
     def __post_init__(self) -> None:
         """Validate names and encodings."""
         if not self.name.startswith('/') or self.name.endswith('/') or '//' in self.name:
-            raise BagWriteError(f'topic name must be fully qualified like /ns/topic, not {self.name!r}')
+            raise BagWriteError(
+                f'topic name must be fully qualified like /ns/topic, not {self.name!r}'
+            )
         object.__setattr__(self, 'msgtype', normalize_msgtype(self.msgtype))
         if self.serialization_format != 'cdr':
-            raise BagWriteError(f'only cdr serialization is supported, not {self.serialization_format!r}')
+            raise BagWriteError(
+                f'only cdr serialization is supported, not {self.serialization_format!r}'
+            )
         if self.definition_encoding not in ('ros2msg', 'ros2idl'):
             raise BagWriteError(f'unknown definition encoding {self.definition_encoding!r}')
 
@@ -120,7 +137,9 @@ class BagSummary:
     def line(self) -> str:
         """One-line human summary."""
         per_topic = ', '.join(f'{k}={v}' for k, v in self.counts.items()) or 'no topics'
-        return f'{self.path}: {self.message_count} messages in {self.duration_s:.3f} s ({per_topic})'
+        return (
+            f'{self.path}: {self.message_count} messages in {self.duration_s:.3f} s ({per_topic})'
+        )
 
 
 def mcap_name(bag_dir: os.PathLike | str) -> str:
@@ -269,14 +288,18 @@ class BagWriter:
             self._mcap = McapWriter(
                 self._file,
                 chunk_size=self.chunk_size,
-                compression=CompressionType.ZSTD if self.compression == 'zstd' else CompressionType.NONE,
+                compression=CompressionType.ZSTD
+                if self.compression == 'zstd'
+                else CompressionType.NONE,
                 enable_crcs=True,
             )
             self._mcap.start(profile='ros2', library=_library_id())
         except OSError as err:
             self._mcap = None
             self.discard()
-            raise BagIOError(f'cannot create {self.mcap_path}: {describe_os_error(err)}', err.errno) from None
+            raise BagIOError(
+                f'cannot create {self.mcap_path}: {describe_os_error(err)}', err.errno
+            ) from None
         self._last_flush = time.monotonic()
 
     def _failed(self, err: OSError, doing: str, good_before: int) -> BagIOError:
@@ -321,7 +344,9 @@ class BagWriter:
         self._channels.append(channel)
         return len(self.topics) - 1
 
-    def write(self, handle: int, log_time_ns: int, data: bytes, publish_time_ns: Optional[int] = None) -> None:
+    def write(
+        self, handle: int, log_time_ns: int, data: bytes, publish_time_ns: Optional[int] = None
+    ) -> None:
         """Append one serialized (CDR) message of topic ``handle`` received at ``log_time_ns``."""
         writer = self._writer()
         if not 0 <= handle < len(self._channels):
@@ -383,7 +408,12 @@ class BagWriter:
     def metadata(self) -> dict[str, Any]:
         """The bag metadata map for what was written so far."""
         return bag_metadata(
-            [self.mcap_path.name], self.topics, self.counts, self.start_ns, self.end_ns, self.custom_data
+            [self.mcap_path.name],
+            self.topics,
+            self.counts,
+            self.start_ns,
+            self.end_ns,
+            self.custom_data,
         )
 
     def close(self) -> BagSummary:
@@ -405,8 +435,11 @@ class BagWriter:
         try:
             write_metadata_file(self.path, info)
         except OSError as err:
-            raise BagIOError(f'writing {self.path / "metadata.yaml"} failed: {describe_os_error(err)} '
-                             f'(the MCAP file is complete)', err.errno) from None
+            raise BagIOError(
+                f'writing {self.path / "metadata.yaml"} failed: {describe_os_error(err)} '
+                f'(the MCAP file is complete)',
+                err.errno,
+            ) from None
         return self.summary()
 
     def abort(self) -> None:

@@ -88,7 +88,9 @@ class QosProfile:
 
 def qos_to_yaml(profiles: Sequence[QosProfile]) -> str:
     """The offered_qos_profiles string of an MCAP channel (a YAML list of v9 maps)."""
-    return yaml.safe_dump([p.as_dict() for p in profiles], default_flow_style=False, sort_keys=False)
+    return yaml.safe_dump(
+        [p.as_dict() for p in profiles], default_flow_style=False, sort_keys=False
+    )
 
 
 def qos_from_yaml(text: str) -> tuple[QosProfile, ...]:

@@ -43,7 +43,7 @@ class DataFile:
                 room = min(room, self._full_after - (self.good + done))
                 if room <= 0:
                     _write_to_dev_full(view[done:])
-            done += os.write(self._fd, view[done:done + room])
+            done += os.write(self._fd, view[done : done + room])
         self.good += len(view)
         return len(view)
 

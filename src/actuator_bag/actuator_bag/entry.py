@@ -7,6 +7,7 @@ def recorder() -> int:
     """Quiet signals, import the recorder (rclpy: 0.3-0.5 s), run it (it installs its own stop handling)."""
     quiet_until_running()
     from actuator_bag.recorder_node import main
+
     return main()
 
 
@@ -14,4 +15,5 @@ def player() -> int:
     """Quiet signals, import the player (rclpy: 0.3-0.5 s), run it (it installs its own stop handling)."""
     quiet_until_running()
     from actuator_bag.player_node import main
+
     return main()

@@ -25,10 +25,25 @@ from .errors import DefinitionError
 SEPARATOR = '=' * 80
 
 #: Field types of the .msg language that are not messages.
-PRIMITIVE_TYPES = frozenset({
-    'bool', 'byte', 'char', 'float32', 'float64', 'int8', 'uint8', 'int16', 'uint16',
-    'int32', 'uint32', 'int64', 'uint64', 'string', 'wstring',
-})
+PRIMITIVE_TYPES = frozenset(
+    {
+        'bool',
+        'byte',
+        'char',
+        'float32',
+        'float64',
+        'int8',
+        'uint8',
+        'int16',
+        'uint16',
+        'int32',
+        'uint32',
+        'int64',
+        'uint64',
+        'string',
+        'wstring',
+    }
+)
 
 _NAME = r'[A-Za-z][A-Za-z0-9_]*'
 _MSGTYPE_RE = re.compile(rf'^({_NAME})/(?:(msg)/)?({_NAME})$')

@@ -22,7 +22,8 @@ def _is_bag_folder_of(file: Path) -> bool:
     """True when the folder of an MCAP file is a rosbag2 folder (metadata.yaml, or ``<folder>_<n>.mcap``)."""
     folder = file.parent
     return (folder / 'metadata.yaml').is_file() or re.fullmatch(
-        re.escape(folder.name) + r'_\d+\.mcap', file.name) is not None
+        re.escape(folder.name) + r'_\d+\.mcap', file.name
+    ) is not None
 
 
 def source_folders(inputs: Iterable[Path]) -> list[Path]:
@@ -85,11 +86,15 @@ def _check_not_source(label: str, out: Path, real: Path, inputs: Sequence[Path])
             raise OutputLocationError(f'{label} {out} would overwrite the input file {file}')
     for folder in source_folders(inputs):
         if real == folder or folder in real.parents:
-            raise OutputLocationError(f'{label} {out} is inside the source bag {folder}: tools never write '
-                                      'into a bag they read; choose a location outside it')
+            raise OutputLocationError(
+                f'{label} {out} is inside the source bag {folder}: tools never write '
+                'into a bag they read; choose a location outside it'
+            )
 
 
-def check_output_file(label: str, out: Path, inputs: Sequence[Path], created: Iterable[Path] = ()) -> None:
+def check_output_file(
+    label: str, out: Path, inputs: Sequence[Path], created: Iterable[Path] = ()
+) -> None:
     """Check a file to be written (``--json F``): not a source, not a folder, its folder writable or in ``created``."""
     real = Path(out).resolve()
     _check_not_source(label, out, real, inputs)
@@ -102,7 +107,9 @@ def check_output_file(label: str, out: Path, inputs: Sequence[Path], created: It
         raise OutputLocationError(f'{label} {out}: folder {real.parent} {what}')
 
 
-def check_output_folder(label: str, out: Path, inputs: Sequence[Path], names: Iterable[str] = ()) -> None:
+def check_output_folder(
+    label: str, out: Path, inputs: Sequence[Path], names: Iterable[str] = ()
+) -> None:
     """Check a folder to be written (created if missing) with files ``names``: not a source, creatable."""
     real = Path(out).resolve()
     _check_not_source(label, out, real, inputs)

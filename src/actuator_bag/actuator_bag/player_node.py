@@ -63,8 +63,13 @@ class PlayerNode(Node):
         if not (math.isfinite(self.rate) and self.rate > 0):
             raise BagError(f'rate must be a finite number > 0, not {self.rate}')
         if self.wait_for < 0 or not self.wait_timeout > 0 or self.start_delay < 0:
-            raise BagError('wait_for_subscribers must be >= 0, wait_timeout > 0 and start_delay >= 0')
-        self.qos = make_qos(str(self.get_parameter('reliability').value), int(self.get_parameter('queue_depth').value))
+            raise BagError(
+                'wait_for_subscribers must be >= 0, wait_timeout > 0 and start_delay >= 0'
+            )
+        self.qos = make_qos(
+            str(self.get_parameter('reliability').value),
+            int(self.get_parameter('queue_depth').value),
+        )
         self.publishers_: dict[int, Any] = {}
         self.counts: dict[str, int] = {}
 
@@ -83,7 +88,9 @@ class PlayerNode(Node):
             if not conns:
                 raise BagError(f'{self.bag}: nothing to play (no topics)')
             for conn in conns:
-                self.publishers_[conn.id] = self.create_publisher(message_class(conn.msgtype), conn.topic, self.qos)
+                self.publishers_[conn.id] = self.create_publisher(
+                    message_class(conn.msgtype), conn.topic, self.qos
+                )
                 self.counts.setdefault(conn.topic, 0)
             self._wait_for_subscribers(stop)
             total = sum(c.msgcount for c in conns)
@@ -106,7 +113,9 @@ class PlayerNode(Node):
             if all(p.get_subscription_count() >= self.wait_for for p in self.publishers_.values()):
                 break
             if time.monotonic() > deadline:
-                raise BagError(f'no {self.wait_for} subscriber(s) on every topic within {self.wait_timeout:g} s')
+                raise BagError(
+                    f'no {self.wait_for} subscriber(s) on every topic within {self.wait_timeout:g} s'
+                )
             time.sleep(0.02)
         end = time.monotonic() + self.start_delay
         while not stop.requested and time.monotonic() < end:
@@ -147,19 +156,48 @@ def build_parser() -> argparse.ArgumentParser:
         'the default of the node parameter of the same name (override with --ros-args -p name:=value).',
     )
     parser.add_argument('bag', nargs='?', default='', help='bag folder (or .mcap file) to play')
-    parser.add_argument('--rate', type=float, default=1.0, help='time scale factor > 0 (default: %(default)s)')
-    parser.add_argument('--topics', nargs='+', default=[], metavar='NAME', help='topics to play (default: all)')
+    parser.add_argument(
+        '--rate', type=float, default=1.0, help='time scale factor > 0 (default: %(default)s)'
+    )
+    parser.add_argument(
+        '--topics', nargs='+', default=[], metavar='NAME', help='topics to play (default: all)'
+    )
     parser.add_argument('--loop', action='store_true', help='start again at the end until stopped')
-    parser.add_argument('--reliability', choices=('reliable', 'best_effort'), default='reliable',
-                        help='publisher reliability (default: %(default)s)')
-    parser.add_argument('--queue-depth', dest='queue_depth', type=int, default=1000,
-                        help='publisher KEEP_LAST depth (default: %(default)s)')
-    parser.add_argument('--wait-for-subscribers', dest='wait_for_subscribers', type=int, default=0, metavar='N',
-                        help='before playing, wait until every topic has N subscribers (default: %(default)s)')
-    parser.add_argument('--wait-timeout', dest='wait_timeout', type=float, default=30.0,
-                        help='longest wait for subscribers [s] (default: %(default)s)')
-    parser.add_argument('--start-delay', dest='start_delay', type=float, default=0.0,
-                        help='pause before the first message, e.g. to let discovery settle [s] (default: %(default)s)')
+    parser.add_argument(
+        '--reliability',
+        choices=('reliable', 'best_effort'),
+        default='reliable',
+        help='publisher reliability (default: %(default)s)',
+    )
+    parser.add_argument(
+        '--queue-depth',
+        dest='queue_depth',
+        type=int,
+        default=1000,
+        help='publisher KEEP_LAST depth (default: %(default)s)',
+    )
+    parser.add_argument(
+        '--wait-for-subscribers',
+        dest='wait_for_subscribers',
+        type=int,
+        default=0,
+        metavar='N',
+        help='before playing, wait until every topic has N subscribers (default: %(default)s)',
+    )
+    parser.add_argument(
+        '--wait-timeout',
+        dest='wait_timeout',
+        type=float,
+        default=30.0,
+        help='longest wait for subscribers [s] (default: %(default)s)',
+    )
+    parser.add_argument(
+        '--start-delay',
+        dest='start_delay',
+        type=float,
+        default=0.0,
+        help='pause before the first message, e.g. to let discovery settle [s] (default: %(default)s)',
+    )
     return parser
 
 
@@ -172,7 +210,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     try:
         rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     except Exception as exc:  # noqa: BLE001 - rcl's RCLError: a bad --ros-args or parameter file
-        print(f'player: ROS arguments refused: {str(exc).splitlines()[0] if str(exc) else exc!r}', file=sys.stderr)
+        print(
+            f'player: ROS arguments refused: {str(exc).splitlines()[0] if str(exc) else exc!r}',
+            file=sys.stderr,
+        )
         return 2
     node: Optional[PlayerNode] = None
     try:
@@ -182,8 +223,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         elapsed = node.play(stop)
         per_topic = ', '.join(f'{k}={v}' for k, v in node.counts.items())
         how = 'stopped' if stop.requested else 'done'
-        print(f'player: {how}: published {sum(node.counts.values())} messages in {elapsed:.3f} s ({per_topic})',
-              flush=True)
+        print(
+            f'player: {how}: published {sum(node.counts.values())} messages in {elapsed:.3f} s ({per_topic})',
+            flush=True,
+        )
         return 0
     except BagError as err:
         print(f'player: error: {err}', file=sys.stderr)

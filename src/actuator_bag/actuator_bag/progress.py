@@ -12,15 +12,30 @@ class Progress:
     """``<label>: NN % (done/total unit, elapsed)`` on stderr: first after ``min_interval_s``, then at most that often,
     and once at the end, so a failing operation prints its one error line and nothing else."""
 
-    def __init__(self, label: str, total: float, *, unit: str = '', min_interval_s: float = 0.5,
-                 stream: Optional[IO[str]] = None, enabled: bool = True) -> None:
+    def __init__(
+        self,
+        label: str,
+        total: float,
+        *,
+        unit: str = '',
+        min_interval_s: float = 0.5,
+        stream: Optional[IO[str]] = None,
+        enabled: bool = True,
+    ) -> None:
         """Report for ``total`` units of work (nothing is printed when total <= 0 or not enabled)."""
         self.total = float(total)
         self.done = 0.0
-        self.bar = tqdm(total=self.total, desc=label, unit=unit, file=stream if stream is not None else sys.stderr,
-                        disable=not (enabled and self.total > 0), mininterval=min_interval_s, delay=min_interval_s,
-                        dynamic_ncols=False,
-                        bar_format='{desc}: {percentage:3.0f} % ({n:.0f}/{total:.0f} {unit}, {elapsed})')
+        self.bar = tqdm(
+            total=self.total,
+            desc=label,
+            unit=unit,
+            file=stream if stream is not None else sys.stderr,
+            disable=not (enabled and self.total > 0),
+            mininterval=min_interval_s,
+            delay=min_interval_s,
+            dynamic_ncols=False,
+            bar_format='{desc}: {percentage:3.0f} % ({n:.0f}/{total:.0f} {unit}, {elapsed})',
+        )
 
     def update(self, done: float) -> None:
         """Report that ``done`` units are finished; the display closes at the total."""
@@ -32,7 +47,7 @@ class Progress:
             # The final line, also when the work took less than the display delay, ended by a newline
             # so that whatever is printed next starts a line of its own.
             meter = self.bar.format_dict
-            shown = meter['elapsed'] >= self.bar.delay          # tqdm drew a line already: overwrite it
+            shown = meter['elapsed'] >= self.bar.delay  # tqdm drew a line already: overwrite it
             self.bar.disable = True
             self.bar.fp.write(('\r' if shown else '') + self.bar.format_meter(**meter) + '\n')
             self.bar.fp.flush()

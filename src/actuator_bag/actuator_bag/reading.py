@@ -80,7 +80,9 @@ def bag_typestore(reader: Reader, source: Optional[DefinitionSource] = None) -> 
         try:
             store.register(get_types_from_msg(conn.msgdef.data, conn.msgtype))
         except TypesysError as err:
-            raise BagReadError(f'cannot use the definition of {conn.msgtype} in the bag: {err}') from None
+            raise BagReadError(
+                f'cannot use the definition of {conn.msgtype} in the bag: {err}'
+            ) from None
     return store
 
 
@@ -90,7 +92,9 @@ def find_topic(
     """The connection of a type whose topic ends with ``preferred_suffix``, else the only one of that type."""
     of_type = [c for c in connections if c.msgtype == msgtype]
     for conn in of_type:
-        if conn.topic == preferred_suffix or conn.topic.endswith('/' + preferred_suffix.lstrip('/')):
+        if conn.topic == preferred_suffix or conn.topic.endswith(
+            '/' + preferred_suffix.lstrip('/')
+        ):
             return conn
     return of_type[0] if len(of_type) == 1 else None
 

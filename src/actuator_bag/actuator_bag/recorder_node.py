@@ -49,11 +49,22 @@ from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
 
-from .bag_format import DEFAULT_CHUNK_SIZE, DEFAULT_FLUSH_INTERVAL_S, BagSummary, BagWriter, TopicSpec
+from .bag_format import (
+    DEFAULT_CHUNK_SIZE,
+    DEFAULT_FLUSH_INTERVAL_S,
+    BagSummary,
+    BagWriter,
+    TopicSpec,
+)
 from .errors import BagError, BagIOError
 from .msgdefs import DefinitionSource, normalize_msgtype
 from actuator_ros.parameters import (
-    ParameterError, check_unknown_parameters, declare_choice, declare_flag, declare_number, declare_text,
+    ParameterError,
+    check_unknown_parameters,
+    declare_choice,
+    declare_flag,
+    declare_number,
+    declare_text,
     declare_text_list,
 )
 from actuator_ros.runner import make_executor
@@ -69,7 +80,13 @@ SYSTEM_TOPICS = {
     'plant/truth': 'actuator_msgs/msg/PlantTruth',
     '/clock': 'rosgraph_msgs/msg/Clock',
 }
-DEFAULT_TOPICS = ['joint_states', 'current_command', 'eso/estimate', 'controller/state', 'plant/truth']
+DEFAULT_TOPICS = [
+    'joint_states',
+    'current_command',
+    'eso/estimate',
+    'controller/state',
+    'plant/truth',
+]
 
 
 def parse_topic(entry: str) -> tuple[str, str]:
@@ -147,24 +164,66 @@ class RecorderNode(Node):
     def __init__(self, defaults: argparse.Namespace, **node_options: Any) -> None:
         """Declare parameters (defaults from the command line), resolve topics, open the bag."""
         super().__init__('recorder', **node_options)
-        declare_flag(self, 'allow_unknown_parameters', False,
-                     'accept parameter names the recorder does not declare, with a warning, instead of refusing them')
-        entries = declare_text_list(self, 'topics', list(defaults.topics) or [''],
-                                    'topics to record: a system topic name, or name:pkg/msg/Type')
-        record_clock = declare_flag(self, 'record_clock', bool(defaults.record_clock), 'also record /clock')
-        output = declare_text(self, 'output', defaults.output or '',
-                              'bag folder to create (must not exist); empty: bags/<UTC timestamp>')
-        depth = declare_number(self, 'queue_depth', int(defaults.queue_depth), 1, 10_000_000, 'messages',
-                               'subscription KEEP_LAST depth per topic')
-        reliability = declare_choice(self, 'reliability', str(defaults.reliability), ('best_effort', 'reliable'),
-                                     'subscription reliability; best_effort matches every publisher')
-        flush_interval = declare_number(self, 'flush_interval', float(defaults.flush_interval), 1e-3, 3600.0, 's',
-                                        'longest time data stays in memory before it is written')
-        chunk_size = declare_number(self, 'chunk_size', int(defaults.chunk_size), 1024, 1 << 30, 'bytes',
-                                    'MCAP chunk size before compression')
+        declare_flag(
+            self,
+            'allow_unknown_parameters',
+            False,
+            'accept parameter names the recorder does not declare, with a warning, instead of refusing them',
+        )
+        entries = declare_text_list(
+            self,
+            'topics',
+            list(defaults.topics) or [''],
+            'topics to record: a system topic name, or name:pkg/msg/Type',
+        )
+        record_clock = declare_flag(
+            self, 'record_clock', bool(defaults.record_clock), 'also record /clock'
+        )
+        output = declare_text(
+            self,
+            'output',
+            defaults.output or '',
+            'bag folder to create (must not exist); empty: bags/<UTC timestamp>',
+        )
+        depth = declare_number(
+            self,
+            'queue_depth',
+            int(defaults.queue_depth),
+            1,
+            10_000_000,
+            'messages',
+            'subscription KEEP_LAST depth per topic',
+        )
+        reliability = declare_choice(
+            self,
+            'reliability',
+            str(defaults.reliability),
+            ('best_effort', 'reliable'),
+            'subscription reliability; best_effort matches every publisher',
+        )
+        flush_interval = declare_number(
+            self,
+            'flush_interval',
+            float(defaults.flush_interval),
+            1e-3,
+            3600.0,
+            's',
+            'longest time data stays in memory before it is written',
+        )
+        chunk_size = declare_number(
+            self,
+            'chunk_size',
+            int(defaults.chunk_size),
+            1024,
+            1 << 30,
+            'bytes',
+            'MCAP chunk size before compression',
+        )
         unknown = check_unknown_parameters(self)
         if unknown:
-            self.get_logger().warning(f'ignoring parameters the recorder does not have: {", ".join(unknown)}')
+            self.get_logger().warning(
+                f'ignoring parameters the recorder does not have: {", ".join(unknown)}'
+            )
         entries = [e for e in entries if e]
         if record_clock and '/clock' not in entries:
             entries.append('/clock')
@@ -190,27 +249,37 @@ class RecorderNode(Node):
             flush_interval_s=flush_interval,
             custom_data={
                 'recorder': 'actuator_bag recorder',
-                'log_time': 'receive time on the recorder node clock' + (' (sim time)' if self.sim_time else ''),
+                'log_time': 'receive time on the recorder node clock'
+                + (' (sim time)' if self.sim_time else ''),
                 # rosbag2 stores the publisher's source timestamp; rclpy gives it only through message
                 # info, which rclpy 7.1.6's EventsExecutor cannot deliver (SystemError: null argument
                 # to internal routine, tested), so with the default executor it is the receive time.
-                'publish_time': ('publisher source timestamp (message info)'
-                                 if defaults.executor == 'single_threaded' and not self.sim_time
-                                 else 'receive time (no message info with this executor or in sim time)'),
+                'publish_time': (
+                    'publisher source timestamp (message info)'
+                    if defaults.executor == 'single_threaded' and not self.sim_time
+                    else 'receive time (no message info with this executor or in sim time)'
+                ),
             },
         )
         self.writer.open()
         self.specs = [
-            TopicSpec(name=n, msgtype=t, definition=d, type_hash=source.type_hash(t)) for n, t, d in self._pending
+            TopicSpec(name=n, msgtype=t, definition=d, type_hash=source.type_hash(t))
+            for n, t, d in self._pending
         ]
         self.thread = BagWriterThread(self.writer, self.specs)
         self._seen = [False] * len(self.specs)
         self.subscriptions_ = []
         for index, ((resolved, _, _), cls) in enumerate(zip(self._pending, classes)):
-            self.subscriptions_.append(self.create_subscription(
-                cls, resolved, self._make_callback(index, defaults.executor == 'single_threaded'), qos, raw=True,
-                event_callbacks=SubscriptionEventCallbacks(message_lost=self._on_lost),
-            ))
+            self.subscriptions_.append(
+                self.create_subscription(
+                    cls,
+                    resolved,
+                    self._make_callback(index, defaults.executor == 'single_threaded'),
+                    qos,
+                    raw=True,
+                    event_callbacks=SubscriptionEventCallbacks(message_lost=self._on_lost),
+                )
+            )
         self.thread.start()
         self.get_logger().info(
             f'recording {len(self.specs)} topics into {path} '
@@ -229,14 +298,21 @@ class RecorderNode(Node):
         except Exception:  # noqa: BLE001 - graph queries can fail during shutdown; keep the computed spec
             return spec
         qos = tuple(to_bag_qos(i.qos_profile) for i in infos)
-        hashes = {str(i.topic_type_hash) for i in infos if str(i.topic_type_hash).startswith('RIHS01_')}
+        hashes = {
+            str(i.topic_type_hash) for i in infos if str(i.topic_type_hash).startswith('RIHS01_')
+        }
         if hashes and spec.type_hash not in hashes:
             self.get_logger().warning(
                 f'{spec.name}: publishers report type hash {sorted(hashes)}, the installed definition '
                 f'gives {spec.type_hash}; recording the installed one'
             )
-        return TopicSpec(name=spec.name, msgtype=spec.msgtype, definition=spec.definition,
-                         type_hash=spec.type_hash, qos=qos)
+        return TopicSpec(
+            name=spec.name,
+            msgtype=spec.msgtype,
+            definition=spec.definition,
+            type_hash=spec.type_hash,
+            qos=qos,
+        )
 
     def _make_callback(self, index: int, with_info: bool) -> Any:
         """The raw-message callback of topic ``index``: stamp and enqueue, nothing else."""
@@ -294,8 +370,10 @@ class RecorderNode(Node):
             rest = f'all {writer.durable} messages are in the MCAP file'
         else:
             rest = f'{writer.durable} messages are on disk, {lost} received ones were lost'
-        raise BagError(f'{error}; recording stopped: {rest}; the bag has no metadata.yaml: '
-                       f'run bag_repair {writer.path}')
+        raise BagError(
+            f'{error}; recording stopped: {rest}; the bag has no metadata.yaml: '
+            f'run bag_repair {writer.path}'
+        )
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -305,20 +383,52 @@ def build_parser() -> argparse.ArgumentParser:
         description='Record the actuator topics into a rosbag2 (MCAP) bag. Each option sets the default of the '
         'node parameter of the same name (override with --ros-args -p name:=value). Stops on SIGINT/SIGTERM.',
     )
-    parser.add_argument('-o', '--output', default='', help='bag folder to create (default: bags/<UTC timestamp>)')
-    parser.add_argument('--topics', nargs='+', default=DEFAULT_TOPICS, metavar='NAME[:TYPE]',
-                        help='topics to record; system topics need no type (default: %(default)s)')
-    parser.add_argument('--record-clock', dest='record_clock', action='store_true', help='also record /clock')
-    parser.add_argument('--queue-depth', dest='queue_depth', type=int, default=1000,
-                        help='subscription KEEP_LAST depth per topic (default: %(default)s)')
-    parser.add_argument('--reliability', choices=('best_effort', 'reliable'), default='best_effort',
-                        help='subscription reliability; best_effort matches every publisher (default: %(default)s)')
-    parser.add_argument('--flush-interval', dest='flush_interval', type=float, default=DEFAULT_FLUSH_INTERVAL_S,
-                        help='longest time data stays in memory before it is written [s] (default: %(default)s)')
-    parser.add_argument('--chunk-size', dest='chunk_size', type=int, default=DEFAULT_CHUNK_SIZE,
-                        help='MCAP chunk size before compression [bytes] (default: %(default)s)')
-    parser.add_argument('--executor', choices=EXECUTORS, default='events',
-                        help='rclpy executor (default: %(default)s)')
+    parser.add_argument(
+        '-o', '--output', default='', help='bag folder to create (default: bags/<UTC timestamp>)'
+    )
+    parser.add_argument(
+        '--topics',
+        nargs='+',
+        default=DEFAULT_TOPICS,
+        metavar='NAME[:TYPE]',
+        help='topics to record; system topics need no type (default: %(default)s)',
+    )
+    parser.add_argument(
+        '--record-clock', dest='record_clock', action='store_true', help='also record /clock'
+    )
+    parser.add_argument(
+        '--queue-depth',
+        dest='queue_depth',
+        type=int,
+        default=1000,
+        help='subscription KEEP_LAST depth per topic (default: %(default)s)',
+    )
+    parser.add_argument(
+        '--reliability',
+        choices=('best_effort', 'reliable'),
+        default='best_effort',
+        help='subscription reliability; best_effort matches every publisher (default: %(default)s)',
+    )
+    parser.add_argument(
+        '--flush-interval',
+        dest='flush_interval',
+        type=float,
+        default=DEFAULT_FLUSH_INTERVAL_S,
+        help='longest time data stays in memory before it is written [s] (default: %(default)s)',
+    )
+    parser.add_argument(
+        '--chunk-size',
+        dest='chunk_size',
+        type=int,
+        default=DEFAULT_CHUNK_SIZE,
+        help='MCAP chunk size before compression [bytes] (default: %(default)s)',
+    )
+    parser.add_argument(
+        '--executor',
+        choices=EXECUTORS,
+        default='events',
+        help='rclpy executor (default: %(default)s)',
+    )
     return parser
 
 
@@ -348,7 +458,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     try:
         rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     except Exception as exc:  # noqa: BLE001 - rcl's RCLError: a bad --ros-args or parameter file
-        print(f'recorder: ROS arguments refused: {str(exc).splitlines()[0] if str(exc) else exc!r}', file=sys.stderr)
+        print(
+            f'recorder: ROS arguments refused: {str(exc).splitlines()[0] if str(exc) else exc!r}',
+            file=sys.stderr,
+        )
         return 2
     node: Optional[RecorderNode] = None
     try:
@@ -363,7 +476,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             drain(executor, node)
         summary = node.finish()
         lost = f', {node.lost} reported lost by the middleware' if node.lost else ''
-        print(f'recorder: wrote {summary.line()}; max writer backlog {node.thread.max_backlog}{lost}', flush=True)
+        print(
+            f'recorder: wrote {summary.line()}; max writer backlog {node.thread.max_backlog}{lost}',
+            flush=True,
+        )
         return 0
     except ParameterError as err:
         print(f'recorder: {err}', file=sys.stderr)

@@ -30,7 +30,16 @@ from .outputs import check_output_file, check_output_folder, source_folders
 from .progress import Progress
 from .scan import Loss, ScanReport, scan_mcap, summary_definitions
 
-__all__ = ['Loss', 'RepairResult', 'ScanReport', 'default_output', 'main', 'mcap_files', 'repair_bag', 'scan_mcap']
+__all__ = [
+    'Loss',
+    'RepairResult',
+    'ScanReport',
+    'default_output',
+    'main',
+    'mcap_files',
+    'repair_bag',
+    'scan_mcap',
+]
 
 
 def mcap_files(bag: Path) -> list[Path]:
@@ -120,15 +129,21 @@ class RepairResult:
         how = '; '.join(f'{s.path.name}: {s.stop_reason}' for s in self.scans)
         lost = self.messages_lost
         details = [f'{s.path.name} {loss.text()}' for s in self.scans for loss in s.losses]
-        details += [f'{s.path.name}: {s.without_channel} messages of intact chunks whose channel was defined in '
-                    'a lost part' for s in self.scans if s.without_channel]
+        details += [
+            f'{s.path.name}: {s.without_channel} messages of intact chunks whose channel was defined in '
+            'a lost part'
+            for s in self.scans
+            if s.without_channel
+        ]
         counted = sum(s.messages_lost_counted for s in self.scans)
         if lost is not None:
             amount = str(lost)
         else:
             amount = f'at least {counted}' if counted else 'an unknown number of'
-        return (f'repaired {self.summary.line()}; {how}; {self.bytes_lost} bytes not recoverable, '
-                f'{amount} messages lost' + (f' ({"; ".join(details)})' if details else ''))
+        return (
+            f'repaired {self.summary.line()}; {how}; {self.bytes_lost} bytes not recoverable, '
+            f'{amount} messages lost' + (f' ({"; ".join(details)})' if details else '')
+        )
 
     def as_dict(self) -> dict[str, Any]:
         """JSON form: the repaired bag, its counts, and per file the scan and every skipped range."""
@@ -153,7 +168,9 @@ def repair_bag(
     check_output_folder('output', out, [bag])
     if out.exists():
         full = out.is_dir() and any(out.iterdir())
-        raise RepairError(f'{out} exists already{" and is not empty" if full else ""}, not overwriting')
+        raise RepairError(
+            f'{out} exists already{" and is not empty" if full else ""}, not overwriting'
+        )
     total = sum(p.stat().st_size for p in files)
     progress = Progress(f'bag_repair {bag.name}', total, unit='bytes', enabled=not quiet)
     writer: Optional[BagWriter] = None
@@ -191,7 +208,12 @@ def repair_bag(
                         report.without_channel += 1
                         continue
                     assert writer is not None
-                    writer.write(handles[record.channel_id], record.log_time, record.data, record.publish_time)
+                    writer.write(
+                        handles[record.channel_id],
+                        record.log_time,
+                        record.data,
+                        record.publish_time,
+                    )
             if report.profile and report.profile != 'ros2':
                 raise RepairError(f'{path} has MCAP profile {report.profile!r}, not ros2')
             done += report.file_size
@@ -200,8 +222,10 @@ def repair_bag(
             reasons = '; '.join(s.stop_reason for s in scans)
             orphans = sum(s.without_channel for s in scans)
             if orphans:
-                reasons += (f'; {orphans} messages of intact chunks whose channel was defined in a lost part')
-            raise RepairError(f'nothing recoverable in {bag}: no complete chunk with a channel ({reasons})')
+                reasons += f'; {orphans} messages of intact chunks whose channel was defined in a lost part'
+            raise RepairError(
+                f'nothing recoverable in {bag}: no complete chunk with a channel ({reasons})'
+            )
         writer.custom_data = {**_recorded_custom_data(scans), **writer.custom_data}
         return RepairResult(writer.close(), scans)
     except OSError as err:
@@ -226,7 +250,9 @@ def build_parser() -> argparse.ArgumentParser:
         'must be a new folder outside it.',
     )
     parser.add_argument('bag', type=Path, help='bag folder (or a single .mcap file) to repair')
-    parser.add_argument('-o', '--out', type=Path, help='folder of the repaired bag (default: <bag>_repaired)')
+    parser.add_argument(
+        '-o', '--out', type=Path, help='folder of the repaired bag (default: <bag>_repaired)'
+    )
     parser.add_argument('--json', type=Path, help='also write the result as JSON to this file')
     parser.add_argument('-q', '--quiet', action='store_true', help='no progress lines')
     return parser
@@ -244,8 +270,10 @@ def _main(argv: Optional[Sequence[str]]) -> int:
         try:
             args.json.write_text(json.dumps(result.as_dict(), indent=2) + '\n', encoding='utf-8')
         except OSError as err:
-            raise RepairError(f'cannot write {args.json}: {describe_os_error(err)} '
-                              f'(the repaired bag {result.summary.path} is complete)') from None
+            raise RepairError(
+                f'cannot write {args.json}: {describe_os_error(err)} '
+                f'(the repaired bag {result.summary.path} is complete)'
+            ) from None
     return 0
 
 

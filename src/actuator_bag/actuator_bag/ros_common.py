@@ -9,7 +9,11 @@ from typing import Any, Optional
 
 from rclpy.duration import Duration
 from rclpy.qos import (
-    DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile, ReliabilityPolicy,
+    DurabilityPolicy,
+    HistoryPolicy,
+    LivelinessPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
 )
 
 from .bag_format import QosProfile
@@ -27,7 +31,9 @@ def message_class(msgtype: str) -> Any:
         module = importlib.import_module(f'{pkg}.msg')
         return getattr(module, name)
     except (ImportError, AttributeError):
-        raise BagError(f'message type {pkg}/msg/{name} is not installed (cannot import {pkg}.msg.{name})') from None
+        raise BagError(
+            f'message type {pkg}/msg/{name} is not installed (cannot import {pkg}.msg.{name})'
+        ) from None
 
 
 def _pair(duration: Duration) -> tuple[int, int]:
@@ -53,13 +59,18 @@ def to_bag_qos(qos: QoSProfile) -> QosProfile:
 
 def make_qos(reliability: str, depth: int) -> QoSProfile:
     """KEEP_LAST(depth), VOLATILE profile with the given reliability ('reliable' or 'best_effort')."""
-    policies = {'reliable': ReliabilityPolicy.RELIABLE, 'best_effort': ReliabilityPolicy.BEST_EFFORT}
+    policies = {
+        'reliable': ReliabilityPolicy.RELIABLE,
+        'best_effort': ReliabilityPolicy.BEST_EFFORT,
+    }
     if reliability not in policies:
         raise BagError(f'reliability must be reliable or best_effort, not {reliability!r}')
     if depth < 1:
         raise BagError(f'queue depth must be >= 1, not {depth}')
     return QoSProfile(
-        history=HistoryPolicy.KEEP_LAST, depth=depth, reliability=policies[reliability],
+        history=HistoryPolicy.KEEP_LAST,
+        depth=depth,
+        reliability=policies[reliability],
         durability=DurabilityPolicy.VOLATILE,
     )
 

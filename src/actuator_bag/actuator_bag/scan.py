@@ -23,7 +23,15 @@ from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
 from mcap.opcode import Opcode
 from mcap.records import (
-    Channel, Chunk, DataEnd, Footer, Header, Message, MessageIndex, Metadata, Schema,
+    Channel,
+    Chunk,
+    DataEnd,
+    Footer,
+    Header,
+    Message,
+    MessageIndex,
+    Metadata,
+    Schema,
 )
 from mcap.stream_reader import CRCValidationError, breakup_chunk
 
@@ -37,9 +45,25 @@ MAX_CHUNK_BYTES = 1 << 30
 _COMPRESSIONS = ('', 'zstd', 'lz4')
 _KNOWN = frozenset(int(o) for o in Opcode)
 #: Opcodes a resynchronisation may land on (records a data section of this project's bags holds).
-_RESYNC = re.compile(b'[' + re.escape(bytes(sorted({
-    Opcode.CHUNK, Opcode.MESSAGE_INDEX, Opcode.SCHEMA, Opcode.CHANNEL, Opcode.METADATA,
-    Opcode.DATA_END, Opcode.FOOTER}))) + b']')
+_RESYNC = re.compile(
+    b'['
+    + re.escape(
+        bytes(
+            sorted(
+                {
+                    Opcode.CHUNK,
+                    Opcode.MESSAGE_INDEX,
+                    Opcode.SCHEMA,
+                    Opcode.CHANNEL,
+                    Opcode.METADATA,
+                    Opcode.DATA_END,
+                    Opcode.FOOTER,
+                }
+            )
+        )
+    )
+    + b']'
+)
 _DECODERS: dict[int, Callable[[ReadDataStream, int], Any]] = {
     Opcode.HEADER: lambda s, n: Header.read(s),
     Opcode.SCHEMA: lambda s, n: Schema.read(s),
@@ -51,7 +75,14 @@ _DECODERS: dict[int, Callable[[ReadDataStream, int], Any]] = {
     Opcode.DATA_END: lambda s, n: DataEnd.read(s),
     Opcode.FOOTER: lambda s, n: Footer.read(s),
 }
-_DECODE_ERRORS = (McapError, CRCValidationError, ValueError, struct.error, UnicodeDecodeError, OverflowError)
+_DECODE_ERRORS = (
+    McapError,
+    CRCValidationError,
+    ValueError,
+    struct.error,
+    UnicodeDecodeError,
+    OverflowError,
+)
 
 Record = Union[Schema, Channel, Message, Metadata]
 
@@ -73,12 +104,19 @@ class Loss:
     def text(self) -> str:
         """``bytes A-B (N bytes, M messages): reason``."""
         count = 'unknown number of' if self.messages is None else str(self.messages)
-        return f'bytes {self.start}-{self.end} ({self.size} bytes, {count} messages): {self.reason}'
+        return (
+            f'bytes {self.start}-{self.end} ({self.size} bytes, {count} messages): {self.reason}'
+        )
 
     def as_dict(self) -> dict[str, Any]:
         """JSON form; messages is 'unknown' when the damaged records do not say."""
-        return {'start': self.start, 'end': self.end, 'bytes': self.size, 'reason': self.reason,
-                'messages': 'unknown' if self.messages is None else self.messages}
+        return {
+            'start': self.start,
+            'end': self.end,
+            'bytes': self.size,
+            'reason': self.reason,
+            'messages': 'unknown' if self.messages is None else self.messages,
+        }
 
 
 @dataclass
@@ -119,8 +157,12 @@ class ScanReport:
         """JSON form of the report."""
         lost = self.messages_lost
         return {
-            'file': str(self.path), 'stop_reason': self.stop_reason, 'complete': self.complete,
-            'bytes_lost': self.bytes_lost, 'chunks': self.chunks, 'messages': self.messages,
+            'file': str(self.path),
+            'stop_reason': self.stop_reason,
+            'complete': self.complete,
+            'bytes_lost': self.bytes_lost,
+            'chunks': self.chunks,
+            'messages': self.messages,
             'messages_lost': 'unknown' if lost is None else lost,
             'messages_lost_counted': self.messages_lost_counted,
             'messages_without_channel': self.without_channel,
@@ -150,7 +192,7 @@ def _decode(buf: Any, pos: int, size: int) -> tuple[int, int, Any]:
     name = Opcode(opcode).name
     if length > size - pos - _HEAD:
         raise _Damage(f'truncated {name} record at byte {pos}')
-    stream = ReadDataStream(BytesIO(buf[pos + _HEAD:pos + _HEAD + length]))
+    stream = ReadDataStream(BytesIO(buf[pos + _HEAD : pos + _HEAD + length]))
     try:
         record = _DECODERS[opcode](stream, length) if opcode in _DECODERS else None
         if record is not None and stream.count != length:
@@ -227,7 +269,7 @@ def summary_definitions(path: Path) -> tuple[dict[int, Schema], dict[int, Channe
     with open(path, 'rb') as bio, mmap.mmap(bio.fileno(), 0, access=mmap.ACCESS_READ) as buf:
         size = len(buf)
         foot = size - len(MCAP_MAGIC) - _HEAD - 20
-        if foot < len(MCAP_MAGIC) or buf[size - len(MCAP_MAGIC):] != MCAP_MAGIC:
+        if foot < len(MCAP_MAGIC) or buf[size - len(MCAP_MAGIC) :] != MCAP_MAGIC:
             return schemas, channels
         try:
             opcode, _, footer = _decode(buf, foot, size - len(MCAP_MAGIC))
@@ -263,7 +305,9 @@ def scan_mcap(
             yield from _scan(buf, size, report, on_progress)
 
 
-def _scan(buf: Any, size: int, report: ScanReport, on_progress: Optional[Callable[[int], None]]) -> Iterator[Record]:
+def _scan(
+    buf: Any, size: int, report: ScanReport, on_progress: Optional[Callable[[int], None]]
+) -> Iterator[Record]:
     """The scan of scan_mcap over the mapped file."""
     pos = len(MCAP_MAGIC)
     report.bytes_read = pos

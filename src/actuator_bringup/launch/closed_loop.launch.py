@@ -1,4 +1,10 @@
-"""ros2 launch actuator_bringup closed_loop.launch.py [scenario:=...] [mode:=realtime|sim] [duration:=S] ...
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""Launch file of one closed-loop run.
+
+    ros2 launch actuator_bringup closed_loop.launch.py [scenario:=...] [mode:=realtime|sim]
+        [duration:=S] ...
 
 One closed-loop run: the joint (simulated plant, or the CiA 402 driver), the ESO, the controller
 and the recorder as separate processes, built from ``actuator_tools.graph.closed_loop``, the
@@ -14,7 +20,13 @@ import os
 
 from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument, EmitEvent, LogInfo, OpaqueFunction, RegisterEventHandler
+from launch.actions import (
+    DeclareLaunchArgument,
+    EmitEvent,
+    LogInfo,
+    OpaqueFunction,
+    RegisterEventHandler,
+)
 from launch.conditions import evaluate_condition_expression
 from launch.event_handlers import OnProcessExit
 from launch.events import Shutdown, matches_action
@@ -28,18 +40,32 @@ from actuator_tools.graph import JOINTS, closed_loop
 
 
 def _flag(context, name):
-    """A boolean launch argument through launch's own condition parser."""
+    """Return a boolean launch argument through launch's own condition parser."""
     return evaluate_condition_expression(context, [LaunchConfiguration(name)])
 
 
 def _drive_lifecycle(action):
-    """configure at start, activate once inactive (launch_ros lifecycle events)."""
-    configure = EmitEvent(event=ChangeState(lifecycle_node_matcher=matches_action(action),
-                                            transition_id=Transition.TRANSITION_CONFIGURE))
-    activate = RegisterEventHandler(OnStateTransition(
-        target_lifecycle_node=action, goal_state='inactive',
-        entities=[EmitEvent(event=ChangeState(lifecycle_node_matcher=matches_action(action),
-                                              transition_id=Transition.TRANSITION_ACTIVATE))]))
+    """Configure at start, activate once inactive (launch_ros lifecycle events)."""
+    configure = EmitEvent(
+        event=ChangeState(
+            lifecycle_node_matcher=matches_action(action),
+            transition_id=Transition.TRANSITION_CONFIGURE,
+        )
+    )
+    activate = RegisterEventHandler(
+        OnStateTransition(
+            target_lifecycle_node=action,
+            goal_state='inactive',
+            entities=[
+                EmitEvent(
+                    event=ChangeState(
+                        lifecycle_node_matcher=matches_action(action),
+                        transition_id=Transition.TRANSITION_ACTIVATE,
+                    )
+                )
+            ],
+        )
+    )
     return [activate, configure]
 
 
@@ -49,7 +75,10 @@ def _on_leader_exit(event, context):
         return None
     code = event.returncode
     text = f'{event.action.name} exited with code {code}: ending the run'
-    return [LogInfo(msg=text if code == 0 else f'ERROR: {text}'), EmitEvent(event=Shutdown(reason=text))]
+    return [
+        LogInfo(msg=text if code == 0 else f'ERROR: {text}'),
+        EmitEvent(event=Shutdown(reason=text)),
+    ]
 
 
 def _processes(context):
@@ -60,44 +89,88 @@ def _processes(context):
     priority = int(LaunchConfiguration('thread_priority').perform(context))
     if not _flag(context, 'plant'):
         joint = 'none'
-    params = os.path.join(get_package_share_directory('actuator_bringup'), 'config', f'{scenario}.yaml')
+    params = os.path.join(
+        get_package_share_directory('actuator_bringup'), 'config', f'{scenario}.yaml'
+    )
     if not os.path.isfile(params):
         raise RuntimeError(f'no scenario {scenario!r}: {params} does not exist')
     bag = LaunchConfiguration('bag').perform(context)
-    specs = closed_loop(mode, duration, record=_flag(context, 'record'), bag=bag or None, joint=joint,
-                        thread_priority=priority, autostart=False)
+    specs = closed_loop(
+        mode,
+        duration,
+        record=_flag(context, 'record'),
+        bag=bag or None,
+        joint=joint,
+        thread_priority=priority,
+        autostart=False,
+    )
     actions = []
     for spec in specs:
         parameters = ([params] if spec.scenario_file else []) + [spec.parameters]
-        common = dict(package=spec.package, executable=spec.executable, name=spec.name, namespace='',
-                      parameters=parameters, output='screen')
+        common = dict(
+            package=spec.package,
+            executable=spec.executable,
+            name=spec.name,
+            namespace='',
+            parameters=parameters,
+            output='screen',
+        )
         action = LifecycleNode(**common) if spec.managed else Node(**common)
         actions.append(action)
         if spec.managed:
             actions += _drive_lifecycle(action)
         if spec.leader:
-            actions.append(RegisterEventHandler(OnProcessExit(target_action=action, on_exit=_on_leader_exit)))
+            actions.append(
+                RegisterEventHandler(OnProcessExit(target_action=action, on_exit=_on_leader_exit))
+            )
     return actions
 
 
 def generate_launch_description():
     """Launch arguments and the processes of one closed-loop run."""
-    return LaunchDescription([
-        DeclareLaunchArgument('scenario', default_value='case2_pp_nftsmc_eso',
-                              description='parameter file share/actuator_bringup/config/<scenario>.yaml'),
-        DeclareLaunchArgument('mode', default_value='realtime', choices=['realtime', 'sim'],
-                              description='realtime: wall-clock 1 kHz; sim: lockstep on the plant\'s /clock'),
-        DeclareLaunchArgument('duration', default_value='0.0',
-                              description='run length [s] of the whole run; 0 runs until Ctrl-C'),
-        DeclareLaunchArgument('joint', default_value='plant', choices=list(JOINTS),
-                              description='plant: simulated joint; cia402_sim: CANopen driver with its simulated '
-                                          'drive; cia402: the driver on a real bus; none: a driver started elsewhere'),
-        DeclareLaunchArgument('plant', default_value='true',
-                              description='false: start no joint (same as joint:=none)'),
-        DeclareLaunchArgument('record', default_value='true', description='record all topics to a bag'),
-        DeclareLaunchArgument('bag', default_value='', description='bag folder (default bags/<UTC time>)'),
-        DeclareLaunchArgument('thread_priority', default_value='0',
-                              description='SCHED_FIFO priority of the ESO and controller, the joint one above '
-                                          '(0: normal scheduling; the runner and the benchmark use 50)'),
-        OpaqueFunction(function=_processes),
-    ])
+    return LaunchDescription(
+        [
+            DeclareLaunchArgument(
+                'scenario',
+                default_value='case2_pp_nftsmc_eso',
+                description='parameter file share/actuator_bringup/config/<scenario>.yaml',
+            ),
+            DeclareLaunchArgument(
+                'mode',
+                default_value='realtime',
+                choices=['realtime', 'sim'],
+                description="realtime: wall-clock 1 kHz; sim: lockstep on the plant's /clock",
+            ),
+            DeclareLaunchArgument(
+                'duration',
+                default_value='0.0',
+                description='run length [s] of the whole run; 0 runs until Ctrl-C',
+            ),
+            DeclareLaunchArgument(
+                'joint',
+                default_value='plant',
+                choices=list(JOINTS),
+                description='plant: simulated joint; cia402_sim: CANopen driver with its '
+                'simulated drive; cia402: the driver on a real bus; none: a driver started '
+                'elsewhere',
+            ),
+            DeclareLaunchArgument(
+                'plant',
+                default_value='true',
+                description='false: start no joint (same as joint:=none)',
+            ),
+            DeclareLaunchArgument(
+                'record', default_value='true', description='record all topics to a bag'
+            ),
+            DeclareLaunchArgument(
+                'bag', default_value='', description='bag folder (default bags/<UTC time>)'
+            ),
+            DeclareLaunchArgument(
+                'thread_priority',
+                default_value='0',
+                description='SCHED_FIFO priority of the ESO and controller, the joint one above '
+                '(0: normal scheduling; the runner and the benchmark use 50)',
+            ),
+            OpaqueFunction(function=_processes),
+        ]
+    )

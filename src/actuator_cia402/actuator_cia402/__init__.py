@@ -1,1 +1,7 @@
-"""CiA 402 (CANopen drive profile) hardware driver for the joint actuator, and a simulated drive."""
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""CiA 402 (CANopen drive profile) hardware driver for the joint actuator.
+
+And a simulated drive.
+"""

@@ -1,4 +1,7 @@
-"""Benchmark of the CiA 402 driver: CPU per cycle and the cycle timing it holds at 1 kHz and 500 Hz.
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""Benchmark of the CiA 402 driver: CPU per cycle and the cycle timing held at 1 kHz and 500 Hz.
 
 Runs the real driver node in this process (simulated drive on the virtual bus, autostart,
 no controller: the gate holds 0 A) for ``--duration`` seconds per rate, and prints medians
@@ -28,8 +31,13 @@ from actuator_ros.realtime import RealtimeSettings
 def run_rate(rate_hz: float, duration_s: float) -> dict:
     """One run of the driver at ``rate_hz`` for ``duration_s``; returns its figures."""
     from actuator_cia402.driver_node import Cia402DriverNode
-    params = driver_parameters(simulated=True, sync_period_s=1.0 / rate_hz, stop_after_s=duration_s,
-                               channel=f'bench_{os.getpid()}_{int(rate_hz)}')
+
+    params = driver_parameters(
+        simulated=True,
+        sync_period_s=1.0 / rate_hz,
+        stop_after_s=duration_s,
+        channel=f'bench_{os.getpid()}_{int(rate_hz)}',
+    )
     context = rclpy.Context()
     rclpy.init(args=driver_arguments(params), context=context)
     try:
@@ -45,13 +53,22 @@ def run_rate(rate_hz: float, duration_s: float) -> dict:
                 times = process.cpu_times()
                 cpu_start, wall_start = times.user + times.system, time.monotonic()
         times = process.cpu_times()
-        cpu_s, wall_s = times.user + times.system - (cpu_start or 0.0), time.monotonic() - (wall_start or 0.0)
+        cpu_s, wall_s = (
+            times.user + times.system - (cpu_start or 0.0),
+            time.monotonic() - (wall_start or 0.0),
+        )
         stats = node._last_stats
-        figures = {'rate_hz': rate_hz, 'cycles': stats.cycles, 'missed_tpdo': stats.missed_feedback,
-                   'overruns': stats.overruns, 'skipped_cycles': stats.skipped_cycles,
-                   'cycles_held_percent': 100.0 * stats.cycles / max(1, round(wall_s * rate_hz)),
-                   'process_cpu_per_cycle_us': 1e6 * cpu_s / max(1, stats.cycles),
-                   'process_cpu_percent': 100.0 * cpu_s / max(wall_s, 1e-9), **stats.medians_us()}
+        figures = {
+            'rate_hz': rate_hz,
+            'cycles': stats.cycles,
+            'missed_tpdo': stats.missed_feedback,
+            'overruns': stats.overruns,
+            'skipped_cycles': stats.skipped_cycles,
+            'cycles_held_percent': 100.0 * stats.cycles / max(1, round(wall_s * rate_hz)),
+            'process_cpu_per_cycle_us': 1e6 * cpu_s / max(1, stats.cycles),
+            'process_cpu_percent': 100.0 * cpu_s / max(wall_s, 1e-9),
+            **stats.medians_us(),
+        }
         node.close()
         executor.shutdown()
         node.destroy_node()
@@ -64,10 +81,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     """CLI: ``cia402_bench [--duration S] [--rates 1000 500] [--json]``."""
     parser = argparse.ArgumentParser(prog='cia402_bench', description=__doc__.splitlines()[0])
     parser.add_argument('--duration', type=float, default=5.0, help='seconds per rate (default 5)')
-    parser.add_argument('--rates', type=float, nargs='+', default=[1000.0, 500.0], help='SYNC rates [Hz]')
+    parser.add_argument(
+        '--rates', type=float, nargs='+', default=[1000.0, 500.0], help='SYNC rates [Hz]'
+    )
     parser.add_argument('--json', action='store_true', help='print JSON instead of a table')
-    parser.add_argument('--rt-priority', type=int, default=0, metavar='N',
-                        help='run under SCHED_FIFO at priority N (1-99; 0 = normal scheduling)')
+    parser.add_argument(
+        '--rt-priority',
+        type=int,
+        default=0,
+        metavar='N',
+        help='run under SCHED_FIFO at priority N (1-99; 0 = normal scheduling)',
+    )
     args = parser.parse_args(argv)
     if not 0.5 <= args.duration <= 600.0:
         parser.error('--duration must be in [0.5, 600] s')
@@ -86,14 +110,27 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.json:
         print(json.dumps(results, indent=1))
         return 0
-    print(f'cia402 driver benchmark, {args.duration:g} s per rate, simulated drive, {os.cpu_count()} CPUs, {scheduling}')
+    print(
+        f'cia402 driver benchmark, {args.duration:g} s per rate, simulated drive, '
+        f'{os.cpu_count()} CPUs, {scheduling}'
+    )
     for r in results:
-        print(f"{r['rate_hz']:6.0f} Hz  load {r['load_average_1_5_15']}: cycles {r['cycles']} "
-              f"({r['cycles_held_percent']:.1f} % of the grid), missed TPDO {r['missed_tpdo']}, overruns {r['overruns']}")
-        print(f"          cycle thread CPU p50 {r['cpu_p50_us']:.0f} us p99 {r['cpu_p99_us']:.0f} us; "
-              f"SYNC->TPDO cycle wall p50 {r['cycle_wall_p50_us']:.0f} us p99 {r['cycle_wall_p99_us']:.0f} us")
-        print(f"          wake-up late p50 {r['late_p50_us']:.0f} us p99 {r['late_p99_us']:.0f} us; "
-              f"process CPU {r['process_cpu_per_cycle_us']:.0f} us per cycle ({r['process_cpu_percent']:.0f} % of a core)")
+        print(
+            f'{r["rate_hz"]:6.0f} Hz  load {r["load_average_1_5_15"]}: cycles {r["cycles"]} '
+            f'({r["cycles_held_percent"]:.1f} % of the grid), missed TPDO {r["missed_tpdo"]}, '
+            f'overruns {r["overruns"]}'
+        )
+        print(
+            f'          cycle thread CPU p50 {r["cpu_p50_us"]:.0f} us '
+            f'p99 {r["cpu_p99_us"]:.0f} us; '
+            f'SYNC->TPDO cycle wall p50 {r["cycle_wall_p50_us"]:.0f} us '
+            f'p99 {r["cycle_wall_p99_us"]:.0f} us'
+        )
+        print(
+            f'          wake-up late p50 {r["late_p50_us"]:.0f} us p99 {r["late_p99_us"]:.0f} us; '
+            f'process CPU {r["process_cpu_per_cycle_us"]:.0f} us per cycle '
+            f'({r["process_cpu_percent"]:.0f} % of a core)'
+        )
     return 0
 
 

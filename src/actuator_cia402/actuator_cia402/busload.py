@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """CAN bus load of one joint's cyclic traffic: SYNC plus the mapped PDOs, worst-case bit stuffing.
 
 A classic CAN base frame (11-bit identifier) with n data bytes has 47 + 8 n bits: SOF 1,
@@ -26,7 +29,10 @@ CYCLE_PAYLOADS = (0, 4, 8, 4)
 
 
 def frame_bits(data_bytes: int, worst_case_stuffing: bool = True) -> int:
-    """Bits on the wire of a CAN 2.0A frame with ``data_bytes`` (0-8), incl. worst-case stuff bits."""
+    """Bits on the wire of a CAN 2.0A frame with ``data_bytes`` (0-8).
+
+    incl. worst-case stuff bits.
+    """
     if not 0 <= data_bytes <= 8:
         raise ValueError(f'a classic CAN frame carries 0-8 data bytes, got {data_bytes}')
     bits = 47 + 8 * data_bytes
@@ -50,13 +56,23 @@ class BusLoad:
 
     def text(self) -> str:
         """One line with the figure, e.g. '38.0 % of 1000 kbit/s (380 bits per 1 ms cycle)'."""
-        return (f'{100.0 * self.fraction:.1f} % of {self.bitrate_bit_s / 1000:g} kbit/s '
-                f'({self.bits_per_cycle} bits per {self.cycle_period_s * 1e3:g} ms cycle, worst-case stuffing)')
+        return (
+            f'{100.0 * self.fraction:.1f} % of {self.bitrate_bit_s / 1000:g} kbit/s '
+            f'({self.bits_per_cycle} bits per {self.cycle_period_s * 1e3:g} ms cycle, '
+            'worst-case stuffing)'
+        )
 
 
-def cycle_load(bitrate_bit_s: int, cycle_period_s: float, payloads: Sequence[int] = CYCLE_PAYLOADS,
-               joints: int = 1) -> BusLoad:
-    """Worst-case load of ``joints`` drives each sending ``payloads`` frames per cycle (one SYNC shared)."""
+def cycle_load(
+    bitrate_bit_s: int,
+    cycle_period_s: float,
+    payloads: Sequence[int] = CYCLE_PAYLOADS,
+    joints: int = 1,
+) -> BusLoad:
+    """Worst-case load of ``joints`` drives each sending ``payloads`` frames per cycle.
+
+    One SYNC shared.
+    """
     if bitrate_bit_s <= 0 or cycle_period_s <= 0:
         raise ValueError('bitrate and cycle period must be > 0')
     sync, *per_joint = payloads
@@ -68,13 +84,26 @@ class BusLoadError(ValueError):
     """The cyclic traffic does not fit on the bus."""
 
 
-def check_bus_load(bitrate_bit_s: int, cycle_period_s: float, payloads: Sequence[int] = CYCLE_PAYLOADS,
-                   limit: float = DEFAULT_LIMIT, warn: float = DEFAULT_WARN) -> str | None:
-    """Raise BusLoadError (one line with the figure) above ``limit``; return a warning text above ``warn``."""
+def check_bus_load(
+    bitrate_bit_s: int,
+    cycle_period_s: float,
+    payloads: Sequence[int] = CYCLE_PAYLOADS,
+    limit: float = DEFAULT_LIMIT,
+    warn: float = DEFAULT_WARN,
+) -> str | None:
+    """Raise BusLoadError (one line with the figure) above ``limit``.
+
+    Return a warning text above ``warn``.
+    """
     load = cycle_load(bitrate_bit_s, cycle_period_s, payloads)
     if load.fraction > limit:
-        raise BusLoadError(f'bus load {load.text()} exceeds the limit of {100 * limit:g} %: '
-                           f'raise the bitrate or lengthen sync_period_s')
+        raise BusLoadError(
+            f'bus load {load.text()} exceeds the limit of {100 * limit:g} %: '
+            f'raise the bitrate or lengthen sync_period_s'
+        )
     if load.fraction > warn:
-        return f'bus load {load.text()} is above {100 * warn:g} %: little room left for SDO, EMCY or another joint'
+        return (
+            f'bus load {load.text()} is above {100 * warn:g} %: little room left for SDO, '
+            'EMCY or another joint'
+        )
     return None

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """The driver's cycle thread: SYNC on an absolute grid of the system clock, as ros2_control's loop.
 
 Each cycle k at t_k = start + k * period: take the command to apply (the gate's hold), write
@@ -42,10 +45,17 @@ class CycleStats:
         self.cycles += 1
 
     def medians_us(self) -> dict[str, float]:
-        """Median and 99th percentile of CPU per cycle, lateness and cycle wall time over the kept cycles [us]."""
+        """Median and 99th percentile of CPU per cycle.
+
+        Lateness and cycle wall time over the kept cycles [us].
+        """
         n = min(self.cycles, HISTORY)
         out = {}
-        for name, values in (('cpu', self.cpu_ns), ('late', self.late_ns), ('cycle_wall', self.wall_ns)):
+        for name, values in (
+            ('cpu', self.cpu_ns),
+            ('late', self.late_ns),
+            ('cycle_wall', self.wall_ns),
+        ):
             kept = values[:n] / 1e3
             out[f'{name}_p50_us'] = float(np.median(kept)) if n else float('nan')
             out[f'{name}_p99_us'] = float(np.percentile(kept, 99)) if n else float('nan')
@@ -55,9 +65,16 @@ class CycleStats:
 class SyncCycle:
     """Runs the master's cycle on a thread until stopped, faulted, silent or done."""
 
-    def __init__(self, master: Cia402Master, period_s: float, wait_s: float, feedback_timeout_s: float,
-                 command: Callable[[int], tuple[int, float]], on_sample: Callable[[int, Feedback], None],
-                 stop_after_s: float = 0.0):
+    def __init__(
+        self,
+        master: Cia402Master,
+        period_s: float,
+        wait_s: float,
+        feedback_timeout_s: float,
+        command: Callable[[int], tuple[int, float]],
+        on_sample: Callable[[int, Feedback], None],
+        stop_after_s: float = 0.0,
+    ):
         """``command(t_ns)`` -> (controlword, current [A]); ``on_sample(stamp_ns, feedback)``."""
         self.master = master
         self.period_ns = int(round(period_s * 1e9))
@@ -66,7 +83,7 @@ class SyncCycle:
         self.command, self.on_sample = command, on_sample
         self.stop_after_cycles = int(round(stop_after_s / period_s)) if stop_after_s > 0 else 0
         self.stats = CycleStats()
-        self.ended: Optional[str] = None        # why the loop ended: 'stopped', 'done', 'fault', 'error'
+        self.ended: Optional[str] = None  # why the loop ended: 'stopped', 'done', 'fault', 'error'
         self.fault: Optional[DriveFault] = None
         self.start_ns: Optional[int] = None
         self._stop = threading.Event()
@@ -91,7 +108,10 @@ class SyncCycle:
         return self._thread is not None and self._thread.is_alive()
 
     def _run(self) -> None:
-        """The loop; an exception ends it with ``ended = 'error'`` and the reason in ``fault``."""
+        """Run the loop.
+
+        An exception ends it with ``ended = 'error'`` and the reason in ``fault``.
+        """
         try:
             self._loop()
         except Exception as exc:  # noqa: BLE001 - reported by the node, never lost with the thread
@@ -110,7 +130,7 @@ class SyncCycle:
                 time.sleep(wait_ns * 1e-9)
             now = time.time_ns()
             late = now - t_k
-            if late >= self.period_ns:                  # overrun: jump to the present cycle
+            if late >= self.period_ns:  # overrun: jump to the present cycle
                 skipped = late // self.period_ns
                 stats.overruns += 1
                 stats.skipped_cycles += int(skipped)
@@ -130,8 +150,12 @@ class SyncCycle:
                 self.fault, self.ended = master.fault, 'fault'
                 return
             if t_k - last_feedback_ns > self.feedback_timeout_ns:
-                self.fault = DriveFault(0, f'no TPDO from the drive for {(t_k - last_feedback_ns) / 1e6:.0f} ms '
-                                           '(silent bus or drive)', 'feedback timeout')
+                self.fault = DriveFault(
+                    0,
+                    f'no TPDO from the drive for {(t_k - last_feedback_ns) / 1e6:.0f} ms '
+                    '(silent bus or drive)',
+                    'feedback timeout',
+                )
                 self.ended = 'fault'
                 return
             k += 1

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """The driver's parameters for a closed-loop run, for the launch file and the runner (ROS-free).
 
     from actuator_cia402.launch_spec import driver_parameters, DRIVER_PACKAGE, DRIVER_EXECUTABLE
@@ -23,12 +26,22 @@ DRIVER_EXECUTABLE = 'cia402_driver'
 DRIVER_NODE_NAME = 'actuator_cia402_driver'
 
 
-def driver_parameters(simulated: bool, working_condition: str = 'deep_sea', interface: str | None = None,
-                      channel: str | None = None, node_id: int = 1, bitrate: int = 1_000_000,
-                      sync_period_s: float = limits.SAMPLE_TIME_S, stop_after_s: float = 0.0,
-                      wait_for_subscribers: int = 0, autostart: bool = True, **overrides: Any) -> dict[str, Any]:
-    """Flat ROS parameters of the driver for a closed-loop run (checked: raises ValueError when refused).
+def driver_parameters(
+    simulated: bool,
+    working_condition: str = 'deep_sea',
+    interface: str | None = None,
+    channel: str | None = None,
+    node_id: int = 1,
+    bitrate: int = 1_000_000,
+    sync_period_s: float = limits.SAMPLE_TIME_S,
+    stop_after_s: float = 0.0,
+    wait_for_subscribers: int = 0,
+    autostart: bool = True,
+    **overrides: Any,
+) -> dict[str, Any]:
+    """Flat ROS parameters of the driver for a closed-loop run.
 
+    Checked: raises ValueError when refused.
     ``simulated``: the simulated drive in the driver's process on a virtual bus named after
     the node id (channel default 'sim_joint_<node_id>'); otherwise socketcan on ``channel``
     (default can0). ``overrides`` are further parameters by their ROS names, e.g.
@@ -39,9 +52,15 @@ def driver_parameters(simulated: bool, working_condition: str = 'deep_sea', inte
     if channel is None:
         channel = f'sim_joint_{node_id}' if simulated else 'can0'
     params: dict[str, Any] = {
-        'node_id': node_id, 'interface': interface, 'channel': channel, 'bitrate': bitrate,
-        'sync_period_s': sync_period_s, 'simulated_drive': simulated, 'autostart': autostart,
-        'stop_after_s': stop_after_s, 'wait_for_subscribers': wait_for_subscribers,
+        'node_id': node_id,
+        'interface': interface,
+        'channel': channel,
+        'bitrate': bitrate,
+        'sync_period_s': sync_period_s,
+        'simulated_drive': simulated,
+        'autostart': autostart,
+        'stop_after_s': stop_after_s,
+        'wait_for_subscribers': wait_for_subscribers,
     }
     if simulated:
         params['sim.working_condition'] = working_condition
@@ -51,11 +70,16 @@ def driver_parameters(simulated: bool, working_condition: str = 'deep_sea', inte
 
 
 def _check(params: dict[str, Any]) -> None:
-    """Build DriverParameters from the flat names, so a refused value fails here and not in the node."""
+    """Build DriverParameters from the flat names.
+
+    So a refused value fails here and not in the node.
+    """
     sim = {k[4:]: v for k, v in params.items() if k.startswith('sim.')}
     top = {k: v for k, v in params.items() if not k.startswith('sim.')}
     known = {f.name for f in dataclasses.fields(DriverParameters)} | {'use_sim_time'}
-    unknown = sorted(set(top) - known) + sorted(f'sim.{k}' for k in set(sim) - {f.name for f in dataclasses.fields(SimDriveSettings)})
+    unknown = sorted(set(top) - known) + sorted(
+        f'sim.{k}' for k in set(sim) - {f.name for f in dataclasses.fields(SimDriveSettings)}
+    )
     if unknown:
         raise ValueError(f'unknown driver parameter(s): {", ".join(unknown)}')
     top.pop('use_sim_time', None)
@@ -63,7 +87,7 @@ def _check(params: dict[str, Any]) -> None:
 
 
 def driver_arguments(params: dict[str, Any]) -> list[str]:
-    """The parameters as command-line arguments of the installed executable."""
+    """Return the parameters as command-line arguments of the installed executable."""
     args = ['--ros-args']
     for key, value in params.items():
         text = ('true' if value else 'false') if isinstance(value, bool) else str(value)

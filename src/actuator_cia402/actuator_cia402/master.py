@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """The CiA 402 master for one joint drive on a canopen.Network (RemoteNode from the drive's EDS).
 
 Layered like ros2_canopen's cia402 driver: ROS-free, called by the driver node's lifecycle
@@ -44,7 +47,7 @@ class Feedback(NamedTuple):
     current_a: float
     statusword: int
     error_code: int
-    received_s: float            # canopen receive timestamp of TPDO1
+    received_s: float  # canopen receive timestamp of TPDO1
 
 
 class DriveFault(NamedTuple):
@@ -52,7 +55,7 @@ class DriveFault(NamedTuple):
 
     code: int
     text: str
-    source: str                  # 'statusword', 'emcy' or 'feedback timeout'
+    source: str  # 'statusword', 'emcy' or 'feedback timeout'
 
 
 #: Transmission type 1: synchronous, every SYNC (CiA 301).
@@ -63,9 +66,20 @@ STATE_TIMEOUT_S = 1.0
 class Cia402Master:
     """One drive in cyclic synchronous torque mode."""
 
-    def __init__(self, network: canopen.Network, node_id: int, eds_path: str, scaling: Scaling,
-                 sync_period_s: float, rpdo_cob_id: int, tpdo1_cob_id: int, tpdo2_cob_id: int,
-                 max_current_a: float, state_timeout_s: float = STATE_TIMEOUT_S, sdo_timeout_s: float = 0.3):
+    def __init__(
+        self,
+        network: canopen.Network,
+        node_id: int,
+        eds_path: str,
+        scaling: Scaling,
+        sync_period_s: float,
+        rpdo_cob_id: int,
+        tpdo1_cob_id: int,
+        tpdo2_cob_id: int,
+        max_current_a: float,
+        state_timeout_s: float = STATE_TIMEOUT_S,
+        sdo_timeout_s: float = 0.3,
+    ):
         """Attach a RemoteNode built from the drive's EDS to ``network`` (already connected)."""
         self.network = network
         self.node = canopen.RemoteNode(node_id, eds_path)
@@ -82,7 +96,9 @@ class Cia402Master:
         self.error_code = 0
         self.current_actual_a = 0.0
         self.tpdo1_count = 0
-        self._arrived = threading.Condition()       # TPDO1 arrivals since the last SYNC (bus thread -> cycle)
+        self._arrived = (
+            threading.Condition()
+        )  # TPDO1 arrivals since the last SYNC (bus thread -> cycle)
         self._arrivals = 0
         self._missed_last = False
         self._rpdo = None
@@ -90,54 +106,93 @@ class Cia402Master:
 
     # --- configure --------------------------------------------------------------------------
     def _sdo(self, index: int, subindex: int | None = None):
-        """The SDO variable of an object (blocking transfers: configure/activate/deactivate only)."""
+        """Return the SDO variable of an object.
+
+        Blocking transfers: configure/activate/deactivate only.
+        """
         return self.node.sdo[index] if subindex is None else self.node.sdo[index][subindex]
 
     def configure(self) -> list[str]:
-        """NMT pre-operational, OD checks, PDO mapping, CST mode; returns notes (raises Cia402Error)."""
+        """NMT pre-operational, OD checks, PDO mapping, CST mode.
+
+        Returns notes (raises Cia402Error).
+        """
         self.node.nmt.state = 'PRE-OPERATIONAL'
         try:
             device_type = self._sdo(p.DEVICE_TYPE).raw
         except canopen.SdoCommunicationError as exc:
-            raise Cia402Error(f'node {self.node.id} does not answer SDO ({exc}): check node_id, bitrate, '
-                              f'wiring and termination') from None
+            raise Cia402Error(
+                f'node {self.node.id} does not answer SDO ({exc}): check node_id, bitrate, '
+                f'wiring and termination'
+            ) from None
         notes = []
         if device_type & 0xFFFF != p.DEVICE_PROFILE_402:
-            raise Cia402Error(f'node {self.node.id} is not a CiA 402 drive: device type 0x{device_type:08X}')
+            raise Cia402Error(
+                f'node {self.node.id} is not a CiA 402 drive: device type 0x{device_type:08X}'
+            )
         if not self._sdo(p.SUPPORTED_DRIVE_MODES).raw & p.SUPPORTED_CST_BIT:
-            raise Cia402Error(f'node {self.node.id} does not support cyclic synchronous torque (0x6502 bit 9)')
-        self._check_equal(p.RATED_CURRENT, None, round(self.scaling.rated_current_a * 1000), 'rated current', 'mA')
-        self._check_equal(p.RATED_TORQUE, None, round(self.scaling.rated_torque_nm * 1000), 'rated torque', 'mN m')
-        increments = self._sdo(p.ENCODER_RESOLUTION, 1).raw / max(1, self._sdo(p.ENCODER_RESOLUTION, 2).raw)
+            raise Cia402Error(
+                f'node {self.node.id} does not support cyclic synchronous torque (0x6502 bit 9)'
+            )
+        self._check_equal(
+            p.RATED_CURRENT,
+            None,
+            round(self.scaling.rated_current_a * 1000),
+            'rated current',
+            'mA',
+        )
+        self._check_equal(
+            p.RATED_TORQUE,
+            None,
+            round(self.scaling.rated_torque_nm * 1000),
+            'rated torque',
+            'mN m',
+        )
+        increments = self._sdo(p.ENCODER_RESOLUTION, 1).raw / max(
+            1, self._sdo(p.ENCODER_RESOLUTION, 2).raw
+        )
         if increments != self.scaling.encoder_counts_per_rev:
-            raise Cia402Error(f'encoder resolution 0x608F is {increments:g} counts/rev, configured '
-                              f'encoder_counts_per_rev = {self.scaling.encoder_counts_per_rev}')
+            raise Cia402Error(
+                f'encoder resolution 0x608F is {increments:g} counts/rev, configured '
+                f'encoder_counts_per_rev = {self.scaling.encoder_counts_per_rev}'
+            )
         max_torque = self._sdo(p.MAX_TORQUE).raw
         needed = self.scaling.current_to_torque_permille(self.max_current_a)
         if max_torque < needed:
-            notes.append(f'max torque 0x6072 = {max_torque} per mille is below the current limit '
-                         f'({needed} per mille): the drive clips commands beyond '
-                         f'{self.scaling.torque_permille_to_current(max_torque):.2f} A')
+            notes.append(
+                f'max torque 0x6072 = {max_torque} per mille is below the current limit '
+                f'({needed} per mille): the drive clips commands beyond '
+                f'{self.scaling.torque_permille_to_current(max_torque):.2f} A'
+            )
         self._map_pdos()
         self._sdo(p.COMMUNICATION_CYCLE_US).raw = int(round(self.sync_period_s * 1e6))
         self._sdo(p.MODES_OF_OPERATION).raw = p.MODE_CST
         shown = self._sdo(p.MODES_OF_OPERATION_DISPLAY).raw
         if shown != p.MODE_CST:
-            raise Cia402Error(f'drive refused mode CST (0x6061 shows {shown} after writing 10 to 0x6060)')
+            raise Cia402Error(
+                f'drive refused mode CST (0x6061 shows {shown} after writing 10 to 0x6060)'
+            )
         return notes
 
-    def _check_equal(self, index: int, subindex: int | None, expected: int, what: str, unit: str) -> None:
+    def _check_equal(
+        self, index: int, subindex: int | None, expected: int, what: str, unit: str
+    ) -> None:
         """Refuse a drive whose object differs from the configured value by more than 1 %."""
         actual = self._sdo(index, subindex).raw
         if abs(actual - expected) > 0.01 * abs(expected):
-            raise Cia402Error(f'{what} 0x{index:04X} of the drive is {actual} {unit}, configured {expected} {unit}')
+            raise Cia402Error(
+                f'{what} 0x{index:04X} of the drive is {actual} {unit}, '
+                f'configured {expected} {unit}'
+            )
 
     def _map_pdos(self) -> None:
         """RPDO1, TPDO1, TPDO2 as listed in the module docstring; the other PDOs disabled."""
         rpdo_cob, tpdo1_cob, tpdo2_cob = self.cob_ids
-        layout = ((self.node.rpdo[1], rpdo_cob, (p.CONTROLWORD, p.TARGET_TORQUE)),
-                  (self.node.tpdo[1], tpdo1_cob, (p.STATUSWORD, p.POSITION_ACTUAL, p.TORQUE_ACTUAL)),
-                  (self.node.tpdo[2], tpdo2_cob, (p.CURRENT_ACTUAL, p.ERROR_CODE)))
+        layout = (
+            (self.node.rpdo[1], rpdo_cob, (p.CONTROLWORD, p.TARGET_TORQUE)),
+            (self.node.tpdo[1], tpdo1_cob, (p.STATUSWORD, p.POSITION_ACTUAL, p.TORQUE_ACTUAL)),
+            (self.node.tpdo[2], tpdo2_cob, (p.CURRENT_ACTUAL, p.ERROR_CODE)),
+        )
         for pdo_map, cob_id, objects in layout:
             pdo_map.clear()
             for index in objects:
@@ -148,7 +203,9 @@ class Cia402Master:
             for number, pdo_map in maps.map.items():
                 if number > used:
                     pdo_map.clear()
-                    pdo_map.cob_id = pdo_map.predefined_cob_id or (0x100 * (number + 1) + self.node.id)
+                    pdo_map.cob_id = pdo_map.predefined_cob_id or (
+                        0x100 * (number + 1) + self.node.id
+                    )
                     pdo_map.trans_type, pdo_map.enabled = SYNCHRONOUS, False
                     pdo_map.save()
         # The layouts just written, compiled once: the cycle packs and unpacks whole frames.
@@ -167,7 +224,10 @@ class Cia402Master:
         return statusword, p.decode_state(statusword)
 
     def command(self, command: p.Command, wanted: tuple[p.State, ...]) -> p.State:
-        """Write a controlword command and wait (state_timeout_s) until the statusword shows one of ``wanted``."""
+        """Write a controlword command and wait for one of the ``wanted`` states.
+
+        Waits up to state_timeout_s until the statusword shows one of ``wanted``.
+        """
         timeout_s = self.state_timeout_s
         self._sdo(p.CONTROLWORD).raw = command.value
         deadline = time.monotonic() + timeout_s
@@ -177,8 +237,11 @@ class Cia402Master:
                 return state
             if time.monotonic() > deadline:
                 names = ' or '.join(f"'{s.value}'" for s in wanted)
-                raise Cia402Error(f'{command.name.lower()}: the drive did not reach {names} within {timeout_s:g} s '
-                                  f'(statusword 0x{statusword:04X} = {state.value if state else "undefined"})')
+                raise Cia402Error(
+                    f'{command.name.lower()}: the drive did not reach {names} within '
+                    f'{timeout_s:g} s '
+                    f'(statusword 0x{statusword:04X} = {state.value if state else "undefined"})'
+                )
             time.sleep(0.002)
 
     def fault_reset(self) -> None:
@@ -188,12 +251,17 @@ class Cia402Master:
         self._sdo(p.CONTROLWORD).raw = p.Command.DISABLE_VOLTAGE.value
 
     def activate(self) -> list[str]:
-        """Fault reset if needed, shutdown, switch on, enable operation, NMT operational; returns notes."""
+        """Fault reset if needed, shutdown, switch on, enable operation, NMT operational.
+
+        Returns notes.
+        """
         notes = []
         statusword, state = self.read_state()
         if state in (p.State.FAULT, p.State.FAULT_REACTION_ACTIVE):
             code = self._sdo(p.ERROR_CODE).raw
-            notes.append(f'drive was in fault (0x603F = 0x{code:04X}: {p.error_text(code)}): fault reset')
+            notes.append(
+                f'drive was in fault (0x603F = 0x{code:04X}: {p.error_text(code)}): fault reset'
+            )
             self.fault_reset()
         self.fault = None
         self.node.emcy.reset()
@@ -202,24 +270,29 @@ class Cia402Master:
         self.command(p.Command.ENABLE_OPERATION, (p.State.OPERATION_ENABLED,))
         self.feedback = None
         self.node.nmt.state = 'OPERATIONAL'
-        # NMT has no answer; an SDO round trip after it (same bus, in order) shows the drive took it.
+        # NMT has no answer; an SDO round trip after it (same bus, in order) shows the drive
+        # took it.
         statusword, state = self.read_state()
         if state is not p.State.OPERATION_ENABLED:
-            raise Cia402Error(f'the drive left operation enabled on NMT start (statusword 0x{statusword:04X})')
+            raise Cia402Error(
+                f'the drive left operation enabled on NMT start (statusword 0x{statusword:04X})'
+            )
         return notes
 
     def deactivate(self) -> None:
         """Quick stop, then disable voltage (brake engaged by the drive), NMT pre-operational."""
         try:
-            self.command(p.Command.QUICK_STOP, (p.State.QUICK_STOP_ACTIVE, p.State.SWITCH_ON_DISABLED,
-                                                p.State.FAULT))
+            self.command(
+                p.Command.QUICK_STOP,
+                (p.State.QUICK_STOP_ACTIVE, p.State.SWITCH_ON_DISABLED, p.State.FAULT),
+            )
             self.command(p.Command.DISABLE_VOLTAGE, (p.State.SWITCH_ON_DISABLED, p.State.FAULT))
         finally:
             self.node.nmt.state = 'PRE-OPERATIONAL'
-        self.read_state()                          # NMT taken (see activate)
+        self.read_state()  # NMT taken (see activate)
 
     def read_error(self) -> tuple[int, str]:
-        """The drive's error code 0x603F over SDO, with its text."""
+        """Return the drive's error code 0x603F over SDO, with its text."""
         code = self._sdo(p.ERROR_CODE).raw
         return code, p.error_text(code)
 
@@ -235,7 +308,10 @@ class Cia402Master:
         expected = 2 if self._missed_last else 1
         with self._arrived:
             self._arrivals = 0
-        self.network.send_message(rpdo.cob_id, rpdo.pack((controlword, self.scaling.current_to_torque_permille(current_a))))
+        self.network.send_message(
+            rpdo.cob_id,
+            rpdo.pack((controlword, self.scaling.current_to_torque_permille(current_a))),
+        )
         self.network.sync.transmit()
         deadline = time.monotonic() + wait_s
         with self._arrived:
@@ -248,11 +324,20 @@ class Cia402Master:
         return self.feedback if got else None
 
     def _on_tpdo1(self, pdo_map) -> None:
-        """TPDO1 received (bus thread): statusword, position, torque; the fault bit sets ``fault``."""
+        """TPDO1 received (bus thread): statusword, position, torque.
+
+        The fault bit sets ``fault``.
+        """
         statusword, counts, torque = self._t1.unpack(pdo_map.data)
         s = self.scaling
-        self.feedback = Feedback(s.counts_to_rad(counts), s.torque_permille_to_nm(torque),
-                                 self.current_actual_a, statusword, self.error_code, pdo_map.timestamp)
+        self.feedback = Feedback(
+            s.counts_to_rad(counts),
+            s.torque_permille_to_nm(torque),
+            self.current_actual_a,
+            statusword,
+            self.error_code,
+            pdo_map.timestamp,
+        )
         self.tpdo1_count += 1
         if statusword & p.SW_FAULT and self.fault is None:
             code = self.error_code
@@ -270,11 +355,16 @@ class Cia402Master:
             self.fault = DriveFault(code, p.error_text(code), self.fault.source)
 
     def _on_emcy(self, emcy) -> None:
-        """EMCY (bus thread): an error register != 0 is a fault; otherwise a warning kept in ``warnings``."""
+        """EMCY (bus thread): an error register != 0 is a fault.
+
+        Otherwise a warning kept in ``warnings``.
+        """
         if emcy.code == 0:
             return
         if emcy.register:
             if self.fault is None or self.fault.code == 0:
                 self.fault = DriveFault(emcy.code, p.error_text(emcy.code), 'emcy')
         else:
-            self.warnings.append(f'EMCY 0x{emcy.code:04X} ({p.error_text(emcy.code)}) without error register')
+            self.warnings.append(
+                f'EMCY 0x{emcy.code:04X} ({p.error_text(emcy.code)}) without error register'
+            )

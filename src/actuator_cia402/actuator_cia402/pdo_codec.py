@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Fast packing of a PDO's mapped objects with one precompiled struct (CiA 301 PDO mapping).
 
 canopen's PdoVariable.raw decodes and encodes through the object dictionary on every access
@@ -16,13 +19,16 @@ class PdoCodec:
     """Pack/unpack the objects of one mapped PDO (little endian, in mapping order)."""
 
     def __init__(self, fmt: struct.Struct, cob_id: int):
-        """A compiled layout for the frames of ``cob_id``."""
+        """Return a compiled layout for the frames of ``cob_id``."""
         self.struct = fmt
         self.cob_id = cob_id
 
     @classmethod
     def compile(cls, pdo_map) -> Optional['PdoCodec']:
-        """Codec of a canopen PdoMap whose variables are whole, byte-aligned and contiguous; None otherwise."""
+        """Codec of a canopen PdoMap whose variables are whole, byte-aligned and contiguous.
+
+        None otherwise.
+        """
         chars, offset = [], 0
         for var in pdo_map.map:
             od = var.od
@@ -34,9 +40,9 @@ class PdoCodec:
         return cls(struct.Struct('<' + ''.join(chars)), pdo_map.cob_id)
 
     def pack(self, values: Sequence[int]) -> bytes:
-        """The frame's data bytes for ``values`` (one per mapped object)."""
+        """Return the frame's data bytes for ``values`` (one per mapped object)."""
         return self.struct.pack(*values)
 
     def unpack(self, data: bytes) -> tuple:
-        """The mapped objects' values from a received frame."""
+        """Return the mapped objects' values from a received frame."""
         return self.struct.unpack_from(data)

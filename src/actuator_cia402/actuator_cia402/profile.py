@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """CiA 402 drive profile: object indices, the power state machine, statusword and controlword.
 
 ROS-free. Object indices and bit patterns follow CiA 402 part 2 (device control, section
@@ -10,27 +13,27 @@ from __future__ import annotations
 import enum
 
 # --- object dictionary indices (CiA 301 communication area, CiA 402 profile area) -----------
-DEVICE_TYPE = 0x1000             # UNSIGNED32; low 16 bits = device profile number (402)
-ERROR_REGISTER = 0x1001          # UNSIGNED8 (CiA 301)
-SYNC_COB_ID = 0x1005             # UNSIGNED32
+DEVICE_TYPE = 0x1000  # UNSIGNED32; low 16 bits = device profile number (402)
+ERROR_REGISTER = 0x1001  # UNSIGNED8 (CiA 301)
+SYNC_COB_ID = 0x1005  # UNSIGNED32
 COMMUNICATION_CYCLE_US = 0x1006  # UNSIGNED32, SYNC period [us]
-HEARTBEAT_PRODUCER_MS = 0x1017   # UNSIGNED16
-IDENTITY = 0x1018                # RECORD
-ERROR_CODE = 0x603F              # UNSIGNED16, last error code (same codes as EMCY)
-CONTROLWORD = 0x6040             # UNSIGNED16
-STATUSWORD = 0x6041              # UNSIGNED16
-QUICK_STOP_OPTION = 0x605A       # INTEGER16
-MODES_OF_OPERATION = 0x6060      # INTEGER8
+HEARTBEAT_PRODUCER_MS = 0x1017  # UNSIGNED16
+IDENTITY = 0x1018  # RECORD
+ERROR_CODE = 0x603F  # UNSIGNED16, last error code (same codes as EMCY)
+CONTROLWORD = 0x6040  # UNSIGNED16
+STATUSWORD = 0x6041  # UNSIGNED16
+QUICK_STOP_OPTION = 0x605A  # INTEGER16
+MODES_OF_OPERATION = 0x6060  # INTEGER8
 MODES_OF_OPERATION_DISPLAY = 0x6061  # INTEGER8
-POSITION_ACTUAL = 0x6064         # INTEGER32 [encoder counts]
-TARGET_TORQUE = 0x6071           # INTEGER16 [per mille of rated torque 0x6076]
-MAX_TORQUE = 0x6072              # UNSIGNED16 [per mille of rated torque]
-RATED_CURRENT = 0x6075           # UNSIGNED32 [mA]
-RATED_TORQUE = 0x6076            # UNSIGNED32 [mN m]
-TORQUE_ACTUAL = 0x6077           # INTEGER16 [per mille of rated torque]
-CURRENT_ACTUAL = 0x6078          # INTEGER16 [per mille of rated current]
-ENCODER_RESOLUTION = 0x608F      # ARRAY: 1 = encoder increments, 2 = motor revolutions
-SUPPORTED_DRIVE_MODES = 0x6502   # UNSIGNED32, bit 9 = cyclic synchronous torque
+POSITION_ACTUAL = 0x6064  # INTEGER32 [encoder counts]
+TARGET_TORQUE = 0x6071  # INTEGER16 [per mille of rated torque 0x6076]
+MAX_TORQUE = 0x6072  # UNSIGNED16 [per mille of rated torque]
+RATED_CURRENT = 0x6075  # UNSIGNED32 [mA]
+RATED_TORQUE = 0x6076  # UNSIGNED32 [mN m]
+TORQUE_ACTUAL = 0x6077  # INTEGER16 [per mille of rated torque]
+CURRENT_ACTUAL = 0x6078  # INTEGER16 [per mille of rated current]
+ENCODER_RESOLUTION = 0x608F  # ARRAY: 1 = encoder increments, 2 = motor revolutions
+SUPPORTED_DRIVE_MODES = 0x6502  # UNSIGNED32, bit 9 = cyclic synchronous torque
 
 #: CiA 402 device profile number in the low word of 0x1000.
 DEVICE_PROFILE_402 = 402
@@ -68,14 +71,14 @@ _STATE_CODING = (
 # Statusword bits besides the state coding.
 SW_FAULT = 1 << 3
 SW_VOLTAGE_ENABLED = 1 << 4
-SW_QUICK_STOP = 1 << 5           # 0 = quick stop active (low active)
+SW_QUICK_STOP = 1 << 5  # 0 = quick stop active (low active)
 SW_WARNING = 1 << 7
 SW_REMOTE = 1 << 9
 SW_TARGET_REACHED = 1 << 10
 
 
 def decode_state(statusword: int) -> State | None:
-    """The CiA 402 state coded in statusword 0x6041, or None for an undefined pattern."""
+    """Return the CiA 402 state coded in statusword 0x6041, or None for an undefined pattern."""
     for mask, value, state in _STATE_CODING:
         if statusword & mask == value:
             return state
@@ -83,11 +86,26 @@ def decode_state(statusword: int) -> State | None:
 
 
 def encode_statusword(state: State, remote: bool = True, warning: bool = False) -> int:
-    """The statusword 0x6041 a drive reports in ``state`` (voltage-enabled bit 4 while powered)."""
-    base = {State.NOT_READY_TO_SWITCH_ON: 0x0000, State.SWITCH_ON_DISABLED: 0x0040,
-            State.READY_TO_SWITCH_ON: 0x0021, State.SWITCHED_ON: 0x0023, State.OPERATION_ENABLED: 0x0027,
-            State.QUICK_STOP_ACTIVE: 0x0007, State.FAULT_REACTION_ACTIVE: 0x000F, State.FAULT: 0x0008}[state]
-    if state in (State.READY_TO_SWITCH_ON, State.SWITCHED_ON, State.OPERATION_ENABLED, State.QUICK_STOP_ACTIVE):
+    """Return the statusword 0x6041 a drive reports in ``state``.
+
+    Voltage-enabled bit 4 while powered.
+    """
+    base = {
+        State.NOT_READY_TO_SWITCH_ON: 0x0000,
+        State.SWITCH_ON_DISABLED: 0x0040,
+        State.READY_TO_SWITCH_ON: 0x0021,
+        State.SWITCHED_ON: 0x0023,
+        State.OPERATION_ENABLED: 0x0027,
+        State.QUICK_STOP_ACTIVE: 0x0007,
+        State.FAULT_REACTION_ACTIVE: 0x000F,
+        State.FAULT: 0x0008,
+    }[state]
+    if state in (
+        State.READY_TO_SWITCH_ON,
+        State.SWITCHED_ON,
+        State.OPERATION_ENABLED,
+        State.QUICK_STOP_ACTIVE,
+    ):
         base |= SW_VOLTAGE_ENABLED
     return base | (SW_REMOTE if remote else 0) | (SW_WARNING if warning else 0)
 
@@ -96,18 +114,18 @@ class Command(enum.Enum):
     """Device control commands of the controlword 0x6040 (CiA 402 table "command coding")."""
 
     SHUTDOWN = 0x0006
-    SWITCH_ON = 0x0007            # also "disable operation" from operation enabled
+    SWITCH_ON = 0x0007  # also "disable operation" from operation enabled
     ENABLE_OPERATION = 0x000F
     DISABLE_VOLTAGE = 0x0000
     QUICK_STOP = 0x0002
-    FAULT_RESET = 0x0080          # acts on the rising edge of bit 7
+    FAULT_RESET = 0x0080  # acts on the rising edge of bit 7
 
 
 CW_FAULT_RESET = 1 << 7
 
 
 def decode_command(controlword: int) -> Command:
-    """The device control command in controlword 0x6040 (bits 0-3; bit 7 = fault reset)."""
+    """Return the device control command in controlword 0x6040 (bits 0-3; bit 7 = fault reset)."""
     if controlword & CW_FAULT_RESET:
         return Command.FAULT_RESET
     if not controlword & 0x2:
@@ -124,25 +142,28 @@ def decode_command(controlword: int) -> Command:
 #: State machine transitions on a command: (state, command) -> next state (CiA 402 transitions
 #: 2-12 and 15). A command not listed leaves the state unchanged.
 TRANSITIONS = {
-    (State.SWITCH_ON_DISABLED, Command.SHUTDOWN): State.READY_TO_SWITCH_ON,            # 2
-    (State.READY_TO_SWITCH_ON, Command.SWITCH_ON): State.SWITCHED_ON,                  # 3
-    (State.SWITCHED_ON, Command.ENABLE_OPERATION): State.OPERATION_ENABLED,            # 4
-    (State.OPERATION_ENABLED, Command.SWITCH_ON): State.SWITCHED_ON,                   # 5
-    (State.SWITCHED_ON, Command.SHUTDOWN): State.READY_TO_SWITCH_ON,                   # 6
-    (State.READY_TO_SWITCH_ON, Command.DISABLE_VOLTAGE): State.SWITCH_ON_DISABLED,     # 7
-    (State.READY_TO_SWITCH_ON, Command.QUICK_STOP): State.SWITCH_ON_DISABLED,          # 7
-    (State.OPERATION_ENABLED, Command.SHUTDOWN): State.READY_TO_SWITCH_ON,             # 8
-    (State.OPERATION_ENABLED, Command.DISABLE_VOLTAGE): State.SWITCH_ON_DISABLED,      # 9
-    (State.SWITCHED_ON, Command.DISABLE_VOLTAGE): State.SWITCH_ON_DISABLED,            # 10
-    (State.SWITCHED_ON, Command.QUICK_STOP): State.SWITCH_ON_DISABLED,                 # 10
-    (State.OPERATION_ENABLED, Command.QUICK_STOP): State.QUICK_STOP_ACTIVE,            # 11
-    (State.QUICK_STOP_ACTIVE, Command.DISABLE_VOLTAGE): State.SWITCH_ON_DISABLED,      # 12
-    (State.FAULT, Command.FAULT_RESET): State.SWITCH_ON_DISABLED,                      # 15
+    (State.SWITCH_ON_DISABLED, Command.SHUTDOWN): State.READY_TO_SWITCH_ON,  # 2
+    (State.READY_TO_SWITCH_ON, Command.SWITCH_ON): State.SWITCHED_ON,  # 3
+    (State.SWITCHED_ON, Command.ENABLE_OPERATION): State.OPERATION_ENABLED,  # 4
+    (State.OPERATION_ENABLED, Command.SWITCH_ON): State.SWITCHED_ON,  # 5
+    (State.SWITCHED_ON, Command.SHUTDOWN): State.READY_TO_SWITCH_ON,  # 6
+    (State.READY_TO_SWITCH_ON, Command.DISABLE_VOLTAGE): State.SWITCH_ON_DISABLED,  # 7
+    (State.READY_TO_SWITCH_ON, Command.QUICK_STOP): State.SWITCH_ON_DISABLED,  # 7
+    (State.OPERATION_ENABLED, Command.SHUTDOWN): State.READY_TO_SWITCH_ON,  # 8
+    (State.OPERATION_ENABLED, Command.DISABLE_VOLTAGE): State.SWITCH_ON_DISABLED,  # 9
+    (State.SWITCHED_ON, Command.DISABLE_VOLTAGE): State.SWITCH_ON_DISABLED,  # 10
+    (State.SWITCHED_ON, Command.QUICK_STOP): State.SWITCH_ON_DISABLED,  # 10
+    (State.OPERATION_ENABLED, Command.QUICK_STOP): State.QUICK_STOP_ACTIVE,  # 11
+    (State.QUICK_STOP_ACTIVE, Command.DISABLE_VOLTAGE): State.SWITCH_ON_DISABLED,  # 12
+    (State.FAULT, Command.FAULT_RESET): State.SWITCH_ON_DISABLED,  # 15
 }
 
 
 def next_state(state: State, command: Command) -> State:
-    """The state after ``command`` in ``state`` (CiA 402 transitions; unknown pairs keep the state)."""
+    """Return the state after ``command`` in ``state``.
+
+    CiA 402 transitions; unknown pairs keep the state.
+    """
     return TRANSITIONS.get((state, command), state)
 
 
@@ -168,7 +189,16 @@ def error_text(code: int) -> str:
     """Text of a CiA 402 / CiA 301 error code (0x603F or EMCY), by exact code then by its class."""
     if code in ERROR_TEXTS:
         return ERROR_TEXTS[code]
-    classes = {0x1: 'generic error', 0x2: 'current', 0x3: 'voltage', 0x4: 'temperature', 0x5: 'device hardware',
-               0x6: 'device software', 0x7: 'additional modules', 0x8: 'monitoring', 0x9: 'external error',
-               0xF: 'additional functions'}
+    classes = {
+        0x1: 'generic error',
+        0x2: 'current',
+        0x3: 'voltage',
+        0x4: 'temperature',
+        0x5: 'device hardware',
+        0x6: 'device software',
+        0x7: 'additional modules',
+        0x8: 'monitoring',
+        0x9: 'external error',
+        0xF: 'additional functions',
+    }
     return classes.get(code >> 12, 'unknown error') + f' (code 0x{code:04X})'

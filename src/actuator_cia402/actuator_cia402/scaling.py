@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Unit conversion between CiA 402 process data and SI units (REP-103).
 
 Position actual 0x6064 is in counts of the motor-side encoder; the joint turns once every
@@ -28,8 +31,13 @@ class Scaling:
 
     def __post_init__(self) -> None:
         """Refuse non-positive or non-finite constants."""
-        for name in ('encoder_counts_per_rev', 'gear_ratio', 'rated_torque_nm', 'rated_current_a',
-                     'torque_constant_nm_a'):
+        for name in (
+            'encoder_counts_per_rev',
+            'gear_ratio',
+            'rated_torque_nm',
+            'rated_current_a',
+            'torque_constant_nm_a',
+        ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f'{name} must be finite and > 0, got {value}')
@@ -51,12 +59,18 @@ class Scaling:
         return counts
 
     def current_to_torque_permille(self, current_a: float) -> int:
-        """Target torque 0x6071 [per mille of 0x6076] for the motor current ``current_a``: 1000 k_t i / T_rated."""
+        """Target torque 0x6071 [per mille of 0x6076] for the motor current ``current_a``.
+
+        1000 k_t i / T_rated.
+        """
         value = int(round(1000.0 * self.torque_constant_nm_a * current_a / self.rated_torque_nm))
         return max(-INT16_MAX, min(INT16_MAX, value))
 
     def torque_permille_to_current(self, permille: int) -> float:
-        """Motor current [A] of a torque 0x6071/0x6077 [per mille]: permille T_rated / (1000 k_t)."""
+        """Motor current [A] of a torque 0x6071/0x6077 [per mille].
+
+        Permille T_rated / (1000 k_t).
+        """
         return permille * self.rated_torque_nm / (1000.0 * self.torque_constant_nm_a)
 
     def torque_permille_to_nm(self, permille: int) -> float:
@@ -64,7 +78,10 @@ class Scaling:
         return permille * self.rated_torque_nm / 1000.0
 
     def current_to_permille(self, current_a: float) -> int:
-        """Current actual 0x6078 [per mille of rated current 0x6075] of ``current_a``."""
+        """Return the current actual 0x6078 of ``current_a``.
+
+        In per mille of the rated current 0x6075.
+        """
         value = int(round(1000.0 * current_a / self.rated_current_a))
         return max(-INT16_MAX, min(INT16_MAX, value))
 

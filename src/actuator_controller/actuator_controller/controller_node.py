@@ -1,7 +1,13 @@
-"""Joint controller node (managed): PP-NFTSMC-ESO (or PI, SMC-ESO, NFTSMC-ESO) at the sensor's 1 kHz.
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""Joint controller node (managed): PP-NFTSMC-ESO at the sensor's 1 kHz.
+
+(Or PI, SMC-ESO, NFTSMC-ESO.)
 
 subscribes joint_states (sensor_msgs/JointState), eso/estimate (actuator_msgs/StateEstimate)
-publishes  current_command (actuator_msgs/CurrentCommand), controller/state (actuator_msgs/ControllerState)
+publishes  current_command (actuator_msgs/CurrentCommand),
+           controller/state (actuator_msgs/ControllerState)
 
 The node holds the control law and its ``ControlSampleAssembly`` (actuator_core), the same
 objects as the offline loop: sample k is controlled as soon as y(k) and x_hat(k) are both in
@@ -37,8 +43,14 @@ from actuator_controller.reference import make_reference
 from actuator_msgs.msg import ControllerState, CurrentCommand, StateEstimate
 from actuator_ros.conversions import joint_position, ns_to_stamp
 from actuator_ros.node import ManagedNode
-from actuator_ros.parameters import (ParameterError, declare_choice, declare_number, declare_output_path,
-                                     declare_spec_parameters, declare_text)
+from actuator_ros.parameters import (
+    ParameterError,
+    declare_choice,
+    declare_number,
+    declare_output_path,
+    declare_spec_parameters,
+    declare_text,
+)
 from actuator_ros.qos import MODES, control_qos
 from actuator_ros.runner import run_node
 from sensor_msgs.msg import JointState
@@ -48,14 +60,45 @@ NODE_NAME = 'actuator_controller'
 WATCHED_TOPICS = ('joint_states', 'eso/estimate', 'current_command')
 NAN = float('nan')
 #: ControllerState fields only a control update computes: NaN on a safe-stop sample.
-LAW_FIELDS = ('reference_position_rad', 'reference_velocity_rad_s', 'reference_acceleration_rad_s2',
-              'estimated_velocity_rad_s', 'estimated_disturbance_rad_s2', 'error_rad', 'rho_rad',
-              'lower_bound_rad', 'upper_bound_rad', 'z1', 'z2_rad_s', 'alpha_rad_s', 'alpha_dot_rad_s2',
-              'sigma_rad_s', 'u_eq_rad_s2', 'u_sw_rad_s2', 'u_b_rad_s2', 'proportional_a', 'integral_a',
-              'current_unlimited_a')
-OUTPUT_FIELDS = ('error_rad', 'rho_rad', 'lower_bound_rad', 'upper_bound_rad', 'z1', 'z2_rad_s', 'alpha_rad_s',
-                 'alpha_dot_rad_s2', 'sigma_rad_s', 'u_eq_rad_s2', 'u_sw_rad_s2', 'u_b_rad_s2', 'proportional_a',
-                 'integral_a', 'current_unlimited_a')
+LAW_FIELDS = (
+    'reference_position_rad',
+    'reference_velocity_rad_s',
+    'reference_acceleration_rad_s2',
+    'estimated_velocity_rad_s',
+    'estimated_disturbance_rad_s2',
+    'error_rad',
+    'rho_rad',
+    'lower_bound_rad',
+    'upper_bound_rad',
+    'z1',
+    'z2_rad_s',
+    'alpha_rad_s',
+    'alpha_dot_rad_s2',
+    'sigma_rad_s',
+    'u_eq_rad_s2',
+    'u_sw_rad_s2',
+    'u_b_rad_s2',
+    'proportional_a',
+    'integral_a',
+    'current_unlimited_a',
+)
+OUTPUT_FIELDS = (
+    'error_rad',
+    'rho_rad',
+    'lower_bound_rad',
+    'upper_bound_rad',
+    'z1',
+    'z2_rad_s',
+    'alpha_rad_s',
+    'alpha_dot_rad_s2',
+    'sigma_rad_s',
+    'u_eq_rad_s2',
+    'u_sw_rad_s2',
+    'u_b_rad_s2',
+    'proportional_a',
+    'integral_a',
+    'current_unlimited_a',
+)
 
 
 class ControllerNode(ManagedNode):
@@ -67,56 +110,132 @@ class ControllerNode(ManagedNode):
 
     def load_parameters(self) -> None:
         """Declare (or read again at configure) and check every parameter."""
-        self.mode = declare_choice(self, 'mode', 'realtime', MODES, 'realtime: wall clock; sim: /clock lockstep')
-        self.name = declare_choice(self, 'controller', 'pp_nftsmc_eso', CONTROLLER_NAMES, 'control law')
-        self.gains = declare_spec_parameters(self, GAINS_BY_NAME[self.name], prefix=f'{self.name}.')
-        dt_s = declare_number(self, 'sample_time_s', limits.SAMPLE_TIME_S, *limits.SAMPLE_TIME_RANGE_S, 's',
-                              'sample period of the sensor and of the control law')
-        limit = declare_number(self, 'current_limit_a', limits.CURRENT_LIMIT_A, *limits.CURRENT_LIMIT_RANGE_A, 'A',
-                               'the commanded current is limited to +-this value')
-        self.common = declare_spec_parameters(self, CommonConfig, prefix='common.', exclude=('dt_s', 'current_limit_a'),
-                                              dt_s=dt_s, current_limit_a=limit)
-        self.kind = declare_choice(self, 'reference', 'fast', ('slow', 'fast', 'step', 'sine'), 'reference trajectory')
-        self.amplitude = declare_number(self, 'reference_amplitude_rad', 0.1, -10.0, 10.0, 'rad', 'step/sine amplitude')
-        self.frequency = declare_number(self, 'reference_frequency_rad_s', 2.0 * math.pi, 0.0, 1.0e3, 'rad/s',
-                                        'sine angular frequency')
-        self.measurement_timeout_ns = int(1e9 * declare_number(
-            self, 'measurement_timeout_s', limits.MEASUREMENT_TIMEOUT_S, *limits.TIMEOUT_RANGE_S, 's',
-            'older measurement: safe stop (0 A)'))
-        self.estimate_timeout_ns = int(1e9 * declare_number(
-            self, 'estimate_timeout_s', limits.ESTIMATE_TIMEOUT_S, *limits.TIMEOUT_RANGE_S, 's',
-            'older estimate: safe stop (0 A)'))
+        self.mode = declare_choice(
+            self, 'mode', 'realtime', MODES, 'realtime: wall clock; sim: /clock lockstep'
+        )
+        self.name = declare_choice(
+            self, 'controller', 'pp_nftsmc_eso', CONTROLLER_NAMES, 'control law'
+        )
+        self.gains = declare_spec_parameters(
+            self, GAINS_BY_NAME[self.name], prefix=f'{self.name}.'
+        )
+        dt_s = declare_number(
+            self,
+            'sample_time_s',
+            limits.SAMPLE_TIME_S,
+            *limits.SAMPLE_TIME_RANGE_S,
+            's',
+            'sample period of the sensor and of the control law',
+        )
+        limit = declare_number(
+            self,
+            'current_limit_a',
+            limits.CURRENT_LIMIT_A,
+            *limits.CURRENT_LIMIT_RANGE_A,
+            'A',
+            'the commanded current is limited to +-this value',
+        )
+        self.common = declare_spec_parameters(
+            self,
+            CommonConfig,
+            prefix='common.',
+            exclude=('dt_s', 'current_limit_a'),
+            dt_s=dt_s,
+            current_limit_a=limit,
+        )
+        self.kind = declare_choice(
+            self, 'reference', 'fast', ('slow', 'fast', 'step', 'sine'), 'reference trajectory'
+        )
+        self.amplitude = declare_number(
+            self, 'reference_amplitude_rad', 0.1, -10.0, 10.0, 'rad', 'step/sine amplitude'
+        )
+        self.frequency = declare_number(
+            self,
+            'reference_frequency_rad_s',
+            2.0 * math.pi,
+            0.0,
+            1.0e3,
+            'rad/s',
+            'sine angular frequency',
+        )
+        self.measurement_timeout_ns = int(
+            1e9
+            * declare_number(
+                self,
+                'measurement_timeout_s',
+                limits.MEASUREMENT_TIMEOUT_S,
+                *limits.TIMEOUT_RANGE_S,
+                's',
+                'older measurement: safe stop (0 A)',
+            )
+        )
+        self.estimate_timeout_ns = int(
+            1e9
+            * declare_number(
+                self,
+                'estimate_timeout_s',
+                limits.ESTIMATE_TIMEOUT_S,
+                *limits.TIMEOUT_RANGE_S,
+                's',
+                'older estimate: safe stop (0 A)',
+            )
+        )
         self.following_error_limit_rad = declare_number(
-            self, 'following_error_limit_rad', limits.FOLLOWING_ERROR_LIMIT_RAD, 1.0e-4, 100.0, 'rad',
-            '|e| beyond latches a safe stop')
+            self,
+            'following_error_limit_rad',
+            limits.FOLLOWING_ERROR_LIMIT_RAD,
+            1.0e-4,
+            100.0,
+            'rad',
+            '|e| beyond latches a safe stop',
+        )
         self.future_tolerance_s = declare_number(
-            self, 'future_stamp_tolerance_s', 0.05, 0.0, 10.0, 's',
-            'realtime: inputs stamped later than now plus this are refused (clock offset between hosts)')
-        self.joint_name = declare_text(self, 'joint_name', 'joint', 'name of the joint in joint_states')
-        self.timing_log = declare_output_path(self, 'timing_log', 'per-update timing (.npz) written at shutdown')
+            self,
+            'future_stamp_tolerance_s',
+            0.05,
+            0.0,
+            10.0,
+            's',
+            'realtime: inputs stamped later than now plus this are refused (clock offset '
+            'between hosts)',
+        )
+        self.joint_name = declare_text(
+            self, 'joint_name', 'joint', 'name of the joint in joint_states'
+        )
+        self.timing_log = declare_output_path(
+            self, 'timing_log', 'per-update timing (.npz) written at shutdown'
+        )
         if self.mode == 'sim' and not self.get_parameter('use_sim_time').value:
-            raise ParameterError("parameter 'use_sim_time' must be true in sim mode (the plant owns /clock)")
+            raise ParameterError(
+                "parameter 'use_sim_time' must be true in sim mode (the plant owns /clock)"
+            )
 
-    # --- lifecycle --------------------------------------------------------------------------------
+    # --- lifecycle -------------------------------------------------------------------------------
     def build(self) -> None:
         """Law, reference, assembly, stamp checks, topics and the watchdog."""
         self.period_ns = period_ns(self.common.dt_s)
         law = make_controller(self.name, self.gains, self.common)
         reference = make_reference(self.kind, self.amplitude, self.frequency)
-        self.assembly = ControlSampleAssembly(law, reference, self.period_ns, self.name != 'pi',
-                                              self.following_error_limit_rad)
+        self.assembly = ControlSampleAssembly(
+            law, reference, self.period_ns, self.name != 'pi', self.following_error_limit_rad
+        )
         tolerance = int(self.future_tolerance_s * 1e9)
         self.measurement_check = StampCheck(self.period_ns, self.mode == 'sim', tolerance)
-        self.estimate_check = StampCheck(self.period_ns, self.mode == 'sim', tolerance + self.period_ns)
+        self.estimate_check = StampCheck(
+            self.period_ns, self.mode == 'sim', tolerance + self.period_ns
+        )
         qos = control_qos(self.mode)
         self.cmd_pub = self.create_lifecycle_publisher(CurrentCommand, 'current_command', qos)
         self.state_pub = self.create_lifecycle_publisher(ControllerState, 'controller/state', qos)
-        self.subs = [self.create_subscription(JointState, 'joint_states', self.on_measurement, qos),
-                     self.create_subscription(StateEstimate, 'eso/estimate', self.on_estimate, qos)]
+        self.subs = [
+            self.create_subscription(JointState, 'joint_states', self.on_measurement, qos),
+            self.create_subscription(StateEstimate, 'eso/estimate', self.on_estimate, qos),
+        ]
         # Half the shortest timeout is enough to notice staleness in time; a 1 kHz watchdog would
         # add a Python callback to every sample for nothing.
-        self.watchdog = self.create_timer(min(self.measurement_timeout_ns, self.estimate_timeout_ns) * 0.5e-9,
-                                          self.on_watchdog)
+        self.watchdog = self.create_timer(
+            min(self.measurement_timeout_ns, self.estimate_timeout_ns) * 0.5e-9, self.on_watchdog
+        )
         self.graph_timer = self.create_timer(0.1, self.on_graph_check)
         self.conflict = ''
         self.status = Status.WAITING
@@ -127,13 +246,15 @@ class ControllerNode(ManagedNode):
         self.cmd = CurrentCommand()
         self.state = ControllerState(controller_name=self.name)
         self.timing = SampleLog(('received_wall_ns', 'stamp_ns', 'latency_ns', 'compute_ns'))
-        self.get_logger().info(f'{self.name} on the {self.kind} reference, {self.mode} mode, current limit '
-                               f'{self.common.current_limit_a} A')
+        self.get_logger().info(
+            f'{self.name} on the {self.kind} reference, {self.mode} mode, current limit '
+            f'{self.common.current_limit_a} A'
+        )
 
     def stop(self) -> None:
         """One safe-stop command so the drive brakes now; the timing summary."""
         stamp = self.measurement_check.last_ns
-        if stamp is not None:   # the command only: controller/state keeps one entry per sample
+        if stamp is not None:  # the command only: controller/state keeps one entry per sample
             self._publish(self.assembly.safe_sample(stamp, Status.INACTIVE), 0, state=False)
         self.close_log()
 
@@ -146,7 +267,7 @@ class ControllerNode(ManagedNode):
         for pub in (self.cmd_pub, self.state_pub):
             self.destroy_lifecycle_publisher(pub)
 
-    # --- inputs -----------------------------------------------------------------------------------
+    # --- inputs ----------------------------------------------------------------------------------
     def _refuse(self, key: str, stamp: int, why) -> None:
         """Count and log a refused input; answer its sample with 0 A."""
         self.refused += 1
@@ -163,7 +284,11 @@ class ControllerNode(ManagedNode):
         stamp = stamp_to_ns(msg.header.stamp)
         verdict = self.measurement_check.check(stamp, self.received_ns)
         if verdict is Verdict.FUTURE:
-            self._refuse('future', None, lambda: f'measurement stamped {stamp} ns refused: beyond the sample clock')
+            self._refuse(
+                'future',
+                None,
+                lambda: f'measurement stamped {stamp} ns refused: beyond the sample clock',
+            )
             return
         if verdict is Verdict.OLD:
             return
@@ -172,18 +297,29 @@ class ControllerNode(ManagedNode):
             return
         y = joint_position(msg, self.joint_name)
         if y is None or not math.isfinite(y) or abs(y) > limits.POSITION_LIMIT_RAD:
-            self._refuse('bad_measurement', stamp, lambda: f'measurement refused (joint {self.joint_name!r} missing, '
-                         f'non-finite or beyond {limits.POSITION_LIMIT_RAD} rad): {list(msg.position)}; 0 A')
+            self._refuse(
+                'bad_measurement',
+                stamp,
+                lambda: (
+                    f'measurement refused (joint {self.joint_name!r} missing, '
+                    f'non-finite or beyond {limits.POSITION_LIMIT_RAD} rad): '
+                    f'{list(msg.position)}; 0 A'
+                ),
+            )
             return
         if verdict is Verdict.JUMP:
-            self.get_logger().warning(f'joint_states time base jumped to {stamp} ns (a restarted sensor?): 0 A and '
-                                      'brake until the observer has converged, then the reference restarts here')
+            self.get_logger().warning(
+                f'joint_states time base jumped to {stamp} ns (a restarted sensor?): 0 A and '
+                'brake until the observer has converged, then the reference restarts here'
+            )
             self.assembly.resync(stamp)
         resyncs = self.assembly.resyncs
         self._control(self.assembly.add_measurement(stamp, y))
         if self.assembly.resyncs != resyncs:
-            self.get_logger().warning('measurements resumed after a gap: 0 A and brake while the observer converges, '
-                                      'then the reference restarts from the joint\'s angle')
+            self.get_logger().warning(
+                'measurements resumed after a gap: 0 A and brake while the observer converges, '
+                "then the reference restarts from the joint's angle"
+            )
 
     def on_estimate(self, msg: StateEstimate) -> None:
         """x_hat(k): every field checked against its physical range, then the assembly."""
@@ -191,33 +327,59 @@ class ControllerNode(ManagedNode):
             return
         self.estimates_in += 1
         stamp = stamp_to_ns(msg.header.stamp)
-        x2, x3, u, gain = msg.velocity_rad_s, msg.disturbance_rad_s2, msg.input_current_a, msg.input_current_gain
+        x2, x3, u, gain = (
+            msg.velocity_rad_s,
+            msg.disturbance_rad_s2,
+            msg.input_current_a,
+            msg.input_current_gain,
+        )
         field, problem = _estimate_problem(x2, x3, u, gain, self.common.current_limit_a)
-        if problem:     # rate-limited per field, so each kind of refusal is reported
-            self._refuse(f'bad_estimate {field}', None, lambda: f'estimate for {stamp} ns refused: {problem}')
+        if problem:  # rate-limited per field, so each kind of refusal is reported
+            self._refuse(
+                f'bad_estimate {field}',
+                None,
+                lambda: f'estimate for {stamp} ns refused: {problem}',
+            )
             return
         verdict = self.estimate_check.check(stamp, time.time_ns())
         if verdict is Verdict.FUTURE:
-            self._refuse('future_estimate', None, lambda: f'estimate stamped {stamp} ns refused: beyond the sample clock')
+            self._refuse(
+                'future_estimate',
+                None,
+                lambda: f'estimate stamped {stamp} ns refused: beyond the sample clock',
+            )
             return
         if verdict is Verdict.OLD:
             return
         resyncs = self.assembly.resyncs
-        self._control(self.assembly.add_estimate(stamp, x2, x3, stamp_to_ns(msg.input_stamp), u, gain, msg.initial))
+        self._control(
+            self.assembly.add_estimate(
+                stamp, x2, x3, stamp_to_ns(msg.input_stamp), u, gain, msg.initial
+            )
+        )
         if self.assembly.resyncs != resyncs:
-            self.get_logger().warning('the observer restarted (or its estimates resumed after a gap): 0 A and brake '
-                                      'until it has converged, then the reference restarts from the joint\'s angle')
+            self.get_logger().warning(
+                'the observer restarted (or its estimates resumed after a gap): 0 A and brake '
+                "until it has converged, then the reference restarts from the joint's angle"
+            )
 
     def on_graph_check(self) -> None:
-        """10 Hz: more than one publisher on a watched topic stops control until one is left, then resync."""
-        crowded = [f'{n} publishers on {t}' for t in WATCHED_TOPICS if (n := self.count_publishers(t)) > 1]
+        """10 Hz.
+
+        More than one publisher on a watched topic stops control until one is left, then resync.
+        """
+        crowded = [
+            f'{n} publishers on {t}' for t in WATCHED_TOPICS if (n := self.count_publishers(t)) > 1
+        ]
         conflict = ', '.join(crowded)
         if conflict != self.conflict:
             if conflict:
                 self.get_logger().error(f'{conflict}: commanding 0 A until one publisher is left')
             else:
-                self.get_logger().warning('one publisher per topic again: 0 A while the observer converges, then '
-                                          'the reference restarts from the joint\'s angle')
+                self.get_logger().warning(
+                    'one publisher per topic again: 0 A while the observer converges, then '
+                    "the reference restarts from the joint's angle"
+                )
                 if self.measurement_check.last_ns is not None:
                     self.assembly.resync(self.measurement_check.last_ns)
             self.conflict = conflict
@@ -235,20 +397,30 @@ class ControllerNode(ManagedNode):
         self.log.warn('stale', lambda: f'{status.name.lower().replace("_", " ")}: commanding 0 A')
         self._publish(self.assembly.safe_sample(now, status), 0)
 
-    # --- output -----------------------------------------------------------------------------------
+    # --- output ----------------------------------------------------------------------------------
     def _control(self, sample: ControlSample | None) -> None:
-        """Publish a control update the assembly produced; log the latch, restarts, late samples."""
+        """Publish a control update the assembly produced.
+
+        Log the latch, restarts, late samples.
+        """
         if sample is None:
             return
         start = time.perf_counter_ns()
         law = self.assembly.law
         if getattr(law, 'envelope_restarts', 0) != self.envelope_restarts:
             self.envelope_restarts = law.envelope_restarts
-            self.log.warn('envelope', lambda: f'error {float(sample.output.error_rad):.3g} rad left the prescribed '
-                                              f'envelope: restarted it (restart {self.envelope_restarts})')
+            self.log.warn(
+                'envelope',
+                lambda: (
+                    f'error {float(sample.output.error_rad):.3g} rad left the prescribed '
+                    f'envelope: restarted it (restart {self.envelope_restarts})'
+                ),
+            )
         if sample.status is Status.LATCHED and self.status is not Status.LATCHED:
-            self.get_logger().error('control output not finite or |error| beyond following_error_limit_rad '
-                                    f'{self.following_error_limit_rad}: safe stop latched (0 A) until cleanup')
+            self.get_logger().error(
+                'control output not finite or |error| beyond following_error_limit_rad '
+                f'{self.following_error_limit_rad}: safe stop latched (0 A) until cleanup'
+            )
         compute_ns = time.perf_counter_ns() - start
         self._publish(sample, compute_ns)
         if sample.output is None:
@@ -257,8 +429,13 @@ class ControllerNode(ManagedNode):
         latency_ns = wall_ns - sample.stamp_ns if self.mode == 'realtime' else 0
         if self.mode == 'realtime' and latency_ns > self.period_ns:
             self.late += 1
-            self.log.warn('late', lambda: f'late sample: command {latency_ns / 1e3:.0f} us after its measurement '
-                                          f'(late {self.late}, missed {self.assembly.missed})')
+            self.log.warn(
+                'late',
+                lambda: (
+                    f'late sample: command {latency_ns / 1e3:.0f} us after its measurement '
+                    f'(late {self.late}, missed {self.assembly.missed})'
+                ),
+            )
         self.timing.append((self.received_ns, sample.stamp_ns, latency_ns, compute_ns))
 
     def _publish(self, sample: ControlSample, compute_ns: int, state: bool = True) -> None:
@@ -288,23 +465,33 @@ class ControllerNode(ManagedNode):
             s.reference_position_rad = float(ref.position_rad)
             s.reference_velocity_rad_s = float(ref.velocity_rad_s)
             s.reference_acceleration_rad_s2 = float(ref.acceleration_rad_s2)
-            s.estimated_velocity_rad_s, s.estimated_disturbance_rad_s2 = (float(v) for v in sample.estimate)
+            s.estimated_velocity_rad_s, s.estimated_disturbance_rad_s2 = (
+                float(v) for v in sample.estimate
+            )
             for name in OUTPUT_FIELDS:
                 setattr(s, name, float(getattr(out, name)))
             s.bounds_kept = bool(out.bounds_kept)
             s.saturated = bool(out.saturated)
         self.state_pub.publish(s)
 
-    # --- shutdown ---------------------------------------------------------------------------------
+    # --- shutdown --------------------------------------------------------------------------------
     def timing_summary(self) -> dict:
         """Period, latency and compute-time percentiles of the control updates so far."""
         rows = self.timing.array()
         a = self.assembly
-        summary = {'updates': self.timing.rows, 'measurements_in': self.measurements_in,
-                   'estimates_in': self.estimates_in, 'late': self.late, 'missed': a.missed,
-                   'unanswered': a.unanswered, 'stale_events': self.stale_events, 'refused_inputs': self.refused,
-                   'corrected_estimates': a.corrected, 'envelope_restarts': self.envelope_restarts,
-                   'resyncs': a.resyncs}
+        summary = {
+            'updates': self.timing.rows,
+            'measurements_in': self.measurements_in,
+            'estimates_in': self.estimates_in,
+            'late': self.late,
+            'missed': a.missed,
+            'unanswered': a.unanswered,
+            'stale_events': self.stale_events,
+            'refused_inputs': self.refused,
+            'corrected_estimates': a.corrected,
+            'envelope_restarts': self.envelope_restarts,
+            'resyncs': a.resyncs,
+        }
         if len(rows) > 2:
             summary.update(percentiles((rows[1:, 0] - rows[:-1, 0]) / 1e3, 'period_us', mean=True))
             summary.update(percentiles(rows[:, 3] / 1e3, 'compute_us'))
@@ -315,17 +502,27 @@ class ControllerNode(ManagedNode):
     def close_log(self) -> None:
         """Log the timing summary; write the raw timing samples if asked."""
         summary = self.timing_summary()
-        self.get_logger().info('timing ' + ' '.join(f'{k}={v:.1f}' if isinstance(v, float) else f'{k}={v}'
-                                                    for k, v in summary.items()))
+        self.get_logger().info(
+            'timing '
+            + ' '.join(
+                f'{k}={v:.1f}' if isinstance(v, float) else f'{k}={v}' for k, v in summary.items()
+            )
+        )
         if self.timing_log:
             self.timing.save(self.timing_log)
 
 
 def _estimate_problem(x2, x3, u, gain, current_limit_a: float) -> tuple[str, str]:
-    """(field, why) when an estimate's field is not physical, else ('', '') (ranges: actuator_core.limits)."""
-    checks = (('velocity_rad_s', x2, limits.VELOCITY_LIMIT_RAD_S), ('disturbance_rad_s2', x3,
-                                                                    limits.DISTURBANCE_LIMIT_RAD_S2),
-              ('input_current_a', u, current_limit_a), ('input_current_gain', gain, limits.INPUT_CURRENT_GAIN_LIMIT))
+    """Return (field, why) when an estimate's field is not physical, else ('', '').
+
+    The ranges are those of actuator_core.limits.
+    """
+    checks = (
+        ('velocity_rad_s', x2, limits.VELOCITY_LIMIT_RAD_S),
+        ('disturbance_rad_s2', x3, limits.DISTURBANCE_LIMIT_RAD_S2),
+        ('input_current_a', u, current_limit_a),
+        ('input_current_gain', gain, limits.INPUT_CURRENT_GAIN_LIMIT),
+    )
     for name, value, bound in checks:
         if not math.isfinite(value) or abs(value) > bound:
             return name, f'{name} = {value} is not finite or beyond +-{bound:g}'
@@ -336,8 +533,13 @@ def _estimate_problem(x2, x3, u, gain, current_limit_a: float) -> tuple[str, str
 
 def main(argv=None) -> int:
     """Entry point of ``ros2 run actuator_controller controller_node``."""
-    return run_node('controller_node', 'PP-NFTSMC-ESO joint controller (PI, SMC-ESO, NFTSMC-ESO by parameter).',
-                    ControllerNode, NODE_NAME, argv)
+    return run_node(
+        'controller_node',
+        'PP-NFTSMC-ESO joint controller (PI, SMC-ESO, NFTSMC-ESO by parameter).',
+        ControllerNode,
+        NODE_NAME,
+        argv,
+    )
 
 
 if __name__ == '__main__':

@@ -1,4 +1,10 @@
-"""Entry point of ``controller_node``: signals answered quietly from the first instant, then the node's imports."""
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""Entry point of ``controller_node``.
+
+Signals answered quietly from the first instant, then the node's imports.
+"""
 
 from actuator_ros.early import quiet_until_running
 
@@ -7,4 +13,5 @@ def main() -> int:
     """Quiet signals, import the node module (rclpy: 0.3-0.5 s), run it."""
     quiet_until_running()
     from actuator_controller.controller_node import main as run
+
     return run()

@@ -1,5 +1,10 @@
-"""The paper's four joint controllers behind one interface: PP-NFTSMC-ESO (19)-(35), NFTSMC-ESO
-(47)-(49)/(A9)-(A13), SMC-ESO (44)-(46)/(A1)-(A5) and PI (43).
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""The paper's four joint controllers behind one interface.
+
+PP-NFTSMC-ESO (19)-(35), NFTSMC-ESO (47)-(49)/(A9)-(A13), SMC-ESO (44)-(46)/(A1)-(A5) and
+PI (43).
 
 Each controller is called once per sample with the measured angle y(k), the observer's
 x2_hat(k), x3_hat(k) and the reference; it returns the current u(k) and every intermediate
@@ -45,14 +50,25 @@ NAN = float('nan')
 
 @dataclass(frozen=True)
 class CommonConfig:
-    """What every controller shares: the nominal model (3), the sample time and the current limit."""
+    """What every controller shares.
 
-    theta1n: float = spec(limits.THETA1N, 'theta_1n = k_tn/(J_n N), eq. (3)', 'rad/s^2/A',
-                          0.0, 1.0e6, low_open=True)
+    The nominal model (3), the sample time and the current limit.
+    """
+
+    theta1n: float = spec(
+        limits.THETA1N, 'theta_1n = k_tn/(J_n N), eq. (3)', 'rad/s^2/A', 0.0, 1.0e6, low_open=True
+    )
     theta2n: float = spec(limits.THETA2N, 'theta_2n = -k_bn/J_n, eq. (3)', '1/s', -1.0e4, 1.0e4)
-    dt_s: float = spec(limits.SAMPLE_TIME_S, 'sample time of the control loop', 's', *limits.SAMPLE_TIME_RANGE_S)
-    current_limit_a: float = spec(limits.CURRENT_LIMIT_A, 'the commanded current is limited to +-this value', 'A',
-                                  *limits.CURRENT_LIMIT_RANGE_A, low_open=True)
+    dt_s: float = spec(
+        limits.SAMPLE_TIME_S, 'sample time of the control loop', 's', *limits.SAMPLE_TIME_RANGE_S
+    )
+    current_limit_a: float = spec(
+        limits.CURRENT_LIMIT_A,
+        'the commanded current is limited to +-this value',
+        'A',
+        *limits.CURRENT_LIMIT_RANGE_A,
+        low_open=True,
+    )
 
     def __post_init__(self) -> None:
         """Refuse out-of-range values."""
@@ -75,7 +91,9 @@ class PiGains:
 class SmcGains:
     """SMC-ESO gains of eq. (44)-(46), Table 4."""
 
-    k1_per_s: float = spec(20000.0, 'k1: surface slope, sigma = z2 + k1 z1 (A1)', '1/s', 0.0, 1.0e6, low_open=True)
+    k1_per_s: float = spec(
+        20000.0, 'k1: surface slope, sigma = z2 + k1 z1 (A1)', '1/s', 0.0, 1.0e6, low_open=True
+    )
     k2_per_s: float = spec(10000.0, 'k2: linear reaching gain of u_sw (46)', '1/s', 0.0, 1.0e6)
     eta_rad_s2: float = spec(100.0, 'eta: switching gain of u_sw (46)', 'rad/s^2', 0.0, 1.0e6)
 
@@ -88,8 +106,12 @@ class SmcGains:
 class NftsmcGains:
     """NFTSMC-ESO gains of eq. (47)-(49), (A9), Table 4 (u_sw uses k3, see module docstring)."""
 
-    k1: float = spec(1000.0, 'k1: weight of |z1|^[alpha1] in the sliding integral (27)/(A9)', '', 0.0, 1.0e7)
-    k2: float = spec(20.0, 'k2: weight of |z2|^[alpha2] in the sliding integral (27)/(A9)', '', 0.0, 1.0e7)
+    k1: float = spec(
+        1000.0, 'k1: weight of |z1|^[alpha1] in the sliding integral (27)/(A9)', '', 0.0, 1.0e7
+    )
+    k2: float = spec(
+        20.0, 'k2: weight of |z2|^[alpha2] in the sliding integral (27)/(A9)', '', 0.0, 1.0e7
+    )
     k3_per_s: float = spec(200.0, 'k3: linear reaching gain of u_sw (34)', '1/s', 0.0, 1.0e6)
     alpha1: float = spec(1.1, 'alpha1: power on z1 (Table 4)', '', 0.0, 3.0, low_open=True)
     alpha2: float = spec(1.3, 'alpha2: power on z2 (Table 4)', '', 0.0, 3.0, low_open=True)
@@ -102,10 +124,17 @@ class NftsmcGains:
 
 @dataclass(frozen=True)
 class PpNftsmcGains(NftsmcGains):
-    """PP-NFTSMC-ESO gains: NFTSMC-ESO's, which the paper says it inherits, plus (23), (35) and the envelope (8)."""
+    """PP-NFTSMC-ESO gains.
 
-    k0_per_s: float = spec(100.0, 'k0: virtual-control gain of (23)', 'rad/s', 0.0, 1.0e6, low_open=True)
-    tau_rad_s: float = spec(0.06, 'tau: width of the tanh in u_b (35)', 'rad/s', 0.0, 1.0e3, low_open=True)
+    NFTSMC-ESO's, which the paper says it inherits, plus (23), (35) and the envelope (8).
+    """
+
+    k0_per_s: float = spec(
+        100.0, 'k0: virtual-control gain of (23)', 'rad/s', 0.0, 1.0e6, low_open=True
+    )
+    tau_rad_s: float = spec(
+        0.06, 'tau: width of the tanh in u_b (35)', 'rad/s', 0.0, 1.0e3, low_open=True
+    )
     ppf: PrescribedPerformance = field(default_factory=PrescribedPerformance)
 
 
@@ -146,10 +175,14 @@ def tanh_sq_over(sigma, tau: float):
 
 
 class Controller:
-    """Base: limit the current, guard non-finite output, integrate one scalar state with anti-windup."""
+    """Base.
+
+    Limit the current, guard non-finite output, integrate one scalar state with anti-windup.
+    """
 
     name = ''
-    #: Sign of d(current)/d(integral state); decides which integration drives further into saturation.
+    #: Sign of d(current)/d(integral state);
+    #: decides which integration drives further into saturation.
     integral_current_sign = -1.0
     #: Whether the controller has an integral state at all.
     has_integral = True
@@ -165,7 +198,10 @@ class Controller:
         self.integral = 0.0
 
     def _finish(self, u_unlimited, integrand, **terms) -> ControlOutput:
-        """Limit u, decide the integral update (frozen on wind-up or non-finite output), pack the output."""
+        """Limit u, decide the integral update (frozen on wind-up or non-finite output).
+
+        Pack the output.
+        """
         limit = self.common.current_limit_a
         finite = xm.isfinite(u_unlimited)
         u = xm.where(finite, xm.clip(xm.where(finite, u_unlimited, 0.0), -limit, limit), 0.0)
@@ -174,9 +210,16 @@ class Controller:
         push = self.integral_current_sign * integrand
         winding = (high & (push > 0)) | (low & (push < 0))
         integrate = finite & xm.logical_not(winding)
-        self.integral = xm.where(integrate, self.integral + self.common.dt_s * integrand, self.integral)
-        return ControlOutput(current_a=u, current_unlimited_a=u_unlimited, saturated=(high | low) & finite,
-                             finite=finite, **terms)
+        self.integral = xm.where(
+            integrate, self.integral + self.common.dt_s * integrand, self.integral
+        )
+        return ControlOutput(
+            current_a=u,
+            current_unlimited_a=u_unlimited,
+            saturated=(high | low) & finite,
+            finite=finite,
+            **terms,
+        )
 
 
 class PiController(Controller):
@@ -187,14 +230,29 @@ class PiController(Controller):
     integral_current_sign = 1.0
 
     def update(self, t, y, x2_hat, x3_hat, ref: ReferenceSample) -> ControlOutput:
-        """Current for this sample; the integral advances by (x1d - y) dt."""
+        """Compute the current for this sample; the integral advances by (x1d - y) dt."""
         e = y - ref.position_rad
         proportional = self.gains.kp_a_rad * (-e)
         integral = self.gains.ki_a_rad_s * self.integral
-        return self._finish(proportional + integral, -e, error_rad=e, rho_rad=NAN, lower_bound_rad=NAN,
-                            upper_bound_rad=NAN, bounds_kept=True, z1=e, z2_rad_s=NAN, alpha_rad_s=NAN,
-                            alpha_dot_rad_s2=NAN, sigma_rad_s=NAN, u_eq_rad_s2=NAN, u_sw_rad_s2=NAN,
-                            u_b_rad_s2=NAN, proportional_a=proportional, integral_a=integral)
+        return self._finish(
+            proportional + integral,
+            -e,
+            error_rad=e,
+            rho_rad=NAN,
+            lower_bound_rad=NAN,
+            upper_bound_rad=NAN,
+            bounds_kept=True,
+            z1=e,
+            z2_rad_s=NAN,
+            alpha_rad_s=NAN,
+            alpha_dot_rad_s2=NAN,
+            sigma_rad_s=NAN,
+            u_eq_rad_s2=NAN,
+            u_sw_rad_s2=NAN,
+            u_b_rad_s2=NAN,
+            proportional_a=proportional,
+            integral_a=integral,
+        )
 
 
 class SmcEsoController(Controller):
@@ -205,17 +263,32 @@ class SmcEsoController(Controller):
     has_integral = False
 
     def update(self, t, y, x2_hat, x3_hat, ref: ReferenceSample) -> ControlOutput:
-        """Current for this sample."""
+        """Compute the current for this sample."""
         g, c = self.gains, self.common
         z1 = y - ref.position_rad
         z2 = x2_hat - ref.velocity_rad_s
         sigma = z2 + g.k1_per_s * z1
         u_eq = c.theta2n * x2_hat + x3_hat + g.k1_per_s * z2 - ref.acceleration_rad_s2
         u_sw = g.eta_rad_s2 * xm.sign(sigma) + g.k2_per_s * sigma
-        return self._finish(-(u_eq + u_sw) / c.theta1n, 0.0 * z1, error_rad=z1, rho_rad=NAN, lower_bound_rad=NAN,
-                            upper_bound_rad=NAN, bounds_kept=True, z1=z1, z2_rad_s=z2, alpha_rad_s=ref.velocity_rad_s,
-                            alpha_dot_rad_s2=ref.acceleration_rad_s2, sigma_rad_s=sigma, u_eq_rad_s2=u_eq,
-                            u_sw_rad_s2=u_sw, u_b_rad_s2=NAN, proportional_a=NAN, integral_a=NAN)
+        return self._finish(
+            -(u_eq + u_sw) / c.theta1n,
+            0.0 * z1,
+            error_rad=z1,
+            rho_rad=NAN,
+            lower_bound_rad=NAN,
+            upper_bound_rad=NAN,
+            bounds_kept=True,
+            z1=z1,
+            z2_rad_s=z2,
+            alpha_rad_s=ref.velocity_rad_s,
+            alpha_dot_rad_s2=ref.acceleration_rad_s2,
+            sigma_rad_s=sigma,
+            u_eq_rad_s2=u_eq,
+            u_sw_rad_s2=u_sw,
+            u_b_rad_s2=NAN,
+            proportional_a=NAN,
+            integral_a=NAN,
+        )
 
 
 class NftsmcEsoController(Controller):
@@ -225,7 +298,10 @@ class NftsmcEsoController(Controller):
     gains: NftsmcGains
 
     def update(self, t, y, x2_hat, x3_hat, ref: ReferenceSample) -> ControlOutput:
-        """Current for this sample; the sliding integral advances by its integrand times dt."""
+        """Compute the current for this sample.
+
+        The sliding integral advances by its integrand times dt.
+        """
         g, c = self.gains, self.common
         z1 = y - ref.position_rad
         z2 = x2_hat - ref.velocity_rad_s
@@ -233,11 +309,25 @@ class NftsmcEsoController(Controller):
         sigma = z2 + self.integral
         u_eq = c.theta2n * x2_hat + x3_hat - ref.acceleration_rad_s2 + integrand
         u_sw = g.eta_rad_s2 * xm.sign(sigma) + g.k3_per_s * sigma
-        return self._finish(-(u_eq + u_sw) / c.theta1n, integrand, error_rad=z1, rho_rad=NAN,
-                            lower_bound_rad=NAN, upper_bound_rad=NAN, bounds_kept=True, z1=z1, z2_rad_s=z2,
-                            alpha_rad_s=ref.velocity_rad_s, alpha_dot_rad_s2=ref.acceleration_rad_s2,
-                            sigma_rad_s=sigma, u_eq_rad_s2=u_eq, u_sw_rad_s2=u_sw, u_b_rad_s2=NAN,
-                            proportional_a=NAN, integral_a=NAN)
+        return self._finish(
+            -(u_eq + u_sw) / c.theta1n,
+            integrand,
+            error_rad=z1,
+            rho_rad=NAN,
+            lower_bound_rad=NAN,
+            upper_bound_rad=NAN,
+            bounds_kept=True,
+            z1=z1,
+            z2_rad_s=z2,
+            alpha_rad_s=ref.velocity_rad_s,
+            alpha_dot_rad_s2=ref.acceleration_rad_s2,
+            sigma_rad_s=sigma,
+            u_eq_rad_s2=u_eq,
+            u_sw_rad_s2=u_sw,
+            u_b_rad_s2=NAN,
+            proportional_a=NAN,
+            integral_a=NAN,
+        )
 
 
 class PpNftsmcEsoController(Controller):
@@ -247,56 +337,101 @@ class PpNftsmcEsoController(Controller):
     gains: PpNftsmcGains
 
     def __init__(self, gains, common: CommonConfig):
-        """The envelope (8) starts at t = 0 with the gains' rho0 (until a restart, see ppf)."""
+        """Start the envelope (8) at t = 0 with the gains' rho0 (until a restart, see ppf)."""
         super().__init__(gains, common)
         self.envelope_start_s = 0.0
         self.envelope_rho0_rad = gains.ppf.rho0_rad
         self.envelope_restarts = 0
 
     def reset(self) -> None:
-        """A new run: zero integral, the gains' envelope from t = 0."""
+        """Return a new run: zero integral, the gains' envelope from t = 0."""
         super().reset()
-        self.envelope_start_s, self.envelope_rho0_rad, self.envelope_restarts = 0.0, self.gains.ppf.rho0_rad, 0
+        self.envelope_start_s, self.envelope_rho0_rad, self.envelope_restarts = (
+            0.0,
+            self.gains.ppf.rho0_rad,
+            0,
+        )
 
     def update(self, t, y, x2_hat, x3_hat, ref: ReferenceSample) -> ControlOutput:
-        """Current for this sample; the sliding integral of (27) advances by its integrand times dt."""
+        """Compute the current for this sample.
+
+        The sliding integral of (27) advances by its integrand times dt.
+        """
         g, c = self.gains, self.common
-        e = y - ref.position_rad                                   # (19)
-        rho, rho_d, rho_dd = g.ppf.rho_derivatives(t - self.envelope_start_s, self.envelope_rho0_rad)
-        tr = transform_error(e, rho, g.ppf)                        # (21), r of (12)
-        bounds_kept = tr.inside                                    # reported even when restarted below
-        if g.ppf.restart_margin > 0.0 and not xm.all_true(tr.inside):   # left the envelope: restart (8) at t
+        e = y - ref.position_rad  # (19)
+        rho, rho_d, rho_dd = g.ppf.rho_derivatives(
+            t - self.envelope_start_s, self.envelope_rho0_rad
+        )
+        tr = transform_error(e, rho, g.ppf)  # (21), r of (12)
+        bounds_kept = tr.inside  # reported even when restarted below
+        if g.ppf.restart_margin > 0.0 and not xm.all_true(
+            tr.inside
+        ):  # left the envelope: restart (8) at t
             self.envelope_start_s = xm.where(tr.inside, self.envelope_start_s, t)
-            self.envelope_rho0_rad = xm.where(tr.inside, self.envelope_rho0_rad, g.ppf.restart_rho0(e))
+            self.envelope_rho0_rad = xm.where(
+                tr.inside, self.envelope_rho0_rad, g.ppf.restart_rho0(e)
+            )
             self.envelope_restarts += 1
-            rho, rho_d, rho_dd = g.ppf.rho_derivatives(t - self.envelope_start_s, self.envelope_rho0_rad)
+            rho, rho_d, rho_dd = g.ppf.rho_derivatives(
+                t - self.envelope_start_s, self.envelope_rho0_rad
+            )
             tr = transform_error(e, rho, g.ppf)
         z1 = tr.z
-        alpha = -g.k0_per_s * z1 + ref.velocity_rad_s + rho_d * e / rho   # (23)
+        alpha = -g.k0_per_s * z1 + ref.velocity_rad_s + rho_d * e / rho  # (23)
         e_dot_hat = x2_hat - ref.velocity_rad_s
-        z1_dot = tr.r * (e_dot_hat - rho_d * e / rho)              # (22) with x2_hat
-        alpha_dot = (-g.k0_per_s * z1_dot + ref.acceleration_rad_s2
-                     + (rho_dd * e + rho_d * e_dot_hat) / rho - rho_d * rho_d * e / (rho * rho))
-        z2 = x2_hat - alpha                                        # (20)
+        z1_dot = tr.r * (e_dot_hat - rho_d * e / rho)  # (22) with x2_hat
+        alpha_dot = (
+            -g.k0_per_s * z1_dot
+            + ref.acceleration_rad_s2
+            + (rho_dd * e + rho_d * e_dot_hat) / rho
+            - rho_d * rho_d * e / (rho * rho)
+        )
+        z2 = x2_hat - alpha  # (20)
         integrand = g.k1 * signed_power(z1, g.alpha1) + g.k2 * signed_power(z2, g.alpha2)
-        sigma = z2 + self.integral                                 # (27)
+        sigma = z2 + self.integral  # (27)
         u_eq = c.theta2n * x2_hat + x3_hat - alpha_dot + integrand  # (33)
-        u_sw = g.eta_rad_s2 * xm.sign(sigma) + g.k3_per_s * sigma   # (34)
+        u_sw = g.eta_rad_s2 * xm.sign(sigma) + g.k3_per_s * sigma  # (34)
         u_b = 2.0 * xm.fabs(z1 * z2) * tanh_sq_over(sigma, g.tau_rad_s)  # (35)
         lower, upper = -g.ppf.lower_scale * rho, g.ppf.upper_scale * rho
-        return self._finish(-(u_eq + u_sw + u_b) / c.theta1n, integrand, error_rad=e, rho_rad=rho,
-                            lower_bound_rad=lower, upper_bound_rad=upper, bounds_kept=bounds_kept, z1=z1,
-                            z2_rad_s=z2, alpha_rad_s=alpha, alpha_dot_rad_s2=alpha_dot, sigma_rad_s=sigma,
-                            u_eq_rad_s2=u_eq, u_sw_rad_s2=u_sw, u_b_rad_s2=u_b, proportional_a=NAN, integral_a=NAN)
+        return self._finish(
+            -(u_eq + u_sw + u_b) / c.theta1n,
+            integrand,
+            error_rad=e,
+            rho_rad=rho,
+            lower_bound_rad=lower,
+            upper_bound_rad=upper,
+            bounds_kept=bounds_kept,
+            z1=z1,
+            z2_rad_s=z2,
+            alpha_rad_s=alpha,
+            alpha_dot_rad_s2=alpha_dot,
+            sigma_rad_s=sigma,
+            u_eq_rad_s2=u_eq,
+            u_sw_rad_s2=u_sw,
+            u_b_rad_s2=u_b,
+            proportional_a=NAN,
+            integral_a=NAN,
+        )
 
 
-GAINS_BY_NAME = {'pi': PiGains, 'smc_eso': SmcGains, 'nftsmc_eso': NftsmcGains, 'pp_nftsmc_eso': PpNftsmcGains}
-CLASS_BY_NAME = {'pi': PiController, 'smc_eso': SmcEsoController, 'nftsmc_eso': NftsmcEsoController,
-                 'pp_nftsmc_eso': PpNftsmcEsoController}
+GAINS_BY_NAME = {
+    'pi': PiGains,
+    'smc_eso': SmcGains,
+    'nftsmc_eso': NftsmcGains,
+    'pp_nftsmc_eso': PpNftsmcGains,
+}
+CLASS_BY_NAME = {
+    'pi': PiController,
+    'smc_eso': SmcEsoController,
+    'nftsmc_eso': NftsmcEsoController,
+    'pp_nftsmc_eso': PpNftsmcEsoController,
+}
 
 
 def make_controller(name: str, gains=None, common: CommonConfig | None = None) -> Controller:
     """Build a controller by name with ``gains`` (default: Table 4) and ``common`` settings."""
     if name not in CLASS_BY_NAME:
         raise ValueError(f'controller must be one of {", ".join(CONTROLLER_NAMES)}, got {name!r}')
-    return CLASS_BY_NAME[name](gains if gains is not None else GAINS_BY_NAME[name](), common or CommonConfig())
+    return CLASS_BY_NAME[name](
+        gains if gains is not None else GAINS_BY_NAME[name](), common or CommonConfig()
+    )

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Prescribed performance function and error transformation, paper eq. (8)-(12).
 
 rho(t) = (rho0 - rho_inf) e^(-m t) + rho_inf bounds the error: -l rho < e < h rho (8).
@@ -20,8 +23,8 @@ band, and the error stayed at 0.2-0.6 rad for the remaining 13 s; in real time t
 happened after 17 ms machine stalls. So when e leaves the band at t_v, the controller
 restarts (8) there: rho0 becomes max(rho0, restart_margin |e| / min(l, h)) and t counts from
 t_v, the paper's own start-up transient, and the same run recovered to 9.7e-4 rad within
-1 s (see docs/paper-resolutions.md, 22). restart_margin = 0 keeps the paper's behaviour; a run that never leaves the band (every
-paper case) is unchanged to the bit.
+1 s (see docs/paper-resolutions.md, 22). restart_margin = 0 keeps the paper's behaviour; a run
+that never leaves the band (every paper case) is unchanged to the bit.
 """
 
 from __future__ import annotations
@@ -40,28 +43,59 @@ BOUNDARY_MARGIN = 1.0e-4
 class PrescribedPerformance:
     """Envelope parameters of (8): rho0 > rho_inf > 0 [rad], m > 0 [1/s], l, h > 0."""
 
-    rho0_rad: float = spec(0.25, 'rho0: initial half-width of the error envelope (Table 4)', 'rad',
-                           0.0, 10.0, low_open=True)
-    rho_inf_rad: float = spec(0.05, 'rho_inf: final half-width of the error envelope (Table 4)', 'rad',
-                              0.0, 10.0, low_open=True)
-    decay_rate_per_s: float = spec(0.5, 'm: decay rate of the envelope (Table 4)', '1/s', 0.0, 1.0e3, low_open=True)
-    lower_scale: float = spec(1.0, 'l: lower bound is -l rho (Table 4)', '', 0.0, 100.0, low_open=True)
-    upper_scale: float = spec(1.0, 'h: upper bound is +h rho (Table 4)', '', 0.0, 100.0, low_open=True)
-    restart_margin: float = spec(2.0, 'beyond the paper: when e leaves the envelope, restart (8) with rho0 = '
-                                 'max(rho0, restart_margin |e| / min(l, h)); 0 never restarts', '', 0.0, 100.0)
+    rho0_rad: float = spec(
+        0.25,
+        'rho0: initial half-width of the error envelope (Table 4)',
+        'rad',
+        0.0,
+        10.0,
+        low_open=True,
+    )
+    rho_inf_rad: float = spec(
+        0.05,
+        'rho_inf: final half-width of the error envelope (Table 4)',
+        'rad',
+        0.0,
+        10.0,
+        low_open=True,
+    )
+    decay_rate_per_s: float = spec(
+        0.5, 'm: decay rate of the envelope (Table 4)', '1/s', 0.0, 1.0e3, low_open=True
+    )
+    lower_scale: float = spec(
+        1.0, 'l: lower bound is -l rho (Table 4)', '', 0.0, 100.0, low_open=True
+    )
+    upper_scale: float = spec(
+        1.0, 'h: upper bound is +h rho (Table 4)', '', 0.0, 100.0, low_open=True
+    )
+    restart_margin: float = spec(
+        2.0,
+        'beyond the paper: when e leaves the envelope, restart (8) with rho0 = '
+        'max(rho0, restart_margin |e| / min(l, h)); 0 never restarts',
+        '',
+        0.0,
+        100.0,
+    )
 
     def __post_init__(self) -> None:
         """Refuse an envelope that grows."""
         validate(self)
         if not self.rho_inf_rad <= self.rho0_rad:
-            raise ValueError(f'rho_inf_rad ({self.rho_inf_rad}) must not exceed rho0_rad ({self.rho0_rad})')
+            raise ValueError(
+                f'rho_inf_rad ({self.rho_inf_rad}) must not exceed rho0_rad ({self.rho0_rad})'
+            )
 
     def rho(self, t):
-        """rho(t) [rad], eq. (8)."""
-        return (self.rho0_rad - self.rho_inf_rad) * xm.exp(-self.decay_rate_per_s * t) + self.rho_inf_rad
+        """Return the envelope at time t [rad], rho of eq. (8)."""
+        return (self.rho0_rad - self.rho_inf_rad) * xm.exp(
+            -self.decay_rate_per_s * t
+        ) + self.rho_inf_rad
 
     def rho_derivatives(self, t, rho0_rad=None):
-        """(rho, rho', rho'') at t [rad, rad/s, rad/s^2]; ``rho0_rad`` replaces rho0 after a restart."""
+        """Return (rho, rho', rho'') at t [rad, rad/s, rad/s^2].
+
+        ``rho0_rad`` replaces rho0 after a restart.
+        """
         rho0 = self.rho0_rad if rho0_rad is None else rho0_rad
         decay = (rho0 - self.rho_inf_rad) * xm.exp(-self.decay_rate_per_s * t)
         m = self.decay_rate_per_s
@@ -87,7 +121,10 @@ class Transformed(NamedTuple):
 
 
 def transform_error(e, rho, ppf: PrescribedPerformance) -> Transformed:
-    """z = S^-1(e / rho) of (11) and r of (12), clamping e / rho into the band (see module doc)."""
+    """Compute z = S^-1(e / rho) of (11) and r of (12), clamping e / rho into the band.
+
+    See module doc.
+    """
     lo, hi = -ppf.lower_scale, ppf.upper_scale
     eps = e / rho
     inside = (eps > lo) & (eps < hi)
@@ -99,6 +136,6 @@ def transform_error(e, rho, ppf: PrescribedPerformance) -> Transformed:
 
 
 def inverse_transform(z, rho, ppf: PrescribedPerformance):
-    """e = rho S(z) with S(z) = (h e^z - l e^-z) / (e^z + e^-z), eq. (9)-(10)."""
+    """Compute e = rho S(z) with S(z) = (h e^z - l e^-z) / (e^z + e^-z), eq. (9)-(10)."""
     ez, emz = xm.exp(z), xm.exp(-z)
     return rho * (ppf.upper_scale * ez - ppf.lower_scale * emz) / (ez + emz)

@@ -1,4 +1,10 @@
-"""Reference trajectories with analytic derivatives: the paper's slow and fast ones, step and sine."""
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""Reference trajectories with analytic derivatives.
+
+The paper's slow and fast ones, step and sine.
+"""
 
 from __future__ import annotations
 
@@ -23,7 +29,7 @@ class Reference(Protocol):
     name: str
 
     def sample(self, t) -> ReferenceSample:
-        """Reference at time t [s] since the start of the run."""
+        """Return the reference at time t [s] since the start of the run."""
 
 
 @dataclass(frozen=True)
@@ -41,22 +47,27 @@ class PaperTrajectory:
         f, df, ddf = 0.5 - xm.cos(w * t), w * xm.sin(w * t), w * w * xm.cos(w * t)
         decay = xm.exp(-t / tau)
         g, dg, ddg = 1.0 - decay, decay / tau, -decay / (tau * tau)
-        return ReferenceSample(amp * f * g, amp * (df * g + f * dg), amp * (ddf * g + 2.0 * df * dg + f * ddg))
+        return ReferenceSample(
+            amp * f * g, amp * (df * g + f * dg), amp * (ddf * g + 2.0 * df * dg + f * ddg)
+        )
 
 
 def slow_trajectory() -> PaperTrajectory:
-    """The paper's slow motion: w = pi rad/s."""
+    """Return the paper's slow motion: w = pi rad/s."""
     return PaperTrajectory(frequency_rad_s=math.pi, name='slow')
 
 
 def fast_trajectory() -> PaperTrajectory:
-    """The paper's fast motion: w = 4 pi rad/s."""
+    """Return the paper's fast motion: w = 4 pi rad/s."""
     return PaperTrajectory(frequency_rad_s=4.0 * math.pi, name='fast')
 
 
 @dataclass(frozen=True)
 class StepReference:
-    """x1d = amplitude for t >= start_s, else 0 (derivatives zero: the step itself is not differentiable)."""
+    """x1d = amplitude for t >= start_s, else 0.
+
+    Derivatives zero: the step itself is not differentiable.
+    """
 
     amplitude_rad: float = 0.1
     start_s: float = 0.0
@@ -65,7 +76,9 @@ class StepReference:
     def sample(self, t) -> ReferenceSample:
         """Step value; zero velocity and acceleration."""
         zero = 0.0 * t
-        return ReferenceSample(xm.where(t >= self.start_s, self.amplitude_rad, 0.0) + zero, zero, zero)
+        return ReferenceSample(
+            xm.where(t >= self.start_s, self.amplitude_rad, 0.0) + zero, zero, zero
+        )
 
 
 @dataclass(frozen=True)
@@ -84,8 +97,13 @@ class SineReference:
         return ReferenceSample(self.offset_rad + amp * s, amp * w * c, -amp * w * w * s)
 
 
-def make_reference(kind: str, amplitude_rad: float | None = None, frequency_rad_s: float | None = None) -> Reference:
-    """Build a reference by name: 'slow', 'fast', 'step' or 'sine' (amplitude/frequency override defaults)."""
+def make_reference(
+    kind: str, amplitude_rad: float | None = None, frequency_rad_s: float | None = None
+) -> Reference:
+    """Build a reference by name.
+
+    'slow', 'fast', 'step' or 'sine' (amplitude/frequency override defaults).
+    """
     if kind == 'slow':
         ref: Reference = slow_trajectory()
     elif kind == 'fast':
@@ -93,8 +111,10 @@ def make_reference(kind: str, amplitude_rad: float | None = None, frequency_rad_
     elif kind == 'step':
         ref = StepReference(amplitude_rad=0.1 if amplitude_rad is None else amplitude_rad)
     elif kind == 'sine':
-        ref = SineReference(amplitude_rad=0.2 if amplitude_rad is None else amplitude_rad,
-                            frequency_rad_s=2.0 * math.pi if frequency_rad_s is None else frequency_rad_s)
+        ref = SineReference(
+            amplitude_rad=0.2 if amplitude_rad is None else amplitude_rad,
+            frequency_rad_s=2.0 * math.pi if frequency_rad_s is None else frequency_rad_s,
+        )
     else:
         raise ValueError(f"reference must be one of 'slow', 'fast', 'step', 'sine', got {kind!r}")
     return ref

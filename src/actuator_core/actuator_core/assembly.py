@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """The controller's sample protocol: measurement + estimate + reference -> one command per sample.
 
 Held by the controller node and by the offline loop (``actuator_sim.loop``). Sample k is
@@ -44,32 +47,38 @@ class ControlSample(NamedTuple):
 
     stamp_ns: int
     current_a: object
-    status: object          # Status for a scalar run, an int array for a batch
+    status: object  # Status for a scalar run, an int array for a batch
     t_s: Optional[float]
     y: object
-    estimate: Optional[tuple]   # (x2_hat, x3_hat) as used, after any correction
-    reference: object           # ReferenceSample or None
-    output: object              # ControlOutput or None
+    estimate: Optional[tuple]  # (x2_hat, x3_hat) as used, after any correction
+    reference: object  # ReferenceSample or None
+    output: object  # ControlOutput or None
 
 
 class ControlSampleAssembly:
     """Matches y(k) with x_hat(k), runs the law once per sample, guards its output."""
 
-    def __init__(self, law, reference, period_ns: int, needs_estimate: bool = True,
-                 following_error_limit_rad: float = limits.FOLLOWING_ERROR_LIMIT_RAD,
-                 resync_samples: int = RESYNC_SAMPLES):
+    def __init__(
+        self,
+        law,
+        reference,
+        period_ns: int,
+        needs_estimate: bool = True,
+        following_error_limit_rad: float = limits.FOLLOWING_ERROR_LIMIT_RAD,
+        resync_samples: int = RESYNC_SAMPLES,
+    ):
         """``law``: an actuator_controller.laws controller; ``reference``: has ``sample(t)``."""
         self.law = law
         self.reference = reference
-        self.reference_offset_rad = None        # set by a restart after a resync
+        self.reference_offset_rad = None  # set by a restart after a resync
         self.period_ns = period_ns
         self.needs_estimate = needs_estimate
         self.following_error_limit_rad = following_error_limit_rad
         self.resync_samples = resync_samples
         self.estimates: dict[int, tuple] = {}
-        self.commanded: tuple = (-1, 0.0)        # (stamp, current) of the newest command
-        self.pending: Optional[tuple] = None     # (stamp, y) waiting for its estimate
-        self.start_ns: Optional[int] = None      # reference t = 0
+        self.commanded: tuple = (-1, 0.0)  # (stamp, current) of the newest command
+        self.pending: Optional[tuple] = None  # (stamp, y) waiting for its estimate
+        self.start_ns: Optional[int] = None  # reference t = 0
         self.newest_measurement_ns: Optional[int] = None
         self.newest_estimate_ns: Optional[int] = None
         self.latched = False
@@ -77,15 +86,30 @@ class ControlSampleAssembly:
         self.corrected = self.unanswered = self.missed = self.resyncs = 0
 
     # --- inputs ---------------------------------------------------------------------------------
-    def add_estimate(self, stamp_ns: int, x2_hat, x3_hat, input_ns: int = 0, input_current_a=0.0,
-                     input_current_gain=0.0, initial: bool = False) -> Optional[ControlSample]:
-        """x_hat(k); an ``initial`` one after the start means the observer restarted: resync (PI uses none)."""
-        if self.start_ns is not None and self.needs_estimate and (initial or self._gap(self.newest_estimate_ns,
-                                                                                         stamp_ns)):
+    def add_estimate(
+        self,
+        stamp_ns: int,
+        x2_hat,
+        x3_hat,
+        input_ns: int = 0,
+        input_current_a=0.0,
+        input_current_gain=0.0,
+        initial: bool = False,
+    ) -> Optional[ControlSample]:
+        """x_hat(k); an ``initial`` one after the start means the observer restarted.
+
+        Resync (PI uses none).
+        """
+        if (
+            self.start_ns is not None
+            and self.needs_estimate
+            and (initial or self._gap(self.newest_estimate_ns, stamp_ns))
+        ):
             self.resync(stamp_ns)
         self.estimates[stamp_ns] = (x2_hat, x3_hat, input_ns, input_current_a, input_current_gain)
-        self.newest_estimate_ns = stamp_ns if self.newest_estimate_ns is None else max(self.newest_estimate_ns,
-                                                                                        stamp_ns)
+        self.newest_estimate_ns = (
+            stamp_ns if self.newest_estimate_ns is None else max(self.newest_estimate_ns, stamp_ns)
+        )
         while len(self.estimates) > PENDING_LIMIT:
             self.estimates.pop(min(self.estimates))
         return self._try_control()
@@ -94,22 +118,28 @@ class ControlSampleAssembly:
         """y(k): control sample k now, or as soon as x_hat(k) is in."""
         if self.start_ns is not None and self._gap(self.newest_measurement_ns, stamp_ns):
             self.resync(stamp_ns)
-        if self.newest_measurement_ns is not None and stamp_ns - self.newest_measurement_ns > self.period_ns * 3 // 2:
+        if (
+            self.newest_measurement_ns is not None
+            and stamp_ns - self.newest_measurement_ns > self.period_ns * 3 // 2
+        ):
             self.missed += (stamp_ns - self.newest_measurement_ns) // self.period_ns - 1
         self.newest_measurement_ns = stamp_ns
         if self.pending is not None:
-            self.unanswered += 1                 # the previous sample's estimate never came in time
+            self.unanswered += 1  # the previous sample's estimate never came in time
         self.pending = (stamp_ns, y)
         return self._try_control()
 
     def _gap(self, newest_ns: Optional[int], stamp_ns: int) -> bool:
-        """A gap of more than RESYNC_GAP_SAMPLES since ``newest_ns``."""
+        """Return True on a gap of more than RESYNC_GAP_SAMPLES since ``newest_ns``."""
         return newest_ns is not None and stamp_ns - newest_ns > RESYNC_GAP_SAMPLES * self.period_ns
 
     def resync(self, stamp_ns: int) -> None:
-        """The time base jumped at ``stamp_ns``: 0 A and brake while the observer converges, then restart."""
+        """Handle a time base jump at ``stamp_ns``.
+
+        0 A and brake while the observer converges, then restart.
+        """
         if self.resync_until_ns is not None and stamp_ns < self.resync_until_ns:
-            return                           # already resyncing
+            return  # already resyncing
         self.resyncs += 1
         self.resync_until_ns = stamp_ns + self.resync_samples * self.period_ns
         self.estimates = {s: e for s, e in self.estimates.items() if s >= stamp_ns}
@@ -118,8 +148,14 @@ class ControlSampleAssembly:
 
     def reset(self) -> None:
         """Clear the latch and start over (lifecycle: cleanup and configure)."""
-        self.__init__(self.law, self.reference, self.period_ns, self.needs_estimate,
-                      self.following_error_limit_rad, self.resync_samples)
+        self.__init__(
+            self.law,
+            self.reference,
+            self.period_ns,
+            self.needs_estimate,
+            self.following_error_limit_rad,
+            self.resync_samples,
+        )
         self.law.reset()
 
     # --- control --------------------------------------------------------------------------------
@@ -158,17 +194,21 @@ class ControlSampleAssembly:
             self.reference_offset_rad = y - self.reference.sample(0.0).position_rad
             self.law.reset()
             self.start_ns = stamp
-        if self.start_ns is None:           # the first sample: the reference starts from the joint's angle
+        if self.start_ns is None:  # the first sample: the reference starts from the joint's angle
             self.start_ns = stamp
             offset = y - self.reference.sample(0.0).position_rad
-            if xm.any_true(offset != 0.0):  # a restarted controller; the paper's runs start at 0 = y_d(0)
+            if xm.any_true(
+                offset != 0.0
+            ):  # a restarted controller; the paper's runs start at 0 = y_d(0)
                 self.reference_offset_rad = offset
         t = sample_time_s(stamp - self.start_ns)
         ref = self.reference.sample(t)
         if self.reference_offset_rad is not None:
             ref = ref._replace(position_rad=ref.position_rad + self.reference_offset_rad)
         out = self.law.update(t, y, estimate[0], estimate[1], ref)
-        bad = xm.logical_not(out.finite) | (xm.fabs(out.error_rad) > self.following_error_limit_rad)
+        bad = xm.logical_not(out.finite) | (
+            xm.fabs(out.error_rad) > self.following_error_limit_rad
+        )
         self.latched = self.latched | bad
         current = xm.where(self.latched, 0.0, out.current_a)
         status = xm.where(self.latched, int(Status.LATCHED), int(Status.OK))
@@ -184,13 +224,23 @@ class ControlSampleAssembly:
         self.commanded = (stamp_ns, 0.0)
         return ControlSample(stamp_ns, 0.0, status, None, y, None, None, None)
 
-    def watchdog(self, now_ns: int, measurement_timeout_ns: int, estimate_timeout_ns: int) -> Optional[Status]:
-        """STALE_MEASUREMENT or STALE_ESTIMATE when the newest input is older than its timeout, else None."""
+    def watchdog(
+        self, now_ns: int, measurement_timeout_ns: int, estimate_timeout_ns: int
+    ) -> Optional[Status]:
+        """STALE_MEASUREMENT or STALE_ESTIMATE when the newest input is older than its timeout.
+
+        Else None.
+        """
         if self.start_ns is None or self.latched is True:
             return None
-        if self.newest_measurement_ns is None or now_ns - self.newest_measurement_ns > measurement_timeout_ns:
+        if (
+            self.newest_measurement_ns is None
+            or now_ns - self.newest_measurement_ns > measurement_timeout_ns
+        ):
             return Status.STALE_MEASUREMENT
-        if self.needs_estimate and (self.newest_estimate_ns is None
-                                    or now_ns - self.newest_estimate_ns > estimate_timeout_ns):
+        if self.needs_estimate and (
+            self.newest_estimate_ns is None
+            or now_ns - self.newest_estimate_ns > estimate_timeout_ns
+        ):
             return Status.STALE_ESTIMATE
         return None

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """The drive's command gate: what current a drive (simulated joint or hardware driver) applies.
 
 One object per drive, held by the plant node, the CiA 402 driver and the offline loop alike.
@@ -26,20 +29,29 @@ from actuator_core import xmath as xm
 
 
 class Held(NamedTuple):
-    """What the drive applies over one sample: current [A], the stamp of its command, brake, reason."""
+    """What the drive applies over one sample.
+
+    Current [A], the stamp of its command, brake, reason.
+    """
 
     current_a: float
-    command_stamp_ns: int      # stamp of the command applied; -1 when none is
-    brake: bool                # the holding brake is engaged
-    reason: str                # '' while a command is applied, else why 0 A is
+    command_stamp_ns: int  # stamp of the command applied; -1 when none is
+    brake: bool  # the holding brake is engaged
+    reason: str  # '' while a command is applied, else why 0 A is
 
 
 class CommandGate:
     """Command checks, hold over the sample, timeout and brake of one drive."""
 
-    def __init__(self, current_limit_a: float = limits.CURRENT_LIMIT_A,
-                 timeout_s: float = limits.COMMAND_TIMEOUT_S):
-        """Refuse currents beyond +-``current_limit_a``; 0 A once commands are ``timeout_s`` old."""
+    def __init__(
+        self,
+        current_limit_a: float = limits.CURRENT_LIMIT_A,
+        timeout_s: float = limits.COMMAND_TIMEOUT_S,
+    ):
+        """Refuse currents beyond +-``current_limit_a``.
+
+        0 A once commands are ``timeout_s`` old.
+        """
         if not (math.isfinite(current_limit_a) and current_limit_a > 0.0):
             raise ValueError(f'current_limit_a must be finite and > 0, got {current_limit_a}')
         if not (math.isfinite(timeout_s) and timeout_s > 0.0):
@@ -68,8 +80,13 @@ class CommandGate:
         self.brake = True
         self._current_a, self._stamp_ns = 0.0, -1
 
-    def offer(self, current_a: float, stamp_ns: int, safe_stop: bool, received_ns: int) -> Optional[str]:
-        """Take a command received at ``received_ns``; returns None, or why it was refused (0 A then applies)."""
+    def offer(
+        self, current_a: float, stamp_ns: int, safe_stop: bool, received_ns: int
+    ) -> Optional[str]:
+        """Take a command received at ``received_ns``.
+
+        Returns None, or why it was refused (0 A then applies).
+        """
         if not self.active:
             return 'the drive is not active'
         finite = xm.isfinite(current_a)
@@ -80,8 +97,11 @@ class CommandGate:
                 self._current_a, self._stamp_ns, self._safe_stop = 0.0, -1, True
                 self._received_ns = received_ns
                 self.brake = True
-                return f'command {current_a} A refused (valid: finite, |u| <= {self.current_limit_a:g} A); applying 0 A'
-            current_a = xm.where(valid, current_a, 0.0)      # a batch: refused elements get 0 A
+                return (
+                    f'command {current_a} A refused (valid: finite, |u| <= '
+                    f'{self.current_limit_a:g} A); applying 0 A'
+                )
+            current_a = xm.where(valid, current_a, 0.0)  # a batch: refused elements get 0 A
         self._received_ns = received_ns
         self._stamp_ns = stamp_ns
         self._safe_stop = bool(safe_stop)
@@ -90,7 +110,7 @@ class CommandGate:
         return None
 
     def hold(self, now_ns: int) -> Held:
-        """What to apply over the sample starting at ``now_ns``."""
+        """Return what to apply over the sample starting at ``now_ns``."""
         if not self.active:
             self.brake = True
             return Held(0.0, -1, True, 'inactive')

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """The one source of every limit and shared constant of the suite (SI units, REP-103).
 
 Every node, tool and test reads these; none repeats a literal. Nominal model: Table 1 of
@@ -62,18 +65,20 @@ STEADY_STATE_START_S = 5.0
 
 # --- encoder and loop delay (simulated joint, offline studies) -----------------------------------
 #: Largest encoder resolution accepted [counts per joint revolution] (a 32-bit absolute encoder).
-ENCODER_COUNTS_PER_REV_MAX = 2.0 ** 32
+ENCODER_COUNTS_PER_REV_MAX = 2.0**32
 #: Largest encoder noise standard deviation accepted [rad] (about 5.7 degrees).
 ENCODER_NOISE_STD_MAX_RAD = 0.1
 #: Largest command delay an offline run accepts [samples] (the plant applies u(k - D)).
 COMMAND_DELAY_MAX_SAMPLES = 10
 
 # --- operating envelope and robustness targets (actuator_studies) ------------------------------
-#: Water depth range of the envelope [m], surface to the deepest trench (WorkingCondition.at_depth).
+#: Water depth range of the envelope [m], surface to the deepest trench
+#: (WorkingCondition.at_depth).
 ENVELOPE_DEPTH_M = (0.0, 11000.0)
 #: Oil temperature range of the envelope [degC]: deep-sea water to a warm surface deck.
 ENVELOPE_TEMPERATURE_C = (-2.0, 30.0)
-#: A run counts as saturated, for gain design, beyond this fraction of samples at the current limit.
+#: A run counts as saturated, for gain design, beyond this fraction of samples
+#: at the current limit.
 SATURATED_FRACTION_LIMIT = 0.01
 #: Spectral radius a designed gain set must not exceed (the paper's gains: 0.987 without delay).
 DESIGN_TARGET_RADIUS = 0.98

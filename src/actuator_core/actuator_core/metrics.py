@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Run metrics of the paper's Tables 5 and 6, shared by the offline simulation and bag analysis.
 
 One function computes every figure from plain arrays, so a run simulated offline and the
@@ -12,7 +15,6 @@ from typing import Optional
 import numpy as np
 
 from actuator_core.limits import DIVERGENCE_ERROR_RAD, STEADY_STATE_START_S
-
 
 
 @dataclass(frozen=True)
@@ -83,7 +85,9 @@ def compute_run_metrics(
         samples=int(t.size),
         steady_window_s=(float(steady_state_start_s), float(t[-1])),
         diverged=diverged,
-        max_steady_error_rad=nan if diverged or not steady.any() else float(np.max(np.abs(error[steady]))),
+        max_steady_error_rad=nan
+        if diverged or not steady.any()
+        else float(np.max(np.abs(error[steady]))),
         rms_steady_error_rad=nan if diverged else _rms(error[steady]),
         rms_error_rad=nan if diverged else _rms(error),
         max_abs_current_a=float(np.max(np.abs(finite_current))) if finite_current.size else nan,
@@ -92,9 +96,13 @@ def compute_run_metrics(
         bounds_kept=(not diverged) and violations == 0,
         bounds_violations=violations,
         rms_velocity_estimate_error_rad_s=(
-            None if velocity_estimate_error is None else _rms(np.asarray(velocity_estimate_error, dtype=float))
+            None
+            if velocity_estimate_error is None
+            else _rms(np.asarray(velocity_estimate_error, dtype=float))
         ),
         rms_disturbance_estimate_error_rad_s2=(
-            None if disturbance_estimate_error is None else _rms(np.asarray(disturbance_estimate_error, dtype=float))
+            None
+            if disturbance_estimate_error is None
+            else _rms(np.asarray(disturbance_estimate_error, dtype=float))
         ),
     )

@@ -1,10 +1,13 @@
-"""The observer's input protocol: pair each measurement y(k) with the current u(k) commanded for it.
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
 
-Held by the ESO node and by the offline loop (``actuator_sim.loop``). The observer holds
-x_hat(k); once y(k) and u(k) with the same stamp t_k are both in, one step of (15) gives
-x_hat(k+1) (stamped t_k + dt), before y(k+1) exists (docs/architecture.md). Pairing is by
-stamp, never "the latest message": with the paper's gains the loop diverges when the observer
-integrates u(k-1) (docs/paper-resolutions.md, 16).
+"""The observer's input protocol.
+
+Pair each measurement y(k) with the current u(k) commanded for it. Held by the ESO node and by the
+offline loop (``actuator_sim.loop``). The observer holds x_hat(k); once y(k) and u(k) with the same
+stamp t_k are both in, one step of (15) gives x_hat(k+1) (stamped t_k + dt), before y(k+1) exists
+(docs/architecture.md). Pairing is by stamp, never "the latest message": with the paper's gains the
+loop diverges when the observer integrates u(k-1) (docs/paper-resolutions.md, 16).
 
 A half of a pair that does not come in time is replaced: the step uses the last known current
 (or, without a measurement, no correction) and says so. "In time" is ``patience_samples``:
@@ -53,31 +56,42 @@ class Estimate(NamedTuple):
 
     sample_ns: int
     x_hat: tuple
-    input_ns: int           # stamp of the pair integrated; 0 for an initial estimate
+    input_ns: int  # stamp of the pair integrated; 0 for an initial estimate
     input_position_rad: float
     input_current_a: float
-    initial: bool           # x_hat(0) of a start or restart: integrated nothing yet
-    substituted: bool       # the current of the pair was not in time; the last one was used
+    initial: bool  # x_hat(0) of a start or restart: integrated nothing yet
+    substituted: bool  # the current of the pair was not in time; the last one was used
 
 
 class ObserverInputPairing:
-    """Pairs (y(k), u(k)) by stamp for one observer and steps it; returns the estimates it produces."""
+    """Pairs (y(k), u(k)) by stamp for one observer and steps it.
 
-    def __init__(self, observer: Observer, period_ns: int, correction: Callable[[float, int], tuple],
-                 patience_samples: int = REALTIME_PATIENCE_SAMPLES):
-        """``correction(du, steps)``: change of x_hat ``steps`` steps after u(k) changed by du (eq. 15)."""
+    Returns the estimates it produces.
+    """
+
+    def __init__(
+        self,
+        observer: Observer,
+        period_ns: int,
+        correction: Callable[[float, int], tuple],
+        patience_samples: int = REALTIME_PATIENCE_SAMPLES,
+    ):
+        """``correction(du, steps)``.
+
+        Change of x_hat ``steps`` steps after u(k) changed by du (eq. 15).
+        """
         self.observer = observer
         self.period_ns = period_ns
         self.correction = correction
         self.patience_ns = period_ns * patience_samples
-        self.sample_ns: Optional[int] = None      # stamp x_hat is valid at
+        self.sample_ns: Optional[int] = None  # stamp x_hat is valid at
         self.measurements: dict[int, object] = {}
         self.currents: dict[int, object] = {}
         self.substitutes: dict[int, object] = {}  # current used in place of each missing command
         self.newest_measurement_ns = -1
         self.last_current = 0.0
         self.steps = self.substituted = self.repaired = self.restarts = 0
-        self.ignored = 0                          # duplicates and samples older than x_hat's
+        self.ignored = 0  # duplicates and samples older than x_hat's
 
     def add_measurement(self, stamp_ns: int, y) -> list[Estimate]:
         """y(k); the first one starts the observer there."""
@@ -92,7 +106,7 @@ class ObserverInputPairing:
 
     def add_command(self, stamp_ns: int, u) -> list[Estimate]:
         """u(k), filed under the stamp of the sample it answers; a late one repairs the state."""
-        if self.sample_ns is None:           # before the first measurement: kept for the start
+        if self.sample_ns is None:  # before the first measurement: kept for the start
             self.currents[stamp_ns] = u
             while len(self.currents) > PENDING_LIMIT:
                 self.currents.pop(min(self.currents))
@@ -107,8 +121,11 @@ class ObserverInputPairing:
         return self._advance()
 
     def restart(self, stamp_ns: int, y) -> list[Estimate]:
-        """(Re)start at sample ``stamp_ns`` from x_hat = (y, 0, 0) (the paper's x_hat(0) = 0 at y(0) = 0),
-        then step at once if that sample's command is already in."""
+        """(Re)start at sample ``stamp_ns`` from x_hat = (y, 0, 0).
+
+        As the paper's x_hat(0) = 0 at y(0) = 0; then step at once if that sample's command is
+        already in.
+        """
         if self.sample_ns is not None:
             self.restarts += 1
         zero = 0.0 * y
@@ -120,10 +137,15 @@ class ObserverInputPairing:
         self.newest_measurement_ns = stamp_ns
         self.measurements[stamp_ns] = y
         self.last_current = 0.0
-        return [Estimate(stamp_ns, self.observer.state, 0, 0.0, 0.0, True, False)] + self._advance()
+        return [
+            Estimate(stamp_ns, self.observer.state, 0, 0.0, 0.0, True, False)
+        ] + self._advance()
 
     def _repair(self, stamp_ns: int, u) -> None:
-        """A command for a sample already stepped with a substitute: correct x_hat to the true pair."""
+        """Take a command for a sample already stepped with a substitute.
+
+        Correct x_hat to the true pair.
+        """
         used = self.substitutes.pop(stamp_ns, None)
         if used is None:
             return
@@ -156,7 +178,11 @@ class ObserverInputPairing:
                 self.substitutes[k] = u_used
             self.last_current = u_used
             self.sample_ns = k + self.period_ns
-            out.append(Estimate(self.sample_ns, self.observer.state, k, y_used, u_used, False, substituted))
+            out.append(
+                Estimate(
+                    self.sample_ns, self.observer.state, k, y_used, u_used, False, substituted
+                )
+            )
         for buffer in (self.measurements, self.currents, self.substitutes):
             while len(buffer) > PENDING_LIMIT:
                 buffer.pop(min(buffer))

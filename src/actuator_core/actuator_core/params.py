@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Parameter specifications: each dataclass field carries its unit, valid range and description.
 
 One declaration serves three users: the dataclass validates itself on construction, the
@@ -13,29 +16,57 @@ from typing import Any, Iterator
 import numpy as np
 
 
-def spec(default: Any, description: str, unit: str = '', low: float = -math.inf, high: float = math.inf,
-         *, low_open: bool = False) -> Any:
-    """A dataclass field with a valid range [low, high] ((low, high] when ``low_open``) and a description."""
-    return dataclasses.field(default=default, metadata={
-        'description': description, 'unit': unit, 'low': low, 'high': high, 'low_open': low_open})
+def spec(
+    default: Any,
+    description: str,
+    unit: str = '',
+    low: float = -math.inf,
+    high: float = math.inf,
+    *,
+    low_open: bool = False,
+) -> Any:
+    """Return a dataclass field with a valid range and a description.
+
+    The range is [low, high], or (low, high] when ``low_open``.
+    """
+    return dataclasses.field(
+        default=default,
+        metadata={
+            'description': description,
+            'unit': unit,
+            'low': low,
+            'high': high,
+            'low_open': low_open,
+        },
+    )
 
 
 def range_text(meta: dict) -> str:
     """Human-readable valid range of a spec'd field, e.g. '(0, inf] rad/s'."""
     left = '(' if meta['low_open'] else '['
-    unit = f" {meta['unit']}" if meta['unit'] else ''
-    return f"{left}{meta['low']:g}, {meta['high']:g}]{unit}"
+    unit = f' {meta["unit"]}' if meta['unit'] else ''
+    return f'{left}{meta["low"]:g}, {meta["high"]:g}]{unit}'
 
 
 def check_value(name: str, value: Any, meta: dict) -> None:
-    """Raise ValueError naming ``name``, its value and its valid range when ``value`` is outside it."""
+    """Raise ValueError naming ``name``.
+
+    Its value and its valid range when ``value`` is outside it.
+    """
     if isinstance(value, (bool, str)) or value is None:
         return
     v = np.asarray(value, dtype=float)
     low, high = meta['low'], meta['high']
-    ok = np.all(np.isfinite(v)) and np.all(v <= high) and (np.all(v > low) if meta['low_open'] else np.all(v >= low))
+    ok = (
+        np.all(np.isfinite(v))
+        and np.all(v <= high)
+        and (np.all(v > low) if meta['low_open'] else np.all(v >= low))
+    )
     if not ok:
-        raise ValueError(f'{name} = {value} is outside its valid range {range_text(meta)}: {meta["description"]}')
+        raise ValueError(
+            f'{name} = {value} is outside its valid range {range_text(meta)}: '
+            f'{meta["description"]}'
+        )
 
 
 def validate(obj: Any) -> None:
@@ -46,10 +77,16 @@ def validate(obj: Any) -> None:
 
 
 def iter_specs(cls: type, prefix: str = '') -> Iterator[tuple[str, dataclasses.Field]]:
-    """Yield (dotted name, field) of every spec'd field of ``cls``, recursing into nested dataclasses."""
+    """Yield (dotted name, field) of every spec'd field of ``cls``.
+
+    Nested dataclasses are recursed into.
+    """
     for f in dataclasses.fields(cls):
-        if dataclasses.is_dataclass(f.type) or (isinstance(f.type, str) and f.default_factory is not dataclasses.MISSING
-                                                and dataclasses.is_dataclass(f.default_factory)):
+        if dataclasses.is_dataclass(f.type) or (
+            isinstance(f.type, str)
+            and f.default_factory is not dataclasses.MISSING
+            and dataclasses.is_dataclass(f.default_factory)
+        ):
             inner = f.default_factory if f.default_factory is not dataclasses.MISSING else f.type
             yield from iter_specs(inner, f'{prefix}{f.name}.')
         elif 'low' in f.metadata:
@@ -60,7 +97,9 @@ def build(cls: type, values: dict[str, Any], prefix: str = '') -> Any:
     """Construct ``cls`` from a flat dict of dotted names (missing names keep their defaults)."""
     kwargs: dict[str, Any] = {}
     for f in dataclasses.fields(cls):
-        if f.default_factory is not dataclasses.MISSING and dataclasses.is_dataclass(f.default_factory):
+        if f.default_factory is not dataclasses.MISSING and dataclasses.is_dataclass(
+            f.default_factory
+        ):
             kwargs[f.name] = build(f.default_factory, values, f'{prefix}{f.name}.')
         elif f'{prefix}{f.name}' in values:
             kwargs[f.name] = values[f'{prefix}{f.name}']

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """A per-sample log of integer rows that grows in chunks, so memory follows the run's length."""
 
 from __future__ import annotations
@@ -11,7 +14,10 @@ CHUNK_ROWS = 4096
 
 
 class SampleLog:
-    """Append fixed-width int64 rows cheaply; ``array()`` joins them; rows beyond ``max_rows`` are counted, not kept."""
+    """Append fixed-width int64 rows cheaply; ``array()`` joins them.
+
+    Rows beyond ``max_rows`` are counted, not kept.
+    """
 
     def __init__(self, columns: Sequence[str], max_rows: int = 3_600_000):
         """One column per name; at most ``max_rows`` rows (one hour at 1 kHz by default)."""
@@ -38,7 +44,7 @@ class SampleLog:
         """All rows as one (rows, columns) array."""
         if not self._chunks:
             return np.empty((0, len(self.columns)), dtype=np.int64)
-        return np.concatenate(self._chunks[:-1] + [self._chunks[-1][:self._fill]])
+        return np.concatenate(self._chunks[:-1] + [self._chunks[-1][: self._fill]])
 
     def save(self, path: str) -> None:
         """Write the columns as arrays of an .npz file."""

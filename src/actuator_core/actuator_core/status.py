@@ -1,6 +1,10 @@
-"""What each controller status code means: the one place (ControllerState.msg carries the same numbers).
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
 
-A test checks these against the message constants, so the two cannot drift apart.
+"""What each controller status code means: the one place.
+
+ControllerState.msg carries the same numbers. A test checks these against the message constants, so
+the two cannot drift apart.
 """
 
 from __future__ import annotations
@@ -11,16 +15,16 @@ from enum import IntEnum
 class Status(IntEnum):
     """Loop health of one control sample (``ControllerState.status``)."""
 
-    OK = 0                   #: closed-loop control, the command is the law's output
-    WAITING = 1              #: no measurement or estimate yet (start-up): 0 A, safe stop
-    STALE_MEASUREMENT = 2    #: the newest measurement is older than its timeout: 0 A, safe stop
-    STALE_ESTIMATE = 3       #: the newest estimate is older than its timeout: 0 A, safe stop
-    INVALID_INPUT = 4        #: this sample's measurement or estimate was refused: 0 A, safe stop
-    LATCHED = 5              #: non-finite output or following error beyond the limit: 0 A until reset
-    RESYNC = 6               #: the sensor's time base jumped (a restarted driver): 0 A and brake until
-                             #: the observer has converged on the new samples, then control restarts
-    CONFLICT = 7             #: more than one publisher feeds a control input: 0 A until one is left
-    INACTIVE = 8             #: the node is not active (lifecycle): it commands nothing but 0 A
+    OK = 0  #: closed-loop control, the command is the law's output
+    WAITING = 1  #: no measurement or estimate yet (start-up): 0 A, safe stop
+    STALE_MEASUREMENT = 2  #: the newest measurement is older than its timeout: 0 A, safe stop
+    STALE_ESTIMATE = 3  #: the newest estimate is older than its timeout: 0 A, safe stop
+    INVALID_INPUT = 4  #: this sample's measurement or estimate was refused: 0 A, safe stop
+    LATCHED = 5  #: non-finite output or following error beyond the limit: 0 A until reset
+    RESYNC = 6  #: the sensor's time base jumped (a restarted driver): 0 A and brake until
+    #: the observer has converged on the new samples, then control restarts
+    CONFLICT = 7  #: more than one publisher feeds a control input: 0 A until one is left
+    INACTIVE = 8  #: the node is not active (lifecycle): it commands nothing but 0 A
 
     @property
     def safe_stop(self) -> bool:

@@ -1,6 +1,10 @@
-"""The time base of one input stream: every stamp checked against the receiver's clock and the sample grid.
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
 
-Held by each node for each 1 kHz input. ``check`` sorts a stamp into:
+"""The time base of one input stream.
+
+Every stamp is checked against the receiver's clock and the sample grid. Held by each node for each
+1 kHz input. ``check`` sorts a stamp into:
   OK       the next sample, or a later one on the same grid (missed samples are not an error);
   FUTURE   real time: beyond the receiver's clock plus ``future_tolerance_ns``; sim: beyond the
            next expected sample. Refused, never integrated: one stamp 1000 s ahead used to end
@@ -8,8 +12,8 @@ Held by each node for each 1 kHz input. ``check`` sorts a stamp into:
   OLD      a duplicate or an out-of-order sample a little in the past: ignored;
   JUMP     a discontinuity (a restarted sensor or driver): off the grid, or back in time (by
            more than ``jump_samples`` in real time, by any amount in sim, where nothing comes
-           late), or ahead by more than ``jump_samples``. The stamp becomes the new grid origin and the
-           receiver applies its restart policy (README "Safety").
+           late), or ahead by more than ``jump_samples``. The stamp becomes the new grid
+           origin and the receiver applies its restart policy (README "Safety").
 """
 
 from __future__ import annotations
@@ -33,7 +37,9 @@ class Verdict(Enum):
 class StampCheck:
     """One stream's stamps: grid, clock, discontinuities; counts what it refused."""
 
-    def __init__(self, period_ns: int, sim: bool, future_tolerance_ns: int, jump_samples: int = JUMP_SAMPLES):
+    def __init__(
+        self, period_ns: int, sim: bool, future_tolerance_ns: int, jump_samples: int = JUMP_SAMPLES
+    ):
         """``sim``: the next expected sample bounds the future; else the receiver's clock does."""
         self.period_ns = period_ns
         self.sim = sim
@@ -43,7 +49,10 @@ class StampCheck:
         self.refused_future = self.ignored_old = self.jumps = 0
 
     def check(self, stamp_ns: int, now_ns: int) -> Verdict:
-        """The verdict on ``stamp_ns`` received when the receiver's clock read ``now_ns``."""
+        """Return the verdict on ``stamp_ns``.
+
+        ``now_ns`` is what the receiver's clock read when the stamp was received.
+        """
         if not self.sim and stamp_ns > now_ns + self.future_tolerance_ns:
             self.refused_future += 1
             return Verdict.FUTURE
@@ -55,7 +64,7 @@ class StampCheck:
             self.refused_future += 1
             return Verdict.FUTURE
         ahead = stamp_ns - last
-        back = -self.period_ns if self.sim else -self.jump_ns   # sim: nothing is late or duplicated
+        back = -self.period_ns if self.sim else -self.jump_ns  # sim: nothing is late or duplicated
         if (ahead % self.period_ns != 0) or ahead <= back or ahead > self.jump_ns:
             self.jumps += 1
             self.last_ns = stamp_ns

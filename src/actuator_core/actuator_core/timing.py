@@ -1,4 +1,10 @@
-"""Sample-time arithmetic shared by the nodes and the offline loop, so both compute identical times."""
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""Sample-time arithmetic shared by the nodes and the offline loop.
+
+So both compute identical times.
+"""
 
 from __future__ import annotations
 
@@ -9,10 +15,16 @@ def period_ns(dt_s: float) -> int:
 
 
 def sample_time_s(elapsed_ns: int) -> float:
-    """Seconds since the start of the run from integer nanoseconds (one rounding, same everywhere)."""
+    """Seconds since the start of the run from integer nanoseconds.
+
+    One rounding, same everywhere.
+    """
     return elapsed_ns * 1.0e-9
 
 
 def stamp_to_ns(stamp) -> int:
-    """A builtin_interfaces/Time (or any object with sec and nanosec) as integer nanoseconds."""
+    """Return a builtin_interfaces/Time as integer nanoseconds.
+
+    Any object with sec and nanosec is accepted.
+    """
     return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)

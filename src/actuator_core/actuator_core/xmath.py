@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Elementary functions for a float or a numpy array: ``math`` on scalars, numpy on arrays.
 
 The model and control laws are written once and run both per sample in the nodes (scalars,
@@ -53,19 +56,19 @@ def fabs(x):
 
 
 def isfinite(x):
-    """True where x is neither NaN nor infinite."""
+    """Return True where x is neither NaN nor infinite."""
     return np.isfinite(x) if isinstance(x, _ndarray) else math.isfinite(x)
 
 
 def where(condition, a, b):
-    """a where condition holds, else b (both are evaluated)."""
+    """Return a where condition holds, else b (both are evaluated)."""
     if isinstance(condition, _ndarray) or isinstance(a, _ndarray) or isinstance(b, _ndarray):
         return np.where(condition, a, b)
     return a if condition else b
 
 
 def clip(x, low, high):
-    """x limited to [low, high]."""
+    """Return x limited to [low, high]."""
     if isinstance(x, _ndarray):
         return np.clip(x, low, high)
     return low if x < low else (high if x > high else x)

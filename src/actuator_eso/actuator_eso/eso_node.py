@@ -1,4 +1,9 @@
-"""Extended state observer node (managed): pairs each measurement with the current commanded for it.
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""Extended state observer node (managed).
+
+It pairs each measurement with the current commanded for it.
 
 subscribes joint_states (sensor_msgs/JointState) and current_command (actuator_msgs/CurrentCommand)
 publishes  eso/estimate (actuator_msgs/StateEstimate)
@@ -26,15 +31,25 @@ import math
 import time
 
 from actuator_core import limits
-from actuator_core.pairing import REALTIME_PATIENCE_SAMPLES, SIM_PATIENCE_SAMPLES, Estimate, ObserverInputPairing
+from actuator_core.pairing import (
+    REALTIME_PATIENCE_SAMPLES,
+    SIM_PATIENCE_SAMPLES,
+    Estimate,
+    ObserverInputPairing,
+)
 from actuator_core.timebase import StampCheck, Verdict
 from actuator_core.timing import period_ns, stamp_to_ns
 from actuator_eso.observer import EsoGains, ExtendedStateObserver
 from actuator_msgs.msg import CurrentCommand, StateEstimate
 from actuator_ros.conversions import joint_position, ns_to_stamp
 from actuator_ros.node import ManagedNode
-from actuator_ros.parameters import (declare_choice, declare_number, declare_output_path, declare_spec_parameters,
-                                     declare_text)
+from actuator_ros.parameters import (
+    declare_choice,
+    declare_number,
+    declare_output_path,
+    declare_spec_parameters,
+    declare_text,
+)
 from actuator_ros.qos import MODES, control_qos
 from actuator_ros.runner import run_node
 from sensor_msgs.msg import JointState
@@ -53,40 +68,72 @@ class EsoNode(ManagedNode):
 
     def load_parameters(self) -> None:
         """Declare (or read again at configure) and check every parameter."""
-        self.mode = declare_choice(self, 'mode', 'realtime', MODES, 'selects the QoS of the 1 kHz streams')
+        self.mode = declare_choice(
+            self, 'mode', 'realtime', MODES, 'selects the QoS of the 1 kHz streams'
+        )
         self.gains = declare_spec_parameters(self, EsoGains)
-        self.dt_s = declare_number(self, 'sample_time_s', limits.SAMPLE_TIME_S, *limits.SAMPLE_TIME_RANGE_S, 's',
-                                   'sensor sample period')
-        self.current_limit_a = declare_number(self, 'current_limit_a', limits.CURRENT_LIMIT_A,
-                                              *limits.CURRENT_LIMIT_RANGE_A, 'A',
-                                              'commands beyond +-this are refused (the controller never sends them)')
+        self.dt_s = declare_number(
+            self,
+            'sample_time_s',
+            limits.SAMPLE_TIME_S,
+            *limits.SAMPLE_TIME_RANGE_S,
+            's',
+            'sensor sample period',
+        )
+        self.current_limit_a = declare_number(
+            self,
+            'current_limit_a',
+            limits.CURRENT_LIMIT_A,
+            *limits.CURRENT_LIMIT_RANGE_A,
+            'A',
+            'commands beyond +-this are refused (the controller never sends them)',
+        )
         self.future_tolerance_s = declare_number(
-            self, 'future_stamp_tolerance_s', 0.05, 0.0, 10.0, 's',
-            'realtime: measurements stamped later than now plus this are refused (clock offset between hosts)')
-        self.joint_name = declare_text(self, 'joint_name', 'joint', 'name of the joint in joint_states')
-        self.stats_log = declare_output_path(self, 'stats_log', 'pairing counts (.json) written at shutdown')
+            self,
+            'future_stamp_tolerance_s',
+            0.05,
+            0.0,
+            10.0,
+            's',
+            'realtime: measurements stamped later than now plus this are refused (clock offset '
+            'between hosts)',
+        )
+        self.joint_name = declare_text(
+            self, 'joint_name', 'joint', 'name of the joint in joint_states'
+        )
+        self.stats_log = declare_output_path(
+            self, 'stats_log', 'pairing counts (.json) written at shutdown'
+        )
 
-    # --- lifecycle --------------------------------------------------------------------------------
+    # --- lifecycle -------------------------------------------------------------------------------
     def build(self) -> None:
         """Observer, pairing, stamp checks and topics."""
         self.period_ns = period_ns(self.dt_s)
         self.observer = ExtendedStateObserver(self.gains, self.dt_s)
         patience = SIM_PATIENCE_SAMPLES if self.mode == 'sim' else REALTIME_PATIENCE_SAMPLES
-        self.pairing = ObserverInputPairing(self.observer, self.period_ns, self.observer.correction, patience)
-        self.measurement_check = StampCheck(self.period_ns, self.mode == 'sim', int(self.future_tolerance_s * 1e9))
+        self.pairing = ObserverInputPairing(
+            self.observer, self.period_ns, self.observer.correction, patience
+        )
+        self.measurement_check = StampCheck(
+            self.period_ns, self.mode == 'sim', int(self.future_tolerance_s * 1e9)
+        )
         self.input_current_gain = self.dt_s * self.gains.theta1n
         self.refused = 0
         self.conflict = ''
         self.restart_next = False
         qos = control_qos(self.mode)
         self.pub = self.create_lifecycle_publisher(StateEstimate, 'eso/estimate', qos)
-        self.subs = [self.create_subscription(JointState, 'joint_states', self.on_measurement, qos),
-                     self.create_subscription(CurrentCommand, 'current_command', self.on_command, qos)]
+        self.subs = [
+            self.create_subscription(JointState, 'joint_states', self.on_measurement, qos),
+            self.create_subscription(CurrentCommand, 'current_command', self.on_command, qos),
+        ]
         self.graph_timer = self.create_timer(0.1, self.on_graph_check)
         self.msg = StateEstimate()
         beta = ', '.join(f'{b:.4g}' for b in self.gains.beta)
-        self.get_logger().info(f'{self.mode} mode, w0 = {self.gains.omega0_rad_s} rad/s, beta = ({beta}), '
-                               f'dt = {self.dt_s} s')
+        self.get_logger().info(
+            f'{self.mode} mode, w0 = {self.gains.omega0_rad_s} rad/s, beta = ({beta}), '
+            f'dt = {self.dt_s} s'
+        )
 
     def stop(self) -> None:
         """Stop stepping; log and write the counts."""
@@ -99,17 +146,24 @@ class EsoNode(ManagedNode):
             self.destroy_subscription(sub)
         self.destroy_lifecycle_publisher(self.pub)
 
-    # --- inputs -----------------------------------------------------------------------------------
+    # --- inputs ----------------------------------------------------------------------------------
     def on_graph_check(self) -> None:
-        """10 Hz: more than one publisher on a control input stops the observer until one is left."""
-        crowded = [f'{n} publishers on {t}' for t in WATCHED_TOPICS if (n := self.count_publishers(t)) > 1]
+        """10 Hz.
+
+        More than one publisher on a control input stops the observer until one is left.
+        """
+        crowded = [
+            f'{n} publishers on {t}' for t in WATCHED_TOPICS if (n := self.count_publishers(t)) > 1
+        ]
         conflict = ', '.join(crowded)
         if conflict != self.conflict:
             if conflict:
                 self.get_logger().error(f'{conflict}: not estimating until one publisher is left')
             else:
-                self.get_logger().warning('one publisher per control input again: the observer restarts from the '
-                                          'next measurement')
+                self.get_logger().warning(
+                    'one publisher per control input again: the observer restarts from the '
+                    'next measurement'
+                )
                 self.restart_next = True
             self.conflict = conflict
 
@@ -124,19 +178,29 @@ class EsoNode(ManagedNode):
             return
         y = joint_position(msg, self.joint_name)
         if y is None or not math.isfinite(y) or abs(y) > limits.POSITION_LIMIT_RAD:
-            self._refuse('bad_measurement', lambda: f'measurement refused (joint {self.joint_name!r} missing, '
-                         f'non-finite or beyond {limits.POSITION_LIMIT_RAD} rad): {list(msg.position)}')
+            self._refuse(
+                'bad_measurement',
+                lambda: (
+                    f'measurement refused (joint {self.joint_name!r} missing, '
+                    f'non-finite or beyond {limits.POSITION_LIMIT_RAD} rad): {list(msg.position)}'
+                ),
+            )
             return
         stamp = stamp_to_ns(msg.header.stamp)
         verdict = self.measurement_check.check(stamp, time.time_ns())
         if verdict is Verdict.FUTURE:
-            self._refuse('future', lambda: f'measurement stamped {stamp} ns refused: beyond the sample clock')
+            self._refuse(
+                'future',
+                lambda: f'measurement stamped {stamp} ns refused: beyond the sample clock',
+            )
         elif self.conflict:
             return
         elif verdict is Verdict.JUMP or (self.restart_next and verdict is Verdict.OK):
             self.restart_next = False
-            self.get_logger().warning(f'observer restarted from the measurement at {stamp} ns (a jump of the '
-                                      'time base: a restarted sensor?, or the end of a publisher conflict)')
+            self.get_logger().warning(
+                f'observer restarted from the measurement at {stamp} ns (a jump of the '
+                'time base: a restarted sensor?, or the end of a publisher conflict)'
+            )
             for estimate in self.pairing.restart(stamp, y):
                 self._publish(estimate)
         elif verdict is Verdict.OK:
@@ -149,11 +213,20 @@ class EsoNode(ManagedNode):
             return
         u = msg.current_a
         if not math.isfinite(u) or abs(u) > self.current_limit_a:
-            self._refuse('bad_command', lambda: f'command {u} A refused (non-finite or beyond {self.current_limit_a} A)')
+            self._refuse(
+                'bad_command',
+                lambda: f'command {u} A refused (non-finite or beyond {self.current_limit_a} A)',
+            )
             return
         stamp = stamp_to_ns(msg.header.stamp)
-        if self.mode == 'realtime' and stamp > time.time_ns() + self.measurement_check.future_tolerance_ns:
-            self._refuse('future_command', lambda: f'command stamped {stamp} ns refused: beyond the sample clock')
+        if (
+            self.mode == 'realtime'
+            and stamp > time.time_ns() + self.measurement_check.future_tolerance_ns
+        ):
+            self._refuse(
+                'future_command',
+                lambda: f'command stamped {stamp} ns refused: beyond the sample clock',
+            )
             return
         if self.conflict:
             return
@@ -163,8 +236,12 @@ class EsoNode(ManagedNode):
     def _publish(self, e: Estimate) -> None:
         """Publish x_hat for ``e.sample_ns``; log a substitution (rate-limited)."""
         if e.substituted:
-            self.log.warn('substituted', lambda: f'sample {e.input_ns} ns: command missing; integrating with the '
-                                                 'last current')
+            self.log.warn(
+                'substituted',
+                lambda: (
+                    f'sample {e.input_ns} ns: command missing; integrating with the last current'
+                ),
+            )
         m = self.msg
         m.header.stamp = ns_to_stamp(e.sample_ns)
         m.position_rad, m.velocity_rad_s, m.disturbance_rad_s2 = (float(v) for v in e.x_hat)
@@ -180,18 +257,31 @@ class EsoNode(ManagedNode):
     def close_log(self) -> None:
         """Log a one-line summary; write the pairing counts as JSON if asked."""
         p = self.pairing
-        self.get_logger().info(f'stopped; steps {p.steps}, substituted pairs {p.substituted} (repaired when the '
-                               f'command came late: {p.repaired}), restarts {p.restarts}, refused inputs '
-                               f'{self.refused}, ignored {p.ignored + self.measurement_check.ignored_old}')
+        self.get_logger().info(
+            f'stopped; steps {p.steps}, substituted pairs {p.substituted} (repaired when the '
+            f'command came late: {p.repaired}), restarts {p.restarts}, refused inputs '
+            f'{self.refused}, ignored {p.ignored + self.measurement_check.ignored_old}'
+        )
         if self.stats_log:
             with open(self.stats_log, 'w') as f:
-                json.dump({'steps': p.steps, 'exact_pairs': p.steps - p.substituted, 'substituted_pairs': p.substituted,
-                           'repaired_pairs': p.repaired, 'restarts': p.restarts, 'refused_inputs': self.refused}, f)
+                json.dump(
+                    {
+                        'steps': p.steps,
+                        'exact_pairs': p.steps - p.substituted,
+                        'substituted_pairs': p.substituted,
+                        'repaired_pairs': p.repaired,
+                        'restarts': p.restarts,
+                        'refused_inputs': self.refused,
+                    },
+                    f,
+                )
 
 
 def main(argv=None) -> int:
     """Entry point of ``ros2 run actuator_eso eso_node``."""
-    return run_node('eso_node', 'Extended state observer (15)-(16) of the joint.', EsoNode, NODE_NAME, argv)
+    return run_node(
+        'eso_node', 'Extended state observer (15)-(16) of the joint.', EsoNode, NODE_NAME, argv
+    )
 
 
 if __name__ == '__main__':

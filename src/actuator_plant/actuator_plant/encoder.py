@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Joint angle encoder: quantisation to counts per revolution and additive Gaussian noise.
 
 The paper measures the joint angle exactly. A real joint reads it from an encoder, so the
@@ -34,11 +37,23 @@ NOISE_BLOCK_SAMPLES = 1024
 class EncoderParameters:
     """Encoder of the joint angle: resolution, noise and the noise seed (all off by default)."""
 
-    counts_per_rev: float = spec(0, 'encoder counts per revolution of the joint shaft; 0 = no quantisation',
-                                 'counts/rev', 0.0, limits.ENCODER_COUNTS_PER_REV_MAX)
-    noise_std_rad: float = spec(0.0, 'standard deviation of the additive white measurement noise; 0 = none',
-                                'rad', 0.0, limits.ENCODER_NOISE_STD_MAX_RAD)
-    seed: int = spec(0, 'seed of the noise generator (one per element when an array)', '', 0.0, 2.0 ** 63)
+    counts_per_rev: float = spec(
+        0,
+        'encoder counts per revolution of the joint shaft; 0 = no quantisation',
+        'counts/rev',
+        0.0,
+        limits.ENCODER_COUNTS_PER_REV_MAX,
+    )
+    noise_std_rad: float = spec(
+        0.0,
+        'standard deviation of the additive white measurement noise; 0 = none',
+        'rad',
+        0.0,
+        limits.ENCODER_NOISE_STD_MAX_RAD,
+    )
+    seed: int = spec(
+        0, 'seed of the noise generator (one per element when an array)', '', 0.0, 2.0**63
+    )
 
     def __post_init__(self) -> None:
         """Refuse out-of-range values."""
@@ -47,36 +62,50 @@ class EncoderParameters:
     @property
     def active(self) -> bool:
         """Whether the encoder changes the angle at all."""
-        return bool(np.any(np.asarray(self.counts_per_rev) > 0) or np.any(np.asarray(self.noise_std_rad) > 0))
+        return bool(
+            np.any(np.asarray(self.counts_per_rev) > 0)
+            or np.any(np.asarray(self.noise_std_rad) > 0)
+        )
 
 
 class Encoder:
-    """Stateful encoder: ``measure(q)`` returns the reading of one sample, drawing fresh noise each call."""
+    """Stateful encoder.
+
+    ``measure(q)`` returns the reading of one sample, drawing fresh noise each call.
+    """
 
     def __init__(self, counts_per_rev=0, noise_std_rad=0.0, seed=0):
-        """Quantise to ``counts_per_rev`` (0: none), add N(0, ``noise_std_rad``^2) noise seeded by ``seed``."""
+        """Quantise to ``counts_per_rev`` (0: none).
+
+        Add N(0, ``noise_std_rad``^2) noise seeded by ``seed``.
+        """
         self.parameters = EncoderParameters(counts_per_rev, noise_std_rad, seed)
         counts = np.asarray(counts_per_rev, dtype=float)
         self._quantised = bool(np.any(counts > 0))
         with np.errstate(divide='ignore'):
-            self._resolution_rad = np.where(counts > 0, 2.0 * math.pi / np.where(counts > 0, counts, 1.0), 0.0)
+            self._resolution_rad = np.where(
+                counts > 0, 2.0 * math.pi / np.where(counts > 0, counts, 1.0), 0.0
+            )
         self._noise_std_rad = np.asarray(noise_std_rad, dtype=float)
         self._noisy = bool(np.any(self._noise_std_rad > 0))
         seeds = np.asarray(seed, dtype=np.uint64)
         self._per_element = seeds.ndim > 0
-        self._generators = [np.random.default_rng(int(s)) for s in seeds.ravel()] if self._per_element \
+        self._generators = (
+            [np.random.default_rng(int(s)) for s in seeds.ravel()]
+            if self._per_element
             else [np.random.default_rng(int(seeds))]
+        )
         self._block = np.empty((0, 0))
         self._column = 0
 
     @classmethod
     def from_parameters(cls, parameters: EncoderParameters) -> 'Encoder':
-        """An encoder with the given parameters."""
+        """Return an encoder with the given parameters."""
         return cls(parameters.counts_per_rev, parameters.noise_std_rad, parameters.seed)
 
     @property
     def resolution_rad(self):
-        """delta = 2 pi / counts_per_rev [rad] (0 where not quantised)."""
+        """The resolution delta = 2 pi / counts_per_rev [rad] (0 where not quantised)."""
         return self._resolution_rad if self._resolution_rad.ndim else float(self._resolution_rad)
 
     def _noise(self, shape):
@@ -84,14 +113,19 @@ class Encoder:
         if not self._per_element:
             return self._generators[0].standard_normal(shape)
         if self._column >= self._block.shape[1]:
-            self._block = np.stack([g.standard_normal(NOISE_BLOCK_SAMPLES) for g in self._generators])
+            self._block = np.stack(
+                [g.standard_normal(NOISE_BLOCK_SAMPLES) for g in self._generators]
+            )
             self._column = 0
         column = self._block[:, self._column]
         self._column += 1
         return column.reshape(shape)
 
     def measure(self, position_rad):
-        """y = round(q / delta) delta + noise_std n [rad], elementwise; q unchanged when the encoder is off."""
+        """Return y = round(q / delta) delta + noise_std n [rad], elementwise.
+
+        q unchanged when the encoder is off.
+        """
         y = position_rad
         if self._quantised:
             res = self._resolution_rad

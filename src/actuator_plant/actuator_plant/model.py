@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Deep-sea oil-filled joint actuator, paper eq. (1)-(5) with the losses (6)-(7), (40)-(42).
 
 The motion equation (1), J (N q'') = k_t u - k_b (N q') - T_v - T_d/N - T_f/N, is
@@ -17,8 +20,13 @@ from typing import NamedTuple
 import numpy as np
 
 from actuator_core import limits
-from actuator_plant.oil import (PA_PER_MPA, MotorGeometry, OilProperties, dynamic_viscosity_pa_s,
-                                stirring_geometry_constant_m3)
+from actuator_plant.oil import (
+    PA_PER_MPA,
+    MotorGeometry,
+    OilProperties,
+    dynamic_viscosity_pa_s,
+    stirring_geometry_constant_m3,
+)
 from actuator_core import xmath as xm
 from actuator_core.params import check_value, spec, validate
 from actuator_core.timing import period_ns, sample_time_s
@@ -32,13 +40,37 @@ GRAVITY_M_S2 = 9.80665
 class JointNominal:
     """Nominal joint parameters of Table 1 and the model coefficients of eq. (3)."""
 
-    inertia_kg_m2: float = spec(limits.NOMINAL_INERTIA_KG_M2, 'J_n: nominal inertia at the motor shaft (Table 1)', 'kg m^2', 0.0, 10.0,
-                                low_open=True)
-    torque_constant_nm_a: float = spec(limits.NOMINAL_TORQUE_CONSTANT_NM_A, 'k_tn: nominal motor torque constant (Table 1)', 'N m/A', 0.0, 100.0,
-                                       low_open=True)
-    viscous_coefficient_nm_s_rad: float = spec(limits.NOMINAL_VISCOUS_NM_S_RAD, 'k_bn: nominal motor viscous coefficient (Table 1)',
-                                               'N m s/rad', 0.0, 10.0)
-    gear_ratio: float = spec(limits.NOMINAL_GEAR_RATIO, 'N: gear reduction ratio (Table 1)', '', 0.0, 1.0e4, low_open=True)
+    inertia_kg_m2: float = spec(
+        limits.NOMINAL_INERTIA_KG_M2,
+        'J_n: nominal inertia at the motor shaft (Table 1)',
+        'kg m^2',
+        0.0,
+        10.0,
+        low_open=True,
+    )
+    torque_constant_nm_a: float = spec(
+        limits.NOMINAL_TORQUE_CONSTANT_NM_A,
+        'k_tn: nominal motor torque constant (Table 1)',
+        'N m/A',
+        0.0,
+        100.0,
+        low_open=True,
+    )
+    viscous_coefficient_nm_s_rad: float = spec(
+        limits.NOMINAL_VISCOUS_NM_S_RAD,
+        'k_bn: nominal motor viscous coefficient (Table 1)',
+        'N m s/rad',
+        0.0,
+        10.0,
+    )
+    gear_ratio: float = spec(
+        limits.NOMINAL_GEAR_RATIO,
+        'N: gear reduction ratio (Table 1)',
+        '',
+        0.0,
+        1.0e4,
+        low_open=True,
+    )
 
     def __post_init__(self) -> None:
         """Refuse non-physical values."""
@@ -59,14 +91,24 @@ class JointNominal:
 class ParameterDrift:
     """Core-loss parameter drift of eq. (41): relative amplitudes and angular frequencies."""
 
-    inertia_amplitude: float = spec(0.2, 'relative amplitude of J = J_n (1 + a sin(w t))', '', 0.0, 0.99)
-    inertia_frequency_rad_s: float = spec(0.5 * math.pi, 'angular frequency w of the inertia drift', 'rad/s',
-                                          0.0, 1.0e3)
-    torque_constant_amplitude: float = spec(0.3, 'relative amplitude of k_t = k_tn (1 + a cos(w t))', '', 0.0, 0.99)
-    torque_constant_frequency_rad_s: float = spec(0.3 * math.pi, 'angular frequency of the k_t drift', 'rad/s',
-                                                  0.0, 1.0e3)
-    viscous_amplitude: float = spec(0.2, 'relative amplitude of k_b = k_bn (1 + a cos(w t))', '', 0.0, 0.99)
-    viscous_frequency_rad_s: float = spec(0.3 * math.pi, 'angular frequency of the k_b drift', 'rad/s', 0.0, 1.0e3)
+    inertia_amplitude: float = spec(
+        0.2, 'relative amplitude of J = J_n (1 + a sin(w t))', '', 0.0, 0.99
+    )
+    inertia_frequency_rad_s: float = spec(
+        0.5 * math.pi, 'angular frequency w of the inertia drift', 'rad/s', 0.0, 1.0e3
+    )
+    torque_constant_amplitude: float = spec(
+        0.3, 'relative amplitude of k_t = k_tn (1 + a cos(w t))', '', 0.0, 0.99
+    )
+    torque_constant_frequency_rad_s: float = spec(
+        0.3 * math.pi, 'angular frequency of the k_t drift', 'rad/s', 0.0, 1.0e3
+    )
+    viscous_amplitude: float = spec(
+        0.2, 'relative amplitude of k_b = k_bn (1 + a cos(w t))', '', 0.0, 0.99
+    )
+    viscous_frequency_rad_s: float = spec(
+        0.3 * math.pi, 'angular frequency of the k_b drift', 'rad/s', 0.0, 1.0e3
+    )
 
     def __post_init__(self) -> None:
         """Amplitudes below 1 keep J and k_t positive."""
@@ -79,7 +121,9 @@ class ExternalTorque:
 
     mean_nm: float = spec(20.0, 'mean external torque at the output shaft', 'N m', -1.0e4, 1.0e4)
     relative_amplitude: float = spec(0.5, 'relative amplitude a of the sinusoid', '', -10.0, 10.0)
-    frequency_rad_s: float = spec(0.5 * math.pi, 'angular frequency w of the sinusoid', 'rad/s', 0.0, 1.0e3)
+    frequency_rad_s: float = spec(
+        0.5 * math.pi, 'angular frequency w of the sinusoid', 'rad/s', 0.0, 1.0e3
+    )
 
     def __post_init__(self) -> None:
         """Refuse out-of-range values."""
@@ -88,11 +132,20 @@ class ExternalTorque:
 
 @dataclass(frozen=True)
 class SealFriction:
-    """Dynamic seal friction at the output shaft, eq. (42) [N m]: (c0 + e^(cv|q'|) + e^(cp P)) sign(q')."""
+    """Dynamic seal friction at the output shaft, eq. (42) [N m].
 
-    base_nm: float = spec(1.0, 'c0: constant part of the seal friction amplitude', 'N m', 0.0, 1.0e3)
-    velocity_coefficient_s_rad: float = spec(0.3591, 'cv: velocity exponent coefficient', 's/rad', 0.0, 10.0)
-    pressure_coefficient_per_mpa: float = spec(0.1504, 'cp: pressure exponent coefficient', '1/MPa', 0.0, 1.0)
+    (c0 + e^(cv|q'|) + e^(cp P)) sign(q').
+    """
+
+    base_nm: float = spec(
+        1.0, 'c0: constant part of the seal friction amplitude', 'N m', 0.0, 1.0e3
+    )
+    velocity_coefficient_s_rad: float = spec(
+        0.3591, 'cv: velocity exponent coefficient', 's/rad', 0.0, 10.0
+    )
+    pressure_coefficient_per_mpa: float = spec(
+        0.1504, 'cp: pressure exponent coefficient', '1/MPa', 0.0, 1.0
+    )
 
     def __post_init__(self) -> None:
         """Refuse out-of-range values."""
@@ -103,8 +156,9 @@ class SealFriction:
 class WorkingCondition:
     """Oil pressure (gauge) [Pa] and temperature [degC] of a working condition."""
 
-    pressure_pa: float = spec(10.0e6, 'oil pressure (gauge; the housing is pressure-compensated)', 'Pa',
-                              0.0, 120.0e6)
+    pressure_pa: float = spec(
+        10.0e6, 'oil pressure (gauge; the housing is pressure-compensated)', 'Pa', 0.0, 120.0e6
+    )
     temperature_c: float = spec(2.0, 'oil temperature', 'degC', -10.0, 80.0)
 
     def __post_init__(self) -> None:
@@ -113,7 +167,7 @@ class WorkingCondition:
 
     @classmethod
     def lab(cls) -> 'WorkingCondition':
-        """Normal laboratory condition of the paper: 0 MPa, 25 degC."""
+        """Return the normal laboratory condition of the paper: 0 MPa, 25 degC."""
         return cls(pressure_pa=0.0, temperature_c=25.0)
 
     @classmethod
@@ -123,10 +177,25 @@ class WorkingCondition:
 
     @classmethod
     def at_depth(cls, depth_m: float, temperature_c: float = 2.0) -> 'WorkingCondition':
-        """Hydrostatic pressure rho g depth of sea water at ``depth_m`` (the oil is pressure-compensated)."""
-        check_value('depth_m', depth_m, {'low': 0.0, 'high': 11000.0, 'low_open': False, 'unit': 'm',
-                                         'description': 'water depth'})
-        return cls(pressure_pa=SEAWATER_DENSITY_KG_M3 * GRAVITY_M_S2 * depth_m, temperature_c=temperature_c)
+        """Hydrostatic pressure rho g depth of sea water at ``depth_m``.
+
+        The oil is pressure-compensated.
+        """
+        check_value(
+            'depth_m',
+            depth_m,
+            {
+                'low': 0.0,
+                'high': 11000.0,
+                'low_open': False,
+                'unit': 'm',
+                'description': 'water depth',
+            },
+        )
+        return cls(
+            pressure_pa=SEAWATER_DENSITY_KG_M3 * GRAVITY_M_S2 * depth_m,
+            temperature_c=temperature_c,
+        )
 
 
 @dataclass(frozen=True)
@@ -145,26 +214,43 @@ class PlantParameters:
     with_seal_friction: bool = spec(True, 'apply the seal friction of eq. (42)')
     with_stirring: bool = spec(True, 'apply the oil stirring loss of eq. (6)-(7)')
     substeps: int = spec(4, 'Runge-Kutta sub-intervals per sample', '', 1, 100)
-    brake_holding_torque_nm: float = spec(50.0, 'holding brake at the output shaft: the largest torque it holds '
-                                          'the joint against (above the 30 N m peak of eq. (40))', 'N m', 0.0, 1.0e4)
+    brake_holding_torque_nm: float = spec(
+        50.0,
+        'holding brake at the output shaft: the largest torque it holds '
+        'the joint against (above the 30 N m peak of eq. (40))',
+        'N m',
+        0.0,
+        1.0e4,
+    )
 
     def __post_init__(self) -> None:
         """Refuse a substep count outside 1..100."""
         validate(self)
 
     def ideal(self) -> 'PlantParameters':
-        """The same joint with nominal parameters and no loss or disturbance: exactly model (5) with d = 0."""
-        return replace(self, with_drift=False, with_external_torque=False, with_seal_friction=False,
-                       with_stirring=False)
+        """Return the same joint with nominal parameters and no loss or disturbance.
+
+        Exactly model (5) with d = 0.
+        """
+        return replace(
+            self,
+            with_drift=False,
+            with_external_torque=False,
+            with_seal_friction=False,
+            with_stirring=False,
+        )
 
 
 class PlantConstants(NamedTuple):
-    """Per-condition constants derived once from ``PlantParameters`` (viscosity, seal pressure term)."""
+    """Per-condition constants derived once from ``PlantParameters``.
+
+    viscosity, seal pressure term.
+    """
 
     params: PlantParameters
     stirring_coefficient_nm_s_rad: float  # k * mu, multiplies the rotor speed
     viscosity_pa_s: float
-    seal_offset_nm: float                 # c0 + exp(cp P)
+    seal_offset_nm: float  # c0 + exp(cp P)
 
 
 def derive_constants(params: PlantParameters) -> PlantConstants:
@@ -173,12 +259,16 @@ def derive_constants(params: PlantParameters) -> PlantConstants:
     mu = dynamic_viscosity_pa_s(condition.temperature_c, condition.pressure_pa, params.oil)
     k_mu = stirring_geometry_constant_m3(params.geometry) * mu if params.with_stirring else 0.0
     seal_offset = params.seal.base_nm + np.exp(
-        params.seal.pressure_coefficient_per_mpa * condition.pressure_pa / PA_PER_MPA)
+        params.seal.pressure_coefficient_per_mpa * condition.pressure_pa / PA_PER_MPA
+    )
     return PlantConstants(params, _plain(k_mu), _plain(mu), _plain(seal_offset))
 
 
 def _plain(x):
-    """A 0-d numpy value as a Python float (scalar arithmetic is several times faster); arrays unchanged."""
+    """Return a 0-d numpy value as a Python float (scalar arithmetic is several times faster).
+
+    Arrays unchanged.
+    """
     return float(x) if np.ndim(x) == 0 else x
 
 
@@ -188,23 +278,35 @@ class JointForces(NamedTuple):
     inertia_kg_m2: object
     torque_constant_nm_a: object
     viscous_coefficient_nm_s_rad: object
-    stirring_torque_nm: object   # T_v at the motor shaft
-    external_torque_nm: object   # T_d at the output shaft
-    seal_torque_nm: object       # T_f at the output shaft
+    stirring_torque_nm: object  # T_v at the motor shaft
+    external_torque_nm: object  # T_d at the output shaft
+    seal_torque_nm: object  # T_f at the output shaft
 
 
 def joint_forces(t: float, velocity_rad_s, c: PlantConstants) -> JointForces:
-    """Parameters and loss torques at time ``t`` [s] and joint velocity q' [rad/s], eq. (6), (40)-(42)."""
+    """Parameters and loss torques, eq. (6), (40)-(42).
+
+    At time ``t`` [s] and joint velocity q' [rad/s].
+    """
     p = c.params
     n = p.nominal
     if p.with_drift:
         d = p.drift
-        inertia = n.inertia_kg_m2 * (1.0 + d.inertia_amplitude * xm.sin(d.inertia_frequency_rad_s * t))
+        inertia = n.inertia_kg_m2 * (
+            1.0 + d.inertia_amplitude * xm.sin(d.inertia_frequency_rad_s * t)
+        )
         torque_constant = n.torque_constant_nm_a * (
-            1.0 + d.torque_constant_amplitude * xm.cos(d.torque_constant_frequency_rad_s * t))
-        viscous = n.viscous_coefficient_nm_s_rad * (1.0 + d.viscous_amplitude * xm.cos(d.viscous_frequency_rad_s * t))
+            1.0 + d.torque_constant_amplitude * xm.cos(d.torque_constant_frequency_rad_s * t)
+        )
+        viscous = n.viscous_coefficient_nm_s_rad * (
+            1.0 + d.viscous_amplitude * xm.cos(d.viscous_frequency_rad_s * t)
+        )
     else:
-        inertia, torque_constant, viscous = n.inertia_kg_m2, n.torque_constant_nm_a, n.viscous_coefficient_nm_s_rad
+        inertia, torque_constant, viscous = (
+            n.inertia_kg_m2,
+            n.torque_constant_nm_a,
+            n.viscous_coefficient_nm_s_rad,
+        )
     stirring = c.stirring_coefficient_nm_s_rad * n.gear_ratio * velocity_rad_s
     if p.with_external_torque:
         e = p.external
@@ -213,18 +315,21 @@ def joint_forces(t: float, velocity_rad_s, c: PlantConstants) -> JointForces:
         external = 0.0 * t
     if p.with_seal_friction:
         # sign(0) = 0: at rest the seal friction is zero in this model (no stiction state).
-        seal = (c.seal_offset_nm + xm.exp(p.seal.velocity_coefficient_s_rad * xm.fabs(velocity_rad_s))) \
-            * xm.sign(velocity_rad_s)
+        seal = (
+            c.seal_offset_nm + xm.exp(p.seal.velocity_coefficient_s_rad * xm.fabs(velocity_rad_s))
+        ) * xm.sign(velocity_rad_s)
     else:
         seal = 0.0 * velocity_rad_s
     return JointForces(inertia, torque_constant, viscous, stirring, external, seal)
 
 
 def joint_acceleration(t: float, velocity_rad_s, current_a, c: PlantConstants):
-    """q'' from eq. (1): (k_t u - k_b N q' - T_v - T_d/N - T_f/N) / (J N) [rad/s^2]."""
+    """Compute q'' from eq. (1): (k_t u - k_b N q' - T_v - T_d/N - T_f/N) / (J N) [rad/s^2]."""
     f = joint_forces(t, velocity_rad_s, c)
     gear = c.params.nominal.gear_ratio
-    motor_torque = f.torque_constant_nm_a * current_a - f.viscous_coefficient_nm_s_rad * gear * velocity_rad_s
+    motor_torque = (
+        f.torque_constant_nm_a * current_a - f.viscous_coefficient_nm_s_rad * gear * velocity_rad_s
+    )
     load = f.stirring_torque_nm + (f.external_torque_nm + f.seal_torque_nm) / gear
     return (motor_torque - load) / (f.inertia_kg_m2 * gear)
 
@@ -242,7 +347,10 @@ class DisturbanceParts(NamedTuple):
 
 
 def disturbance_parts(t: float, velocity_rad_s, current_a, c: PlantConstants) -> DisturbanceParts:
-    """True lumped disturbance d = q'' - theta1n u - theta2n q' and its parts, eq. (4)-(5)."""
+    """Return the true lumped disturbance and its parts, eq. (4)-(5).
+
+    d = q'' - theta1n u - theta2n q'.
+    """
     f = joint_forces(t, velocity_rad_s, c)
     n = c.params.nominal
     gear = n.gear_ratio
@@ -250,8 +358,8 @@ def disturbance_parts(t: float, velocity_rad_s, current_a, c: PlantConstants) ->
     theta2 = -f.viscous_coefficient_nm_s_rad / f.inertia_kg_m2
     parametric = (theta1 - n.theta1n) * current_a + (theta2 - n.theta2n) * velocity_rad_s
     stirring = -f.stirring_torque_nm / (f.inertia_kg_m2 * gear)
-    external = -f.external_torque_nm / (f.inertia_kg_m2 * gear ** 2)
-    seal = -f.seal_torque_nm / (f.inertia_kg_m2 * gear ** 2)
+    external = -f.external_torque_nm / (f.inertia_kg_m2 * gear**2)
+    seal = -f.seal_torque_nm / (f.inertia_kg_m2 * gear**2)
     d = parametric + stirring + external + seal
     acceleration = n.theta1n * current_a + n.theta2n * velocity_rad_s + d
     return DisturbanceParts(acceleration, d, parametric, stirring, external, seal, f)
@@ -277,12 +385,12 @@ def rk4_step(t: float, position_rad, velocity_rad_s, current_a, dt: float, c: Pl
 
 
 def braked_step(t: float, position_rad, velocity_rad_s, current_a, dt: float, c: PlantConstants):
-    """Advance (q, q') by ``dt`` with the holding brake engaged (beyond the paper; README "Safety").
+    """Advance (q, q') by ``dt`` with the holding brake engaged.
 
-    The brake is a friction torque of up to T_h at the output shaft: it opposes motion with
-    T_h until the joint stops, and holds it at rest while the other torques stay below T_h.
-    Semi-implicit Euler on ``substeps`` sub-intervals; a sub-interval in which the velocity
-    would change sign ends at rest. Elementwise on arrays.
+    Beyond the paper; README "Safety". The brake is a friction torque of up to T_h at the output
+    shaft: it opposes motion with T_h until the joint stops, and holds it at rest while the other
+    torques stay below T_h. Semi-implicit Euler on ``substeps`` sub-intervals; a sub-interval in
+    which the velocity would change sign ends at rest. Elementwise on arrays.
     """
     n_sub = c.params.substeps
     h = dt / n_sub
@@ -291,9 +399,13 @@ def braked_step(t: float, position_rad, velocity_rad_s, current_a, dt: float, c:
     for i in range(n_sub):
         ts = t + i * h
         a_free = joint_acceleration(ts, x2, current_a, c)
-        a_hold = c.params.brake_holding_torque_nm / (joint_forces(ts, x2, c).inertia_kg_m2 * gear * gear)
+        a_hold = c.params.brake_holding_torque_nm / (
+            joint_forces(ts, x2, c).inertia_kg_m2 * gear * gear
+        )
         moving = x2 != 0.0
-        a_rest = xm.where(xm.fabs(a_free) <= a_hold, 0.0 * a_free, a_free - xm.sign(a_free) * a_hold)
+        a_rest = xm.where(
+            xm.fabs(a_free) <= a_hold, 0.0 * a_free, a_free - xm.sign(a_free) * a_hold
+        )
         a = xm.where(moving, a_free - xm.sign(x2) * a_hold, a_rest)
         v = x2 + h * a
         v = xm.where(moving & (xm.sign(v) != xm.sign(x2)), 0.0 * v, v)
@@ -306,9 +418,21 @@ class JointPlant:
     """The simulated joint as a sampled system: state (q, q') at sample k, t_k = k * dt."""
 
     def __init__(self, params: PlantParameters, dt_s: float, position_rad=0.0, velocity_rad_s=0.0):
-        """Start at sample 0 at rest at q = ``position_rad`` (arrays give one joint per element)."""
-        check_value('dt_s', dt_s, {'low': 1.0e-6, 'high': 1.0, 'low_open': False, 'unit': 's',
-                                   'description': 'sample time'})
+        """Start at sample 0 at rest at q = ``position_rad``.
+
+        Arrays give one joint per element.
+        """
+        check_value(
+            'dt_s',
+            dt_s,
+            {
+                'low': 1.0e-6,
+                'high': 1.0,
+                'low_open': False,
+                'unit': 's',
+                'description': 'sample time',
+            },
+        )
         self.constants = derive_constants(params)
         self.period_ns = period_ns(dt_s)
         self.dt_s = dt_s
@@ -327,15 +451,34 @@ class JointPlant:
         return sample_time_s(self.sample_index * self.period_ns)
 
     def step(self, current_a, brake=False) -> None:
-        """Integrate eq. (1) over [t_k, t_k+1] with ``current_a`` held (and the brake where engaged); k -> k + 1."""
-        free = rk4_step(self.time_s, self.position_rad, self.velocity_rad_s, current_a, self.dt_s, self.constants)
+        """Integrate eq. (1) over [t_k, t_k+1]; k -> k + 1.
+
+        With ``current_a`` held (and the brake where engaged).
+        """
+        free = rk4_step(
+            self.time_s,
+            self.position_rad,
+            self.velocity_rad_s,
+            current_a,
+            self.dt_s,
+            self.constants,
+        )
         if xm.any_true(brake):
-            held = braked_step(self.time_s, self.position_rad, self.velocity_rad_s, current_a, self.dt_s,
-                               self.constants)
+            held = braked_step(
+                self.time_s,
+                self.position_rad,
+                self.velocity_rad_s,
+                current_a,
+                self.dt_s,
+                self.constants,
+            )
             free = (xm.where(brake, held[0], free[0]), xm.where(brake, held[1], free[1]))
         self.position_rad, self.velocity_rad_s = free
         self.sample_index += 1
 
     def truth(self, current_a) -> DisturbanceParts:
-        """True acceleration and lumped disturbance at t_k, with ``current_a`` the current being applied."""
+        """Return the true acceleration and lumped disturbance at t_k.
+
+        With ``current_a`` the current being applied.
+        """
         return disturbance_parts(self.time_s, self.velocity_rad_s, current_a, self.constants)

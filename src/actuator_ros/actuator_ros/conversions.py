@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Message field conversions shared by the nodes."""
 
 from __future__ import annotations
@@ -11,7 +14,10 @@ def ns_to_stamp(ns: int) -> Time:
 
 
 def joint_position(msg, joint_name: str) -> float | None:
-    """The named joint's angle in a sensor_msgs/JointState (a sole unnamed joint is accepted), or None."""
+    """Return the named joint's angle in a sensor_msgs/JointState, or None.
+
+    A sole unnamed joint is accepted.
+    """
     if msg.name:
         if joint_name not in msg.name:
             return None

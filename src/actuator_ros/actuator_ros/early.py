@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Signals before a node runs: exit 0 quietly, never a KeyboardInterrupt traceback from an import.
 
 The entry point of every executable calls ``quiet_until_running`` before it imports rclpy
@@ -12,6 +15,9 @@ import signal
 
 
 def quiet_until_running() -> None:
-    """SIGINT and SIGTERM end the process at once with exit code 0 until the node installs its own."""
+    """Make SIGINT and SIGTERM end the process at once with exit code 0.
+
+    Until the node installs its own handlers.
+    """
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda *_: os._exit(0))

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Rate-limited logging that costs almost nothing when a message is suppressed."""
 
 from __future__ import annotations
@@ -33,7 +36,9 @@ class RateLimitedLog:
             return
         self.last_ns[key] = now
         skipped = self.suppressed.pop(key, 0)
-        text = message() + (f' ({skipped} more like this since the last report)' if skipped else '')
+        text = message() + (
+            f' ({skipped} more like this since the last report)' if skipped else ''
+        )
         # One call site per severity: rclpy refuses a severity change at the same call site.
         if level == 'error':
             self.logger.error(text)

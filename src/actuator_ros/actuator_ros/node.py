@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """ManagedNode: the lifecycle base of the plant, ESO and controller nodes (rclpy.lifecycle).
 
 States as in ros2_control's hardware lifecycle:
@@ -23,48 +26,90 @@ from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 
 from actuator_ros.log import RateLimitedLog
-from actuator_ros.parameters import (ParameterError, check_unknown_parameters, declare_choice, declare_common,
-                                     declare_number, declare_text, only_while_unconfigured)
+from actuator_ros.parameters import (
+    ParameterError,
+    check_unknown_parameters,
+    declare_choice,
+    declare_common,
+    declare_number,
+    declare_text,
+    only_while_unconfigured,
+)
 from actuator_ros.realtime import EXECUTORS, RealtimeSettings
 
 
 def declare_realtime(node, settings: RealtimeSettings) -> RealtimeSettings:
-    """Declare thread_priority, cpu_affinity and executor (applied before rclpy.init, see realtime)."""
+    """Declare thread_priority, cpu_affinity and executor.
+
+    Applied before rclpy.init, see realtime.
+    """
     return RealtimeSettings(
-        thread_priority=declare_number(node, 'thread_priority', settings.thread_priority, 0, 99, '',
-                                       'SCHED_FIFO priority of every thread of the process, applied before the '
-                                       'middleware starts (0: normal scheduling)'),
-        cpu_affinity=declare_text(node, 'cpu_affinity', settings.cpu_affinity,
-                                  'CPUs the process may run on, e.g. "1" or "0,1" (empty: any)'),
-        executor=declare_choice(node, 'executor', settings.executor, EXECUTORS,
-                                'rclpy executor: events (EventsExecutor, lower latency) or single_threaded'))
+        thread_priority=declare_number(
+            node,
+            'thread_priority',
+            settings.thread_priority,
+            0,
+            99,
+            '',
+            'SCHED_FIFO priority of every thread of the process, applied before the '
+            'middleware starts (0: normal scheduling)',
+        ),
+        cpu_affinity=declare_text(
+            node,
+            'cpu_affinity',
+            settings.cpu_affinity,
+            'CPUs the process may run on, e.g. "1" or "0,1" (empty: any)',
+        ),
+        executor=declare_choice(
+            node,
+            'executor',
+            settings.executor,
+            EXECUTORS,
+            'rclpy executor: events (EventsExecutor, lower latency) or single_threaded',
+        ),
+    )
 
 
 class ManagedNode(LifecycleNode):
     """Lifecycle plumbing; subclasses write load_parameters, build, start, stop, drop."""
 
-    def __init__(self, node_name: str, settings: RealtimeSettings = RealtimeSettings(), **kwargs) -> None:
-        """Declare and check every parameter (ParameterError: the process exits 2 with one line)."""
+    def __init__(
+        self, node_name: str, settings: RealtimeSettings = RealtimeSettings(), **kwargs
+    ) -> None:
+        """Declare and check every parameter.
+
+        ParameterError: the process exits 2 with one line.
+        """
         super().__init__(node_name, **kwargs)
         self.log = RateLimitedLog(self.get_logger())
         self.configured = False
         self.active = False
-        self.finished = False          # read by run_node: the run is over
+        self.finished = False  # read by run_node: the run is over
         self.error: str | None = None  # read by run_node: the run failed
         declare_common(self)
-        self.set_descriptor('use_sim_time', ParameterDescriptor(
-            name='use_sim_time', description='true: time from /clock (sim mode, the plant publishes it); '
-                                             'false: the system clock'))
+        self.set_descriptor(
+            'use_sim_time',
+            ParameterDescriptor(
+                name='use_sim_time',
+                description='true: time from /clock (sim mode, the plant publishes it); '
+                'false: the system clock',
+            ),
+        )
         self.settings = declare_realtime(self, settings)
         self.load_parameters()
         unknown = check_unknown_parameters(self)
         if unknown:
-            self.get_logger().warning(f'ignoring parameters this node does not have: {", ".join(unknown)}')
+            self.get_logger().warning(
+                f'ignoring parameters this node does not have: {", ".join(unknown)}'
+            )
         only_while_unconfigured(self)
 
     # --- what a node implements ---------------------------------------------------------------
     def load_parameters(self) -> None:
-        """Declare (first call) or read (at configure) and check every parameter; raise ParameterError."""
+        """Declare (first call) or read (at configure) and check every parameter.
+
+        Raise ParameterError.
+        """
 
     def build(self) -> None:
         """Build the core objects and create the topics; publish nothing."""
@@ -80,7 +125,10 @@ class ManagedNode(LifecycleNode):
 
     # --- transitions ----------------------------------------------------------------------------
     def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
-        """Parameters read and checked, core built; a refusal is logged and the node stays unconfigured."""
+        """Parameters read and checked, core built.
+
+        a refusal is logged and the node stays unconfigured.
+        """
         try:
             self.load_parameters()
             self.build()
@@ -117,8 +165,10 @@ class ManagedNode(LifecycleNode):
         return TransitionCallbackReturn.SUCCESS
 
     def on_error(self, state: LifecycleState) -> TransitionCallbackReturn:
-        """An exception in a transition: leave the joint safe, back to unconfigured."""
-        self.get_logger().error(f'error processing: {traceback.format_exc(limit=1).strip().splitlines()[-1]}')
+        """Handle an exception in a transition: leave the joint safe, back to unconfigured."""
+        self.get_logger().error(
+            f'error processing: {traceback.format_exc(limit=1).strip().splitlines()[-1]}'
+        )
         self._stop()
         self._drop()
         return TransitionCallbackReturn.SUCCESS
@@ -140,7 +190,10 @@ class ManagedNode(LifecycleNode):
             self.drop()
 
     def autostart(self) -> bool:
-        """configure and activate when the autostart parameter says so; False when a transition failed."""
+        """Configure and activate when the autostart parameter says so.
+
+        False when a transition failed.
+        """
         if not self.get_parameter('autostart').value:
             return True
         self.trigger_configure()

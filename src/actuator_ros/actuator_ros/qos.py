@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """QoS of the 1 kHz streams, chosen per run mode."""
 
 from __future__ import annotations
@@ -24,7 +27,15 @@ def control_qos(mode: str) -> QoSProfile:
     runs; 0 of 46 with 10000). A BEST_EFFORT subscriber matches either publisher.
     """
     if mode == 'sim':
-        return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=SIM_DEPTH, reliability=ReliabilityPolicy.RELIABLE,
-                          durability=DurabilityPolicy.VOLATILE)
-    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=REALTIME_DEPTH, reliability=ReliabilityPolicy.BEST_EFFORT,
-                      durability=DurabilityPolicy.VOLATILE)
+        return QoSProfile(
+            history=HistoryPolicy.KEEP_LAST,
+            depth=SIM_DEPTH,
+            reliability=ReliabilityPolicy.RELIABLE,
+            durability=DurabilityPolicy.VOLATILE,
+        )
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=REALTIME_DEPTH,
+        reliability=ReliabilityPolicy.BEST_EFFORT,
+        durability=DurabilityPolicy.VOLATILE,
+    )

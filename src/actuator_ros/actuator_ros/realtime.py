@@ -1,12 +1,16 @@
-"""Real-time settings as node parameters (ros2_control's thread_priority, cpu_affinity), applied before rclpy.init.
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
 
-SCHED_FIFO must be set before ``rclpy.init``: the middleware's threads (Fast DDS receive and
-event threads), which every message passes through, inherit the policy only if it is set
-before they exist (measured: plant-to-controller delivery p99 9.3 ms -> 0.17 ms). A node
-cannot read its parameters before init, so ``pre_init_settings`` reads these three from the
-same sources rcl will (``-p name:=value`` and ``--params-file`` sections for this node or
-``/**``), and the node declares them again afterwards so that ``ros2 param`` shows them.
-Memory is not locked (ros2_control's lock_memory): mlockall made 300-400 MB resident per node.
+"""Real-time settings as node parameters, applied before rclpy.init.
+
+They are ros2_control's thread_priority and cpu_affinity. SCHED_FIFO must be set before
+``rclpy.init``: the middleware's threads (Fast DDS receive and event threads), which every message
+passes through, inherit the policy only if it is set before they exist (measured:
+plant-to-controller delivery p99 9.3 ms -> 0.17 ms). A node cannot read its parameters before init,
+so ``pre_init_settings`` reads these three from the same sources rcl will (``-p name:=value`` and
+``--params-file`` sections for this node or ``/**``), and the node declares them again afterwards
+so that ``ros2 param`` shows them. Memory is not locked (ros2_control's lock_memory): mlockall made
+300-400 MB resident per node.
 """
 
 from __future__ import annotations
@@ -29,43 +33,58 @@ class RealtimeSettings:
     executor: str = 'events'
 
     def problems(self) -> list[str]:
-        """What is invalid, one line each."""
+        """Return what is invalid, one line each."""
         out = []
         if not isinstance(self.thread_priority, int) or not 0 <= self.thread_priority <= 99:
-            out.append(f'parameter \'thread_priority\' = {self.thread_priority!r} refused: an integer in [0, 99]')
+            out.append(
+                f"parameter 'thread_priority' = {self.thread_priority!r} refused: "
+                'an integer in [0, 99]'
+            )
         if self.executor not in EXECUTORS:
-            out.append(f'parameter \'executor\' = {self.executor!r} refused: one of {", ".join(EXECUTORS)}')
+            out.append(
+                f"parameter 'executor' = {self.executor!r} refused: one of {', '.join(EXECUTORS)}"
+            )
         try:
             self.cpus()
         except ValueError:
-            out.append(f'parameter \'cpu_affinity\' = {self.cpu_affinity!r} refused: a comma-separated CPU list '
-                       'such as "1" or "0,1"')
+            out.append(
+                f"parameter 'cpu_affinity' = {self.cpu_affinity!r} refused: "
+                'a comma-separated CPU list such as "1" or "0,1"'
+            )
         return out
 
     def cpus(self) -> set[int]:
-        """The CPU set, empty for no pinning."""
+        """Return the CPU set, empty for no pinning."""
         text = str(self.cpu_affinity).strip()
         return {int(c) for c in text.split(',')} if text else set()
 
     def apply(self) -> Optional[str]:
-        """Pin and raise the process (all threads created later inherit); return the refusal, if any."""
+        """Pin and raise the process (all threads created later inherit).
+
+        Return the refusal, if any.
+        """
         notes = []
         if self.cpus():
             try:
                 os.sched_setaffinity(0, self.cpus())
             except OSError as exc:
-                notes.append(f'cpu_affinity {self.cpu_affinity!r} refused by the kernel ({exc}); not pinned')
+                notes.append(
+                    f'cpu_affinity {self.cpu_affinity!r} refused by the kernel ({exc}); not pinned'
+                )
         if self.thread_priority:
             try:
                 os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(self.thread_priority))
             except OSError as exc:
-                notes.append(f'SCHED_FIFO priority {self.thread_priority} refused by the kernel ({exc}); running '
-                             'with normal scheduling (grant CAP_SYS_NICE or an rtprio limit to enable it)')
+                notes.append(
+                    f'SCHED_FIFO priority {self.thread_priority} refused by the kernel ({exc}); '
+                    'running with normal scheduling '
+                    '(grant CAP_SYS_NICE or an rtprio limit to enable it)'
+                )
         return '; '.join(notes) or None
 
 
 def _value(text: str):
-    """A ``-p`` value as rcl parses it (YAML scalar)."""
+    """Return a ``-p`` value as rcl parses it (YAML scalar)."""
     try:
         return yaml.safe_load(text)
     except yaml.YAMLError:
@@ -73,7 +92,10 @@ def _value(text: str):
 
 
 def pre_init_settings(args: Sequence[str], node_name: str) -> RealtimeSettings:
-    """The real-time parameters for ``node_name`` from ROS arguments, before rclpy exists (later wins)."""
+    """Return the real-time parameters for ``node_name`` from ROS arguments, before rclpy exists.
+
+    Later wins.
+    """
     found: dict = {}
     names = ('thread_priority', 'cpu_affinity', 'executor')
     in_ros, it = False, iter(list(args))
@@ -84,12 +106,14 @@ def pre_init_settings(args: Sequence[str], node_name: str) -> RealtimeSettings:
             in_ros = False
         elif in_ros and arg in ('-p', '--param'):
             name, _, text = next(it, '').partition(':=')
-            name = name.split(':')[-1]      # node:name form
+            name = name.split(':')[-1]  # node:name form
             if name in names:
                 found[name] = _value(text)
         elif in_ros and arg == '--params-file':
             found.update(_from_file(next(it, ''), node_name, names))
-    return RealtimeSettings(**{k: (str(v) if k == 'cpu_affinity' else v) for k, v in found.items()})
+    return RealtimeSettings(
+        **{k: (str(v) if k == 'cpu_affinity' else v) for k, v in found.items()}
+    )
 
 
 def _from_file(path: str, node_name: str, names: Sequence[str]) -> dict:
@@ -98,7 +122,7 @@ def _from_file(path: str, node_name: str, names: Sequence[str]) -> dict:
         with open(path) as f:
             data = yaml.safe_load(f) or {}
     except (OSError, yaml.YAMLError):
-        return {}   # rcl reports an unreadable file itself, with its own message
+        return {}  # rcl reports an unreadable file itself, with its own message
     out: dict = {}
     for key in ('/**', node_name, f'/{node_name}'):
         section = data.get(key, {}) if isinstance(data, dict) else {}

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """main() of every node: real-time settings, rclpy.init, the node, autostart, spin, clean exit.
 
 Exit codes: 0 after SIGINT or SIGTERM at any moment (no traceback) or when the node ended the
@@ -32,9 +35,13 @@ ACK_TIMEOUT_S = 5.0
 
 
 def make_executor(kind: str):
-    """The executor by name: 'events' (rclpy.experimental.EventsExecutor) or 'single_threaded'."""
+    """Return the executor by name.
+
+    'events' (rclpy.experimental.EventsExecutor) or 'single_threaded'.
+    """
     if kind == 'events':
         from rclpy.experimental import EventsExecutor
+
         return EventsExecutor()
     return SingleThreadedExecutor()
 
@@ -52,19 +59,28 @@ def spin_until(executor, done: Callable[[], bool]) -> None:
         executor.spin_until_future_complete(never, timeout_sec=0.1)
 
 
-def run_node(prog: str, description: str, node_factory: Callable[[RealtimeSettings], Node], node_name: str,
-             argv: Sequence[str] | None = None) -> int:
+def run_node(
+    prog: str,
+    description: str,
+    node_factory: Callable[[RealtimeSettings], Node],
+    node_name: str,
+    argv: Sequence[str] | None = None,
+) -> int:
     """Start a node the way ``ros2 run`` does and run it until a signal or its own end."""
     args = sys.argv[1:] if argv is None else list(argv)
     try:
         own_args = rclpy.utilities.remove_ros_args(args)
-    except Exception as exc:  # rcl's RCLInvalidROSArgsError: an unparsable parameter file, a bad --ros-args
+    except (
+        Exception
+    ) as exc:  # rcl's RCLInvalidROSArgsError: an unparsable params file, bad --ros-args
         print(f'{prog}: ROS arguments refused: {str(exc).splitlines()[0]}', file=sys.stderr)
         return 2
-    argparse.ArgumentParser(prog=prog, description=description,
-                            epilog='ROS arguments: --ros-args -p name:=value --params-file file.yaml; '
-                                   'real-time: -p thread_priority:=50 -p cpu_affinity:=1 -p executor:=events'
-                            ).parse_args(own_args)
+    argparse.ArgumentParser(
+        prog=prog,
+        description=description,
+        epilog='ROS arguments: --ros-args -p name:=value --params-file file.yaml; '
+        'real-time: -p thread_priority:=50 -p cpu_affinity:=1 -p executor:=events',
+    ).parse_args(own_args)
     settings = pre_init_settings(args, node_name)
     problems = settings.problems()
     if problems:
@@ -73,7 +89,7 @@ def run_node(prog: str, description: str, node_factory: Callable[[RealtimeSettin
     stop = threading.Event()
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda *_: stop.set())
-    refused = settings.apply()              # before rclpy.init: the middleware's threads inherit it
+    refused = settings.apply()  # before rclpy.init: the middleware's threads inherit it
     try:
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     except Exception as exc:  # rcl's RCLError: an unparsable parameter file, a bad --ros-args
@@ -89,11 +105,16 @@ def run_node(prog: str, description: str, node_factory: Callable[[RealtimeSettin
         if refused:
             node.get_logger().warning(refused)
         elif settings.thread_priority:
-            node.get_logger().info(f'running under SCHED_FIFO priority {settings.thread_priority} (all threads)')
+            node.get_logger().info(
+                f'running under SCHED_FIFO priority {settings.thread_priority} (all threads)'
+            )
         executor = make_executor(settings.executor)
         executor.add_node(node)
         if hasattr(node, 'autostart') and not node.autostart():
-            print(f'{prog}: autostart: configure or activate failed (see the log above)', file=sys.stderr)
+            print(
+                f'{prog}: autostart: configure or activate failed (see the log above)',
+                file=sys.stderr,
+            )
             return 2
         # Everything built so far lives for the whole run: move it out of the collector's view,
         # so a collection in the 1 kHz path scans only what the loop itself allocates.
@@ -109,27 +130,29 @@ def run_node(prog: str, description: str, node_factory: Callable[[RealtimeSettin
     finally:
         if node is not None:
             for signum in (signal.SIGINT, signal.SIGTERM):
-                signal.signal(signum, signal.SIG_IGN)   # a second Ctrl-C must not cut the clean-up short
+                signal.signal(
+                    signum, signal.SIG_IGN
+                )  # a second Ctrl-C must not cut the clean-up short
             managed = hasattr(node, 'halt')
             if managed:
-                node.halt()                  # stop acting (its last safe-stop command goes out)
+                node.halt()  # stop acting (its last safe-stop command goes out)
             elif hasattr(node, 'close'):
-                node.close()                 # a plain node (the benchmark's floor nodes)
+                node.close()  # a plain node (the benchmark's floor nodes)
             wait_for_acknowledgements(node)  # before the publishers are destroyed
             if managed:
-                node.on_shutdown(None)       # drop what it built
+                node.on_shutdown(None)  # drop what it built
             node.destroy_node()
         if rclpy.ok():
             rclpy.shutdown()
 
 
 def wait_for_acknowledgements(node: Node, timeout_s: float = ACK_TIMEOUT_S) -> bool:
-    """Before exit: let RELIABLE subscribers (the sim-mode recorder) receive all this node published.
+    """Before exit: let RELIABLE subscribers receive all this node published.
 
-    A process that exits takes the samples it has not delivered with it, and at the end of a
-    sim run the recorder is the furthest behind (2 s runs ended with the bag missing the last
-    68-159 samples). BEST_EFFORT publishers return at once. Logs, and returns False, when a
-    topic stayed unacknowledged.
+    Such as the sim-mode recorder. A process that exits takes the samples it has not delivered with
+    it, and at the end of a sim run the recorder is the furthest behind (2 s runs ended with the
+    bag missing the last 68-159 samples). BEST_EFFORT publishers return at once. Logs, and returns
+    False, when a topic stayed unacknowledged.
     """
     deadline = time.monotonic() + timeout_s
     unacked = []
@@ -138,7 +161,9 @@ def wait_for_acknowledgements(node: Node, timeout_s: float = ACK_TIMEOUT_S) -> b
         if not pub.wait_for_all_acked(Duration(seconds=left)):
             unacked.append(pub.topic_name)
     if unacked:
-        node.get_logger().warning(f'exiting with samples not acknowledged by every subscriber on '
-                                  f'{", ".join(unacked)} after {timeout_s:g} s: a RELIABLE subscriber (the recorder?) '
-                                  'missed them')
+        node.get_logger().warning(
+            f'exiting with samples not acknowledged by every subscriber on '
+            f'{", ".join(unacked)} after {timeout_s:g} s: a RELIABLE subscriber (the recorder?) '
+            'missed them'
+        )
     return not unacked

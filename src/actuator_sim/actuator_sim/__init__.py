@@ -1,1 +1,7 @@
-"""ROS-free closed loop, scenarios, offline simulation, stability analysis and the late-command study."""
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""ROS-free closed loop, scenarios, offline simulation.
+
+Stability analysis and the late-command study.
+"""

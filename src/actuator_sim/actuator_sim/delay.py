@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Command delay of the offline loop: the plant applies u(k - D), D samples after it was commanded.
 
 D = 0 is the paper's loop. D = 1 or 2 models a drive that takes the command one or two
@@ -19,10 +22,21 @@ class CommandDelay:
     """Shift register of the last D commands: ``apply(u(k))`` returns u(k - D)."""
 
     def __init__(self, samples, zero=0.0):
-        """Delay by ``samples`` (int or int array, 0..COMMAND_DELAY_MAX_SAMPLES); ``zero`` is 0 A of the run's shape."""
-        check_value('command_delay_samples', samples, {'low': 0.0, 'high': float(COMMAND_DELAY_MAX_SAMPLES),
-                                                       'low_open': False, 'unit': 'samples',
-                                                       'description': 'samples between command and application'})
+        """Delay by ``samples`` (int or int array, 0..COMMAND_DELAY_MAX_SAMPLES).
+
+        ``zero`` is 0 A of the run's shape.
+        """
+        check_value(
+            'command_delay_samples',
+            samples,
+            {
+                'low': 0.0,
+                'high': float(COMMAND_DELAY_MAX_SAMPLES),
+                'low_open': False,
+                'unit': 'samples',
+                'description': 'samples between command and application',
+            },
+        )
         delays = np.asarray(samples)
         if not np.all(delays == np.round(delays)):
             raise ValueError(f'command_delay_samples must be whole samples, got {samples}')
@@ -35,7 +49,9 @@ class CommandDelay:
         if np.ndim(self.samples) == 0:
             out = candidates[self.samples]
         else:
-            out = np.choose(self.samples, [np.broadcast_to(c, np.shape(self.samples)) for c in candidates])
+            out = np.choose(
+                self.samples, [np.broadcast_to(c, np.shape(self.samples)) for c in candidates]
+            )
         if self.history:
             self.history = candidates[:-1]
         return out

@@ -1,11 +1,14 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """The closed loop: the objects the three nodes hold, called in the order the nodes call them.
 
 Sample k (see docs/architecture.md), each step the same call a node makes:
   1. the plant samples y(k) = q(t_k)                      (plant node: ``JointPlant``);
   2. the observer pairing takes y(k)                      (ESO node: ``ObserverInputPairing``);
   3. the controller assembly takes x_hat(k) and y(k) and
-     runs the law for u(k)                                (controller node: ``ControlSampleAssembly``);
-  4. the drive's gate takes u(k) and holds it             (plant node: ``CommandGate``);
+     runs the law for u(k)                 (controller node: ``ControlSampleAssembly``);
+  4. the drive's gate takes u(k) and holds it (plant node: ``CommandGate``);
   5. the pairing takes u(k): one observer step to x_hat(k+1);
   6. the plant integrates [t_k, t_k+1) with the held current.
 The nodes hold these same classes (``actuator_core``), so a run in deterministic sim time
@@ -33,9 +36,18 @@ from actuator_plant.model import JointPlant, PlantParameters
 from actuator_sim.delay import CommandDelay
 
 #: Per-sample quantities recorded besides the controller's own ControlOutput fields.
-EXTRA_FIELDS = ('t_s', 'reference_position_rad', 'reference_velocity_rad_s', 'reference_acceleration_rad_s2',
-                'measured_position_rad', 'x1_hat_rad', 'x2_hat_rad_s', 'x3_hat_rad_s2',
-                'true_velocity_rad_s', 'true_disturbance_rad_s2')
+EXTRA_FIELDS = (
+    't_s',
+    'reference_position_rad',
+    'reference_velocity_rad_s',
+    'reference_acceleration_rad_s2',
+    'measured_position_rad',
+    'x1_hat_rad',
+    'x2_hat_rad_s',
+    'x3_hat_rad_s2',
+    'true_velocity_rad_s',
+    'true_disturbance_rad_s2',
+)
 TRACE_FIELDS = EXTRA_FIELDS + ControlOutput._fields + ('status',)
 NAN = float('nan')
 
@@ -67,25 +79,39 @@ class ClosedLoop:
     """Plant, observer, controller and drive gate, advanced one sample per ``step``."""
 
     def __init__(self, scenario: Scenario, batch: int | None = None):
-        """Build the run; ``batch`` = n runs the same scenario n times at once (states are arrays)."""
+        """Build the run.
+
+        ``batch`` = n runs the same scenario n times at once (states are arrays).
+        """
         dt = scenario.common.dt_s
         zero = 0.0 if batch is None else np.zeros(batch)
         self.scenario = scenario
         self.period_ns = period_ns(dt)
         self.plant = JointPlant(scenario.plant, dt, position_rad=zero, velocity_rad_s=zero)
         self.eso = ExtendedStateObserver(scenario.eso, dt, x_hat0=(zero, zero, zero))
-        self.pairing = ObserverInputPairing(self.eso, self.period_ns, self.eso.correction, SIM_PATIENCE_SAMPLES)
+        self.pairing = ObserverInputPairing(
+            self.eso, self.period_ns, self.eso.correction, SIM_PATIENCE_SAMPLES
+        )
         law = make_controller(scenario.controller, scenario.gains, scenario.common)
-        self.assembly = ControlSampleAssembly(law, make_reference(scenario.reference), self.period_ns,
-                                              needs_estimate=scenario.controller != 'pi')
+        self.assembly = ControlSampleAssembly(
+            law,
+            make_reference(scenario.reference),
+            self.period_ns,
+            needs_estimate=scenario.controller != 'pi',
+        )
         self.gate = CommandGate(scenario.common.current_limit_a)
         self.gate.activate()
         self.sample_index = 0
         self.held_current = zero
         self.estimate = None
-        self.encoder = None if scenario.encoder is None else Encoder.from_parameters(scenario.encoder)
-        self.command_delay = CommandDelay(scenario.command_delay_samples, zero) \
-            if np.any(np.asarray(scenario.command_delay_samples) != 0) else None
+        self.encoder = (
+            None if scenario.encoder is None else Encoder.from_parameters(scenario.encoder)
+        )
+        self.command_delay = (
+            CommandDelay(scenario.command_delay_samples, zero)
+            if np.any(np.asarray(scenario.command_delay_samples) != 0)
+            else None
+        )
 
     def step(self, command_lost: bool = False, eso_integrates_applied: bool = False) -> dict:
         """Run sample k in the node order; return every recorded quantity of that sample.
@@ -103,8 +129,14 @@ class ClosedLoop:
         truth = self.plant.truth(self.held_current)
         for estimate in self.pairing.add_measurement(stamp, y):
             self.estimate = estimate
-            self.assembly.add_estimate(estimate.sample_ns, estimate.x_hat[1], estimate.x_hat[2], estimate.input_ns,
-                                       estimate.input_current_a, self.eso.dt_s * self.eso.gains.theta1n)
+            self.assembly.add_estimate(
+                estimate.sample_ns,
+                estimate.x_hat[1],
+                estimate.x_hat[2],
+                estimate.input_ns,
+                estimate.input_current_a,
+                self.eso.dt_s * self.eso.gains.theta1n,
+            )
         x1_hat, x2_hat, x3_hat = self.estimate.x_hat
         sample = self.assembly.add_measurement(stamp, y)
         if not command_lost:
@@ -112,25 +144,52 @@ class ClosedLoop:
         applied = self.gate.hold(stamp).current_a
         if self.command_delay is not None:
             applied = self.command_delay.apply(applied)
-        for estimate in self.pairing.add_command(stamp, applied if eso_integrates_applied else sample.current_a):
+        for estimate in self.pairing.add_command(
+            stamp, applied if eso_integrates_applied else sample.current_a
+        ):
             self.estimate = estimate
-            self.assembly.add_estimate(estimate.sample_ns, estimate.x_hat[1], estimate.x_hat[2], estimate.input_ns,
-                                       estimate.input_current_a, self.eso.dt_s * self.eso.gains.theta1n)
+            self.assembly.add_estimate(
+                estimate.sample_ns,
+                estimate.x_hat[1],
+                estimate.x_hat[2],
+                estimate.input_ns,
+                estimate.input_current_a,
+                self.eso.dt_s * self.eso.gains.theta1n,
+            )
         self.plant.step(applied)
         self.held_current = applied
         self.sample_index += 1
         ref = sample.reference
-        record = dict(zip(EXTRA_FIELDS, (t, NAN if ref is None else ref.position_rad,
-                                         NAN if ref is None else ref.velocity_rad_s,
-                                         NAN if ref is None else ref.acceleration_rad_s2, y, x1_hat, x2_hat, x3_hat,
-                                         velocity, truth.disturbance_rad_s2)))
+        record = dict(
+            zip(
+                EXTRA_FIELDS,
+                (
+                    t,
+                    NAN if ref is None else ref.position_rad,
+                    NAN if ref is None else ref.velocity_rad_s,
+                    NAN if ref is None else ref.acceleration_rad_s2,
+                    y,
+                    x1_hat,
+                    x2_hat,
+                    x3_hat,
+                    velocity,
+                    truth.disturbance_rad_s2,
+                ),
+            )
+        )
         # A latched sample (the law did not run) records NaN, as the controller node publishes it.
-        record.update(dict.fromkeys(ControlOutput._fields, NAN) if sample.output is None else sample.output._asdict())
+        record.update(
+            dict.fromkeys(ControlOutput._fields, NAN)
+            if sample.output is None
+            else sample.output._asdict()
+        )
         record['current_a'] = sample.current_a
         record['status'] = sample.status
         return record
 
-    def run(self, samples: int | None = None, stop_on_divergence: bool = True) -> dict[str, np.ndarray]:
+    def run(
+        self, samples: int | None = None, stop_on_divergence: bool = True
+    ) -> dict[str, np.ndarray]:
         """Run ``samples`` samples (default: the scenario's) and return the trace as arrays.
 
         A run whose state stops being finite, whose error passes ``DIVERGENCE_ERROR_RAD``, or

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """The paper's simulation cases (section 5.3) as scenarios, with the numbers it reports.
 
 Case 1 (Table 5): PP-NFTSMC-ESO on the slow and the fast trajectory, in the laboratory
@@ -21,8 +24,12 @@ from actuator_controller.laws import SmcGains
 from actuator_plant.model import PlantParameters, WorkingCondition
 
 #: Table 5: maximum steady-state tracking error [rad] of PP-NFTSMC-ESO.
-PAPER_TABLE5 = {('slow', 'lab'): 2.55e-4, ('slow', 'deep_sea'): 4.89e-4,
-                ('fast', 'lab'): 4.36e-4, ('fast', 'deep_sea'): 6.96e-4}
+PAPER_TABLE5 = {
+    ('slow', 'lab'): 2.55e-4,
+    ('slow', 'deep_sea'): 4.89e-4,
+    ('fast', 'lab'): 4.36e-4,
+    ('fast', 'deep_sea'): 6.96e-4,
+}
 #: Table 6: maximum steady-state tracking error [rad], fast trajectory, deep sea.
 PAPER_TABLE6 = {'pi': 1.84e-2, 'smc_eso': 1.71e-2, 'nftsmc_eso': 6.64e-3, 'pp_nftsmc_eso': 6.96e-4}
 
@@ -32,37 +39,70 @@ CONDITIONS = {'lab': WorkingCondition.lab, 'deep_sea': WorkingCondition.deep_sea
 SMC_TARGET_RADIUS = 0.95
 
 
-def paper_scenario(name: str, controller: str, reference: str, condition: str, duration_s: float = 10.0,
-                   gains=None) -> Scenario:
-    """A scenario of section 5.3 with Table 1-4 parameters in the named condition."""
+def paper_scenario(
+    name: str,
+    controller: str,
+    reference: str,
+    condition: str,
+    duration_s: float = 10.0,
+    gains=None,
+) -> Scenario:
+    """Return a scenario of section 5.3 with Table 1-4 parameters in the named condition."""
     plant = PlantParameters(condition=CONDITIONS[condition]())
-    return Scenario(name=name, controller=controller, reference=reference, plant=plant, gains=gains,
-                    duration_s=duration_s)
+    return Scenario(
+        name=name,
+        controller=controller,
+        reference=reference,
+        plant=plant,
+        gains=gains,
+        duration_s=duration_s,
+    )
 
 
 def case1(duration_s: float = 10.0) -> list[tuple[Scenario, float]]:
     """Case 1: (scenario, Table 5 value) for the four runs."""
-    return [(paper_scenario(f'case1_{ref}_{cond}', 'pp_nftsmc_eso', ref, cond, duration_s), PAPER_TABLE5[(ref, cond)])
-            for ref in ('slow', 'fast') for cond in ('lab', 'deep_sea')]
+    return [
+        (
+            paper_scenario(f'case1_{ref}_{cond}', 'pp_nftsmc_eso', ref, cond, duration_s),
+            PAPER_TABLE5[(ref, cond)],
+        )
+        for ref in ('slow', 'fast')
+        for cond in ('lab', 'deep_sea')
+    ]
 
 
 def smc_substitute_gains() -> tuple[SmcGains, float]:
     """SMC-ESO gains k1, k2 scaled to reach ``SMC_TARGET_RADIUS`` at 1 kHz, and the factor used."""
     from actuator_sim.stability import largest_stable_scale
+
     printed = SmcGains()
     scale = largest_stable_scale('smc_eso', printed, ('k1_per_s', 'k2_per_s'), SMC_TARGET_RADIUS)
     if scale is None:
         raise RuntimeError('no common scale of k1, k2 stabilises SMC-ESO at this sample time')
-    return dataclasses.replace(printed, k1_per_s=printed.k1_per_s * scale, k2_per_s=printed.k2_per_s * scale), scale
+    return dataclasses.replace(
+        printed, k1_per_s=printed.k1_per_s * scale, k2_per_s=printed.k2_per_s * scale
+    ), scale
 
 
 def case2(duration_s: float = 10.0) -> list[tuple[Scenario, float]]:
     """Case 2: (scenario, Table 6 value) for the four controllers, plus SMC-ESO as printed."""
-    runs = [(paper_scenario(f'case2_{c}', c, 'fast', 'deep_sea', duration_s), PAPER_TABLE6[c])
-            for c in ('pi', 'nftsmc_eso', 'pp_nftsmc_eso')]
+    runs = [
+        (paper_scenario(f'case2_{c}', c, 'fast', 'deep_sea', duration_s), PAPER_TABLE6[c])
+        for c in ('pi', 'nftsmc_eso', 'pp_nftsmc_eso')
+    ]
     substitute, _ = smc_substitute_gains()
-    runs.insert(1, (paper_scenario('case2_smc_eso_printed', 'smc_eso', 'fast', 'deep_sea', duration_s),
-                    PAPER_TABLE6['smc_eso']))
-    runs.insert(2, (paper_scenario('case2_smc_eso', 'smc_eso', 'fast', 'deep_sea', duration_s, substitute),
-                    PAPER_TABLE6['smc_eso']))
+    runs.insert(
+        1,
+        (
+            paper_scenario('case2_smc_eso_printed', 'smc_eso', 'fast', 'deep_sea', duration_s),
+            PAPER_TABLE6['smc_eso'],
+        ),
+    )
+    runs.insert(
+        2,
+        (
+            paper_scenario('case2_smc_eso', 'smc_eso', 'fast', 'deep_sea', duration_s, substitute),
+            PAPER_TABLE6['smc_eso'],
+        ),
+    )
     return runs

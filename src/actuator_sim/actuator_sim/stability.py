@@ -1,4 +1,7 @@
-"""Is a gain set stable at a sample time and loop delay? Spectral radius of the linearised sampled loop.
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""Is a gain set stable at a sample time and delay? Spectral radius of the linearised sampled loop.
 
 The loop of ``closed_loop`` (ideal plant (5) with d = 0, forward-Euler ESO (15), controller)
 is one nonlinear map X(k+1) = F(X(k)) over the state
@@ -37,28 +40,57 @@ _REST = ReferenceSample(0.0, 0.0, 0.0)
 
 
 def linearised_gains(gains, t_s: float, error_amplitude_rad: float, z2_amplitude_rad_s: float):
-    """The gains with eta = 0 and the signed powers replaced by their slope at the operating amplitude."""
+    """Return the gains with eta = 0 and the signed powers linearised.
+
+    The signed powers are replaced by their slope at the operating amplitude.
+    """
     changes: dict = {}
     if hasattr(gains, 'eta_rad_s2'):
         changes['eta_rad_s2'] = 0.0
     if hasattr(gains, 'alpha1'):
-        z1_amplitude = error_amplitude_rad / gains.ppf.rho(t_s) if hasattr(gains, 'ppf') else error_amplitude_rad
-        changes.update(k1=gains.k1 * gains.alpha1 * z1_amplitude ** (gains.alpha1 - 1.0), alpha1=1.0,
-                       k2=gains.k2 * gains.alpha2 * z2_amplitude_rad_s ** (gains.alpha2 - 1.0), alpha2=1.0)
+        z1_amplitude = (
+            error_amplitude_rad / gains.ppf.rho(t_s)
+            if hasattr(gains, 'ppf')
+            else error_amplitude_rad
+        )
+        changes.update(
+            k1=gains.k1 * gains.alpha1 * z1_amplitude ** (gains.alpha1 - 1.0),
+            alpha1=1.0,
+            k2=gains.k2 * gains.alpha2 * z2_amplitude_rad_s ** (gains.alpha2 - 1.0),
+            alpha2=1.0,
+        )
     return dataclasses.replace(gains, **changes)
 
 
-def loop_jacobian(controller_name: str, gains=None, eso: EsoGains | None = None, dt_s: float = 1.0e-3,
-                  t_s: float = 0.0, plant_delay: int = 0, eso_delay: int = 0,
-                  plant: PlantParameters | None = None, error_amplitude_rad: float = 1.0e-3,
-                  z2_amplitude_rad_s: float = 1.0e-2) -> np.ndarray:
+def loop_jacobian(
+    controller_name: str,
+    gains=None,
+    eso: EsoGains | None = None,
+    dt_s: float = 1.0e-3,
+    t_s: float = 0.0,
+    plant_delay: int = 0,
+    eso_delay: int = 0,
+    plant: PlantParameters | None = None,
+    error_amplitude_rad: float = 1.0e-3,
+    z2_amplitude_rad_s: float = 1.0e-2,
+) -> np.ndarray:
     """Transition matrix of the sampled loop at the origin with time frozen at ``t_s``."""
-    gains = linearised_gains(gains if gains is not None else GAINS_BY_NAME[controller_name](), t_s,
-                             error_amplitude_rad, z2_amplitude_rad_s)
+    gains = linearised_gains(
+        gains if gains is not None else GAINS_BY_NAME[controller_name](),
+        t_s,
+        error_amplitude_rad,
+        z2_amplitude_rad_s,
+    )
     eso = eso or EsoGains()
-    plant_params = dataclasses.replace(plant or PlantParameters(), with_drift=False, with_external_torque=False,
-                                       with_seal_friction=False)
-    common = CommonConfig(theta1n=eso.theta1n, theta2n=eso.theta2n, dt_s=dt_s, current_limit_a=1.0e3)
+    plant_params = dataclasses.replace(
+        plant or PlantParameters(),
+        with_drift=False,
+        with_external_torque=False,
+        with_seal_friction=False,
+    )
+    common = CommonConfig(
+        theta1n=eso.theta1n, theta2n=eso.theta2n, dt_s=dt_s, current_limit_a=1.0e3
+    )
     with_integral = make_controller(controller_name, gains, common).has_integral
     history = max(plant_delay, eso_delay)
     base_size = 6 if with_integral else 5
@@ -71,13 +103,23 @@ def loop_jacobian(controller_name: str, gains=None, eso: EsoGains | None = None,
         if with_integral:
             controller.integral = x[5]
         y = joint.position_rad
-        u_now = float(controller.update(t_s, y, observer.x2_hat, observer.x3_hat, _REST).current_unlimited_a)
-        u_hist = [u_now] + list(x[base_size:base_size + history])
+        u_now = float(
+            controller.update(t_s, y, observer.x2_hat, observer.x3_hat, _REST).current_unlimited_a
+        )
+        u_hist = [u_now] + list(x[base_size : base_size + history])
         observer.update(y, u_hist[eso_delay])
         joint.step(u_hist[plant_delay])
         integral = [controller.integral] if with_integral else []
-        return np.array([joint.position_rad, joint.velocity_rad_s, *observer.state, *integral,
-                         *u_hist[:history]], dtype=float)
+        return np.array(
+            [
+                joint.position_rad,
+                joint.velocity_rad_s,
+                *observer.state,
+                *integral,
+                *u_hist[:history],
+            ],
+            dtype=float,
+        )
 
     jac = np.zeros((size, size))
     base = np.zeros(size)
@@ -94,22 +136,31 @@ def spectral_radius(jacobian: np.ndarray) -> float:
     return float(np.max(np.abs(np.linalg.eigvals(jacobian))))
 
 
-def radius_along_envelope(controller_name: str, gains=None, times_s: Sequence[float] = (0.0, 2.0, 5.0, 10.0),
-                          **kwargs) -> list[tuple[float, float]]:
+def radius_along_envelope(
+    controller_name: str, gains=None, times_s: Sequence[float] = (0.0, 2.0, 5.0, 10.0), **kwargs
+) -> list[tuple[float, float]]:
     """(t, spectral radius) at each frozen time; the worst one decides stability."""
-    return [(t, spectral_radius(loop_jacobian(controller_name, gains, t_s=t, **kwargs))) for t in times_s]
+    return [
+        (t, spectral_radius(loop_jacobian(controller_name, gains, t_s=t, **kwargs)))
+        for t in times_s
+    ]
 
 
-def largest_stable_scale(controller_name: str, gains, fields: Sequence[str], target_radius: float = 0.95,
-                         **kwargs) -> float | None:
-    """Largest factor s on a log grid in [1e-4, 1] such that scaling ``fields`` by s gives radius <= target.
+def largest_stable_scale(
+    controller_name: str, gains, fields: Sequence[str], target_radius: float = 0.95, **kwargs
+) -> float | None:
+    """Largest factor s on a log grid in [1e-4, 1] that meets the target.
 
-    The radius is not monotonic in s (small gains leave slow poles near 1), so the grid is
-    scanned from 1 downwards; None when no factor reaches the target.
+    That is: scaling ``fields`` by s gives radius <= target. The radius is not monotonic in s
+    (small gains leave slow poles near 1), so the grid is scanned from 1 downwards; None when no
+    factor reaches the target.
     """
     for scale in np.logspace(0.0, -4.0, 161):
         scaled = dataclasses.replace(gains, **{f: getattr(gains, f) * scale for f in fields})
-        if max(r for _, r in radius_along_envelope(controller_name, scaled, **kwargs)) <= target_radius:
+        if (
+            max(r for _, r in radius_along_envelope(controller_name, scaled, **kwargs))
+            <= target_radius
+        ):
             return float(scale)
     return None
 
@@ -120,8 +171,10 @@ def _parse_overrides(items: Sequence[str], gains):
     for item in items:
         name, _, text = item.partition('=')
         if name not in {f.name for f in dataclasses.fields(gains)}:
-            raise SystemExit(f'stability_check: {name!r} is not a gain of this controller '
-                             f'({", ".join(f.name for f in dataclasses.fields(gains))})')
+            raise SystemExit(
+                f'stability_check: {name!r} is not a gain of this controller '
+                f'({", ".join(f.name for f in dataclasses.fields(gains))})'
+            )
         values[name] = float(text)
     return dataclasses.replace(gains, **values)
 
@@ -130,27 +183,60 @@ def main(argv: Sequence[str] | None = None) -> int:
     """CLI: print the spectral radius along the envelope and whether the gain set is stable."""
     parser = argparse.ArgumentParser(prog='stability_check', description=__doc__.splitlines()[0])
     parser.add_argument('--controller', choices=CONTROLLER_NAMES, default='pp_nftsmc_eso')
-    parser.add_argument('--set', nargs='*', default=[], metavar='GAIN=VALUE', help='override Table 4 gains')
+    parser.add_argument(
+        '--set', nargs='*', default=[], metavar='GAIN=VALUE', help='override Table 4 gains'
+    )
     parser.add_argument('--dt', type=float, default=1.0e-3, help='sample time [s]')
-    parser.add_argument('--plant-delay', type=int, default=0, help='samples between command and its application')
-    parser.add_argument('--eso-delay', type=int, default=0, help='samples by which the ESO current lags the command')
-    parser.add_argument('--times', type=float, nargs='*', default=[0.0, 1.0, 2.0, 5.0, 10.0], help='frozen times [s]')
+    parser.add_argument(
+        '--plant-delay', type=int, default=0, help='samples between command and its application'
+    )
+    parser.add_argument(
+        '--eso-delay',
+        type=int,
+        default=0,
+        help='samples by which the ESO current lags the command',
+    )
+    parser.add_argument(
+        '--times',
+        type=float,
+        nargs='*',
+        default=[0.0, 1.0, 2.0, 5.0, 10.0],
+        help='frozen times [s]',
+    )
     parser.add_argument('--json', action='store_true', help='print JSON instead of a table')
     args = parser.parse_args(argv)
     if args.plant_delay < 0 or args.eso_delay < 0 or not args.dt > 0:
         parser.error('delays must be >= 0 and dt > 0')
     gains = _parse_overrides(args.set, GAINS_BY_NAME[args.controller]())
-    rows = radius_along_envelope(args.controller, gains, args.times, dt_s=args.dt, plant_delay=args.plant_delay,
-                                 eso_delay=args.eso_delay)
+    rows = radius_along_envelope(
+        args.controller,
+        gains,
+        args.times,
+        dt_s=args.dt,
+        plant_delay=args.plant_delay,
+        eso_delay=args.eso_delay,
+    )
     worst = max(r for _, r in rows)
     if args.json:
-        print(json.dumps({'controller': args.controller, 'gains': dataclasses.asdict(gains), 'dt_s': args.dt,
-                          'plant_delay': args.plant_delay, 'eso_delay': args.eso_delay,
-                          'radius': [{'t_s': t, 'spectral_radius': r} for t, r in rows],
-                          'stable': worst < 1.0}, default=str))
+        print(
+            json.dumps(
+                {
+                    'controller': args.controller,
+                    'gains': dataclasses.asdict(gains),
+                    'dt_s': args.dt,
+                    'plant_delay': args.plant_delay,
+                    'eso_delay': args.eso_delay,
+                    'radius': [{'t_s': t, 'spectral_radius': r} for t, r in rows],
+                    'stable': worst < 1.0,
+                },
+                default=str,
+            )
+        )
     else:
-        print(f'{args.controller} at dt = {args.dt * 1e3:g} ms, plant delay {args.plant_delay}, '
-              f'ESO delay {args.eso_delay} samples')
+        print(
+            f'{args.controller} at dt = {args.dt * 1e3:g} ms, plant delay {args.plant_delay}, '
+            f'ESO delay {args.eso_delay} samples'
+        )
         for t, r in rows:
             print(f'  t = {t:6.2f} s   spectral radius {r:.6f}')
         print(f'  {"STABLE" if worst < 1.0 else "UNSTABLE"} (worst radius {worst:.6f})')

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Command lines: ``sweep``, ``sweep-bench``, ``design_gains`` and ``sweep-compare``.
 
 Bad input (an unknown quantity, an empty or inverted range, a sample count of 0, an
@@ -30,9 +33,15 @@ def _scenario_arguments(parser: argparse.ArgumentParser) -> None:
     """Options shared by every command: the base scenario."""
     parser.add_argument('--controller', choices=CONTROLLER_NAMES, default='pp_nftsmc_eso')
     parser.add_argument('--reference', choices=REFERENCES, default='fast')
-    parser.add_argument('--condition', choices=tuple(CONDITIONS), default='deep_sea',
-                        help='base working condition (depth_m / condition.* override it)')
-    parser.add_argument('--duration', type=float, default=10.0, help='simulated seconds per run (default 10)')
+    parser.add_argument(
+        '--condition',
+        choices=tuple(CONDITIONS),
+        default='deep_sea',
+        help='base working condition (depth_m / condition.* override it)',
+    )
+    parser.add_argument(
+        '--duration', type=float, default=10.0, help='simulated seconds per run (default 10)'
+    )
 
 
 class _OneLineParser(argparse.ArgumentParser):
@@ -47,47 +56,97 @@ def sweep_main(argv: Sequence[str] | None = None) -> int:
     """``sweep``: grid, Monte Carlo or Latin hypercube study of the closed loop."""
     from actuator_studies.distributed import ChunkFailed, InjectedFailure
     from actuator_studies.sweep import SweepRequest, run_sweep
-    p = _OneLineParser(prog='sweep', description='Sweep scenario quantities through the vectorised closed loop.')
-    p.add_argument('--vary', action='append', default=[], metavar='NAME=LOW:HIGH[:N]|V1,V2,...',
-                   help='a varied quantity (grid: N points or the listed values; mc/lhs: uniform on the range)')
-    p.add_argument('--set', action='append', default=[], metavar='NAME=VALUE', help='a fixed quantity')
+
+    p = _OneLineParser(
+        prog='sweep', description='Sweep scenario quantities through the vectorised closed loop.'
+    )
+    p.add_argument(
+        '--vary',
+        action='append',
+        default=[],
+        metavar='NAME=LOW:HIGH[:N]|V1,V2,...',
+        help='a varied quantity '
+        '(grid: N points or the listed values; mc/lhs: uniform on the range)',
+    )
+    p.add_argument(
+        '--set', action='append', default=[], metavar='NAME=VALUE', help='a fixed quantity'
+    )
     p.add_argument('--method', choices=METHODS, default='grid')
     p.add_argument('--samples', type=int, default=0, help='draws for mc/lhs')
-    p.add_argument('--seed', type=int, default=0, help='seed of the draws and of every run\'s encoder noise')
+    p.add_argument(
+        '--seed', type=int, default=0, help="seed of the draws and of every run's encoder noise"
+    )
     p.add_argument('--batch', type=int, default=64, help='runs per vectorised chunk (default 64)')
-    p.add_argument('--gains', default='', help='gains YAML (as design_gains writes) instead of Table 4')
+    p.add_argument(
+        '--gains', default='', help='gains YAML (as design_gains writes) instead of Table 4'
+    )
     _scenario_arguments(p)
-    p.add_argument('--out', type=Path, required=True, help='output folder (must not exist, unless --resume)')
-    p.add_argument('--resume', action='store_true', help='continue a study in --out, skipping finished chunks')
+    p.add_argument(
+        '--out', type=Path, required=True, help='output folder (must not exist, unless --resume)'
+    )
+    p.add_argument(
+        '--resume', action='store_true', help='continue a study in --out, skipping finished chunks'
+    )
     p.add_argument('--ray', default='', metavar='local:N|ADDRESS', help='run chunks as Ray tasks')
-    p.add_argument('--plot', default='', metavar='X,Y', help='the two quantities of the maps (default: first two)')
+    p.add_argument(
+        '--plot',
+        default='',
+        metavar='X,Y',
+        help='the two quantities of the maps (default: first two)',
+    )
     p.add_argument('--no-progress', action='store_true')
-    p.add_argument('--inject-failure', default='', help=argparse.SUPPRESS)   # tests: CHUNK:MODE:MARKER
+    p.add_argument(
+        '--inject-failure', default='', help=argparse.SUPPRESS
+    )  # tests: CHUNK:MODE:MARKER
     a = p.parse_args(argv)
-    req = SweepRequest(vary=a.vary, set=a.set, method=a.method, samples=a.samples, seed=a.seed, batch=a.batch,
-                       controller=a.controller, reference=a.reference, condition=a.condition,
-                       duration_s=a.duration, gains=a.gains)
+    req = SweepRequest(
+        vary=a.vary,
+        set=a.set,
+        method=a.method,
+        samples=a.samples,
+        seed=a.seed,
+        batch=a.batch,
+        controller=a.controller,
+        reference=a.reference,
+        condition=a.condition,
+        duration_s=a.duration,
+        gains=a.gains,
+    )
     inject = None
     if a.inject_failure:
         chunk, mode, marker = a.inject_failure.split(':', 2)
         inject = InjectedFailure(int(chunk), marker, mode)
     try:
-        summary = run_sweep(req, a.out, a.resume, a.ray, tuple(x for x in a.plot.split(',') if x), inject,
-                            progress=not a.no_progress)
+        summary = run_sweep(
+            req,
+            a.out,
+            a.resume,
+            a.ray,
+            tuple(x for x in a.plot.split(',') if x),
+            inject,
+            progress=not a.no_progress,
+        )
     except StudyInputError as exc:
         return _fail('sweep', str(exc))
     except ChunkFailed as exc:
         print(f'sweep: {exc}; the finished chunks are kept, rerun with --resume', file=sys.stderr)
         return 1
     err = summary['max_steady_error_rad']
-    print(f"sweep: {summary['runs']} runs ({summary['chunks']} chunks, {summary['chunks_resumed']} resumed), "
-          f"{summary['diverged']} diverged, {summary['saturated_runs']} saturated, "
-          f"{summary['envelope_violated_runs']} left the envelope; max ss error median "
-          f"{err.get('median', float('nan')):.3e} rad, max {err.get('max', float('nan')):.3e} rad")
+    print(
+        f'sweep: {summary["runs"]} runs ({summary["chunks"]} chunks, '
+        f'{summary["chunks_resumed"]} resumed), '
+        f'{summary["diverged"]} diverged, {summary["saturated_runs"]} saturated, '
+        f'{summary["envelope_violated_runs"]} left the envelope; max ss error median '
+        f'{err.get("median", float("nan")):.3e} rad, max {err.get("max", float("nan")):.3e} rad'
+    )
     ex = summary['execution']
     if 'wall_s' in ex:
-        print(f"sweep: {ex['runs_this_call']} runs in {ex['wall_s']:.1f} s ({ex['runs_per_s']:.1f} runs/s, "
-              f"{ex['executor']}, {ex['workers']} worker(s)); load average {ex['load_average'][0]:.2f}")
+        print(
+            f'sweep: {ex["runs_this_call"]} runs in {ex["wall_s"]:.1f} s '
+            f'({ex["runs_per_s"]:.1f} runs/s, '
+            f'{ex["executor"]}, {ex["workers"]} worker(s)); load average '
+            f'{ex["load_average"][0]:.2f}'
+        )
     print(f'sweep: {a.out}/runs.parquet, {a.out}/summary.json, ' + ', '.join(summary['figures']))
     return 0
 
@@ -95,7 +154,10 @@ def sweep_main(argv: Sequence[str] | None = None) -> int:
 def bench_main(argv: Sequence[str] | None = None) -> int:
     """``sweep-bench``: runs per second against batch size (one core) and against Ray workers."""
     from actuator_studies.bench import run_bench
-    p = _OneLineParser(prog='sweep-bench', description='Throughput of the vectorised loop and of Ray workers.')
+
+    p = _OneLineParser(
+        prog='sweep-bench', description='Throughput of the vectorised loop and of Ray workers.'
+    )
     p.add_argument('--batches', default='1,4,16,64,128', help='batch sizes on one core')
     p.add_argument('--workers', default='1,2', help='Ray worker counts')
     p.add_argument('--runs', type=int, default=256, help='runs per Ray measurement')
@@ -119,35 +181,70 @@ def bench_main(argv: Sequence[str] | None = None) -> int:
 def design_main(argv: Sequence[str] | None = None) -> int:
     """``design_gains``: robust PP-NFTSMC-ESO gains over an envelope, under a stability margin."""
     from actuator_studies.design import DEFAULT_CORNERS, DesignRequest, run_design
-    p = _OneLineParser(prog='design_gains', description='Robust PP-NFTSMC-ESO gain design (Optuna TPE).')
+
+    p = _OneLineParser(
+        prog='design_gains', description='Robust PP-NFTSMC-ESO gain design (Optuna TPE).'
+    )
     p.add_argument('--trials', type=int, default=48)
-    p.add_argument('--parallel', type=int, default=8, help='trials asked at once and run as one batch')
+    p.add_argument(
+        '--parallel', type=int, default=8, help='trials asked at once and run as one batch'
+    )
     p.add_argument('--seed', type=int, default=0)
-    p.add_argument('--percentile', type=float, default=100.0, help='of the max ss error over the corners (100: worst)')
-    p.add_argument('--target-radius', type=float, default=None, help='spectral radius bound at 0, 1, 2 delays')
-    p.add_argument('--corner', action='append', default=[], metavar='NAME=V1,V2',
-                   help='envelope corners, the product of all (default: ' + ' x '.join(DEFAULT_CORNERS) + ')')
-    p.add_argument('--set', action='append', default=[], metavar='NAME=VALUE', help='a fixed quantity')
+    p.add_argument(
+        '--percentile',
+        type=float,
+        default=100.0,
+        help='of the max ss error over the corners (100: worst)',
+    )
+    p.add_argument(
+        '--target-radius', type=float, default=None, help='spectral radius bound at 0, 1, 2 delays'
+    )
+    p.add_argument(
+        '--corner',
+        action='append',
+        default=[],
+        metavar='NAME=V1,V2',
+        help='envelope corners, the product of all (default: ' + ' x '.join(DEFAULT_CORNERS) + ')',
+    )
+    p.add_argument(
+        '--set', action='append', default=[], metavar='NAME=VALUE', help='a fixed quantity'
+    )
     _scenario_arguments(p)
     p.add_argument('--out', type=Path, required=True, help='output folder (must not exist)')
-    p.add_argument('--ray', default='', metavar='local:N|ADDRESS', help='evaluate trial batches as Ray tasks')
+    p.add_argument(
+        '--ray', default='', metavar='local:N|ADDRESS', help='evaluate trial batches as Ray tasks'
+    )
     a = p.parse_args(argv)
-    req = DesignRequest(trials=a.trials, parallel=a.parallel, seed=a.seed, percentile=a.percentile,
-                        target_radius=a.target_radius, corners=a.corner, settings=a.set, controller=a.controller,
-                        reference=a.reference, condition=a.condition, duration_s=a.duration)
+    req = DesignRequest(
+        trials=a.trials,
+        parallel=a.parallel,
+        seed=a.seed,
+        percentile=a.percentile,
+        target_radius=a.target_radius,
+        corners=a.corner,
+        settings=a.set,
+        controller=a.controller,
+        reference=a.reference,
+        condition=a.condition,
+        duration_s=a.duration,
+    )
     try:
         report = run_design(req, a.out, a.ray)
     except StudyInputError as exc:
         return _fail('design_gains', str(exc))
     print(json.dumps(report['comparison'], indent=2))
-    print(f"design_gains: {report['gains_yaml']}, {a.out}/design.json")
+    print(f'design_gains: {report["gains_yaml"]}, {a.out}/design.json')
     return 0
 
 
 def compare_main(argv: Sequence[str] | None = None) -> int:
-    """``sweep-compare A B``: exit 0 when two studies' runs.parquet are identical cell for cell (NaN == NaN)."""
+    """``sweep-compare A B``.
+
+    Exit 0 when two studies' runs.parquet are identical cell for cell (NaN == NaN).
+    """
     import pyarrow.parquet as pq
     from actuator_studies.results import tables_identical
+
     p = _OneLineParser(prog='sweep-compare', description='Are two studies identical row for row?')
     p.add_argument('a', type=Path)
     p.add_argument('b', type=Path)
@@ -157,6 +254,8 @@ def compare_main(argv: Sequence[str] | None = None) -> int:
     except OSError as exc:
         return _fail('sweep-compare', str(exc))
     same = tables_identical(a, b)
-    print(f'sweep-compare: {a.num_rows} and {b.num_rows} rows, {len(a.column_names)} columns: '
-          f'{"identical" if same else "DIFFERENT"}')
+    print(
+        f'sweep-compare: {a.num_rows} and {b.num_rows} rows, {len(a.column_names)} columns: '
+        f'{"identical" if same else "DIFFERENT"}'
+    )
     return 0 if same else 1

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Where a study's chunks run: in this process, or as Ray tasks on a local instance or a cluster.
 
 Both executors yield (chunk, columns) as chunks finish, so the caller writes each chunk at
@@ -32,17 +35,21 @@ from actuator_studies.space import StudyInputError
 MAX_RETRIES = 3
 #: Seconds to wait for a TCP connection to a Ray address before calling it unreachable.
 CONNECT_TIMEOUT_S = 3.0
-#: Object store of a local instance [bytes]: chunks are small, keep the shared machine's memory free.
+#: Object store of a local instance [bytes]:
+#: chunks are small, keep the shared machine's memory free.
 LOCAL_OBJECT_STORE_BYTES = 200 * 1024 * 1024
 
 
 @dataclass(frozen=True)
 class InjectedFailure:
-    """Test hook: the first attempt of ``chunk`` fails, by an exception or by killing its process."""
+    """Test hook.
+
+    The first attempt of ``chunk`` fails, by an exception or by killing its process.
+    """
 
     chunk: int
-    marker: str            # file created by the failing attempt; later attempts find it and run
-    mode: str = 'raise'    # raise | exit (first attempt only) | always (every attempt raises)
+    marker: str  # file created by the failing attempt; later attempts find it and run
+    mode: str = 'raise'  # raise | exit (first attempt only) | always (every attempt raises)
 
 
 def attempt_chunk(spec: SweepSpec, chunk: int, inject: InjectedFailure | None = None) -> dict:
@@ -50,7 +57,9 @@ def attempt_chunk(spec: SweepSpec, chunk: int, inject: InjectedFailure | None = 
     if inject is not None and inject.chunk == chunk and inject.mode == 'always':
         raise RuntimeError(f'injected failure of chunk {chunk} (every attempt)')
     if inject is not None and inject.chunk == chunk and not os.path.exists(inject.marker):
-        Path(inject.marker).write_text(f'chunk {chunk} failed on purpose in process {os.getpid()}\n')
+        Path(inject.marker).write_text(
+            f'chunk {chunk} failed on purpose in process {os.getpid()}\n'
+        )
         if inject.mode == 'exit':
             os._exit(17)
         raise RuntimeError(f'injected failure of chunk {chunk}')
@@ -61,16 +70,23 @@ class ChunkFailed(RuntimeError):
     """A chunk failed on every attempt."""
 
 
-def run_local(spec: SweepSpec, chunks: Iterable[int], inject: InjectedFailure | None = None) -> Iterator[tuple]:
-    """Run chunks one after another in this process, retrying a failed one; yield (chunk, columns)."""
+def run_local(
+    spec: SweepSpec, chunks: Iterable[int], inject: InjectedFailure | None = None
+) -> Iterator[tuple]:
+    """Run chunks one after another in this process, retrying a failed one.
+
+    Yield (chunk, columns).
+    """
     for chunk in chunks:
         for attempt in range(MAX_RETRIES + 1):
             try:
                 yield chunk, attempt_chunk(spec, chunk, inject)
                 break
-            except Exception as exc:     # noqa: BLE001 - any failure of an attempt is retried
+            except Exception as exc:  # noqa: BLE001 - any failure of an attempt is retried
                 if attempt == MAX_RETRIES:
-                    raise ChunkFailed(f'chunk {chunk} failed {MAX_RETRIES + 1} times: {exc}') from exc
+                    raise ChunkFailed(
+                        f'chunk {chunk} failed {MAX_RETRIES + 1} times: {exc}'
+                    ) from exc
 
 
 def parse_ray_target(text: str) -> tuple[str, int | None]:
@@ -83,7 +99,9 @@ def parse_ray_target(text: str) -> tuple[str, int | None]:
     host_port = text.split('://', 1)[-1]
     host, _, port = host_port.rpartition(':')
     if not host or not port.isdigit():
-        raise StudyInputError(f'--ray {text!r}: expected local:N or HOST:PORT of a running Ray cluster')
+        raise StudyInputError(
+            f'--ray {text!r}: expected local:N or HOST:PORT of a running Ray cluster'
+        )
     return text, None
 
 
@@ -94,23 +112,37 @@ def check_reachable(address: str) -> None:
         with socket.create_connection((host, int(port)), timeout=CONNECT_TIMEOUT_S):
             pass
     except OSError as exc:
-        raise StudyInputError(f'Ray address {address} is unreachable ({exc.strerror or exc})') from None
+        raise StudyInputError(
+            f'Ray address {address} is unreachable ({exc.strerror or exc})'
+        ) from None
 
 
 def start_ray(target: str):
-    """Start (local:N) or join (address) Ray; return the ray module. StudyInputError when it cannot."""
+    """Start (local:N) or join (address) Ray.
+
+    Return the ray module. StudyInputError when it cannot.
+    """
     address, cpus = parse_ray_target(target)
     if cpus is None:
         check_reachable(address)
     import ray
+
     try:
         if cpus is not None:
-            ray.init(address='local', num_cpus=cpus, include_dashboard=False, log_to_driver=False,
-                     object_store_memory=LOCAL_OBJECT_STORE_BYTES, configure_logging=False)
+            ray.init(
+                address='local',
+                num_cpus=cpus,
+                include_dashboard=False,
+                log_to_driver=False,
+                object_store_memory=LOCAL_OBJECT_STORE_BYTES,
+                configure_logging=False,
+            )
         else:
             ray.init(address=address, log_to_driver=False, configure_logging=False)
     except (ConnectionError, RuntimeError, ValueError) as exc:
-        raise StudyInputError(f'cannot start or join Ray at {target}: {str(exc).splitlines()[0]}') from None
+        raise StudyInputError(
+            f'cannot start or join Ray at {target}: {str(exc).splitlines()[0]}'
+        ) from None
     return ray
 
 
@@ -119,8 +151,13 @@ def ray_workers(ray) -> int:
     return int(ray.cluster_resources().get('CPU', 0))
 
 
-def run_ray(ray, spec: SweepSpec, chunks: Iterable[int], inject: InjectedFailure | None = None) -> Iterator[tuple]:
-    """Submit every chunk as a Ray task (retried on failure); yield (chunk, columns) as each finishes."""
+def run_ray(
+    ray, spec: SweepSpec, chunks: Iterable[int], inject: InjectedFailure | None = None
+) -> Iterator[tuple]:
+    """Submit every chunk as a Ray task (retried on failure).
+
+    Yield (chunk, columns) as each finishes.
+    """
     task = ray.remote(num_cpus=1, max_retries=MAX_RETRIES, retry_exceptions=True)(attempt_chunk)
     spec_ref = ray.put(spec)
     pending = {task.remote(spec_ref, chunk, inject): chunk for chunk in chunks}
@@ -130,9 +167,10 @@ def run_ray(ray, spec: SweepSpec, chunks: Iterable[int], inject: InjectedFailure
         chunk = pending.pop(ref)
         try:
             columns = ray.get(ref)
-        except Exception as exc:     # noqa: BLE001 - Ray wraps the task's own error
+        except Exception as exc:  # noqa: BLE001 - Ray wraps the task's own error
             for other in pending:
                 ray.cancel(other)
-            raise ChunkFailed(f'chunk {chunk} failed {MAX_RETRIES + 1} times on Ray: '
-                              f'{str(exc).splitlines()[0]}') from exc
+            raise ChunkFailed(
+                f'chunk {chunk} failed {MAX_RETRIES + 1} times on Ray: {str(exc).splitlines()[0]}'
+            ) from exc
         yield chunk, columns

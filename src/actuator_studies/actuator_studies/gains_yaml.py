@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Gain sets as ROS 2 parameter files the controller and ESO nodes load as they are.
 
 Same nesting as the installed scenario files (``actuator_bringup/config/*.yaml``):
@@ -21,10 +24,16 @@ from actuator_studies.space import StudyInputError
 
 
 def parameters_document(controller: str, gains, eso: EsoGains) -> dict:
-    """The two nodes' parameters for ``gains`` of ``controller`` and the observer ``eso``."""
-    return {'actuator_eso': {'ros__parameters': dataclasses.asdict(eso)},
-            'actuator_controller': {'ros__parameters': {'controller': controller,
-                                                        controller: dataclasses.asdict(gains)}}}
+    """Return the two nodes' parameters.
+
+    For ``gains`` of ``controller`` and the observer ``eso``.
+    """
+    return {
+        'actuator_eso': {'ros__parameters': dataclasses.asdict(eso)},
+        'actuator_controller': {
+            'ros__parameters': {'controller': controller, controller: dataclasses.asdict(gains)}
+        },
+    }
 
 
 def write_gains_yaml(path: Path, controller: str, gains, eso: EsoGains, header: str = '') -> Path:
@@ -60,7 +69,10 @@ def _build_checked(cls: type, values: dict, where: str):
 
 
 def read_gains_yaml(path: Path) -> tuple[str, object, EsoGains]:
-    """(controller, gains, ESO gains) of a parameter file written by ``write_gains_yaml`` or the scenario files."""
+    """Read (controller, gains, ESO gains) of a parameter file.
+
+    One written by ``write_gains_yaml``, or the scenario files.
+    """
     try:
         doc = yaml.safe_load(Path(path).read_text())
         ctrl = doc['actuator_controller']['ros__parameters']

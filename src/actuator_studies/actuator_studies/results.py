@@ -1,9 +1,13 @@
-"""A study's folder: its definition, one Parquet file per finished chunk, the joined table and summary.
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
 
-Layout of ``out/``: ``study.json`` (the request, to check a resumed run asks the same),
-``chunks/chunk_NNNNN.parquet`` (written to a temporary name and renamed, so a chunk file is
-either complete or absent), ``runs.parquet`` (every row, by run index), ``summary.json`` and
-``figures/``. A rerun with ``--resume`` keeps the finished chunks and runs only the others.
+"""A study's folder.
+
+Its definition, one Parquet file per finished chunk, the joined table and summary. Layout of
+``out/``: ``study.json`` (the request, to check a resumed run asks the same),
+``chunks/chunk_NNNNN.parquet`` (written to a temporary name and renamed, so a chunk file is either
+complete or absent), ``runs.parquet`` (every row, by run index), ``summary.json`` and ``figures/``.
+A rerun with ``--resume`` keeps the finished chunks and runs only the others.
 """
 
 from __future__ import annotations
@@ -26,14 +30,21 @@ def chunk_path(out: Path, chunk: int) -> Path:
 
 
 def prepare_folder(out: Path, request: dict, resume: bool) -> None:
-    """Create ``out`` for a new study, or check that a resumed one asks exactly what it asked before."""
+    """Create ``out`` for a new study.
+
+    Or check that a resumed one asks exactly what it asked before.
+    """
     definition = out / 'study.json'
     if out.exists() and not resume:
-        raise StudyInputError(f'output folder {out} exists (use --resume to continue it, or another --out)')
+        raise StudyInputError(
+            f'output folder {out} exists (use --resume to continue it, or another --out)'
+        )
     if resume and definition.exists():
         before = json.loads(definition.read_text())
         if before != json.loads(json.dumps(request)):
-            raise StudyInputError(f'--resume: {out} holds a different study ({definition} differs from this request)')
+            raise StudyInputError(
+                f'--resume: {out} holds a different study ({definition} differs from this request)'
+            )
     (out / 'chunks').mkdir(parents=True, exist_ok=True)
     if not definition.exists():
         definition.write_text(json.dumps(request, indent=2))
@@ -68,27 +79,43 @@ def _stats(x: np.ndarray) -> dict:
     x = x[np.isfinite(x)]
     if not x.size:
         return {'count': 0}
-    return {'count': int(x.size), 'min': float(x.min()), 'median': float(np.median(x)),
-            'p95': float(np.percentile(x, 95)), 'max': float(x.max())}
+    return {
+        'count': int(x.size),
+        'min': float(x.min()),
+        'median': float(np.median(x)),
+        'p95': float(np.percentile(x, 95)),
+        'max': float(x.max()),
+    }
 
 
 def summarise(table: pa.Table, varied: list[str], extra: dict) -> dict:
-    """Counts of diverged, saturated and out-of-envelope runs, error statistics, the worst run."""
-    col = {name: np.asarray(table.column(name).to_pylist(), dtype=float) for name in table.column_names
-           if name not in ('bounds_kept', 'diverged')}
+    """Summarise.
+
+    Counts of diverged, saturated and out-of-envelope runs, error statistics, worst run.
+    """
+    col = {
+        name: np.asarray(table.column(name).to_pylist(), dtype=float)
+        for name in table.column_names
+        if name not in ('bounds_kept', 'diverged')
+    }
     diverged = np.asarray(table.column('diverged').to_pylist(), dtype=bool)
     err = col['max_steady_error_rad']
     worst = None
     if np.isfinite(err).any():
         i = int(np.nanargmax(err))
-        worst = {'run': int(col['run'][i]), **{n: float(col[n][i]) for n in varied},
-                 'max_steady_error_rad': float(err[i])}
+        worst = {
+            'run': int(col['run'][i]),
+            **{n: float(col[n][i]) for n in varied},
+            'max_steady_error_rad': float(err[i]),
+        }
     summary = {
-        'runs': int(table.num_rows), 'diverged': int(diverged.sum()),
+        'runs': int(table.num_rows),
+        'diverged': int(diverged.sum()),
         'saturated_runs': int((col['saturated_fraction'] > SATURATED_FRACTION_LIMIT).sum()),
         'saturated_fraction_limit': SATURATED_FRACTION_LIMIT,
         'envelope_violated_runs': int((col['paper_envelope_violations'] > 0).sum()),
-        'max_steady_error_rad': _stats(err), 'rms_error_rad': _stats(col['rms_error_rad']),
+        'max_steady_error_rad': _stats(err),
+        'rms_error_rad': _stats(col['rms_error_rad']),
         'saturated_fraction': _stats(col['saturated_fraction']),
         'max_abs_current_a': _stats(col['max_abs_current_a']),
         'worst_run': worst,
@@ -112,12 +139,20 @@ def write_summary(out: Path, summary: dict) -> Path:
 
 
 def tables_identical(a: pa.Table, b: pa.Table) -> bool:
-    """Same schema and the same value in every cell, NaN equal to NaN (pyarrow's equals says NaN != NaN)."""
+    """Check for the same schema and the same value in every cell, NaN equal to NaN.
+
+    pyarrow's equals says NaN != NaN.
+    """
     if a.schema != b.schema or a.num_rows != b.num_rows:
         return False
     for name in a.column_names:
-        x, y = a.column(name).to_numpy(zero_copy_only=False), b.column(name).to_numpy(zero_copy_only=False)
-        same = np.array_equal(x, y, equal_nan=True) if x.dtype.kind == 'f' else np.array_equal(x, y)
+        x, y = (
+            a.column(name).to_numpy(zero_copy_only=False),
+            b.column(name).to_numpy(zero_copy_only=False),
+        )
+        same = (
+            np.array_equal(x, y, equal_nan=True) if x.dtype.kind == 'f' else np.array_equal(x, y)
+        )
         if not same:
             return False
     return True

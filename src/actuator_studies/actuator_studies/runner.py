@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Batched runs of a study: the design table cut into chunks, each chunk one vectorised ClosedLoop.
 
 A chunk is ``batch`` consecutive runs of the table, run as ClosedLoop(scenario, batch=n) with
@@ -29,17 +32,37 @@ from actuator_sim.offline import trace_metrics
 from actuator_studies.space import BaseScenario, build_scenario, quantities, run_seeds
 
 #: Per-sample fields a run's metrics need (trace_metrics).
-RECORDED = ('error_rad', 'current_a', 'lower_bound_rad', 'upper_bound_rad', 'saturated', 'x2_hat_rad_s',
-            'true_velocity_rad_s', 'x3_hat_rad_s2', 'true_disturbance_rad_s2', 'status')
+RECORDED = (
+    'error_rad',
+    'current_a',
+    'lower_bound_rad',
+    'upper_bound_rad',
+    'saturated',
+    'x2_hat_rad_s',
+    'true_velocity_rad_s',
+    'x3_hat_rad_s2',
+    'true_disturbance_rad_s2',
+    'status',
+)
 #: Metric columns of a row, in order (steady_window_s becomes two columns).
-METRIC_COLUMNS = tuple(f.name for f in dataclasses.fields(RunMetrics) if f.name != 'steady_window_s') + (
-    'steady_window_start_s', 'steady_window_end_s', 'saturated_samples', 'bounds_violation_fraction',
-    'paper_envelope_violations', 'paper_envelope_violation_fraction')
+METRIC_COLUMNS = tuple(
+    f.name for f in dataclasses.fields(RunMetrics) if f.name != 'steady_window_s'
+) + (
+    'steady_window_start_s',
+    'steady_window_end_s',
+    'saturated_samples',
+    'bounds_violation_fraction',
+    'paper_envelope_violations',
+    'paper_envelope_violation_fraction',
+)
 
 
 @dataclass(frozen=True)
 class SweepSpec:
-    """A whole study: base scenario, the design table (name -> one value per run), batch size and seed."""
+    """A whole study.
+
+    Base scenario, the design table (name -> one value per run), batch size and seed.
+    """
 
     base: BaseScenario
     table: dict
@@ -61,8 +84,13 @@ class SweepSpec:
         return np.arange(chunk * self.batch, min((chunk + 1) * self.batch, self.runs))
 
 
-def run_batch(base: BaseScenario, values: dict[str, np.ndarray], seeds: np.ndarray) -> list[tuple[RunMetrics, int]]:
-    """(metrics, paper-envelope violations) of n runs at once: ``values`` holds n values per varied quantity."""
+def run_batch(
+    base: BaseScenario, values: dict[str, np.ndarray], seeds: np.ndarray
+) -> list[tuple[RunMetrics, int]]:
+    """(metrics, paper-envelope violations) of n runs at once.
+
+    ``values`` holds n values per varied quantity.
+    """
     n = len(seeds)
     scenario = build_scenario(base, values, seeds=seeds, name='batch')
     loop = ClosedLoop(scenario, batch=n)
@@ -77,8 +105,11 @@ def run_batch(base: BaseScenario, values: dict[str, np.ndarray], seeds: np.ndarr
             t[k] = row['t_s']
             for name in RECORDED:
                 traces[name][k] = row[name]
-            bad = (~np.isfinite(row['measured_position_rad']) | (np.abs(row['error_rad']) > DIVERGENCE_ERROR_RAD)
-                   | (np.asarray(row['status']) == Status.LATCHED))
+            bad = (
+                ~np.isfinite(row['measured_position_rad'])
+                | (np.abs(row['error_rad']) > DIVERGENCE_ERROR_RAD)
+                | (np.asarray(row['status']) == Status.LATCHED)
+            )
             newly = bad & ~measured_bad
             cut[newly] = k + 1
             measured_bad |= bad
@@ -91,19 +122,27 @@ def run_batch(base: BaseScenario, values: dict[str, np.ndarray], seeds: np.ndarr
             metrics = trace_metrics(trace)
             if m < samples:
                 metrics = dataclasses.replace(metrics, diverged=True)
-            out.append((metrics, paper_envelope_violations(trace['t_s'], trace['error_rad'], scenario.gains)))
+            out.append(
+                (
+                    metrics,
+                    paper_envelope_violations(trace['t_s'], trace['error_rad'], scenario.gains),
+                )
+            )
     return out
 
 
 def paper_envelope_violations(t_s: np.ndarray, error_rad: np.ndarray, gains) -> int:
-    """Samples with e outside (-l rho(t), h rho(t)) of (8) from t = 0, restarts ignored (Table 4's PPF without one)."""
+    """Count the samples with e outside (-l rho(t), h rho(t)) of (8) from t = 0, restarts ignored.
+
+    Table 4's PPF without one.
+    """
     ppf = getattr(gains, 'ppf', None) or PrescribedPerformance()
     lower, upper = ppf.bounds(t_s)
     return int(np.count_nonzero(~((error_rad > lower) & (error_rad < upper))))
 
 
 def metrics_row(metrics: RunMetrics, paper_violations: int = 0) -> dict[str, Any]:
-    """The metric columns of one run."""
+    """Return the metric columns of one run."""
     row = {k: v for k, v in metrics.as_dict().items() if k != 'steady_window_s'}
     row['steady_window_start_s'], row['steady_window_end_s'] = metrics.steady_window_s
     row['saturated_samples'] = int(round(metrics.saturated_fraction * metrics.samples))
@@ -116,7 +155,10 @@ def metrics_row(metrics: RunMetrics, paper_violations: int = 0) -> dict[str, Any
 
 
 def _groups(spec: SweepSpec, indices: np.ndarray) -> list[np.ndarray]:
-    """Positions within ``indices`` sharing the values of every quantity that cannot vary inside a batch."""
+    """Positions within ``indices`` that can share a batch.
+
+    They share the values of every quantity that cannot vary inside a batch.
+    """
     table = quantities(spec.base.controller)
     scalar_names = [n for n in spec.table if not table[n].vector]
     if not scalar_names:
@@ -139,8 +181,11 @@ def run_chunk(spec: SweepSpec, chunk: int) -> dict[str, list]:
             values[name] = float(part[0]) if not table[name].vector else part
         for pos, (metrics, paper) in zip(group, run_batch(spec.base, values, seeds[group])):
             rows[pos] = metrics_row(metrics, paper)
-    columns: dict[str, list] = {'run': [int(i) for i in indices], 'chunk': [chunk] * len(indices),
-                                'seed': [int(s) for s in seeds]}
+    columns: dict[str, list] = {
+        'run': [int(i) for i in indices],
+        'chunk': [chunk] * len(indices),
+        'seed': [int(s) for s in seeds],
+    }
     for name, column in spec.table.items():
         columns[name] = [float(v) for v in column[indices]]
     for key in METRIC_COLUMNS:
@@ -149,7 +194,10 @@ def run_chunk(spec: SweepSpec, chunk: int) -> dict[str, list]:
 
 
 def run_single(spec: SweepSpec, run: int) -> dict[str, Any]:
-    """Metric columns of run ``run`` of the study as one scalar ClosedLoop run (a reference for tests)."""
+    """Metric columns of run ``run`` of the study as one scalar ClosedLoop run.
+
+    a reference for tests.
+    """
     seed = run_seeds(spec.seed, np.array([run]))
     values = {name: float(column[run]) for name, column in spec.table.items()}
     scenario = build_scenario(spec.base, values, seeds=seed, name=f'run{run}')
@@ -158,4 +206,6 @@ def run_single(spec: SweepSpec, run: int) -> dict[str, Any]:
         metrics = trace_metrics(trace)
     if len(trace['t_s']) < scenario.samples:
         metrics = dataclasses.replace(metrics, diverged=True)
-    return metrics_row(metrics, paper_envelope_violations(trace['t_s'], trace['error_rad'], scenario.gains))
+    return metrics_row(
+        metrics, paper_envelope_violations(trace['t_s'], trace['error_rad'], scenario.gains)
+    )

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """A sweep from request to folder: build the study, run the missing chunks, join, summarise, draw.
 
 Chunks run locally or on Ray (``distributed``), each written as soon as it finishes, with a
@@ -46,32 +49,50 @@ class SweepRequest:
 
 
 def build_spec(req: SweepRequest) -> tuple[SweepSpec, list[str]]:
-    """The SweepSpec of a request and the varied names; StudyInputError on any bad input."""
+    """Return the SweepSpec of a request and the varied names; StudyInputError on any bad input."""
     if req.batch < 1:
         raise StudyInputError(f'batch size must be >= 1, got {req.batch}')
     if not req.duration_s > STEADY_STATE_START_S:
-        raise StudyInputError(f'duration must exceed the steady-state window start ({STEADY_STATE_START_S:g} s)')
+        raise StudyInputError(
+            f'duration must exceed the steady-state window start ({STEADY_STATE_START_S:g} s)'
+        )
     gains, eso, controller = None, None, req.controller
     if req.gains:
         controller, gains, eso = read_gains_yaml(Path(req.gains))
     axes = [parse_axis(text, controller) for text in req.vary]
     fixed = tuple(parse_setting(text, controller) for text in req.set)
     if req.method != 'grid' and req.samples < 1:
-        raise StudyInputError(f'sample count must be >= 1 for --method {req.method}, got {req.samples}')
+        raise StudyInputError(
+            f'sample count must be >= 1 for --method {req.method}, got {req.samples}'
+        )
     table = sample(axes, req.method, req.samples, req.seed)
-    base = BaseScenario(controller=controller, reference=req.reference, condition=req.condition,
-                        duration_s=req.duration_s, gains=gains, fixed=fixed,
-                        **({'eso': eso} if eso is not None else {}))
+    base = BaseScenario(
+        controller=controller,
+        reference=req.reference,
+        condition=req.condition,
+        duration_s=req.duration_s,
+        gains=gains,
+        fixed=fixed,
+        **({'eso': eso} if eso is not None else {}),
+    )
     names = [a.name for a in axes]
-    base.values_with({n: 0.0 for n in names})      # refuses a name both varied and set
+    base.values_with({n: 0.0 for n in names})  # refuses a name both varied and set
     return SweepSpec(base=base, table=table, batch=req.batch, seed=req.seed), names
 
 
-def execute(spec: SweepSpec, out: Path, pending: list[int], ray_target: str = '', inject=None,
-            progress: bool = True, ray_session=None) -> dict:
-    """Run the pending chunks (locally or on Ray), writing each as it finishes; return run statistics.
+def execute(
+    spec: SweepSpec,
+    out: Path,
+    pending: list[int],
+    ray_target: str = '',
+    inject=None,
+    progress: bool = True,
+    ray_session=None,
+) -> dict:
+    """Run the pending chunks (locally or on Ray), writing each as it finishes.
 
-    ``ray_session``: an already started ray module to use (and leave running), e.g. a test fixture's.
+    Return run statistics. ``ray_session``: an already started ray module to use (and leave
+    running), e.g. a test fixture's.
     """
     start = time.perf_counter()
     ray = ray_session or (distributed.start_ray(ray_target) if ray_target else None)
@@ -81,8 +102,11 @@ def execute(spec: SweepSpec, out: Path, pending: list[int], ray_target: str = ''
     bar = tqdm(total=runs, unit='run', disable=not progress, desc='sweep', dynamic_ncols=True)
     run_start = time.perf_counter()
     try:
-        stream = distributed.run_ray(ray, spec, pending, inject) if ray else \
-            distributed.run_local(spec, pending, inject)
+        stream = (
+            distributed.run_ray(ray, spec, pending, inject)
+            if ray
+            else distributed.run_local(spec, pending, inject)
+        )
         for chunk, columns in stream:
             results.write_chunk(out, chunk, columns)
             bar.update(len(columns['run']))
@@ -91,19 +115,38 @@ def execute(spec: SweepSpec, out: Path, pending: list[int], ray_target: str = ''
         wall = time.perf_counter() - run_start
         if ray is not None and ray_session is None:
             ray.shutdown()
-    return {'executor': f'ray {ray_target or "session"}' if ray else 'local', 'workers': workers,
-            'ray_start_s': ray_start_s if ray_session is None else 0.0, 'runs_this_call': runs, 'wall_s': wall,
-            'runs_per_s': runs / wall if wall > 0 else float('nan'), 'load_average': list(os.getloadavg())}
+    return {
+        'executor': f'ray {ray_target or "session"}' if ray else 'local',
+        'workers': workers,
+        'ray_start_s': ray_start_s if ray_session is None else 0.0,
+        'runs_this_call': runs,
+        'wall_s': wall,
+        'runs_per_s': runs / wall if wall > 0 else float('nan'),
+        'load_average': list(os.getloadavg()),
+    }
 
 
-def run_sweep(req: SweepRequest, out: Path, resume: bool = False, ray_target: str = '', plot: tuple = (),
-              inject=None, progress: bool = True, ray_session=None) -> dict:
-    """The whole command: check, (re)start the folder, run what is missing, join, summarise, draw."""
+def run_sweep(
+    req: SweepRequest,
+    out: Path,
+    resume: bool = False,
+    ray_target: str = '',
+    plot: tuple = (),
+    inject=None,
+    progress: bool = True,
+    ray_session=None,
+) -> dict:
+    """Run the whole command.
+
+    check, (re)start the folder, run what is missing, join, summarise, draw.
+    """
     spec, names = build_spec(req)
     if ray_target:
         target, _ = distributed.parse_ray_target(ray_target)
     if out.exists() and not resume:
-        raise StudyInputError(f'output folder {out} exists (use --resume to continue it, or another --out)')
+        raise StudyInputError(
+            f'output folder {out} exists (use --resume to continue it, or another --out)'
+        )
     for axis in plot:
         if axis not in names:
             raise StudyInputError(f'--plot {axis!r} is not a varied quantity ({", ".join(names)})')
@@ -112,20 +155,48 @@ def run_sweep(req: SweepRequest, out: Path, resume: bool = False, ray_target: st
     results.prepare_folder(out, req.as_dict(), resume)
     done = results.finished_chunks(out, spec.chunks)
     pending = [c for c in range(spec.chunks) if c not in done]
-    stats = execute(spec, out, pending, ray_target, inject, progress, ray_session) if pending else \
-        {'executor': 'none (all chunks were finished)', 'runs_this_call': 0}
+    stats = (
+        execute(spec, out, pending, ray_target, inject, progress, ray_session)
+        if pending
+        else {'executor': 'none (all chunks were finished)', 'runs_this_call': 0}
+    )
     table = results.join_chunks(out, spec.chunks)
-    earlier = results.read_summary(out).get('executions', [])      # a resumed study keeps its history
-    summary = results.summarise(table, names, {
-        'method': req.method, 'varied': names, 'fixed': dict(spec.base.fixed), 'seed': req.seed,
-        'batch': req.batch, 'chunks': spec.chunks, 'chunks_resumed': len(done), 'controller': spec.base.controller,
-        'reference': req.reference, 'condition': req.condition, 'duration_s': req.duration_s,
-        'gains_file': req.gains, 'execution': stats, 'executions': earlier + [stats]})
+    earlier = results.read_summary(out).get('executions', [])  # a resumed study keeps its history
+    summary = results.summarise(
+        table,
+        names,
+        {
+            'method': req.method,
+            'varied': names,
+            'fixed': dict(spec.base.fixed),
+            'seed': req.seed,
+            'batch': req.batch,
+            'chunks': spec.chunks,
+            'chunks_resumed': len(done),
+            'controller': spec.base.controller,
+            'reference': req.reference,
+            'condition': req.condition,
+            'duration_s': req.duration_s,
+            'gains_file': req.gains,
+            'execution': stats,
+            'executions': earlier + [stats],
+        },
+    )
     figures = []
     x_y = list(plot) if len(plot) == 2 else names[:2]
     if len(x_y) == 2:
-        figures.append(str(plots.draw_maps(table, x_y[0], x_y[1], out / 'figures' / 'map.png', req.method == 'grid',
-                                           title=_title(req))))
+        figures.append(
+            str(
+                plots.draw_maps(
+                    table,
+                    x_y[0],
+                    x_y[1],
+                    out / 'figures' / 'map.png',
+                    req.method == 'grid',
+                    title=_title(req),
+                )
+            )
+        )
     if req.method != 'grid' or len(names) == 1:
         figures.append(str(plots.draw_cdfs(table, out / 'figures' / 'cdf.png', title=_title(req))))
     summary['figures'] = figures
@@ -136,11 +207,15 @@ def run_sweep(req: SweepRequest, out: Path, resume: bool = False, ray_target: st
 def _title(req: SweepRequest) -> str:
     """Figure title: controller, reference, condition and method."""
     draws = f' ({req.samples} draws, seed {req.seed})' if req.method != 'grid' else ''
-    return f'{req.controller}, {req.reference} trajectory, base {req.condition}, {req.duration_s:g} s; {req.method}{draws}'
+    return (
+        f'{req.controller}, {req.reference} trajectory, base {req.condition}, '
+        f'{req.duration_s:g} s; {req.method}{draws}'
+    )
 
 
 def table_arrays(out: Path) -> dict[str, np.ndarray]:
     """runs.parquet of a study as arrays (for tests and reports)."""
     import pyarrow.parquet as pq
+
     table = pq.read_table(out / 'runs.parquet')
     return {n: np.asarray(table.column(n).to_pylist()) for n in table.column_names}

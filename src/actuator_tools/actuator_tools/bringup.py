@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Bring up a closed-loop run as separate processes: ``bringup`` (the runner).
 
 The processes and their parameters come from ``actuator_tools.graph.closed_loop``, the same
@@ -40,7 +43,7 @@ def scenario_file(scenario: str) -> Path:
 
 
 def scenario_duration(scenario: str) -> float:
-    """The paper scenario's run length [s] (10 s for any other parameter file)."""
+    """Return the paper scenario's run length [s] (10 s for any other parameter file)."""
     known = all_scenarios().get(scenario)
     return known.duration_s if known is not None else 10.0
 
@@ -68,16 +71,27 @@ def _raise_stopped(*_) -> None:
     raise _Stopped()
 
 
-def run_closed_loop(scenario: str, mode: str, duration_s: float | None = None, record: bool = True,
-                    bag_root: Path = Path('bags'), results_root: Path = Path('results/runs'),
-                    executor: str = 'events', extra_params: Sequence[str] = (), quiet: bool = False,
-                    thread_priority: int = 0, cpus: dict | None = None, joint: str = 'plant',
-                    joint_parameters: dict | None = None) -> RunResult:
-    """Start the nodes of ``scenario`` in ``mode``, run to the end, stop everything, return the result.
+def run_closed_loop(
+    scenario: str,
+    mode: str,
+    duration_s: float | None = None,
+    record: bool = True,
+    bag_root: Path = Path('bags'),
+    results_root: Path = Path('results/runs'),
+    executor: str = 'events',
+    extra_params: Sequence[str] = (),
+    quiet: bool = False,
+    thread_priority: int = 0,
+    cpus: dict | None = None,
+    joint: str = 'plant',
+    joint_parameters: dict | None = None,
+) -> RunResult:
+    """Start the nodes of ``scenario`` in ``mode``, run to the end, stop everything.
 
-    ``duration_s`` None runs the scenario's own length (10 s for the paper's cases), never forever.
-    ``thread_priority`` > 0: SCHED_FIFO for the ESO and controller, one level above for the joint
-    (graph.closed_loop). ``cpus`` pins by key ('joint', 'eso', 'controller').
+    Return the result. ``duration_s`` None runs the scenario's own length (10 s for the paper's
+    cases), never forever. ``thread_priority`` > 0: SCHED_FIFO for the ESO and controller, one
+    level above for the joint (graph.closed_loop). ``cpus`` pins by key ('joint', 'eso',
+    'controller').
     """
     if duration_s is None:
         duration_s = scenario_duration(scenario)
@@ -91,8 +105,18 @@ def run_closed_loop(scenario: str, mode: str, duration_s: float | None = None, r
     bag = bag_root / name if record else None
     if bag is not None:
         bag_root.mkdir(parents=True, exist_ok=True)
-    specs = closed_loop(mode, duration_s, record=record, bag=bag, joint=joint, thread_priority=thread_priority,
-                        cpus=cpus, executor=executor, logs=run_dir, joint_parameters=joint_parameters)
+    specs = closed_loop(
+        mode,
+        duration_s,
+        record=record,
+        bag=bag,
+        joint=joint,
+        thread_priority=thread_priority,
+        cpus=cpus,
+        executor=executor,
+        logs=run_dir,
+        joint_parameters=joint_parameters,
+    )
     procs: dict[str, RosProcess] = {}
     figures: dict[str, ProcessFigures] = {}
     previous = {s: signal.signal(s, _raise_stopped) for s in (signal.SIGTERM, signal.SIGINT)}
@@ -102,11 +126,16 @@ def run_closed_loop(scenario: str, mode: str, duration_s: float | None = None, r
         for spec in specs:
             extra = list(extra_params) if spec.key in ('controller', 'eso') else []
             args = ros_arguments(spec, params)
-            procs[spec.key] = RosProcess.installed(spec.package, spec.executable, args + extra, log_dir=run_dir,
-                                                   name=spec.key)
+            procs[spec.key] = RosProcess.installed(
+                spec.package, spec.executable, args + extra, log_dir=run_dir, name=spec.key
+            )
             figures[spec.key] = ProcessFigures(procs[spec.key].pid)
         if not quiet:
-            print(f'[bringup] {scenario} in {mode} mode: {", ".join(procs)} started; logs in {run_dir}', flush=True)
+            print(
+                f'[bringup] {scenario} in {mode} mode: {", ".join(procs)} started; '
+                f'logs in {run_dir}',
+                flush=True,
+            )
         leader = next(s.key for s in specs if s.leader) if any(s.leader for s in specs) else None
         wait_for_leader(procs, figures, duration_s, quiet, leader)
     except _Stopped:
@@ -119,14 +148,30 @@ def run_closed_loop(scenario: str, mode: str, duration_s: float | None = None, r
         for s, handler in previous.items():
             signal.signal(s, handler)
     wall = time.monotonic() - start
-    return RunResult(name, mode, bag, run_dir, run_dir / 'controller_timing.npz', codes,
-                     {k: f.cpu_percent() for k, f in figures.items()},
-                     {k: f.peak_rss_mb for k, f in figures.items()}, wall)
+    return RunResult(
+        name,
+        mode,
+        bag,
+        run_dir,
+        run_dir / 'controller_timing.npz',
+        codes,
+        {k: f.cpu_percent() for k, f in figures.items()},
+        {k: f.peak_rss_mb for k, f in figures.items()},
+        wall,
+    )
 
 
-def wait_for_leader(procs: dict[str, RosProcess], figures: dict[str, ProcessFigures], duration_s: float | None,
-                    quiet: bool, leader: Optional[str]) -> None:
-    """Poll until the leader exits at the end of the run; mark CPU baselines once it logs 'sampling started'."""
+def wait_for_leader(
+    procs: dict[str, RosProcess],
+    figures: dict[str, ProcessFigures],
+    duration_s: float | None,
+    quiet: bool,
+    leader: Optional[str],
+) -> None:
+    """Poll until the leader exits at the end of the run.
+
+    Mark CPU baselines once it logs 'sampling started'.
+    """
     marked = False
     deadline = time.monotonic() + (max(120.0, 30.0 * duration_s) if duration_s else float('inf'))
     last_note = started = time.monotonic()
@@ -139,7 +184,10 @@ def wait_for_leader(procs: dict[str, RosProcess], figures: dict[str, ProcessFigu
             marked = True
         for key, proc in procs.items():
             if key != leader and not proc.running:
-                raise SystemExit(f'bringup: {key} exited early with code {proc.returncode}; see {proc.stderr_path}')
+                raise SystemExit(
+                    f'bringup: {key} exited early with code {proc.returncode}; see '
+                    f'{proc.stderr_path}'
+                )
         if time.monotonic() > deadline:
             raise SystemExit('bringup: the run did not finish in time; see the logs')
         if not quiet and time.monotonic() - last_note > 5.0:
@@ -151,32 +199,70 @@ def wait_for_leader(procs: dict[str, RosProcess], figures: dict[str, ProcessFigu
 def main(argv: Sequence[str] | None = None) -> int:
     """CLI: one closed-loop run of a scenario, optionally recorded to bags/."""
     parser = argparse.ArgumentParser(prog='bringup', description=__doc__.splitlines()[0])
-    parser.add_argument('--scenario', default='case2_pp_nftsmc_eso',
-                        help='installed scenario (share/actuator_bringup/config/<name>.yaml)')
+    parser.add_argument(
+        '--scenario',
+        default='case2_pp_nftsmc_eso',
+        help='installed scenario (share/actuator_bringup/config/<name>.yaml)',
+    )
     parser.add_argument('--mode', choices=MODES, default='realtime')
-    parser.add_argument('--duration', type=float, default=None,
-                        help='run length [s] (default: the paper scenario\'s, 10 s)')
-    parser.add_argument('--joint', choices=JOINTS, default='plant',
-                        help='plant (simulated joint), cia402_sim (CANopen driver + simulated drive), cia402 '
-                             '(driver on a real bus), none (a driver started elsewhere)')
+    parser.add_argument(
+        '--duration',
+        type=float,
+        default=None,
+        help="run length [s] (default: the paper scenario's, 10 s)",
+    )
+    parser.add_argument(
+        '--joint',
+        choices=JOINTS,
+        default='plant',
+        help='plant (simulated joint), cia402_sim (CANopen driver + simulated drive), cia402 '
+        '(driver on a real bus), none (a driver started elsewhere)',
+    )
     parser.add_argument('--no-record', action='store_true', help='do not start the recorder')
-    parser.add_argument('--bags', type=Path, default=Path('bags'), help='folder for bags (default bags/)')
+    parser.add_argument(
+        '--bags', type=Path, default=Path('bags'), help='folder for bags (default bags/)'
+    )
     parser.add_argument('--executor', choices=('events', 'single_threaded'), default='events')
-    parser.add_argument('--thread-priority', type=int, default=0, metavar='N',
-                        help='SCHED_FIFO priority of the ESO and controller, the joint one above (0 = normal)')
-    parser.add_argument('--pin', action='store_true',
-                        help='pin the joint to CPU 0 and the ESO and controller (which run in sequence) to CPU 1')
+    parser.add_argument(
+        '--thread-priority',
+        type=int,
+        default=0,
+        metavar='N',
+        help='SCHED_FIFO priority of the ESO and controller, the joint one above (0 = normal)',
+    )
+    parser.add_argument(
+        '--pin',
+        action='store_true',
+        help='pin the joint to CPU 0 and the ESO and controller (which run in sequence) to CPU 1',
+    )
     args = parser.parse_args(argv)
     if args.duration is not None and not 0.0 < args.duration <= 3600.0:
         parser.error('--duration must be in (0, 3600] s')
     if not 0 <= args.thread_priority <= 99:
         parser.error('--thread-priority must be in [0, 99]')
     duration = args.duration if args.duration is not None else scenario_duration(args.scenario)
-    result = run_closed_loop(args.scenario, args.mode, duration, not args.no_record, args.bags,
-                             executor=args.executor, thread_priority=args.thread_priority,
-                             cpus=PINNING if args.pin else None, joint=args.joint)
-    print(json.dumps({'bag': str(result.bag), 'exit_codes': result.exit_codes, 'cpu_percent': result.cpu_percent,
-                      'peak_rss_mb': result.peak_rss_mb}, indent=1))
+    result = run_closed_loop(
+        args.scenario,
+        args.mode,
+        duration,
+        not args.no_record,
+        args.bags,
+        executor=args.executor,
+        thread_priority=args.thread_priority,
+        cpus=PINNING if args.pin else None,
+        joint=args.joint,
+    )
+    print(
+        json.dumps(
+            {
+                'bag': str(result.bag),
+                'exit_codes': result.exit_codes,
+                'cpu_percent': result.cpu_percent,
+                'peak_rss_mb': result.peak_rss_mb,
+            },
+            indent=1,
+        )
+    )
     return 0 if all(code == 0 for code in result.exit_codes.values()) else 1
 
 

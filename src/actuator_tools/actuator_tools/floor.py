@@ -1,15 +1,19 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Middleware floor: what one message hop costs on this machine with no control code at all.
 
-Two processes stand in for two of our nodes. ``source`` publishes an ``actuator_msgs/CurrentCommand``
-on an absolute grid (as the plant samples) and ``echo`` republishes each one unchanged (as the
-ESO and controller answer a sample). The source logs every round trip; one hop is taken as
-half of it. The echo's CPU is the price of one subscription and one publication per sample;
-each of our loop nodes handles two or three of each. The benchmark (``bench``) runs this before
-the closed loop, so its latency and CPU targets can be read against what the middleware alone
-costs here.
+Two processes stand in for two of our nodes. ``source`` publishes an
+``actuator_msgs/CurrentCommand`` on an absolute grid (as the plant samples) and ``echo``
+republishes each one unchanged (as the ESO and controller answer a sample). The source logs every
+round trip; one hop is taken as half of it. The echo's CPU is the price of one subscription and one
+publication per sample; each of our loop nodes handles two or three of each. The benchmark
+(``bench``) runs this before the closed loop, so its latency and CPU targets can be read against
+what the middleware alone costs here.
 
     python -m actuator_tools.floor echo   [--ros-args -p thread_priority:=N ...]
-    python -m actuator_tools.floor source --ros-args -p thread_priority:=N -p duration_s:=10 -p output:=rtt.npz
+    python -m actuator_tools.floor source --ros-args -p thread_priority:=N -p duration_s:=10
+        -p output:=rtt.npz
 """
 
 from __future__ import annotations
@@ -47,9 +51,15 @@ class SourceNode(Node):
     def __init__(self) -> None:
         """Parameters: rate_hz, duration_s, output (.npz of the round trips)."""
         super().__init__('floor_source')
-        self.period_ns = int(round(1e9 / declare_number(self, 'rate_hz', 1000.0, 1.0, 1.0e4, 'Hz',
-                                                         'messages per second')))
-        self.duration_s = declare_number(self, 'duration_s', 10.0, 0.1, 3600.0, 's', 'measured span')
+        self.period_ns = int(
+            round(
+                1e9
+                / declare_number(self, 'rate_hz', 1000.0, 1.0, 1.0e4, 'Hz', 'messages per second')
+            )
+        )
+        self.duration_s = declare_number(
+            self, 'duration_s', 10.0, 0.1, 3600.0, 's', 'measured span'
+        )
         self.output = declare_text(self, 'output', '', 'file (.npz) for the round-trip times')
         qos = control_qos('realtime')
         self.pub = self.create_publisher(CurrentCommand, PING, qos)
@@ -99,7 +109,9 @@ class SourceNode(Node):
 
     def on_echo(self, msg: CurrentCommand) -> None:
         """Round trip of one message [ns]."""
-        self.rtt_ns.append(time.time_ns() - (msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec))
+        self.rtt_ns.append(
+            time.time_ns() - (msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
+        )
 
     def close(self) -> None:
         """Stop the thread; write the round trips and the sent count."""
@@ -107,28 +119,52 @@ class SourceNode(Node):
         if self.thread.is_alive():
             self.thread.join(timeout=1.0)
         if self.output:
-            np.savez(self.output, rtt_ns=np.asarray(self.rtt_ns, dtype=np.int64), sent=np.int64(self.sent))
+            np.savez(
+                self.output,
+                rtt_ns=np.asarray(self.rtt_ns, dtype=np.int64),
+                sent=np.int64(self.sent),
+            )
         self.get_logger().info(f'sent {self.sent}, echoed {len(self.rtt_ns)}')
 
 
 def hop_figures(rtt_ns: np.ndarray, sent: int) -> dict[str, float | None]:
-    """One-hop latency (round trip / 2) p50/p99/max [us] and the share of messages never echoed [%]."""
+    """One-hop latency (round trip / 2) p50/p99/max [us].
+
+    And the share of messages never echoed [%].
+    """
     if sent <= 0:
         return {}
     out: dict[str, float | None] = {'floor_lost_pct': 100.0 * (sent - rtt_ns.size) / sent}
     if rtt_ns.size:
         hop_us = rtt_ns / 2e3
-        out.update({f'floor_hop_{k.split("_")[-1]}_us': v for k, v in percentiles(hop_us, 'hop').items()})
+        out.update(
+            {f'floor_hop_{k.split("_")[-1]}_us': v for k, v in percentiles(hop_us, 'hop').items()}
+        )
     return out
 
 
 def main(argv: list[str] | None = None) -> int:
     """``python -m actuator_tools.floor echo|source [run_node options]``."""
     args = sys.argv[1:] if argv is None else list(argv)
-    roles = {'echo': ('floor echo', 'Echo node of the middleware floor benchmark.', EchoNode, 'floor_echo'),
-             'source': ('floor source', 'Source node of the middleware floor benchmark.', SourceNode, 'floor_source')}
+    roles = {
+        'echo': (
+            'floor echo',
+            'Echo node of the middleware floor benchmark.',
+            EchoNode,
+            'floor_echo',
+        ),
+        'source': (
+            'floor source',
+            'Source node of the middleware floor benchmark.',
+            SourceNode,
+            'floor_source',
+        ),
+    }
     if not args or args[0] not in roles:
-        print(f'usage: python -m actuator_tools.floor {{{",".join(roles)}}} [options]', file=sys.stderr)
+        print(
+            f'usage: python -m actuator_tools.floor {{{",".join(roles)}}} [options]',
+            file=sys.stderr,
+        )
         return 2
     prog, description, node_class, name = roles[args[0]]
     return run_node(prog, description, lambda settings: node_class(), name, args[1:])

@@ -1,8 +1,12 @@
-"""The one description of a closed-loop run: which nodes, with which parameters and real-time settings.
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
 
-Both the runner (``bringup``, actuator_tools.bringup) and the launch file
-(``actuator_bringup closed_loop.launch.py``) build their processes from ``closed_loop``, so the
-two cannot drift apart. Pure data, no launch import: the runner has no launch here.
+"""The one description of a closed-loop run.
+
+Which nodes, with which parameters and real-time settings. Both the runner (``bringup``,
+actuator_tools.bringup) and the launch file (``actuator_bringup closed_loop.launch.py``) build
+their processes from ``closed_loop``, so the two cannot drift apart. Pure data, no launch import:
+the runner has no launch here.
 
 Real-time settings are node parameters (actuator_ros.realtime), as ros2_control makes them:
 ``thread_priority`` (the ESO and controller at the given SCHED_FIFO priority, the plant or
@@ -30,18 +34,18 @@ PINNING = {'joint': '0', 'eso': '1', 'controller': '1'}
 class NodeSpec:
     """One process of the run."""
 
-    key: str                      # plant | driver | eso | controller | recorder
+    key: str  # plant | driver | eso | controller | recorder
     package: str
     executable: str
-    name: str                     # node name (parameter file sections are keyed by it)
+    name: str  # node name (parameter file sections are keyed by it)
     parameters: dict = field(default_factory=dict)
-    scenario_file: bool = True    # gets the scenario's parameter file
-    leader: bool = False          # the run ends when this process ends
-    managed: bool = True          # a lifecycle node
+    scenario_file: bool = True  # gets the scenario's parameter file
+    leader: bool = False  # the run ends when this process ends
+    managed: bool = True  # a lifecycle node
 
 
 def recorder_parameters(mode: str) -> dict:
-    """The recorder's queue for a closed-loop run in ``mode``.
+    """Return the recorder's queue for a closed-loop run in ``mode``.
 
     realtime: BEST_EFFORT, 5 s of queue per topic: the recorder keeps normal scheduling, and the
     queue rides out the bursts in which the SCHED_FIFO loop leaves it no CPU (measured, 3 runs
@@ -55,15 +59,26 @@ def recorder_parameters(mode: str) -> dict:
     return {'reliability': 'best_effort', 'queue_depth': 5000}
 
 
-def closed_loop(mode: str, duration_s: float, *, record: bool = True, bag: Optional[Path] = None,
-                joint: str = 'plant', thread_priority: int = 0, cpus: Optional[dict] = None,
-                executor: str = 'events', logs: Optional[Path] = None, joint_parameters: Optional[dict] = None,
-                autostart: bool = True) -> list[NodeSpec]:
-    """The processes of one run in start order (the joint last: it starts sampling when all are there).
+def closed_loop(
+    mode: str,
+    duration_s: float,
+    *,
+    record: bool = True,
+    bag: Optional[Path] = None,
+    joint: str = 'plant',
+    thread_priority: int = 0,
+    cpus: Optional[dict] = None,
+    executor: str = 'events',
+    logs: Optional[Path] = None,
+    joint_parameters: Optional[dict] = None,
+    autostart: bool = True,
+) -> list[NodeSpec]:
+    """Return the processes of one run in start order.
 
-    ``logs``: folder for the per-node timing files the benchmark reads (controller_timing.npz,
-    eso_stats.json, plant_samples.npz). ``autostart``: the nodes configure and activate
-    themselves (the runner); the launch file drives the transitions instead.
+    The joint is last: it starts sampling when all are there. ``logs``: folder for the per-node
+    timing files the benchmark reads (controller_timing.npz, eso_stats.json, plant_samples.npz).
+    ``autostart``: the nodes configure and activate themselves (the runner); the launch file drives
+    the transitions instead.
     """
     if joint not in JOINTS:
         raise ValueError(f'joint must be one of {", ".join(JOINTS)}, got {joint!r}')
@@ -81,37 +96,106 @@ def closed_loop(mode: str, duration_s: float, *, record: bool = True, bag: Optio
     loop_params = {'mode': mode, 'use_sim_time': sim}
     specs = []
     if record:
-        specs.append(NodeSpec('recorder', 'actuator_bag', 'recorder', 'recorder',
-                              {'use_sim_time': sim, **recorder_parameters(mode), **({'output': str(bag)} if bag else {})},
-                              scenario_file=False, managed=False))
-    logged = (lambda name: {} if logs is None else {name[0]: str(logs / name[1])})
-    specs.append(NodeSpec('controller', 'actuator_controller', 'controller_node', 'actuator_controller',
-                          {**loop_params, **settings('controller', thread_priority),
-                           **logged(('timing_log', 'controller_timing.npz'))}))
-    specs.append(NodeSpec('eso', 'actuator_eso', 'eso_node', 'actuator_eso',
-                          {**loop_params, **settings('eso', thread_priority),
-                           **logged(('stats_log', 'eso_stats.json'))}))
+        specs.append(
+            NodeSpec(
+                'recorder',
+                'actuator_bag',
+                'recorder',
+                'recorder',
+                {
+                    'use_sim_time': sim,
+                    **recorder_parameters(mode),
+                    **({'output': str(bag)} if bag else {}),
+                },
+                scenario_file=False,
+                managed=False,
+            )
+        )
+
+    def logged(name):
+        return {} if logs is None else {name[0]: str(logs / name[1])}
+
+    specs.append(
+        NodeSpec(
+            'controller',
+            'actuator_controller',
+            'controller_node',
+            'actuator_controller',
+            {
+                **loop_params,
+                **settings('controller', thread_priority),
+                **logged(('timing_log', 'controller_timing.npz')),
+            },
+        )
+    )
+    specs.append(
+        NodeSpec(
+            'eso',
+            'actuator_eso',
+            'eso_node',
+            'actuator_eso',
+            {
+                **loop_params,
+                **settings('eso', thread_priority),
+                **logged(('stats_log', 'eso_stats.json')),
+            },
+        )
+    )
     joint_priority = min(thread_priority + 1, 99) if thread_priority else 0
     subscribers = 3 if record else 2
     if joint == 'plant':
-        specs.append(NodeSpec('plant', 'actuator_plant', 'plant_node', 'actuator_plant',
-                              {'mode': mode, 'stop_after_s': float(duration_s), 'wait_for_subscribers': subscribers,
-                               **settings('joint', joint_priority), **logged(('timing_log', 'plant_samples.npz'))},
-                              leader=True))
+        specs.append(
+            NodeSpec(
+                'plant',
+                'actuator_plant',
+                'plant_node',
+                'actuator_plant',
+                {
+                    'mode': mode,
+                    'stop_after_s': float(duration_s),
+                    'wait_for_subscribers': subscribers,
+                    **settings('joint', joint_priority),
+                    **logged(('timing_log', 'plant_samples.npz')),
+                },
+                leader=True,
+            )
+        )
     elif joint in ('cia402_sim', 'cia402'):
         if sim:
             raise ValueError('the CiA 402 driver runs in real time only (mode realtime)')
-        from actuator_cia402.launch_spec import DRIVER_EXECUTABLE, DRIVER_NODE_NAME, DRIVER_PACKAGE, driver_parameters
-        params = driver_parameters(simulated=joint == 'cia402_sim', stop_after_s=float(duration_s),
-                                   wait_for_subscribers=subscribers, autostart=autostart, **(joint_parameters or {}))
+        from actuator_cia402.launch_spec import (
+            DRIVER_EXECUTABLE,
+            DRIVER_NODE_NAME,
+            DRIVER_PACKAGE,
+            driver_parameters,
+        )
+
+        params = driver_parameters(
+            simulated=joint == 'cia402_sim',
+            stop_after_s=float(duration_s),
+            wait_for_subscribers=subscribers,
+            autostart=autostart,
+            **(joint_parameters or {}),
+        )
         params.update(logged(('timing_log', 'plant_samples.npz')))
-        specs.append(NodeSpec('driver', DRIVER_PACKAGE, DRIVER_EXECUTABLE, DRIVER_NODE_NAME,
-                              {**params, **settings('joint', joint_priority)}, leader=True))
+        specs.append(
+            NodeSpec(
+                'driver',
+                DRIVER_PACKAGE,
+                DRIVER_EXECUTABLE,
+                DRIVER_NODE_NAME,
+                {**params, **settings('joint', joint_priority)},
+                leader=True,
+            )
+        )
     return specs
 
 
 def ros_arguments(spec: NodeSpec, scenario_file: Optional[Path]) -> list[str]:
-    """``--ros-args`` of a process started directly (the runner): the file, then the node's parameters."""
+    """``--ros-args`` of a process started directly (the runner).
+
+    The file, then the node's parameters.
+    """
     args = ['--ros-args']
     if spec.scenario_file and scenario_file is not None:
         args += ['--params-file', str(scenario_file)]

@@ -1,9 +1,13 @@
-"""The one process supervisor: start installed executables as ``ros2 run`` does, watch, stop, measure.
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
 
-Used by the runner (``bringup``), the benchmark and the tests alike. A ``RosProcess`` runs in
-its own session (process group), so stopping it reaches its children too: SIGINT (what Ctrl-C
-and ``ros2 launch`` send), then SIGTERM, then SIGKILL. ``ProcessFigures`` reads CPU time and
-peak resident memory through psutil while the process lives.
+"""The one process supervisor.
+
+Start installed executables as ``ros2 run`` does, watch, stop, measure. Used by the runner
+(``bringup``), the benchmark and the tests alike. A ``RosProcess`` runs in its own session (process
+group), so stopping it reaches its children too: SIGINT (what Ctrl-C and ``ros2 launch`` send),
+then SIGTERM, then SIGKILL. ``ProcessFigures`` reads CPU time and peak resident memory through
+psutil while the process lives.
 
     python -m actuator_tools.supervisor which PACKAGE EXECUTABLE    # the path ros2 run would start
 """
@@ -66,13 +70,21 @@ class RosProcess:
         assert plant.returncode == 0 and plant.stopped_by == 'SIGINT'
     """
 
-    def __init__(self, cmd: Sequence[str], env: Optional[Mapping[str, str]] = None,
-                 log_dir: Optional[Union[str, Path]] = None, name: Optional[str] = None,
-                 cwd: Optional[Union[str, Path]] = None, start: bool = True):
+    def __init__(
+        self,
+        cmd: Sequence[str],
+        env: Optional[Mapping[str, str]] = None,
+        log_dir: Optional[Union[str, Path]] = None,
+        name: Optional[str] = None,
+        cwd: Optional[Union[str, Path]] = None,
+        start: bool = True,
+    ):
         self.cmd = [str(c) for c in cmd]
         self.env = dict(os.environ if env is None else env)
         self.name = name or re.sub(r'[^A-Za-z0-9_.-]', '_', os.path.basename(self.cmd[0]))
-        self.log_dir = Path(log_dir) if log_dir is not None else Path(tempfile.mkdtemp(prefix='rosproc-'))
+        self.log_dir = (
+            Path(log_dir) if log_dir is not None else Path(tempfile.mkdtemp(prefix='rosproc-'))
+        )
         self.log_dir.mkdir(parents=True, exist_ok=True)
         self.stdout_path = self.log_dir / f'{self.name}.stdout'
         self.stderr_path = self.log_dir / f'{self.name}.stderr'
@@ -84,8 +96,13 @@ class RosProcess:
             self.start()
 
     @classmethod
-    def installed(cls, package: str, executable: str, args: Sequence[str] = (), **kwargs) -> 'RosProcess':
-        """Start ``<prefix>/lib/<package>/<executable>`` (found as ``ros2 run`` would) with args."""
+    def installed(
+        cls, package: str, executable: str, args: Sequence[str] = (), **kwargs
+    ) -> 'RosProcess':
+        """Start ``<prefix>/lib/<package>/<executable>`` with args.
+
+        Found as ``ros2 run`` would.
+        """
         kwargs.setdefault('name', f'{package}.{executable}')
         return cls([executable_path(package, executable), *args], **kwargs)
 
@@ -102,8 +119,15 @@ class RosProcess:
         out = open(self.stdout_path, 'wb')
         err = open(self.stderr_path, 'wb')
         self._files = [out, err]
-        self.popen = subprocess.Popen(self.cmd, env=self.env, cwd=self.cwd, stdin=subprocess.DEVNULL,
-                                      stdout=out, stderr=err, start_new_session=True)
+        self.popen = subprocess.Popen(
+            self.cmd,
+            env=self.env,
+            cwd=self.cwd,
+            stdin=subprocess.DEVNULL,
+            stdout=out,
+            stderr=err,
+            start_new_session=True,
+        )
         _LIVE.add(self)
         return self
 
@@ -144,8 +168,11 @@ class RosProcess:
         if self.popen is None:
             return None
         if self.popen.poll() is None:
-            for sig, timeout in ((signal.SIGINT, sigint_timeout), (signal.SIGTERM, sigterm_timeout),
-                                 (signal.SIGKILL, 10.0)):
+            for sig, timeout in (
+                (signal.SIGINT, sigint_timeout),
+                (signal.SIGTERM, sigterm_timeout),
+                (signal.SIGKILL, 10.0),
+            ):
                 self._signal_group(sig)
                 if self._wait(timeout):
                     self.stopped_by = sig.name
@@ -193,28 +220,42 @@ class RosProcess:
     def output(self) -> str:
         return self.stdout + self.stderr
 
-    def wait_for_output(self, pattern: str, timeout: float = 20.0, stream: str = 'any') -> 're.Match':
+    def wait_for_output(
+        self, pattern: str, timeout: float = 20.0, stream: str = 'any'
+    ) -> 're.Match':
         """Block until ``pattern`` (regex) appears in stdout, stderr or either ('any')."""
         rx = re.compile(pattern, re.MULTILINE)
         deadline = time.monotonic() + timeout
         while True:
-            text = {'stdout': self.stdout, 'stderr': self.stderr}.get(stream) if stream != 'any' else self.output
+            text = (
+                {'stdout': self.stdout, 'stderr': self.stderr}.get(stream)
+                if stream != 'any'
+                else self.output
+            )
             match = rx.search(text)
             if match:
                 return match
             if not self.running:
-                raise RuntimeError(f'{self.name} exited ({self.returncode}) before printing '
-                                   f'{pattern!r}\n{self.describe()}')
+                raise RuntimeError(
+                    f'{self.name} exited ({self.returncode}) before printing '
+                    f'{pattern!r}\n{self.describe()}'
+                )
             if time.monotonic() > deadline:
-                raise TimeoutError(f'{self.name} did not print {pattern!r} within {timeout} s\n{self.describe()}')
+                raise TimeoutError(
+                    f'{self.name} did not print {pattern!r} within {timeout} s\n{self.describe()}'
+                )
             time.sleep(0.05)
 
     def describe(self, tail: int = 40) -> str:
         def last(text):
             return '\n'.join(text.splitlines()[-tail:])
-        return (f'--- {self.name}: {" ".join(self.cmd)} (pid {self.popen.pid if self.popen else None}, '
-                f'returncode {self.returncode}, stopped_by {self.stopped_by})\n'
-                f'--- stdout:\n{last(self.stdout)}\n--- stderr:\n{last(self.stderr)}')
+
+        return (
+            f'--- {self.name}: {" ".join(self.cmd)} (pid '
+            f'{self.popen.pid if self.popen else None}, '
+            f'returncode {self.returncode}, stopped_by {self.stopped_by})\n'
+            f'--- stdout:\n{last(self.stdout)}\n--- stderr:\n{last(self.stderr)}'
+        )
 
 
 def live_processes() -> 'list[RosProcess]':
@@ -234,13 +275,19 @@ atexit.register(stop_all_processes)
 
 
 def process_log(folder: Union[str, Path], name: str) -> str:
-    """What the RosProcess ``name`` wrote to ``folder`` (stdout, then stderr: ROS logs go to stderr)."""
+    """Return what the RosProcess ``name`` wrote to ``folder``.
+
+    stdout, then stderr: ROS logs go to stderr.
+    """
     parts = [Path(folder) / f'{name}.{stream}' for stream in ('stdout', 'stderr')]
     return ''.join(p.read_text(errors='replace') for p in parts if p.is_file())
 
 
 class ProcessFigures:
-    """CPU (% of one core, from a mark) and peak resident memory of one process, read through psutil."""
+    """CPU (% of one core, from a mark) and peak resident memory of one process.
+
+    Read through psutil.
+    """
 
     def __init__(self, pid: int):
         """Watch ``pid``."""
@@ -263,7 +310,7 @@ class ProcessFigures:
                 times = self.process.cpu_times()
                 self.cpu_last = times.user + times.system
                 self.wall_last = time.monotonic()
-                self.peak_rss_mb = max(self.peak_rss_mb, self.process.memory_info().rss / 2 ** 20)
+                self.peak_rss_mb = max(self.peak_rss_mb, self.process.memory_info().rss / 2**20)
         except psutil.Error:
             pass
 
@@ -283,13 +330,19 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     """``which PACKAGE EXECUTABLE``: print the executable's path, or one line and exit 2."""
     args = sys.argv[1:] if argv is None else list(argv)
     if len(args) != 3 or args[0] != 'which':
-        print('usage: python -m actuator_tools.supervisor which PACKAGE EXECUTABLE', file=sys.stderr)
+        print(
+            'usage: python -m actuator_tools.supervisor which PACKAGE EXECUTABLE', file=sys.stderr
+        )
         return 2
     from ament_index_python.packages import PackageNotFoundError
+
     try:
         print(executable_path(args[1], args[2]))
     except (PackageNotFoundError, FileNotFoundError) as exc:
-        print(f'ros2run: {exc}' if str(exc) else f'ros2run: package {args[1]!r} not found', file=sys.stderr)
+        print(
+            f'ros2run: {exc}' if str(exc) else f'ros2run: package {args[1]!r} not found',
+            file=sys.stderr,
+        )
         return 2
     return 0
 
