@@ -193,12 +193,14 @@ def test_ros2_lifecycle_takes_each_node_through_its_states(
         assert proc.stop() == 0 and 'Traceback' not in proc.output
 
 
-HAVE_BAG = HAVE_CLI and subprocess.run(['ros2', 'bag', '--help'], capture_output=True).returncode == 0
+HAVE_BAG = HAVE_CLI and (
+    subprocess.run(['ros2', 'bag', '--help'], capture_output=True).returncode == 0
+)
 
 
 @pytest.mark.skipif(
     not HAVE_BAG,
-    reason='rosbag2 (ros2 bag) is not installed: 45 minutes of C++ on 2 cores (real-ros2-tools.md)',
+    reason='rosbag2 (ros2 bag) is not installed: 45 min of C++ on 2 cores (real-ros2-tools.md)',
 )
 def test_ros2_bag_info_reads_a_fresh_bag(ros_env, tmp_path):
     from actuator_tools.bringup import run_closed_loop
