@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import traceback
 
-from rcl_interfaces.msg import ParameterDescriptor
+from rcl_interfaces.msg import ParameterDescriptor, ParameterType
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 
 from actuator_ros.log import RateLimitedLog
@@ -91,6 +91,7 @@ class ManagedNode(LifecycleNode):
             'use_sim_time',
             ParameterDescriptor(
                 name='use_sim_time',
+                type=ParameterType.PARAMETER_BOOL,
                 description='true: time from /clock (sim mode, the plant publishes it); '
                 'false: the system clock',
             ),
