@@ -54,7 +54,7 @@ def ros2(env, *args, timeout=60.0) -> subprocess.CompletedProcess:
         ['param', 'list'],
         ['param', 'describe'],
     ):
-        args.insert(2, '--no-daemon')
+        args[2:2] = ['--no-daemon', '--spin-time', '2']     # 2 s of discovery without the daemon
     return subprocess.run(
         ['ros2', *args], env=env, capture_output=True, text=True, timeout=timeout
     )
