@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """bag_analyze computes the run figures from bags offline, draws the figures, and rejects bad input cleanly."""
 
 from __future__ import annotations

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """The bags BagWriter makes are the rosbag2 (Jazzy, v9) + MCAP layout, and rosbags reads them back."""
 
 from __future__ import annotations

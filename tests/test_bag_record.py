@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Recorder, player and repair against a live ROS graph: installed executables, isolated domain.
 
 Run as a script, this file is the load publisher the tests start in a separate process:

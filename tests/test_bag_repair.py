@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """bag_repair rebuilds interrupted bags from what is readable, never touching the original (ROS-free part).
 
 The end-to-end case (recorder killed with SIGKILL mid-run) is in test_bag_record.py.

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """No bag tool writes inside or over a source bag; output locations are refused before any work; a full disk
 is one clean error that leaves a repairable bag (BagWriter) or nothing half-written (bag_repair). ROS-free.
 

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Helpers shared by the bag tests (synthetic runs written without ROS), plus checks of the helpers."""
 
 from __future__ import annotations

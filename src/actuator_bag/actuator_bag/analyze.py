@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """``bag_analyze``: compare recorded runs offline (no ROS graph needed) and draw the paper's figures.
 
 Each bag is read with rosbags; message types come from the installed .msg files (or, for

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Writing rosbag2 bags as ROS 2 Jazzy does: a folder with metadata.yaml (version 9) and one MCAP file.
 
 The MCAP file has profile ``ros2``, one ``ros2msg`` schema per type holding the full

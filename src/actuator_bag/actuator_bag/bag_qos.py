@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """The offered-QoS record of a rosbag2 v9 topic (the ``offered_qos_profiles`` YAML of metadata and MCAP channels)."""
 
 from __future__ import annotations

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """The MCAP data file as BagWriter writes it: unbuffered, cut back to its last complete write when one fails.
 
 The mcap Writer hands the file whole groups of records (the header, a chunk, its message

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Entry points of ``recorder`` and ``player``: signals answered quietly from the first instant, then the imports."""
 
 from actuator_ros.early import quiet_until_running

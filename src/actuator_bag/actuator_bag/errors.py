@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Error classes of the bag tooling and the one-line error reporting of its command-line tools."""
 
 from __future__ import annotations

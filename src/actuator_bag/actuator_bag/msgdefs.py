@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Message definitions read from installed .msg files: rosbag2's full definition text, RIHS01 hashes, typestores.
 
 rosbag2 stores, per topic type, the type's own .msg text followed by the text of every

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Where the bag tools may write, checked before any work: never inside or over a source bag.
 
 A source bag folder (an input folder, or the folder of an input .mcap file when it is a

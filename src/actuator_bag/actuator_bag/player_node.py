@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """``player``: publishes a bag's messages again at their recorded timing (scaled by ``rate``).
 
 Messages are published as the recorded serialized bytes (rclpy's Publisher.publish accepts

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Progress of long operations on stderr, through tqdm (one library for every progress display)."""
 
 from __future__ import annotations

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Opening bags for reading with rosbags, with one-line errors for every kind of bad input."""
 
 from __future__ import annotations

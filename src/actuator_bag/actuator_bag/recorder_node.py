@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """``recorder``: records the system's topics into a rosbag2 (MCAP) bag, losing nothing at 1 kHz.
 
 Hot path: one raw (serialized, never deserialized) subscription per topic, BEST_EFFORT

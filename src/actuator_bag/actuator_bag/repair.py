@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """``bag_repair``: rebuild a bag whose recorder died (no MCAP summary or footer, no metadata.yaml).
 
 The MCAP files of the bag are scanned record by record (scan.py). Schemas, channels and

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """rclpy helpers shared by the recorder and the player: message classes, QoS conversion, signals, executors."""
 
 from __future__ import annotations

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Record-by-record scan of one MCAP file that survives damage and says exactly what it skipped.
 
 The scan reads the data section in file order. A record that is truncated, has an unknown
