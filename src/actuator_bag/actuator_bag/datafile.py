@@ -5,9 +5,9 @@
 
 It is unbuffered, and cut back to its last complete write when one fails. The mcap Writer hands
 the file whole groups of records (the header, a chunk, its message indexes, the summary), one
-``write`` call each. ``DataFile`` remembers where the last complete
-call ended, so after a failed write (ENOSPC, EIO, any OSError) the partial group can be cut off
-and the file ends on a record boundary: bag_repair then recovers every chunk before it.
+``write`` call each. ``DataFile`` remembers where the last complete call ended, so after a
+failed write (ENOSPC, EIO, any OSError) the partial group can be cut off and the file ends on a
+record boundary: bag_repair then recovers every chunk before it.
 
 Test hook (documented in bags/README.md): with the environment variable
 ``ACTUATOR_BAG_TEST_FULL_AFTER_BYTES=N`` set, every data file opened behaves as a disk that is
