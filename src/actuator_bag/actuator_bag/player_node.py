@@ -103,8 +103,7 @@ class PlayerNode(Node):
             total = sum(c.msgcount for c in conns)
             self.get_logger().info(
                 f'playing {total} messages of {len(conns)} topics from {self.bag} '
-                f'at rate {self.rate:g}'
-                + (' (loop)' if self.loop else '')
+                f'at rate {self.rate:g}' + (' (loop)' if self.loop else '')
             )
             started = time.monotonic()
             while not stop.requested:
