@@ -31,7 +31,8 @@ setup(
     zip_safe=True,
     maintainer='Actuator control team',
     maintainer_email='actuator@example.com',
-    description='Recording, playback, repair and analysis of rosbag2 (MCAP) bags of the actuator node suite.',
+    description='Recording, playback, repair and analysis of rosbag2 (MCAP) bags '
+    'of the actuator node suite.',
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={
