@@ -1,4 +1,10 @@
-"""bag_analyze computes the run figures from bags offline, draws the figures, and rejects bad input cleanly."""
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""bag_analyze computes the run figures from bags offline and draws the figures.
+
+It rejects bad input cleanly.
+"""
 
 from __future__ import annotations
 
@@ -27,7 +33,10 @@ def _rms(x: np.ndarray) -> float:
 
 @pytest.fixture(scope='module')
 def case2(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[Path, object]]:
-    """Four synthetic bags, one per controller; only the PP one has an envelope; pi misses two samples."""
+    """Four synthetic bags, one per controller.
+
+    Only the PP one has an envelope; pi misses two samples.
+    """
     root = tmp_path_factory.mktemp('case2')
     bags = {}
     for seed, name in enumerate(CONTROLLERS):
@@ -71,7 +80,10 @@ def test_figures_match_the_recorded_arrays(case2) -> None:
 
 
 def test_gaps_violations_and_missing_envelope(case2, tmp_path: Path) -> None:
-    """Dropped samples are counted; a bound violation is found; no envelope means no compliance figure."""
+    """Dropped samples are counted; a bound violation is found.
+
+    No envelope means no compliance figure.
+    """
     report = analyze_run(load_run(case2['pi'][0], quiet=True))
     assert report.missed_samples == 2
     assert report.timing['sample_period']['max_s'] == pytest.approx(2e-3)
@@ -82,7 +94,10 @@ def test_gaps_violations_and_missing_envelope(case2, tmp_path: Path) -> None:
 
 
 def test_without_truth_estimation_is_not_reported(tmp_path: Path) -> None:
-    """A hardware bag (no plant/truth) is analysed; estimation figures are left out, not invented."""
+    """A hardware bag (no plant/truth) is analysed.
+
+    Estimation figures are left out, not invented.
+    """
     path = write_run_bag(
         tmp_path / 'hw',
         synthetic_run(duration_s=1.0),

@@ -1,4 +1,7 @@
-"""The bags BagWriter makes are the rosbag2 (Jazzy, v9) + MCAP layout, and rosbags reads them back."""
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""The bags BagWriter makes are the rosbag2 (Jazzy, v9) + MCAP layout; rosbags reads them back."""
 
 from __future__ import annotations
 
@@ -57,14 +60,17 @@ QOS_KEYS = {
 
 @pytest.fixture(scope='module')
 def run_bag(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, object]:
-    """A small synthetic bag with all five topics, written in several chunks."""
+    """Write a small synthetic bag with all five topics, in several chunks."""
     run = synthetic_run(duration_s=1.0)
     path = write_run_bag(tmp_path_factory.mktemp('fmt') / 'case', run, chunk_size=64 * 1024)
     return path, run
 
 
 def test_layout_and_metadata_v9(run_bag) -> None:
-    """Folder holds metadata.yaml and <name>_0.mcap; every version-gated v9 key is present and typed."""
+    """Folder holds metadata.yaml and <name>_0.mcap.
+
+    Every version-gated v9 key is present and typed.
+    """
     path, run = run_bag
     assert sorted(p.name for p in path.iterdir()) == ['case_0.mcap', 'metadata.yaml']
     info = yaml.safe_load((path / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
@@ -96,7 +102,11 @@ def test_layout_and_metadata_v9(run_bag) -> None:
 
 
 def test_mcap_records_match_rosbag2(run_bag) -> None:
-    """Profile ros2, ros2msg schemas with dependencies, cdr channels with QoS + hash, rosbag2 record, zstd chunks."""
+    """The MCAP records are those rosbag2 writes.
+
+    Profile ros2, ros2msg schemas with dependencies, cdr channels with QoS + hash, rosbag2 record,
+    zstd chunks.
+    """
     path, _ = run_bag
     info = yaml.safe_load((path / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
     topics = {
@@ -130,7 +140,10 @@ def test_mcap_records_match_rosbag2(run_bag) -> None:
 
 
 def test_rosbags_reads_back_bytes_and_types(tmp_path: Path) -> None:
-    """rosbags' Reader returns exactly the bytes written, in order; AnyReader checks hashes and decodes."""
+    """The rosbags Reader returns exactly the bytes written, in order.
+
+    AnyReader checks hashes and decodes.
+    """
     store = SOURCE.typestore(['actuator_msgs/msg/CurrentCommand'])
     types = store.types
     written = []
@@ -162,7 +175,10 @@ def test_rosbags_reads_back_bytes_and_types(tmp_path: Path) -> None:
 
 
 def test_foxglove_ros2_decoder_reads_messages(run_bag) -> None:
-    """mcap-ros2-support (what Foxglove-style tools use) decodes every message from the embedded schemas."""
+    """mcap-ros2-support decodes every message from the embedded schemas.
+
+    It is what Foxglove-style tools use.
+    """
     decoder_mod = pytest.importorskip('mcap_ros2.decoder')
     path, run = run_bag
     counts: dict[str, int] = {}
@@ -201,7 +217,10 @@ def test_argument_validation(tmp_path: Path) -> None:
 
 
 def test_flushes_chunks_while_recording(tmp_path: Path) -> None:
-    """With a short flush interval, finished chunks reach the file before close (what makes kill -9 survivable)."""
+    """With a short flush interval, finished chunks reach the file before close.
+
+    That is what makes kill -9 survivable.
+    """
     path = tmp_path / 'live'
     writer = BagWriter(path, flush_interval_s=0.05)
     writer.open()
@@ -237,7 +256,10 @@ def test_dependency_parsing() -> None:
 
 
 def test_hash_matches_rosidl_when_installed() -> None:
-    """Where actuator_msgs is built (share/actuator_msgs/msg/*.json from rosidl), our RIHS01 hashes equal rosidl's."""
+    """Where actuator_msgs is built, our RIHS01 hashes equal rosidl's.
+
+    Built means share/actuator_msgs/msg/*.json from rosidl is there.
+    """
     source = DefinitionSource()
     files = [source.find_file(t) for _, t in TOPICS.values() if t.startswith('actuator_msgs/')]
     files = [f for f in files if f is not None and f.with_suffix('.json').is_file()]

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Recorder, player and repair against a live ROS graph: installed executables, isolated domain.
 
 Run as a script, this file is the load publisher the tests start in a separate process:
@@ -30,7 +33,7 @@ SIM_T0_S = 1000
 
 
 def publish(argv: list[str]) -> int:
-    """The load publisher (see the module docstring)."""
+    """Run the load publisher (see the module docstring)."""
     import importlib
 
     import rclpy
@@ -129,7 +132,10 @@ def _start_recorder(ros_process, out: Path, *extra: str) -> RosProcess:
 
 
 def _bag_messages(path: Path) -> dict[str, list[bytes]]:
-    """Raw messages per topic, every one decoded on the way (AnyReader also checks the type hashes)."""
+    """Raw messages per topic, every one decoded on the way.
+
+    AnyReader also checks the type hashes.
+    """
     out: dict[str, list[bytes]] = {}
     with AnyReader([path]) as reader:
         for conn, _, raw in reader.messages():
@@ -150,7 +156,10 @@ def _stamps(path: Path) -> dict[str, list[int]]:
 
 
 def test_records_every_message_at_1khz(ros_env, ros_process, tmp_path: Path) -> None:
-    """N messages at 1 kHz on each of five topics: the bag holds exactly N per topic, in order, all decodable."""
+    """N messages at 1 kHz on each of five topics.
+
+    The bag holds exactly N per topic, in order, all decodable.
+    """
     bag = tmp_path / 'rec'
     recorder = _start_recorder(ros_process, bag)
     pub = _publisher(ros_env, tmp_path, N)
@@ -182,7 +191,10 @@ def test_best_effort_publisher_is_matched(ros_env, ros_process, tmp_path: Path) 
 
 
 def test_sim_time_log_times_follow_clock(ros_env, ros_process, tmp_path: Path) -> None:
-    """With use_sim_time the log time is the node's ROS time (from /clock), not wall time (lag bound allows load)."""
+    """With use_sim_time the log time is the node's ROS time (from /clock), not wall time.
+
+    The lag bound allows for load.
+    """
     bag = tmp_path / 'sim'
     recorder = _start_recorder(ros_process, bag, '--ros-args', '-p', 'use_sim_time:=true')
     pub = _publisher(ros_env, tmp_path, 1000, '--clock')
@@ -215,7 +227,10 @@ def test_sigterm_closes_the_bag(ros_env, ros_process, tmp_path: Path) -> None:
 
 
 def test_sigkill_mid_run_then_repair(ros_env, ros_process, tmp_path: Path) -> None:
-    """kill -9 while recording: bag_repair recovers the flushed part (> 0, all decodable), original untouched."""
+    """SIGKILL (kill -9) while recording: bag_repair recovers the flushed part, original untouched.
+
+    The recovered part is not empty, and all of it decodes.
+    """
     bag = tmp_path / 'killed'
     recorder = _start_recorder(ros_process, bag, '--flush-interval', '0.5')
     pub = _publisher(ros_env, tmp_path, 4000)
@@ -247,7 +262,7 @@ def test_sigkill_mid_run_then_repair(ros_env, ros_process, tmp_path: Path) -> No
 
 
 def test_replay_reproduces_the_recording(ros_env, ros_process, tmp_path: Path) -> None:
-    """record -> play -> record again: same count and bytes per topic."""
+    """Record -> play -> record again: same count and bytes per topic."""
     first = tmp_path / 'first'
     recorder = _start_recorder(ros_process, first)
     pub = _publisher(ros_env, tmp_path, 2000)
@@ -278,7 +293,7 @@ def test_replay_reproduces_the_recording(ros_env, ros_process, tmp_path: Path) -
 
 
 def test_player_rate_and_topic_selection(ros_env, ros_process, tmp_path: Path) -> None:
-    """rate 2 halves the playing time; a topic selection plays only those topics."""
+    """Rate 2 halves the playing time; a topic selection plays only those topics."""
     from test_bag_support import synthetic_run, write_run_bag
 
     src = write_run_bag(tmp_path / 'src', synthetic_run(duration_s=2.0))
@@ -358,7 +373,10 @@ def test_help(ros_process, exe: str) -> None:
 
 # ------------------------------------------------- full disk, parameters, signals at any moment
 def test_full_disk_stops_the_recorder_at_once(ros_env, ros_process, tmp_path: Path) -> None:
-    """Disk full while recording (real ENOSPC): exit 1 by itself, one error line, bag_repair recovers what it said."""
+    """Disk full while recording (real ENOSPC): exit 1 by itself, one error line.
+
+    bag_repair recovers what it said.
+    """
     from actuator_bag.bag_format import mcap_name
     from actuator_bag.datafile import FULL_AFTER_ENV
 
@@ -409,7 +427,10 @@ def test_full_disk_stops_the_recorder_at_once(ros_env, ros_process, tmp_path: Pa
 def test_recorder_refuses_bad_parameters(
     ros_process, tmp_path: Path, args: list, names: list
 ) -> None:
-    """A wrong type, a value out of range or a misspelled name: one line naming it, exit 2, no bag created."""
+    """A wrong type, a value out of range or a misspelled name: one line naming it, exit 2.
+
+    No bag is created.
+    """
     bag = tmp_path / 'never'
     proc = ros_process('actuator_bag', 'recorder', ['-o', str(bag), '--ros-args', *args])
     assert proc.wait(30) == 2, proc.describe()
@@ -461,7 +482,10 @@ def test_recorder_parameters_have_descriptions(rclpy_context, tmp_path: Path) ->
 
 @pytest.mark.parametrize('exe', ['recorder', 'player'])
 def test_entry_point_quiets_signals_before_rclpy(exe: str) -> None:
-    """recorder and player start at actuator_bag.entry, whose import loads no rclpy (signals go quiet first)."""
+    """The recorder and player start at actuator_bag.entry, whose import loads no rclpy.
+
+    So signals go quiet first.
+    """
     import importlib.metadata
     import subprocess
 
@@ -486,7 +510,7 @@ def test_entry_point_quiets_signals_before_rclpy(exe: str) -> None:
 
 
 def _catches(pid: int, signum: int) -> bool:
-    """True when process ``pid`` has a handler for ``signum`` (SigCgt in /proc/<pid>/status)."""
+    """Tell whether process ``pid`` has a handler for ``signum`` (SigCgt in /proc/<pid>/status)."""
     try:
         status = Path(f'/proc/{pid}/status').read_text()
     except OSError:
@@ -503,7 +527,10 @@ def _catches(pid: int, signum: int) -> bool:
 def test_signal_at_any_moment_exits_0(
     ros_process, tmp_path: Path, exe: str, delay, signame: str
 ) -> None:
-    """SIGINT/SIGTERM during imports, start-up or the run: exit 0, no traceback; an opened bag is closed."""
+    """SIGINT/SIGTERM during imports, start-up or the run: exit 0, no traceback.
+
+    An opened bag is closed.
+    """
     from test_bag_support import synthetic_run, write_run_bag
 
     bag = tmp_path / 'sig'
@@ -517,8 +544,9 @@ def test_signal_at_any_moment_exits_0(
             r'recording \d+ topics' if exe == 'recorder' else 'playing', timeout=30
         )
     else:
-        # Delays count from the entry point (it handles SIGTERM from its first line: Python alone does not);
-        # the interpreter start and console-script wrapper before it are not this code's.
+        # Delays count from the entry point (it handles SIGTERM from its first line: Python alone
+        # does not); the interpreter start and console-script wrapper before it are not this
+        # code's.
         deadline = time.monotonic() + 20
         while (
             not _catches(proc.pid, signal.SIGTERM) and proc.running and time.monotonic() < deadline

@@ -1,6 +1,10 @@
-"""bag_repair rebuilds interrupted bags from what is readable, never touching the original (ROS-free part).
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
 
-The end-to-end case (recorder killed with SIGKILL mid-run) is in test_bag_record.py.
+"""bag_repair rebuilds interrupted bags from what is readable, never touching the original.
+
+This is the ROS-free part. The end-to-end case (recorder killed with SIGKILL mid-run) is in
+test_bag_record.py.
 """
 
 from __future__ import annotations
@@ -36,7 +40,10 @@ def _digest(path: Path) -> str:
 
 
 def _interrupted_bag(path: Path, flushed: int, unflushed: int) -> list[bytes]:
-    """A bag whose writer flushed ``flushed`` messages and then died (abort: no summary, no metadata.yaml)."""
+    """Write a bag whose writer flushed ``flushed`` messages and then died.
+
+    Abort: no summary, no metadata.yaml.
+    """
     store = SOURCE.typestore([MSGTYPE])
     types = store.types
     payloads = []
@@ -71,7 +78,10 @@ def _read(path: Path) -> list[bytes]:
 
 
 def test_repairs_interrupted_bag_without_touching_it(tmp_path: Path) -> None:
-    """Everything flushed is recovered in a new folder; the original file is byte-identical afterwards."""
+    """Everything flushed is recovered in a new folder.
+
+    The original file is byte-identical afterwards.
+    """
     bag = tmp_path / 'run'
     payloads = _interrupted_bag(bag, flushed=700, unflushed=50)
     original = _digest(bag / mcap_name(bag))
@@ -87,7 +97,10 @@ def test_repairs_interrupted_bag_without_touching_it(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize('cut', [1, 37, 500, 2000, 6000])
 def test_truncated_anywhere_stops_cleanly(tmp_path: Path, cut: int) -> None:
-    """Cutting the file at any point loses at most the damaged tail; every recovered message decodes."""
+    """Cutting the file at any point loses at most the damaged tail.
+
+    Every recovered message decodes.
+    """
     bag = tmp_path / 'run'
     payloads = _interrupted_bag(bag, flushed=600, unflushed=0)
     mcap = bag / mcap_name(bag)
@@ -102,7 +115,10 @@ def test_truncated_anywhere_stops_cleanly(tmp_path: Path, cut: int) -> None:
 
 
 def test_corrupt_chunk_keeps_what_precedes_it(tmp_path: Path) -> None:
-    """A chunk whose bytes were damaged fails its CRC; the earlier chunks are intact, and so are the later ones."""
+    """A chunk whose bytes were damaged fails its CRC.
+
+    The earlier chunks are intact, and so are the later ones.
+    """
     bag = tmp_path / 'run'
     payloads = _interrupted_bag(bag, flushed=600, unflushed=0)
     mcap = bag / mcap_name(bag)
@@ -168,7 +184,7 @@ def test_cli_reports_progress_and_result(tmp_path: Path) -> None:
     'case', ['missing', 'not_mcap', 'empty_dir', 'output_exists', 'header_only', 'empty_file']
 )
 def test_cli_bad_input_is_one_line_error(tmp_path: Path, case: str) -> None:
-    """Each kind of bad input gives one line naming the problem and exit code 1, never a traceback."""
+    """Each kind of bad input gives one line naming the problem, exit code 1, never a traceback."""
     target = tmp_path / 'bag'
     expect = {
         'missing': 'does not exist',
@@ -253,7 +269,10 @@ def _chunk_messages(path: Path) -> list[int]:
 def _damaged(
     tmp_path: Path, damage
 ) -> tuple[Path, list[bytes], list[tuple[int, int, int]], list[int]]:
-    """An interrupted bag of 6+ chunks damaged by damage(data, chunks): its payloads, records, messages per chunk."""
+    """Make an interrupted bag of 6+ chunks damaged by damage(data, chunks).
+
+    Return it, its payloads, records, messages per chunk.
+    """
     bag = tmp_path / 'run'
     payloads = _interrupted_bag(bag, flushed=600, unflushed=0)
     mcap = bag / mcap_name(bag)
@@ -266,7 +285,10 @@ def _damaged(
 
 
 def test_resyncs_after_a_chunk_failing_its_crc(tmp_path: Path) -> None:
-    """Chunk 3 fails its CRC: exactly it is skipped, later chunks recovered, its range and message count reported."""
+    """Chunk 3 fails its CRC: exactly it is skipped, later chunks recovered.
+
+    Its range and message count are reported.
+    """
 
     def damage(data: bytearray, chunks: list) -> None:
         _, start, end = chunks[2]
@@ -297,7 +319,10 @@ def test_resyncs_after_a_chunk_failing_its_crc(tmp_path: Path) -> None:
 
 
 def test_resyncs_after_garbage_over_a_record_header(tmp_path: Path) -> None:
-    """Garbage over chunk 4's header: resync at the next plausible record, later chunks recovered, count unknown."""
+    """Garbage over chunk 4's header: resync at the next plausible record.
+
+    Later chunks are recovered; the count is unknown.
+    """
     rng = random.Random(4)
 
     def damage(data: bytearray, chunks: list) -> None:
@@ -321,7 +346,10 @@ def test_resyncs_after_garbage_over_a_record_header(tmp_path: Path) -> None:
 
 
 def test_garbage_inserted_between_chunks_loses_no_message(tmp_path: Path) -> None:
-    """1000 random bytes inserted between two chunks: all 600 messages recovered, exactly that range reported."""
+    """1000 random bytes inserted between two chunks: all 600 messages recovered.
+
+    Exactly that range is reported.
+    """
     rng = random.Random(7)
     inserted: list[int] = []
 
@@ -339,7 +367,10 @@ def test_garbage_inserted_between_chunks_loses_no_message(tmp_path: Path) -> Non
 
 
 def test_two_damaged_places_are_both_reported(tmp_path: Path) -> None:
-    """A CRC-failing chunk and a damaged header later: both ranges reported, the counted messages as a lower bound."""
+    """A CRC-failing chunk and a damaged header later: both ranges reported.
+
+    The counted messages are a lower bound.
+    """
 
     def damage(data: bytearray, chunks: list) -> None:
         _, start, end = chunks[1]
@@ -369,7 +400,10 @@ def test_two_damaged_places_are_both_reported(tmp_path: Path) -> None:
 
 
 def test_complete_bag_with_a_corrupt_chunk_reaches_its_end(tmp_path: Path) -> None:
-    """A closed bag (summary, footer) with one damaged chunk: the scan goes on to the end of the data section."""
+    """A closed bag (summary, footer) with one damaged chunk.
+
+    The scan goes on to the end of the data section.
+    """
     store = SOURCE.typestore([MSGTYPE])
     src = tmp_path / 'ok'
     with BagWriter(src, chunk_size=2048) as writer:
@@ -397,7 +431,10 @@ def test_complete_bag_with_a_corrupt_chunk_reaches_its_end(tmp_path: Path) -> No
 
 
 def test_adjacent_corrupt_chunks_are_each_counted(tmp_path: Path) -> None:
-    """Chunks 2 and 3 both fail their CRC: two exact ranges, each with its own message count, the rest recovered."""
+    """Chunks 2 and 3 both fail their CRC: two exact ranges, each with its own message count.
+
+    The rest is recovered.
+    """
 
     def damage(data: bytearray, chunks: list) -> None:
         for _, start, end in chunks[2:4]:
@@ -419,7 +456,10 @@ def test_adjacent_corrupt_chunks_are_each_counted(tmp_path: Path) -> None:
 
 
 def test_closed_bag_with_its_first_chunk_lost_keeps_the_rest(tmp_path: Path) -> None:
-    """Closed bag, first chunk (schema, channel) corrupt: definitions come from the summary, later chunks recovered."""
+    """Closed bag, first chunk (schema, channel) corrupt: definitions come from the summary.
+
+    Later chunks are recovered.
+    """
     store = SOURCE.typestore([MSGTYPE])
     src = tmp_path / 'ok'
     payloads = []
@@ -447,7 +487,10 @@ def test_closed_bag_with_its_first_chunk_lost_keeps_the_rest(tmp_path: Path) -> 
 
 
 def test_lost_channel_definition_is_reported(tmp_path: Path) -> None:
-    """Interrupted bag, chunk defining the channel lost: later messages are counted as without channel, not hidden."""
+    """Interrupted bag, chunk defining the channel lost.
+
+    Later messages are counted as without channel, not hidden.
+    """
 
     def damage(data: bytearray, chunks: list) -> None:
         _, start, end = chunks[0]

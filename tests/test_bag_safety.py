@@ -1,8 +1,13 @@
-"""No bag tool writes inside or over a source bag; output locations are refused before any work; a full disk
-is one clean error that leaves a repairable bag (BagWriter) or nothing half-written (bag_repair). ROS-free.
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
 
-The full disk is real: the test hook ACTUATOR_BAG_TEST_FULL_AFTER_BYTES=N (actuator_bag.datafile) sends the
-bytes beyond N of a data file to /dev/full, so the error is the kernel's ENOSPC.
+"""No bag tool writes inside or over a source bag.
+
+Output locations are refused before any work; a full disk is one clean error that leaves a
+repairable bag (BagWriter) or nothing half-written (bag_repair). ROS-free.
+
+The full disk is real: the test hook ACTUATOR_BAG_TEST_FULL_AFTER_BYTES=N (actuator_bag.datafile)
+sends the bytes beyond N of a data file to /dev/full, so the error is the kernel's ENOSPC.
 """
 
 from __future__ import annotations
@@ -52,7 +57,7 @@ def _run(module: str, *args: str, env: dict | None = None) -> subprocess.Complet
 
 
 def _one_error(proc: subprocess.CompletedProcess, prog: str, expect: str) -> None:
-    """The process printed exactly one error line containing ``expect`` and no traceback."""
+    """Check that the process printed exactly one error line with ``expect``, and no traceback."""
     assert 'Traceback' not in proc.stderr, proc.stderr
     lines = [x for x in proc.stderr.splitlines() if not x.startswith(f'{prog} ')]
     assert len(lines) == 1 and lines[0].startswith(f'{prog}: error: ') and expect in lines[0], (
@@ -62,12 +67,15 @@ def _one_error(proc: subprocess.CompletedProcess, prog: str, expect: str) -> Non
 
 @pytest.fixture(scope='module')
 def bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A small complete run bag (all five topics)."""
+    """Write a small complete run bag (all five topics)."""
     return write_run_bag(tmp_path_factory.mktemp('safety') / 'run', synthetic_run(duration_s=0.5))
 
 
 def _interrupted(path: Path, count: int = 300) -> Path:
-    """An interrupted bag (no summary, no metadata.yaml) of ``count`` messages in small chunks."""
+    """Write an interrupted bag of ``count`` messages in small chunks.
+
+    Interrupted: no summary, no metadata.yaml.
+    """
     store = SOURCE.typestore([MSGTYPE])
     types = store.types
     writer = BagWriter(path, chunk_size=4096)
@@ -104,7 +112,10 @@ def _interrupted(path: Path, count: int = 300) -> Path:
 def test_analyze_refuses_output_locations_before_work(
     bag: Path, tmp_path: Path, case: str
 ) -> None:
-    """bag_analyze refuses an output inside/over an input bag (links too) or unwritable: one line, exit 2, no work."""
+    """bag_analyze refuses an output inside/over an input bag (links too) or unwritable.
+
+    One line, exit 2, no work.
+    """
     before = _tree(bag)
     mcap = bag / mcap_name(bag)
     link = tmp_path / 'link.json'
@@ -159,7 +170,10 @@ def test_analyze_writes_next_to_a_bag(bag: Path, tmp_path: Path) -> None:
     'case', ['out_inside', 'out_is_bag', 'json_inside', 'out_under_a_file', 'json_is_mcap']
 )
 def test_repair_refuses_output_locations_before_work(tmp_path: Path, case: str) -> None:
-    """bag_repair refuses -o/--json inside or over the bag, or an -o it cannot create: exit 2, no work, nothing made."""
+    """bag_repair refuses -o/--json inside or over the bag, or an -o it cannot create.
+
+    Exit 2, no work, nothing made.
+    """
     src = _interrupted(tmp_path / 'run')
     before = _tree(src)
     (tmp_path / 'afile').write_text('x')
@@ -182,7 +196,10 @@ def test_repair_refuses_output_locations_before_work(tmp_path: Path, case: str) 
 
 
 def test_repair_report_may_go_into_the_new_output(tmp_path: Path) -> None:
-    """--json inside the -o folder repair creates is accepted (that folder is new, not a source)."""
+    """--json inside the -o folder repair creates is accepted.
+
+    That folder is new, not a source.
+    """
     src = _interrupted(tmp_path / 'run')
     proc = _run(
         'repair',
@@ -210,7 +227,10 @@ def test_repair_refuses_existing_non_empty_output(tmp_path: Path) -> None:
 
 
 def test_repair_of_a_file_in_its_bag_folder_writes_beside_the_folder(tmp_path: Path) -> None:
-    """bag_repair bags/run/run_0.mcap puts run_repaired next to bags/run, not inside the source bag."""
+    """bag_repair bags/run/run_0.mcap puts run_repaired next to bags/run.
+
+    Not inside the source bag.
+    """
     src = _interrupted(tmp_path / 'run')
     result = repair_bag(src / mcap_name(src), quiet=True)
     assert result.summary.path == tmp_path / 'run_repaired'
@@ -222,7 +242,10 @@ def test_repair_of_a_file_in_its_bag_folder_writes_beside_the_folder(tmp_path: P
 def test_writer_full_disk_is_one_error_and_leaves_a_repairable_file(
     tmp_path: Path, limit: int, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """Disk full mid-write: one BagIOError (ENOSPC), file cut to a record end, repair recovers exactly `durable`."""
+    """Disk full mid-write: one BagIOError (ENOSPC), file cut to a record end.
+
+    Repair recovers exactly `durable`.
+    """
     monkeypatch.setenv(FULL_AFTER_ENV, str(limit))
     store = SOURCE.typestore([MSGTYPE])
     types = store.types
@@ -256,7 +279,10 @@ def test_writer_full_disk_is_one_error_and_leaves_a_repairable_file(
 def test_writer_that_cannot_start_leaves_nothing(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """A disk full from the first byte: open() raises BagIOError and removes the folders it created."""
+    """A disk full from the first byte: open() raises BagIOError.
+
+    It removes the folders it created.
+    """
     monkeypatch.setenv(FULL_AFTER_ENV, '0')
     with pytest.raises(BagIOError, match='No space left on device'):
         BagWriter(tmp_path / 'a' / 'b' / 'bag').open()
@@ -265,7 +291,10 @@ def test_writer_that_cannot_start_leaves_nothing(
 
 @pytest.mark.parametrize('limit', ['0', '3000', '30000'])
 def test_repair_onto_a_full_disk(tmp_path: Path, limit: str) -> None:
-    """bag_repair onto a full disk: exit 1, one ENOSPC line, no traceback, none of its output (or parents) left."""
+    """bag_repair onto a full disk: exit 1, one ENOSPC line, no traceback.
+
+    None of its output (or parents) is left.
+    """
     src = write_run_bag(tmp_path / 'run', synthetic_run(duration_s=0.5))
     (src / 'metadata.yaml').unlink()
     before = _tree(src)
@@ -280,7 +309,10 @@ def test_repair_onto_a_full_disk(tmp_path: Path, limit: str) -> None:
 
 
 def test_repaired_bag_after_a_full_disk_reads_back(tmp_path: Path) -> None:
-    """The repaired copy of a bag whose recording hit a full disk is a normal bag: rosbags reads every message."""
+    """The repaired copy of a bag whose recording hit a full disk is a normal bag.
+
+    rosbags reads every message.
+    """
     src = _interrupted(tmp_path / 'run', count=500)
     result = repair_bag(src, tmp_path / 'fixed', quiet=True)
     with AnyReader([tmp_path / 'fixed']) as reader:

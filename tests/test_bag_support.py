@@ -1,4 +1,10 @@
-"""Helpers shared by the bag tests (synthetic runs written without ROS), plus checks of the helpers."""
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""Helpers shared by the bag tests, plus checks of the helpers.
+
+The helpers write synthetic runs without ROS.
+"""
 
 from __future__ import annotations
 
@@ -16,7 +22,8 @@ from actuator_bag.bag_format import BagWriter, QosProfile, topic_spec  # noqa: E
 from actuator_bag.msgdefs import DefinitionSource, definition_roots  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
-#: The repository's source folder holds actuator_msgs/msg/*.msg, so definitions resolve without an install.
+#: The repository's source folder holds actuator_msgs/msg/*.msg, so definitions resolve without
+#: an install.
 SOURCE = DefinitionSource(definition_roots([REPO / 'src']))
 
 TOPICS = {
@@ -31,7 +38,10 @@ T0_NS = 1_700_000_000_000_000_000
 
 @dataclass
 class SyntheticRun:
-    """The arrays a synthetic run bag was written from, so tests can compute the expected figures."""
+    """The arrays a synthetic run bag was written from.
+
+    Tests compute the expected figures from them.
+    """
 
     t: np.ndarray
     stamps_ns: np.ndarray
@@ -57,7 +67,10 @@ def synthetic_run(
     violate_at: Optional[int] = None,
     drop_joint: tuple[int, ...] = (),
 ) -> SyntheticRun:
-    """Arrays of a plausible tracking run: a decaying error inside a shrinking envelope, noisy estimates."""
+    """Arrays of a plausible tracking run.
+
+    A decaying error inside a shrinking envelope, noisy estimates.
+    """
     rng = np.random.default_rng(seed)
     n = int(round(duration_s / dt_s))
     t = np.arange(n) * dt_s
@@ -232,7 +245,10 @@ def write_run_bag(
 
 
 def test_synthetic_bag_counts(tmp_path: Path) -> None:
-    """The helper writes one message per sample and topic, fewer joint_states where samples were dropped."""
+    """The helper writes one message per sample and topic.
+
+    Fewer joint_states where samples were dropped.
+    """
     run = synthetic_run(duration_s=0.5, drop_joint=(10, 11))
     write_run_bag(tmp_path / 'run', run)
     n = run.t.size

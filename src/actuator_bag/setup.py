@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Set-up of the ament_python package actuator_bag."""
 
 import os
@@ -28,7 +31,8 @@ setup(
     zip_safe=True,
     maintainer='Actuator control team',
     maintainer_email='actuator@example.com',
-    description='Recording, playback, repair and analysis of rosbag2 (MCAP) bags of the actuator node suite.',
+    description='Recording, playback, repair and analysis of rosbag2 (MCAP) bags '
+    'of the actuator node suite.',
     license='Apache-2.0',
     extras_require={'test': ['pytest']},
     entry_points={

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Recording, playback, repair and analysis of rosbag2 (MCAP) bags of the actuator node suite.
 
 ROS-free modules: ``bag_format`` (BagWriter: rosbag2 v9 folder + MCAP file), ``bag_qos``

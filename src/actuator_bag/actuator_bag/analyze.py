@@ -1,15 +1,19 @@
-"""``bag_analyze``: compare recorded runs offline (no ROS graph needed) and draw the paper's figures.
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
 
-Each bag is read with rosbags; message types come from the installed .msg files (or, for
-types not installed, the definitions embedded in the bag). Per bag it reports the run
-metrics of ``actuator_core.metrics.compute_run_metrics`` computed from the
+"""``bag_analyze``: compare recorded runs offline and draw the paper's figures.
+
+No ROS graph is needed. Each bag is read with rosbags; message types come from the installed
+.msg files (or, for types not installed, the definitions embedded in the bag). Per bag it
+reports the run metrics of ``actuator_core.metrics.compute_run_metrics`` computed from the
 ``controller/state`` samples (reference, error, prescribed-performance bounds, current),
 the estimation error of ``eso/estimate`` against ``plant/truth`` paired by header.stamp,
 and loop timing from stamps: the joint_states sample period and the command latency
 (the recorder's receive time of ``current_command`` minus its header.stamp).
 
 Time zero of a run is the header.stamp of its first controller/state sample that is not
-Status.WAITING (actuator_core.status); samples before it (controller waiting for inputs) are left out.
+Status.WAITING (actuator_core.status); samples before it (controller waiting for inputs) are
+left out.
 """
 
 from __future__ import annotations
@@ -42,7 +46,8 @@ STATE_ESTIMATE = 'actuator_msgs/msg/StateEstimate'
 PLANT_TRUTH = 'actuator_msgs/msg/PlantTruth'
 CURRENT_COMMAND = 'actuator_msgs/msg/CurrentCommand'
 JOINT_STATE = 'sensor_msgs/msg/JointState'
-#: The files draw_figures writes (the velocity and disturbance figures only when a bag has estimates).
+#: The files draw_figures writes (the velocity and disturbance figures only when a bag has
+#: estimates).
 FIGURE_FILES = (
     'position.png',
     'tracking_error.png',
@@ -82,7 +87,10 @@ class RunData:
 
     @property
     def has_envelope(self) -> bool:
-        """True when the prescribed-performance bounds are finite at every controlled sample (status OK)."""
+        """True when the prescribed-performance bounds are finite at every controlled sample.
+
+        Controlled samples are those of status OK.
+        """
         ok = self.status == Status.OK
         return bool(
             ok.any()
@@ -116,7 +124,10 @@ class RunReport:
 def load_run(
     path: os.PathLike | str, source: Optional[DefinitionSource] = None, quiet: bool = False
 ) -> RunData:
-    """Read the topics of one bag into a RunData; AnalysisError when controller/state is missing or empty."""
+    """Read the topics of one bag into a RunData.
+
+    AnalysisError when controller/state is missing or empty.
+    """
     path = Path(path)
     with open_bag(path) as reader:
         conns = reader.connections
@@ -162,7 +173,7 @@ def load_run(
 
 
 def _logged_in_sim_time(path: Path) -> bool:
-    """True when the recorder wrote log times on sim time (metadata.yaml custom_data)."""
+    """Tell whether the recorder wrote log times on sim time (metadata.yaml custom_data)."""
     meta = path / 'metadata.yaml' if path.is_dir() else path.parent / 'metadata.yaml'
     try:
         info = yaml.safe_load(meta.read_text())['rosbag2_bagfile_information']
@@ -172,7 +183,7 @@ def _logged_in_sim_time(path: Path) -> bool:
 
 
 def _extract(kind: str, msg: Any, log_ns: int) -> tuple:
-    """The fields of one message that the analysis uses."""
+    """Return the fields of one message that the analysis uses."""
     if kind == 'state':
         return (
             stamp_to_ns(msg.header.stamp),
@@ -296,7 +307,7 @@ def analyze_run(run: RunData, steady_state_start_s: float = STEADY_STATE_START_S
 
 
 def _num(value: Optional[float], unit: str, fmt: str = '.3e') -> str:
-    """A number with its unit, or n/a."""
+    """Format a number with its unit, or n/a."""
     if value is None or (isinstance(value, float) and math.isnan(value)):
         return 'n/a'
     return f'{value:{fmt}} {unit}'
@@ -312,7 +323,7 @@ def _timing(stats: Optional[dict[str, float]]) -> str:
 
 
 def format_table(reports: Sequence[RunReport]) -> str:
-    """A text table: one row per figure, one column per bag."""
+    """Format a text table: one row per figure, one column per bag."""
     rows: list[tuple[str, list[str]]] = []
 
     def add(label: str, cells: list[str]) -> None:
@@ -512,8 +523,9 @@ def build_parser() -> argparse.ArgumentParser:
     """Command-line interface of bag_analyze."""
     parser = argparse.ArgumentParser(
         prog='bag_analyze',
-        description='Compare recorded runs: tracking, control effort, PPF bound compliance, estimation error '
-        "and loop timing per bag, read offline from rosbag2/MCAP bags. Draws the paper's figures with --out.",
+        description='Compare recorded runs: tracking, control effort, PPF bound compliance, '
+        'estimation error and loop timing per bag, read offline from rosbag2/MCAP bags. '
+        "Draws the paper's figures with --out.",
     )
     parser.add_argument(
         'bags', nargs='+', type=Path, metavar='BAG', help='bag folders (or .mcap files)'
@@ -566,7 +578,8 @@ def _main(argv: Optional[Sequence[str]]) -> int:
         raise AnalysisError(
             f'--steady-start must be a finite number >= 0, not {args.steady_start}'
         )
-    # Output locations first: nothing is read or computed for a run whose results could not be written.
+    # Output locations first: nothing is read or computed for a run whose results could not be
+    # written.
     if args.json:
         check_output_file('--json', args.json, args.bags)
     if args.out:

@@ -1,9 +1,13 @@
-"""Writing rosbag2 bags as ROS 2 Jazzy does: a folder with metadata.yaml (version 9) and one MCAP file.
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
 
-The MCAP file has profile ``ros2``, one ``ros2msg`` schema per type holding the full
-definition text, ``cdr`` channels whose metadata carry ``offered_qos_profiles`` (a YAML
-string) and ``topic_type_hash`` (RIHS01), zstd-compressed chunks with CRCs, and a Metadata
-record ``rosbag2`` whose ``serialized_metadata`` is the YAML of the bag metadata.
+"""Writing rosbag2 bags as ROS 2 Jazzy does.
+
+A bag is a folder with metadata.yaml (version 9) and one MCAP file. The MCAP file has profile
+``ros2``, one ``ros2msg`` schema per type holding the full definition text, ``cdr`` channels
+whose metadata carry ``offered_qos_profiles`` (a YAML string) and ``topic_type_hash``
+(RIHS01), zstd-compressed chunks with CRCs, and a Metadata record ``rosbag2`` whose
+``serialized_metadata`` is the YAML of the bag metadata.
 
 The ``mcap`` library's Writer is used rather than rosbags' Writer because only it lets the
 channel metadata carry ``topic_type_hash``, names the file ``<name>_0.mcap`` as rosbag2
@@ -105,7 +109,10 @@ def topic_spec(
     qos: Iterable[QosProfile] = (),
     type_hash: Optional[str] = None,
 ) -> TopicSpec:
-    """TopicSpec with the definition (and, unless given, the hash) taken from a DefinitionSource."""
+    """Make a TopicSpec with the definition taken from a DefinitionSource.
+
+    The hash too is taken from it, unless given.
+    """
     return TopicSpec(
         name=name,
         msgtype=msgtype,
@@ -143,7 +150,7 @@ class BagSummary:
 
 
 def mcap_name(bag_dir: os.PathLike | str) -> str:
-    """File name of the (only) MCAP file of a bag folder, as rosbag2 names it: ``<name>_0.mcap``."""
+    """Name the (only) MCAP file of a bag folder as rosbag2 does: ``<name>_0.mcap``."""
     return f'{Path(bag_dir).name}_0.mcap'
 
 
@@ -155,7 +162,10 @@ def bag_metadata(
     end_ns: int,
     custom_data: Optional[Mapping[str, str]] = None,
 ) -> dict[str, Any]:
-    """The ``rosbag2_bagfile_information`` map (v9, every version-gated key present) for one file."""
+    """Build the ``rosbag2_bagfile_information`` map for one file.
+
+    Version 9, with every version-gated key present.
+    """
     if len(topics) != len(counts):
         raise BagWriteError('one message count per topic is needed')
     total = int(sum(counts))
@@ -257,7 +267,8 @@ class BagWriter:
         self.end_ns = 0
         self._file: Optional[DataFile] = None
         self._created: list[Path] = []
-        #: Messages known to be in the file (complete chunks written), as opposed to ``counts`` (accepted).
+        #: Messages known to be in the file (complete chunks written), as opposed to ``counts``
+        #: (accepted).
         self.durable = 0
         self._mcap: Optional[McapWriter] = None
         self._schemas: dict[tuple[str, str], int] = {}
@@ -305,7 +316,8 @@ class BagWriter:
     def _failed(self, err: OSError, doing: str, good_before: int) -> BagIOError:
         """Cut the file back to its last complete write, close it; the BagIOError to raise."""
         if self._file is not None:
-            # Grown since good_before: the chunk went out and its index write failed, so its messages are in.
+            # Grown since good_before: the chunk went out and its index write failed, so its
+            # messages are in.
             if self._file.good != good_before:
                 self.durable = sum(self.counts)
             self._file.cut_back()
@@ -313,7 +325,7 @@ class BagWriter:
         return BagIOError(f'{doing} {self.mcap_path} failed: {describe_os_error(err)}', err.errno)
 
     def _writer(self) -> McapWriter:
-        """The open MCAP writer, or BagWriteError."""
+        """Return the open MCAP writer, or raise BagWriteError."""
         if self._mcap is None:
             raise BagWriteError(f'{self.path} is not open')
         return self._mcap
@@ -406,7 +418,7 @@ class BagWriter:
         )
 
     def metadata(self) -> dict[str, Any]:
-        """The bag metadata map for what was written so far."""
+        """Return the bag metadata map for what was written so far."""
         return bag_metadata(
             [self.mcap_path.name],
             self.topics,
@@ -450,7 +462,10 @@ class BagWriter:
         self._mcap = None
 
     def discard(self) -> None:
-        """Close and remove every file and folder open() created (for output that must not stay half-written)."""
+        """Close and remove every file and folder open() created.
+
+        For output that must not stay half-written.
+        """
         self.abort()
         if not self._created:
             return

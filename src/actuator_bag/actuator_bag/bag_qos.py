@@ -1,4 +1,10 @@
-"""The offered-QoS record of a rosbag2 v9 topic (the ``offered_qos_profiles`` YAML of metadata and MCAP channels)."""
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""The offered-QoS record of a rosbag2 v9 topic.
+
+It is the ``offered_qos_profiles`` YAML of metadata and MCAP channels.
+"""
 
 from __future__ import annotations
 
@@ -9,7 +15,8 @@ import yaml
 
 from .errors import BagWriteError
 
-#: The rmw value of an infinite duration, as the graph reports it for default deadline etc. (sec, nsec).
+#: The rmw value of an infinite duration, as the graph reports it for default deadline etc.
+#: (sec, nsec).
 DURATION_INFINITE = (9223372036, 854775807)
 
 _HISTORY = ('system_default', 'keep_last', 'keep_all', 'unknown')
@@ -25,7 +32,7 @@ def _check_choice(name: str, value: str, choices: Sequence[str]) -> None:
 
 
 def _time_dict(value: tuple[int, int]) -> dict[str, int]:
-    """A (sec, nsec) pair as rosbag2's YAML map."""
+    """Convert a (sec, nsec) pair to rosbag2's YAML map."""
     return {'sec': int(value[0]), 'nsec': int(value[1])}
 
 
@@ -53,7 +60,7 @@ class QosProfile:
             raise BagWriteError(f'QoS depth must be >= 0, not {self.depth}')
 
     def as_dict(self) -> dict[str, Any]:
-        """The v9 YAML map of this profile."""
+        """Return the v9 YAML map of this profile."""
         return {
             'history': self.history,
             'depth': int(self.depth),
@@ -87,7 +94,7 @@ class QosProfile:
 
 
 def qos_to_yaml(profiles: Sequence[QosProfile]) -> str:
-    """The offered_qos_profiles string of an MCAP channel (a YAML list of v9 maps)."""
+    """Format the offered_qos_profiles string of an MCAP channel (a YAML list of v9 maps)."""
     return yaml.safe_dump(
         [p.as_dict() for p in profiles], default_flow_style=False, sort_keys=False
     )

@@ -1,9 +1,13 @@
-"""The MCAP data file as BagWriter writes it: unbuffered, cut back to its last complete write when one fails.
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
 
-The mcap Writer hands the file whole groups of records (the header, a chunk, its message
-indexes, the summary), one ``write`` call each. ``DataFile`` remembers where the last complete
-call ended, so after a failed write (ENOSPC, EIO, any OSError) the partial group can be cut off
-and the file ends on a record boundary: bag_repair then recovers every chunk before it.
+"""The MCAP data file as BagWriter writes it.
+
+It is unbuffered, and cut back to its last complete write when one fails. The mcap Writer hands
+the file whole groups of records (the header, a chunk, its message indexes, the summary), one
+``write`` call each. ``DataFile`` remembers where the last complete call ended, so after a
+failed write (ENOSPC, EIO, any OSError) the partial group can be cut off and the file ends on a
+record boundary: bag_repair then recovers every chunk before it.
 
 Test hook (documented in bags/README.md): with the environment variable
 ``ACTUATOR_BAG_TEST_FULL_AFTER_BYTES=N`` set, every data file opened behaves as a disk that is
@@ -24,10 +28,16 @@ _DEV_FULL = '/dev/full'
 
 
 class DataFile:
-    """Write-only binary file with ``write``/``tell``/``flush``/``fileno``, tracking its last good end."""
+    """Write-only binary file with ``write``/``tell``/``flush``/``fileno``.
+
+    It tracks its last good end.
+    """
 
     def __init__(self, path: Path, full_after: Optional[int] = None) -> None:
-        """Create ``path`` (it must not exist); ``full_after`` bytes: then writes fail with ENOSPC."""
+        """Create ``path`` (it must not exist).
+
+        After ``full_after`` bytes, writes fail with ENOSPC.
+        """
         self.path = path
         self._fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o644)
         self.good = 0
@@ -55,11 +65,14 @@ class DataFile:
         """Nothing is buffered here."""
 
     def fileno(self) -> int:
-        """The OS file descriptor."""
+        """Return the OS file descriptor."""
         return self._fd
 
     def cut_back(self) -> None:
-        """Drop what a failed write left after the last complete one (best effort: it needs no space)."""
+        """Drop what a failed write left after the last complete one.
+
+        Best effort: it needs no space.
+        """
         try:
             os.ftruncate(self._fd, self.good)
         except OSError:
@@ -83,7 +96,7 @@ def _write_to_dev_full(data: memoryview) -> None:
 
 
 def open_data_file(path: Path) -> DataFile:
-    """Create the data file of a bag, with the full-disk test hook applied when its variable is set."""
+    """Create a bag's data file, with the full-disk test hook applied when its variable is set."""
     limit = os.environ.get(FULL_AFTER_ENV, '').strip()
     return DataFile(path, int(limit) if limit else None)
 

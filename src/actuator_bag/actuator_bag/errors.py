@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Error classes of the bag tooling and the one-line error reporting of its command-line tools."""
 
 from __future__ import annotations
@@ -18,16 +21,22 @@ class BagWriteError(BagError):
 
 
 class BagIOError(BagWriteError):
-    """A write to a bag failed in the operating system (disk full, I/O error); ``errno`` says which."""
+    """A write to a bag failed in the operating system (disk full, I/O error).
+
+    ``errno`` says which.
+    """
 
     def __init__(self, message: str, errno: Optional[int] = None) -> None:
-        """The one-line message and the OSError's errno."""
+        """Keep the one-line message and the OSError's errno."""
         super().__init__(message)
         self.errno = errno
 
 
 class OutputLocationError(BagError):
-    """An output location is refused before any work: inside or over an input bag, or not writable."""
+    """An output location is refused before any work.
+
+    It is inside or over an input bag, or not writable.
+    """
 
     exit_code = 2
 
@@ -53,7 +62,10 @@ def run_cli(
     main: Callable[[Optional[Sequence[str]]], int],
     argv: Optional[Sequence[str]] = None,
 ) -> int:
-    """Run a tool's main, turning a BagError (exit code: its exit_code) or an interrupt into a one-line message."""
+    """Run a tool's main, turning a BagError or an interrupt into a one-line message.
+
+    The exit code of a BagError is its exit_code.
+    """
     try:
         return main(argv)
     except BagError as err:

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Where the bag tools may write, checked before any work: never inside or over a source bag.
 
 A source bag folder (an input folder, or the folder of an input .mcap file when it is a
@@ -19,7 +22,10 @@ from .errors import OutputLocationError
 
 
 def _is_bag_folder_of(file: Path) -> bool:
-    """True when the folder of an MCAP file is a rosbag2 folder (metadata.yaml, or ``<folder>_<n>.mcap``)."""
+    """Tell whether the folder of an MCAP file is a rosbag2 folder.
+
+    It is one when it holds metadata.yaml, or when the file is named ``<folder>_<n>.mcap``.
+    """
     folder = file.parent
     return (folder / 'metadata.yaml').is_file() or re.fullmatch(
         re.escape(folder.name) + r'_\d+\.mcap', file.name
@@ -27,7 +33,7 @@ def _is_bag_folder_of(file: Path) -> bool:
 
 
 def source_folders(inputs: Iterable[Path]) -> list[Path]:
-    """The resolved bag folders of the inputs, which no output may be inside of."""
+    """Return the resolved bag folders of the inputs, which no output may be inside of."""
     folders = []
     for path in inputs:
         real = Path(path).resolve()
@@ -39,7 +45,10 @@ def source_folders(inputs: Iterable[Path]) -> list[Path]:
 
 
 def source_files(inputs: Iterable[Path]) -> list[Path]:
-    """The resolved input files (an input folder's files included), which no output may overwrite."""
+    """Return the resolved input files, which no output may overwrite.
+
+    An input folder's files are included.
+    """
     files = []
     for path in inputs:
         real = Path(path).resolve()
@@ -51,7 +60,7 @@ def source_files(inputs: Iterable[Path]) -> list[Path]:
 
 
 def _same_file(a: Path, b: Path) -> bool:
-    """True when both exist and are the same file (hard links included)."""
+    """Tell whether both exist and are the same file (hard links included)."""
     try:
         return os.path.samefile(a, b)
     except OSError:
@@ -59,7 +68,10 @@ def _same_file(a: Path, b: Path) -> bool:
 
 
 def writable_folder(folder: Path) -> bool:
-    """True when a file can be created in ``folder`` (checked by creating and removing one: root ignores modes)."""
+    """Tell whether a file can be created in ``folder``.
+
+    Checked by creating and removing one: root ignores modes.
+    """
     if not folder.is_dir() or not os.access(folder, os.W_OK | os.X_OK):
         return False
     try:
@@ -95,7 +107,10 @@ def _check_not_source(label: str, out: Path, real: Path, inputs: Sequence[Path])
 def check_output_file(
     label: str, out: Path, inputs: Sequence[Path], created: Iterable[Path] = ()
 ) -> None:
-    """Check a file to be written (``--json F``): not a source, not a folder, its folder writable or in ``created``."""
+    """Check a file to be written (``--json F``).
+
+    Not a source, not a folder, its folder writable or in ``created``.
+    """
     real = Path(out).resolve()
     _check_not_source(label, out, real, inputs)
     if real.is_dir():
@@ -110,7 +125,10 @@ def check_output_file(
 def check_output_folder(
     label: str, out: Path, inputs: Sequence[Path], names: Iterable[str] = ()
 ) -> None:
-    """Check a folder to be written (created if missing) with files ``names``: not a source, creatable."""
+    """Check a folder to be written (created if missing) with files ``names``.
+
+    Not a source, creatable.
+    """
     real = Path(out).resolve()
     _check_not_source(label, out, real, inputs)
     for name in names:

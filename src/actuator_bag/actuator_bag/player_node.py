@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """``player``: publishes a bag's messages again at their recorded timing (scaled by ``rate``).
 
 Messages are published as the recorded serialized bytes (rclpy's Publisher.publish accepts
@@ -32,7 +35,7 @@ _SPIN_WINDOW_S = 0.0015
 
 
 def _absolute(name: str) -> str:
-    """A topic selection entry as a fully qualified name."""
+    """Return a topic selection entry as a fully qualified name."""
     return name if name.startswith('/') else '/' + name
 
 
@@ -74,7 +77,10 @@ class PlayerNode(Node):
         self.counts: dict[str, int] = {}
 
     def play(self, stop: StopFlag) -> float:
-        """Replay the bag (repeatedly with loop) until done or stopped; return the seconds spent publishing."""
+        """Replay the bag (repeatedly with loop) until done or stopped.
+
+        Return the seconds spent publishing.
+        """
         with open_bag(self.bag) as reader:
             conns = reader.connections
             if self.topics:
@@ -82,7 +88,8 @@ class PlayerNode(Node):
                 missing = wanted - {c.topic for c in conns}
                 if missing:
                     raise BagError(
-                        f'{self.bag}: no topic {", ".join(sorted(missing))}; the bag has: {topic_names(conns)}'
+                        f'{self.bag}: no topic {", ".join(sorted(missing))}; '
+                        f'the bag has: {topic_names(conns)}'
                     )
                 conns = [c for c in conns if c.topic in wanted]
             if not conns:
@@ -95,8 +102,8 @@ class PlayerNode(Node):
             self._wait_for_subscribers(stop)
             total = sum(c.msgcount for c in conns)
             self.get_logger().info(
-                f'playing {total} messages of {len(conns)} topics from {self.bag} at rate {self.rate:g}'
-                + (' (loop)' if self.loop else '')
+                f'playing {total} messages of {len(conns)} topics from {self.bag} '
+                f'at rate {self.rate:g}' + (' (loop)' if self.loop else '')
             )
             started = time.monotonic()
             while not stop.requested:
@@ -107,14 +114,18 @@ class PlayerNode(Node):
             return time.monotonic() - started
 
     def _wait_for_subscribers(self, stop: StopFlag) -> None:
-        """Block until every publisher has wait_for_subscribers matched subscriptions, then start_delay."""
+        """Block until every publisher has wait_for_subscribers matched subscriptions.
+
+        Then wait start_delay.
+        """
         deadline = time.monotonic() + self.wait_timeout
         while self.wait_for and not stop.requested:
             if all(p.get_subscription_count() >= self.wait_for for p in self.publishers_.values()):
                 break
             if time.monotonic() > deadline:
                 raise BagError(
-                    f'no {self.wait_for} subscriber(s) on every topic within {self.wait_timeout:g} s'
+                    f'no {self.wait_for} subscriber(s) on every topic '
+                    f'within {self.wait_timeout:g} s'
                 )
             time.sleep(0.02)
         end = time.monotonic() + self.start_delay
@@ -149,11 +160,15 @@ class PlayerNode(Node):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """Command-line interface of the player (each option is the default of the parameter of the same name)."""
+    """Command-line interface of the player.
+
+    Each option is the default of the parameter of the same name.
+    """
     parser = argparse.ArgumentParser(
         prog='player',
-        description='Publish the messages of a rosbag2 (MCAP) bag again at their recorded timing. Each option sets '
-        'the default of the node parameter of the same name (override with --ros-args -p name:=value).',
+        description='Publish the messages of a rosbag2 (MCAP) bag again at their recorded timing. '
+        'Each option sets the default of the node parameter of the same name '
+        '(override with --ros-args -p name:=value).',
     )
     parser.add_argument('bag', nargs='?', default='', help='bag folder (or .mcap file) to play')
     parser.add_argument(
@@ -196,7 +211,8 @@ def build_parser() -> argparse.ArgumentParser:
         dest='start_delay',
         type=float,
         default=0.0,
-        help='pause before the first message, e.g. to let discovery settle [s] (default: %(default)s)',
+        help='pause before the first message, e.g. to let discovery settle [s] '
+        '(default: %(default)s)',
     )
     return parser
 
@@ -224,7 +240,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         per_topic = ', '.join(f'{k}={v}' for k, v in node.counts.items())
         how = 'stopped' if stop.requested else 'done'
         print(
-            f'player: {how}: published {sum(node.counts.values())} messages in {elapsed:.3f} s ({per_topic})',
+            f'player: {how}: published {sum(node.counts.values())} messages '
+            f'in {elapsed:.3f} s ({per_topic})',
             flush=True,
         )
         return 0

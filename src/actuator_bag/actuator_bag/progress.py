@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Progress of long operations on stderr, through tqdm (one library for every progress display)."""
 
 from __future__ import annotations
@@ -9,8 +12,11 @@ from tqdm import tqdm
 
 
 class Progress:
-    """``<label>: NN % (done/total unit, elapsed)`` on stderr: first after ``min_interval_s``, then at most that often,
-    and once at the end, so a failing operation prints its one error line and nothing else."""
+    """``<label>: NN % (done/total unit, elapsed)`` on stderr.
+
+    First after ``min_interval_s``, then at most that often, and once at the end, so a failing
+    operation prints its one error line and nothing else.
+    """
 
     def __init__(
         self,
@@ -22,7 +28,10 @@ class Progress:
         stream: Optional[IO[str]] = None,
         enabled: bool = True,
     ) -> None:
-        """Report for ``total`` units of work (nothing is printed when total <= 0 or not enabled)."""
+        """Report for ``total`` units of work.
+
+        Nothing is printed when total <= 0 or not enabled.
+        """
         self.total = float(total)
         self.done = 0.0
         self.bar = tqdm(
@@ -44,8 +53,8 @@ class Progress:
             self.bar.update(done - self.done)
             self.done = done
         if self.done >= self.total and not self.bar.disable:
-            # The final line, also when the work took less than the display delay, ended by a newline
-            # so that whatever is printed next starts a line of its own.
+            # The final line, also when the work took less than the display delay, ended by a
+            # newline so that whatever is printed next starts a line of its own.
             meter = self.bar.format_dict
             shown = meter['elapsed'] >= self.bar.delay  # tqdm drew a line already: overwrite it
             self.bar.disable = True

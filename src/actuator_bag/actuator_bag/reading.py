@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Opening bags for reading with rosbags, with one-line errors for every kind of bad input."""
 
 from __future__ import annotations
@@ -18,7 +21,10 @@ from .msgdefs import DefinitionSource
 
 
 def check_bag_path(path: os.PathLike | str) -> Path:
-    """Return the path if it looks like a rosbag2 bag (folder with metadata.yaml, or .mcap file); else BagReadError."""
+    """Return the path if it looks like a rosbag2 bag; else BagReadError.
+
+    A bag is a folder with metadata.yaml, or an .mcap file.
+    """
     path = Path(path)
     if not path.exists():
         raise BagReadError(f'{path}: no such bag (the path does not exist)')
@@ -27,7 +33,8 @@ def check_bag_path(path: os.PathLike | str) -> Path:
             return path
         if any(path.glob('*.mcap')):
             raise BagReadError(
-                f'{path}: no metadata.yaml, so the recording was interrupted; run: bag_repair {path}'
+                f'{path}: no metadata.yaml, so the recording was interrupted; '
+                f'run: bag_repair {path}'
             )
         raise BagReadError(f'{path}: not a rosbag2 bag (a folder without metadata.yaml)')
     if path.suffix not in ('.mcap', '.db3'):
@@ -64,7 +71,10 @@ def open_bag(path: os.PathLike | str) -> Iterator[Reader]:
 
 
 def bag_typestore(reader: Reader, source: Optional[DefinitionSource] = None) -> Typestore:
-    """Typestore for a bag: installed .msg definitions first, the bag's embedded definitions for the rest."""
+    """Typestore for a bag.
+
+    Installed .msg definitions first, the bag's embedded definitions for the rest.
+    """
     source = source or DefinitionSource()
     store = source.typestore()
     for conn in reader.connections:
@@ -89,7 +99,10 @@ def bag_typestore(reader: Reader, source: Optional[DefinitionSource] = None) -> 
 def find_topic(
     connections: Sequence[Connection], msgtype: str, preferred_suffix: str
 ) -> Optional[Connection]:
-    """The connection of a type whose topic ends with ``preferred_suffix``, else the only one of that type."""
+    """Return the connection of a type whose topic ends with ``preferred_suffix``.
+
+    Else the only one of that type.
+    """
     of_type = [c for c in connections if c.msgtype == msgtype]
     for conn in of_type:
         if conn.topic == preferred_suffix or conn.topic.endswith(

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """``recorder``: records the system's topics into a rosbag2 (MCAP) bag, losing nothing at 1 kHz.
 
 Hot path: one raw (serialized, never deserialized) subscription per topic, BEST_EFFORT
@@ -103,7 +106,10 @@ def parse_topic(entry: str) -> tuple[str, str]:
 
 
 def default_output(now: Optional[datetime] = None) -> Path:
-    """``bags/<UTC timestamp>`` under the working directory, with a suffix if that exists already."""
+    """Return ``bags/<UTC timestamp>`` under the working directory.
+
+    With a suffix if that exists already.
+    """
     stamp = (now or datetime.now(timezone.utc)).strftime('%Y%m%dT%H%M%SZ')
     path = Path('bags') / stamp
     n = 1
@@ -168,7 +174,8 @@ class RecorderNode(Node):
             self,
             'allow_unknown_parameters',
             False,
-            'accept parameter names the recorder does not declare, with a warning, instead of refusing them',
+            'accept parameter names the recorder does not declare, with a warning, '
+            'instead of refusing them',
         )
         entries = declare_text_list(
             self,
@@ -251,9 +258,10 @@ class RecorderNode(Node):
                 'recorder': 'actuator_bag recorder',
                 'log_time': 'receive time on the recorder node clock'
                 + (' (sim time)' if self.sim_time else ''),
-                # rosbag2 stores the publisher's source timestamp; rclpy gives it only through message
-                # info, which rclpy 7.1.6's EventsExecutor cannot deliver (SystemError: null argument
-                # to internal routine, tested), so with the default executor it is the receive time.
+                # rosbag2 stores the publisher's source timestamp; rclpy gives it only through
+                # message info, which rclpy 7.1.6's EventsExecutor cannot deliver (SystemError:
+                # null argument to internal routine, tested), so with the default executor it is
+                # the receive time.
                 'publish_time': (
                     'publisher source timestamp (message info)'
                     if defaults.executor == 'single_threaded' and not self.sim_time
@@ -283,7 +291,8 @@ class RecorderNode(Node):
         self.thread.start()
         self.get_logger().info(
             f'recording {len(self.specs)} topics into {path} '
-            f'({qos.reliability.name.lower()}, depth {depth}): {", ".join(s.name for s in self.specs)}'
+            f'({qos.reliability.name.lower()}, depth {depth}): '
+            f'{", ".join(s.name for s in self.specs)}'
         )
 
     def _on_lost(self, info: Any) -> None:
@@ -291,7 +300,10 @@ class RecorderNode(Node):
         self.lost += int(getattr(info, 'total_count_change', 0))
 
     def _offered(self, index: int) -> TopicSpec:
-        """The topic's spec completed with the publishers' offered QoS and type hash from the graph."""
+        """Complete the topic's spec with the publishers' offered QoS and type hash.
+
+        Both are taken from the graph.
+        """
         spec = self.specs[index]
         try:
             infos = self.get_publishers_info_by_topic(spec.name)
@@ -303,8 +315,8 @@ class RecorderNode(Node):
         }
         if hashes and spec.type_hash not in hashes:
             self.get_logger().warning(
-                f'{spec.name}: publishers report type hash {sorted(hashes)}, the installed definition '
-                f'gives {spec.type_hash}; recording the installed one'
+                f'{spec.name}: publishers report type hash {sorted(hashes)}, '
+                f'the installed definition gives {spec.type_hash}; recording the installed one'
             )
         return TopicSpec(
             name=spec.name,
@@ -315,7 +327,7 @@ class RecorderNode(Node):
         )
 
     def _make_callback(self, index: int, with_info: bool) -> Any:
-        """The raw-message callback of topic ``index``: stamp and enqueue, nothing else."""
+        """Make the raw-message callback of topic ``index``: stamp and enqueue, nothing else."""
         append = self.thread.queue.append
         clock = self.get_clock()
         sim = self.sim_time
@@ -349,7 +361,10 @@ class RecorderNode(Node):
         return self.thread.error is not None
 
     def finish(self) -> BagSummary:
-        """Stop the subscriptions, let the writer drain, close the bag (failed writing: BagError, what is on disk)."""
+        """Stop the subscriptions, let the writer drain, close the bag.
+
+        Failed writing: BagError, what is on disk.
+        """
         for sub in self.subscriptions_:
             self.destroy_subscription(sub)
         self.subscriptions_ = []
@@ -377,11 +392,15 @@ class RecorderNode(Node):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """Command-line interface of the recorder (each option is the default of the parameter of the same name)."""
+    """Command-line interface of the recorder.
+
+    Each option is the default of the parameter of the same name.
+    """
     parser = argparse.ArgumentParser(
         prog='recorder',
-        description='Record the actuator topics into a rosbag2 (MCAP) bag. Each option sets the default of the '
-        'node parameter of the same name (override with --ros-args -p name:=value). Stops on SIGINT/SIGTERM.',
+        description='Record the actuator topics into a rosbag2 (MCAP) bag. '
+        'Each option sets the default of the node parameter of the same name '
+        '(override with --ros-args -p name:=value). Stops on SIGINT/SIGTERM.',
     )
     parser.add_argument(
         '-o', '--output', default='', help='bag folder to create (default: bags/<UTC timestamp>)'
@@ -407,7 +426,8 @@ def build_parser() -> argparse.ArgumentParser:
         '--reliability',
         choices=('best_effort', 'reliable'),
         default='best_effort',
-        help='subscription reliability; best_effort matches every publisher (default: %(default)s)',
+        help='subscription reliability; best_effort matches every publisher '
+        '(default: %(default)s)',
     )
     parser.add_argument(
         '--flush-interval',
@@ -433,10 +453,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def drain(executor: Any, node: 'RecorderNode', quiet_s: float = 0.3, limit_s: float = 3.0) -> None:
-    """After a stop request, take what the middleware already delivered: spin until nothing new came for ``quiet_s``.
+    """After a stop request, take what the middleware already delivered.
 
-    A stop right after a fast run (sim time) would otherwise lose the messages still queued in
-    the subscriptions; measured in CI: 208 of 2000 samples of a 2 s lockstep run.
+    Spin until nothing new came for ``quiet_s``. A stop right after a fast run (sim time) would
+    otherwise lose the messages still queued in the subscriptions; measured in CI: 208 of 2000
+    samples of a 2 s lockstep run.
     """
     end = time.monotonic() + limit_s
     last, quiet_since = -1, time.monotonic()
@@ -477,7 +498,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         summary = node.finish()
         lost = f', {node.lost} reported lost by the middleware' if node.lost else ''
         print(
-            f'recorder: wrote {summary.line()}; max writer backlog {node.thread.max_backlog}{lost}',
+            f'recorder: wrote {summary.line()}; '
+            f'max writer backlog {node.thread.max_backlog}{lost}',
             flush=True,
         )
         return 0

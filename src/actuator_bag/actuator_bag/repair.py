@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """``bag_repair``: rebuild a bag whose recorder died (no MCAP summary or footer, no metadata.yaml).
 
 The MCAP files of the bag are scanned record by record (scan.py). Schemas, channels and
@@ -43,7 +46,7 @@ __all__ = [
 
 
 def mcap_files(bag: Path) -> list[Path]:
-    """The MCAP files of a bag folder (or the file itself), in recording order."""
+    """List the MCAP files of a bag folder (or the file itself), in recording order."""
     if bag.is_file():
         return [bag]
     if not bag.is_dir():
@@ -125,13 +128,16 @@ class RepairResult:
         return None if any(n is None for n in counts) else sum(n or 0 for n in counts)
 
     def line(self) -> str:
-        """One-line human summary: what was written, why each scan stopped, and exactly what was lost."""
+        """One-line human summary.
+
+        What was written, why each scan stopped, and exactly what was lost.
+        """
         how = '; '.join(f'{s.path.name}: {s.stop_reason}' for s in self.scans)
         lost = self.messages_lost
         details = [f'{s.path.name} {loss.text()}' for s in self.scans for loss in s.losses]
         details += [
-            f'{s.path.name}: {s.without_channel} messages of intact chunks whose channel was defined in '
-            'a lost part'
+            f'{s.path.name}: {s.without_channel} messages of intact chunks '
+            'whose channel was defined in a lost part'
             for s in self.scans
             if s.without_channel
         ]
@@ -146,7 +152,7 @@ class RepairResult:
         )
 
     def as_dict(self) -> dict[str, Any]:
-        """JSON form: the repaired bag, its counts, and per file the scan and every skipped range."""
+        """JSON form: the repaired bag, its counts, per file the scan and every skipped range."""
         lost = self.messages_lost
         return {
             'path': str(self.summary.path),
@@ -180,7 +186,8 @@ def repair_bag(
         for path in files:
             report = ScanReport(path=path, file_size=path.stat().st_size)
             scans.append(report)
-            # The summary's definitions (closed files only) stand in for those lost with a damaged chunk.
+            # The summary's definitions (closed files only) stand in for those lost with a damaged
+            # chunk.
             spare_schemas, spare_channels = summary_definitions(path)
             schemas: dict[int, Schema] = {}
             handles: dict[int, int] = {}
@@ -222,7 +229,10 @@ def repair_bag(
             reasons = '; '.join(s.stop_reason for s in scans)
             orphans = sum(s.without_channel for s in scans)
             if orphans:
-                reasons += f'; {orphans} messages of intact chunks whose channel was defined in a lost part'
+                reasons += (
+                    f'; {orphans} messages of intact chunks '
+                    'whose channel was defined in a lost part'
+                )
             raise RepairError(
                 f'nothing recoverable in {bag}: no complete chunk with a channel ({reasons})'
             )
@@ -244,10 +254,10 @@ def build_parser() -> argparse.ArgumentParser:
     """Command-line interface of bag_repair."""
     parser = argparse.ArgumentParser(
         prog='bag_repair',
-        description='Rebuild an interrupted rosbag2/MCAP bag (index, summary, metadata.yaml) into a new folder, '
-        'reading every complete chunk; after a truncated or corrupt record it resynchronises at the next '
-        'intact one and reports every skipped byte range. The original bag is not modified; the output '
-        'must be a new folder outside it.',
+        description='Rebuild an interrupted rosbag2/MCAP bag (index, summary, metadata.yaml) '
+        'into a new folder, reading every complete chunk; after a truncated or corrupt record '
+        'it resynchronises at the next intact one and reports every skipped byte range. '
+        'The original bag is not modified; the output must be a new folder outside it.',
     )
     parser.add_argument('bag', type=Path, help='bag folder (or a single .mcap file) to repair')
     parser.add_argument(

@@ -1,4 +1,10 @@
-"""rclpy helpers shared by the recorder and the player: message classes, QoS conversion, signals, executors."""
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""rclpy helpers shared by the recorder and the player.
+
+Message classes, QoS conversion, signals, executors.
+"""
 
 from __future__ import annotations
 
@@ -25,7 +31,10 @@ EXECUTORS = ('events', 'single_threaded')  # actuator_ros.runner.make_executor's
 
 
 def message_class(msgtype: str) -> Any:
-    """The Python class of a ROS message type ``pkg/msg/Type``; BagError when it is not installed."""
+    """Return the Python class of a ROS message type ``pkg/msg/Type``.
+
+    BagError when it is not installed.
+    """
     pkg, _, name = normalize_msgtype(msgtype).split('/')
     try:
         module = importlib.import_module(f'{pkg}.msg')
@@ -37,13 +46,13 @@ def message_class(msgtype: str) -> Any:
 
 
 def _pair(duration: Duration) -> tuple[int, int]:
-    """A Duration as (sec, nsec)."""
+    """Convert a Duration to (sec, nsec)."""
     ns = int(duration.nanoseconds)
     return (ns // 1_000_000_000, ns % 1_000_000_000)
 
 
 def to_bag_qos(qos: QoSProfile) -> QosProfile:
-    """An rclpy QoS profile as the bag's offered-QoS record."""
+    """Convert an rclpy QoS profile to the bag's offered-QoS record."""
     return QosProfile(
         history=HistoryPolicy(qos.history).name.lower(),
         depth=int(qos.depth),
@@ -58,7 +67,10 @@ def to_bag_qos(qos: QoSProfile) -> QosProfile:
 
 
 def make_qos(reliability: str, depth: int) -> QoSProfile:
-    """KEEP_LAST(depth), VOLATILE profile with the given reliability ('reliable' or 'best_effort')."""
+    """KEEP_LAST(depth), VOLATILE profile with the given reliability.
+
+    ``reliability`` is 'reliable' or 'best_effort'.
+    """
     policies = {
         'reliable': ReliabilityPolicy.RELIABLE,
         'best_effort': ReliabilityPolicy.BEST_EFFORT,
@@ -76,7 +88,10 @@ def make_qos(reliability: str, depth: int) -> QoSProfile:
 
 
 class StopFlag:
-    """Turns SIGINT and SIGTERM into a flag that a spin loop checks (rclpy.init with signal handling off)."""
+    """Turns SIGINT and SIGTERM into a flag that a spin loop checks.
+
+    For rclpy.init with signal handling off.
+    """
 
     def __init__(self) -> None:
         """Not installed yet; call install()."""

@@ -1,3 +1,6 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
 """Record-by-record scan of one MCAP file that survives damage and says exactly what it skipped.
 
 The scan reads the data section in file order. A record that is truncated, has an unknown
@@ -40,7 +43,8 @@ from .errors import RepairError
 MCAP_MAGIC = b'\x89MCAP0\r\n'
 _RECORD_HEADER = struct.Struct('<BQ')
 _HEAD = _RECORD_HEADER.size
-#: Largest uncompressed chunk accepted (a damaged size field must not make the scan allocate more) [bytes].
+#: Largest uncompressed chunk accepted (a damaged size field must not make the scan allocate
+#: more) [bytes].
 MAX_CHUNK_BYTES = 1 << 30
 _COMPRESSIONS = ('', 'zstd', 'lz4')
 _KNOWN = frozenset(int(o) for o in Opcode)
@@ -89,7 +93,10 @@ Record = Union[Schema, Channel, Message, Metadata]
 
 @dataclass
 class Loss:
-    """One skipped byte range [start, end) of a file, why, and how many messages it held (None: unknown)."""
+    """One skipped byte range [start, end) of a file, why, and how many messages it held.
+
+    ``messages`` None: unknown.
+    """
 
     start: int
     end: int
@@ -121,7 +128,10 @@ class Loss:
 
 @dataclass
 class ScanReport:
-    """Outcome of scanning one MCAP file: where and why it stopped, what it found, what it skipped."""
+    """Outcome of scanning one MCAP file.
+
+    Where and why it stopped, what it found, what it skipped.
+    """
 
     path: Path
     file_size: int
@@ -143,14 +153,20 @@ class ScanReport:
 
     @property
     def messages_lost(self) -> Optional[int]:
-        """Messages known lost (damaged chunks plus messages without channel); None when a loss is uncounted."""
+        """Messages known lost (damaged chunks plus messages without channel).
+
+        None when a loss is uncounted.
+        """
         if any(loss.messages is None for loss in self.losses):
             return None
         return self.messages_lost_counted
 
     @property
     def messages_lost_counted(self) -> int:
-        """Messages lost in the ranges whose count is known, plus messages without channel (a lower bound)."""
+        """Messages lost in the ranges whose count is known, plus messages without channel.
+
+        A lower bound.
+        """
         return sum(loss.messages or 0 for loss in self.losses) + self.without_channel
 
     def as_dict(self) -> dict[str, Any]:
@@ -171,19 +187,25 @@ class ScanReport:
 
 
 class _Damage(Exception):
-    """The bytes at a position are not a valid record; ``length`` is set when its framing is trusted."""
+    """The bytes at a position are not a valid record.
 
-    # The framing is trusted for a chunk whose fields decode to exactly its length but whose data fails to
-    # decompress or its CRC: its extent can then be skipped exactly.
+    ``length`` is set when its framing is trusted.
+    """
+
+    # The framing is trusted for a chunk whose fields decode to exactly its length but whose data
+    # fails to decompress or its CRC: its extent can then be skipped exactly.
 
     def __init__(self, reason: str, length: Optional[int] = None) -> None:
-        """A reason, and the record length when the framing is trusted."""
+        """Keep a reason, and the record length when the framing is trusted."""
         super().__init__(reason)
         self.length = length
 
 
 def _decode(buf: Any, pos: int, size: int) -> tuple[int, int, Any]:
-    """(opcode, length, record) of the record at ``pos``; _Damage unless it decodes to exactly its length."""
+    """Decode the record at ``pos`` into (opcode, length, record).
+
+    _Damage unless it decodes to exactly its length.
+    """
     if size - pos < _HEAD:
         raise _Damage(f'truncated record header at byte {pos}')
     opcode, length = _RECORD_HEADER.unpack_from(buf, pos)
@@ -208,7 +230,10 @@ def _decode(buf: Any, pos: int, size: int) -> tuple[int, int, Any]:
 
 
 def _chunk_records(chunk: Chunk) -> list:
-    """The records of a chunk, its CRC validated; ValueError when it is implausible or damaged."""
+    """Return the records of a chunk, its CRC validated.
+
+    ValueError when it is implausible or damaged.
+    """
     if chunk.compression not in _COMPRESSIONS:
         raise ValueError(f'unknown compression {chunk.compression!r}')
     if chunk.uncompressed_size > MAX_CHUNK_BYTES:
@@ -238,14 +263,18 @@ def _resync(buf: Any, start: int, size: int) -> Optional[int]:
 
 
 def _indexed_messages(buf: Any, pos: int, size: int) -> Optional[int]:
-    """Messages listed by the message index records starting at ``pos`` (a chunk's); None unless intact."""
+    """Count the messages listed by the message index records starting at ``pos`` (a chunk's).
+
+    None unless intact.
+    """
     total, found = 0, False
     while pos < size:
         if size - pos < _HEAD:
             return None
         opcode, length = _RECORD_HEADER.unpack_from(buf, pos)
         if opcode != Opcode.MESSAGE_INDEX:
-            # The group ends at the next record; its header must look sound, else the group may be cut short.
+            # The group ends at the next record; its header must look sound, else the group may be
+            # cut short.
             sound = opcode in _KNOWN and length <= size - pos - _HEAD
             return total if found and sound else None
         try:
@@ -259,9 +288,13 @@ def _indexed_messages(buf: Any, pos: int, size: int) -> Optional[int]:
 
 
 def summary_definitions(path: Path) -> tuple[dict[int, Schema], dict[int, Channel]]:
-    """Schemas and channels of the file's summary section when its footer is intact (a closed file), else none."""
-    # They stand in for definitions lost with a damaged chunk: a writer puts each schema and channel only in the
-    # chunk where it is first used, and repeats them all in the summary at close.
+    """Schemas and channels of the file's summary section when its footer is intact, else none.
+
+    The footer is intact in a closed file.
+    """
+    # They stand in for definitions lost with a damaged chunk: a writer puts each schema and
+    # channel only in the chunk where it is first used, and repeats them all in the summary at
+    # close.
     schemas: dict[int, Schema] = {}
     channels: dict[int, Channel] = {}
     if path.stat().st_size < 2 * len(MCAP_MAGIC) + _HEAD + 20:
@@ -296,7 +329,10 @@ def summary_definitions(path: Path) -> tuple[dict[int, Schema], dict[int, Channe
 def scan_mcap(
     path: Path, report: ScanReport, on_progress: Optional[Callable[[int], None]] = None
 ) -> Iterator[Record]:
-    """Yield an MCAP file's schemas, channels, messages, metadata in file order, skipping damage (``report``: what)."""
+    """Yield an MCAP file's schemas, channels, messages, metadata in file order, skipping damage.
+
+    ``report`` says what was skipped.
+    """
     with open(path, 'rb') as bio:
         if bio.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
             raise RepairError(f'{path} is not an MCAP file (bad magic)')
@@ -308,7 +344,7 @@ def scan_mcap(
 def _scan(
     buf: Any, size: int, report: ScanReport, on_progress: Optional[Callable[[int], None]]
 ) -> Iterator[Record]:
-    """The scan of scan_mcap over the mapped file."""
+    """Run the scan of scan_mcap over the mapped file."""
     pos = len(MCAP_MAGIC)
     report.bytes_read = pos
     while True:
@@ -321,7 +357,8 @@ def _scan(
             reason = str(damage)
             messages = None
             if damage.length is not None:
-                # The chunk's framing is intact: skip exactly it and count its messages from its index.
+                # The chunk's framing is intact: skip exactly it and count its messages from its
+                # index.
                 end: Optional[int] = pos + _HEAD + damage.length
                 messages = _indexed_messages(buf, end, size)
             else:
