@@ -54,10 +54,14 @@ def ros2(env, *args, timeout=60.0) -> subprocess.CompletedProcess:
         ['param', 'list'],
         ['param', 'describe'],
     ):
-        args[2:2] = ['--no-daemon', '--spin-time', '2']     # 2 s of discovery without the daemon
-    return subprocess.run(
-        ['ros2', *args], env=env, capture_output=True, text=True, timeout=timeout
-    )
+        args[2:2] = ['--no-daemon', '--spin-time', '2']  # 2 s of discovery without the daemon
+    for _ in range(5):  # discovery without the daemon can miss the node on a loaded machine
+        result = subprocess.run(
+            ['ros2', *args], env=env, capture_output=True, text=True, timeout=timeout
+        )
+        if 'Node not found' not in result.stderr:
+            break
+    return result
 
 
 def ours_running() -> list:
