@@ -17,6 +17,7 @@ else is refused.
 """
 
 import os
+from pathlib import Path
 
 from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
@@ -95,6 +96,7 @@ def _processes(context):
     if not os.path.isfile(params):
         raise RuntimeError(f'no scenario {scenario!r}: {params} does not exist')
     bag = LaunchConfiguration('bag').perform(context)
+    logs = LaunchConfiguration('logs').perform(context)
     specs = closed_loop(
         mode,
         duration,
@@ -102,6 +104,7 @@ def _processes(context):
         bag=bag or None,
         joint=joint,
         thread_priority=priority,
+        logs=Path(logs) if logs else None,
         autostart=False,
     )
     actions = []
@@ -164,6 +167,11 @@ def generate_launch_description():
             ),
             DeclareLaunchArgument(
                 'bag', default_value='', description='bag folder (default bags/<UTC time>)'
+            ),
+            DeclareLaunchArgument(
+                'logs',
+                default_value='',
+                description='folder for the per-node timing files of the benchmark (default none)',
             ),
             DeclareLaunchArgument(
                 'thread_priority',

@@ -41,7 +41,7 @@ from actuator_tools.supervisor import process_log
 
 DEFAULT_SCENARIO = 'case2_pp_nftsmc_eso'
 NODES = ('plant', 'eso', 'controller', 'recorder')
-RT_VARIANTS = ('normal', 'fifo', 'pinned', 'fifo-pinned')
+RT_VARIANTS = ('normal', 'fifo', 'pinned', 'fifo-pinned', 'fifo-launch')
 DURATION_RANGE_S = (1.0, 3600.0)
 PROGRESS_EVERY_S = 15.0
 
@@ -238,7 +238,12 @@ def log_figures(run_dir: Path) -> Figures:
 
     1 if the controller latched safe stop.
     """
-    texts = {node: process_log(run_dir, node) for node in ('plant', 'eso', 'controller')}
+    launched = process_log(run_dir, 'launch')  # ros2 launch prefixes each line: [plant_node-4] ...
+    texts = {
+        node: process_log(run_dir, node)
+        or '\n'.join(line for line in launched.splitlines() if line.startswith(f'[{node}_node-'))
+        for node in ('plant', 'eso', 'controller')
+    }
     return {
         'fifo_nodes': float(sum('running under SCHED_FIFO' in t for t in texts.values())),
         'safe_stop': float('safe stop latched' in texts['controller']),
@@ -633,6 +638,7 @@ class Variant:
     mode: str
     rt_priority: int = 0
     pinned: bool = False
+    launched: bool = False  # started by ros2 launch instead of the runner
 
     @property
     def slug(self) -> str:
@@ -642,6 +648,7 @@ class Variant:
             self.mode
             if self.mode == 'sim'
             else f'realtime_{sched}{"_pinned" if self.pinned else ""}'
+            f'{"_launch" if self.launched else ""}'
         )
 
     @property
@@ -657,6 +664,7 @@ class Variant:
         return (
             f'realtime: {sched}'
             f'{", pinned (plant CPU 0; ESO, controller CPU 1)" if self.pinned else ""}'
+            f'{", started by ros2 launch" if self.launched else ""}'
         )
 
 
@@ -668,7 +676,12 @@ def make_variants(
     if 'realtime' in modes:
         for name in dict.fromkeys(rt_variants):
             variants.append(
-                Variant('realtime', rt_priority if 'fifo' in name else 0, 'pinned' in name)
+                Variant(
+                    'realtime',
+                    rt_priority if 'fifo' in name else 0,
+                    'pinned' in name,
+                    'launch' in name,
+                )
             )
     return variants
 
@@ -738,7 +751,7 @@ def run_one(
     variant: Variant, repeat: int, args: argparse.Namespace, base: Path, period_ns: int
 ) -> RunRecord:
     """One recorded run of ``variant``; figures from its files and bag, or the error."""
-    from actuator_tools.bringup import run_closed_loop
+    from actuator_tools.bringup import run_closed_loop, run_launched
     from actuator_tools.graph import PINNING
 
     record = RunRecord(variant.slug, repeat)
@@ -747,16 +760,27 @@ def run_one(
     times_before = cpu_times()
     try:
         with progress(label, expected_wall_s(variant, args.duration), args.quiet):
-            result = run_closed_loop(
-                args.scenario,
-                variant.mode,
-                args.duration,
-                record=True,
-                bag_root=base / 'bags' / where,
-                results_root=base / 'runs' / where,
-                quiet=True,
-                thread_priority=variant.rt_priority,
-                cpus=PINNING if variant.pinned else None,
+            result = (
+                run_launched(
+                    args.scenario,
+                    variant.mode,
+                    args.duration,
+                    bag_root=base / 'bags' / where,
+                    results_root=base / 'runs' / where,
+                    thread_priority=variant.rt_priority,
+                )
+                if variant.launched
+                else run_closed_loop(
+                    args.scenario,
+                    variant.mode,
+                    args.duration,
+                    record=True,
+                    bag_root=base / 'bags' / where,
+                    results_root=base / 'runs' / where,
+                    quiet=True,
+                    thread_priority=variant.rt_priority,
+                    cpus=PINNING if variant.pinned else None,
+                )
             )
     except SystemExit as exc:
         record.error = str(exc)
@@ -985,7 +1009,8 @@ def build_parser() -> OneLineParser:
         choices=RT_VARIANTS,
         default=['normal', 'fifo'],
         help='real-time variants: normal scheduling, SCHED_FIFO (--rt-priority), pinned to CPUs '
-        '(bringup --pin layout), or both (default: normal fifo)',
+        '(bringup --pin layout), both, or SCHED_FIFO started by ros2 launch where it is installed '
+        '(default: normal fifo)',
     )
     p.add_argument(
         '--rt-priority',

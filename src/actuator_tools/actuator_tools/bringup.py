@@ -161,6 +161,76 @@ def run_closed_loop(
     )
 
 
+def run_launched(
+    scenario: str,
+    mode: str,
+    duration_s: float,
+    bag_root: Path,
+    results_root: Path,
+    thread_priority: int = 0,
+) -> RunResult:
+    """Make the same run through ``ros2 launch`` (closed_loop.launch.py), where it is installed.
+
+    For the benchmark's launched variant: the launch file builds the processes from the same
+    description (graph.closed_loop) and drives their lifecycle; CPU and memory are read from
+    the node processes launch starts.
+    """
+    stamp = dt.datetime.now(dt.timezone.utc).strftime('%Y%m%dT%H%M%SZ')
+    name = f'{scenario}_{mode}_launch_{stamp}'
+    run_dir, bag = results_root / name, bag_root / name
+    run_dir.mkdir(parents=True, exist_ok=True)
+    bag_root.mkdir(parents=True, exist_ok=True)
+    cmd = [
+        'ros2',
+        'launch',
+        'actuator_bringup',
+        'closed_loop.launch.py',
+        f'scenario:={scenario}',
+        f'mode:={mode}',
+        f'duration:={duration_s}',
+        f'thread_priority:={thread_priority}',
+        f'bag:={bag}',
+        f'logs:={run_dir}',
+    ]
+    start = time.monotonic()
+    launch = RosProcess(cmd, log_dir=run_dir, name='launch')
+    figures: dict[str, ProcessFigures] = {}
+    names = {
+        'plant_node': 'plant',
+        'eso_node': 'eso',
+        'controller_node': 'controller',
+        'recorder': 'recorder',
+    }
+    marked = False
+    deadline = start + max(120.0, 30.0 * duration_s)
+    try:
+        while launch.running and time.monotonic() < deadline:
+            for child in ProcessFigures(launch.pid).children():
+                key = names.get(Path(child.cmdline()[1] if len(child.cmdline()) > 1 else '').name)
+                if key and key not in figures:
+                    figures[key] = ProcessFigures(child.pid)
+            for f in figures.values():
+                f.sample()
+            if not marked and 'sampling started' in launch.output:
+                for f in figures.values():
+                    f.mark()
+                marked = True
+            time.sleep(0.2)
+    finally:
+        code = launch.stop()
+    return RunResult(
+        name,
+        mode,
+        bag,
+        run_dir,
+        run_dir / 'controller_timing.npz',
+        {'launch': code},
+        {k: f.cpu_percent() for k, f in figures.items()},
+        {k: f.peak_rss_mb for k, f in figures.items()},
+        time.monotonic() - start,
+    )
+
+
 def wait_for_leader(
     procs: dict[str, RosProcess],
     figures: dict[str, ProcessFigures],

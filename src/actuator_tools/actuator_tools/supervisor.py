@@ -314,6 +314,13 @@ class ProcessFigures:
         except psutil.Error:
             pass
 
+    def children(self) -> list:
+        """Return the descendants (psutil.Process objects; empty once the process is gone)."""
+        try:
+            return self.process.children(recursive=True) if self.process is not None else []
+        except psutil.Error:
+            return []
+
     def mark(self) -> None:
         """Start of the measured interval (after start-up and imports)."""
         self.sample()
