@@ -25,6 +25,7 @@ import ros_helpers
 
 WS = ros_helpers.WORKSPACE
 HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
 COLCON = [
     sys.executable,
     '-c',
@@ -285,3 +286,26 @@ def test_executable_path_reports_missing_executables():
         ros_helpers.executable_path('actuator_msgs', 'no_such_executable')
     with pytest.raises(PackageNotFoundError):
         ros_helpers.executable_path('no_such_package_xyz', 'x')
+
+
+@pytest.mark.ros
+def test_readme_commands_work_from_a_shell_that_sourced_env_sh(tmp_path):
+    """Run set-up, build, ros2run and make test from a sourced shell: the venv survives."""
+    python = ROOT / '.venv' / 'bin' / 'python'
+    before = python.resolve()
+    script = (
+        'set -e; source scripts/env.sh; '
+        'bash scripts/setup.sh; make setup; make build; '
+        'scripts/ros2run actuator_sim offline_sim run --duration 5.5 --no-traces '
+        f'--json {tmp_path / "r.json"}; '
+        "make test ARGS='-m unit -k test_gate_honours -p no:cacheprovider -q'"
+    )
+    env = {k: v for k, v in os.environ.items() if not k.startswith('PYTEST')}
+    proc = subprocess.run(
+        ['bash', '-c', script], cwd=ROOT, env=env, capture_output=True, text=True, timeout=600
+    )
+    out = proc.stdout + proc.stderr
+    assert proc.returncode == 0, out[-3000:]
+    assert 'recreating it' not in out and python.resolve() == before  # the working venv was kept
+    assert 'up to date' in out and '1 passed' in out
+    assert json.loads((tmp_path / 'r.json').read_text())['runs'][0]['metrics']['samples'] == 5500
