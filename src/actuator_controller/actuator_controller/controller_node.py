@@ -255,7 +255,7 @@ class ControllerNode(ManagedNode):
         """One safe-stop command so the drive brakes now; the timing summary."""
         stamp = self.measurement_check.last_ns
         if stamp is not None:  # the command only: controller/state keeps one entry per sample
-            self._publish(self.assembly.safe_sample(stamp, Status.INACTIVE), 0, state=False)
+            self._publish(self.assembly.safe_sample(stamp, Status.INACTIVE), None, state=False)
         self.close_log()
 
     def drop(self) -> None:
@@ -273,7 +273,7 @@ class ControllerNode(ManagedNode):
         self.refused += 1
         self.log.error(key, why)
         if stamp is not None:
-            self._publish(self.assembly.safe_sample(stamp, Status.INVALID_INPUT), 0)
+            self._publish(self.assembly.safe_sample(stamp, Status.INVALID_INPUT), None)
 
     def on_measurement(self, msg: JointState) -> None:
         """y(k): checked, then the assembly; control sample k as soon as x_hat(k) is in."""
@@ -293,7 +293,7 @@ class ControllerNode(ManagedNode):
         if verdict is Verdict.OLD:
             return
         if self.conflict:
-            self._publish(self.assembly.safe_sample(stamp, Status.CONFLICT), 0)
+            self._publish(self.assembly.safe_sample(stamp, Status.CONFLICT), None)
             return
         y = joint_position(msg, self.joint_name)
         if y is None or not math.isfinite(y) or abs(y) > limits.POSITION_LIMIT_RAD:
@@ -314,7 +314,8 @@ class ControllerNode(ManagedNode):
             )
             self.assembly.resync(stamp)
         resyncs = self.assembly.resyncs
-        self._control(self.assembly.add_measurement(stamp, y))
+        started = time.perf_counter_ns()
+        self._control(self.assembly.add_measurement(stamp, y), started)
         if self.assembly.resyncs != resyncs:
             self.get_logger().warning(
                 'measurements resumed after a gap: 0 A and brake while the observer converges, '
@@ -352,10 +353,12 @@ class ControllerNode(ManagedNode):
         if verdict is Verdict.OLD:
             return
         resyncs = self.assembly.resyncs
+        started = time.perf_counter_ns()
         self._control(
             self.assembly.add_estimate(
                 stamp, x2, x3, stamp_to_ns(msg.input_stamp), u, gain, msg.initial
-            )
+            ),
+            started,
         )
         if self.assembly.resyncs != resyncs:
             self.get_logger().warning(
@@ -395,17 +398,16 @@ class ControllerNode(ManagedNode):
         if self.status != status:
             self.stale_events += 1
         self.log.warn('stale', lambda: f'{status.name.lower().replace("_", " ")}: commanding 0 A')
-        self._publish(self.assembly.safe_sample(now, status), 0)
+        self._publish(self.assembly.safe_sample(now, status), None)
 
     # --- output ----------------------------------------------------------------------------------
-    def _control(self, sample: ControlSample | None) -> None:
+    def _control(self, sample: ControlSample | None, started_ns: int) -> None:
         """Publish a control update the assembly produced.
 
         Log the latch, restarts, late samples.
         """
         if sample is None:
             return
-        start = time.perf_counter_ns()
         law = self.assembly.law
         if getattr(law, 'envelope_restarts', 0) != self.envelope_restarts:
             self.envelope_restarts = law.envelope_restarts
@@ -421,12 +423,12 @@ class ControllerNode(ManagedNode):
                 'control output not finite or |error| beyond following_error_limit_rad '
                 f'{self.following_error_limit_rad}: safe stop latched (0 A) until cleanup'
             )
-        compute_ns = time.perf_counter_ns() - start
-        self._publish(sample, compute_ns)
+        self._publish(sample, started_ns)
         if sample.output is None:
             return
-        wall_ns = time.time_ns()
-        latency_ns = wall_ns - sample.stamp_ns if self.mode == 'realtime' else 0
+        # From the measurement's stamp to the command on the wire (as before the state message).
+        latency_ns = self.command_wall_ns - sample.stamp_ns if self.mode == 'realtime' else 0
+        compute_ns = self.command_done_ns - started_ns
         if self.mode == 'realtime' and latency_ns > self.period_ns:
             self.late += 1
             self.log.warn(
@@ -438,7 +440,7 @@ class ControllerNode(ManagedNode):
             )
         self.timing.append((self.received_ns, sample.stamp_ns, latency_ns, compute_ns))
 
-    def _publish(self, sample: ControlSample, compute_ns: int, state: bool = True) -> None:
+    def _publish(self, sample: ControlSample, started_ns: int | None, state: bool = True) -> None:
         """current_command and controller/state for one sample (NaN where the law did not run)."""
         stamp = ns_to_stamp(sample.stamp_ns)
         self.status = Status(sample.status)
@@ -446,6 +448,7 @@ class ControllerNode(ManagedNode):
         self.cmd.current_a = float(sample.current_a)
         self.cmd.safe_stop = self.status.safe_stop
         self.cmd_pub.publish(self.cmd)
+        self.command_done_ns, self.command_wall_ns = time.perf_counter_ns(), time.time_ns()
         if not state:
             return
         s = self.state
@@ -453,7 +456,9 @@ class ControllerNode(ManagedNode):
         s.status = int(self.status)
         s.measured_position_rad = float(sample.y)
         s.current_a = float(sample.current_a)
-        s.compute_time_s = compute_ns * 1e-9
+        s.compute_time_s = (
+            0.0 if started_ns is None else (self.command_done_ns - started_ns) * 1e-9
+        )
         s.late_samples, s.missed_samples = self.late, self.assembly.missed
         out = sample.output
         if out is None:
