@@ -6,6 +6,7 @@
 The ROS-free core against hand calculations and known signals.
 """
 
+import dataclasses
 import math
 
 import numpy as np
@@ -224,3 +225,27 @@ def test_ppf_clamps_outside_the_bounds_and_reports_it():
     assert tr.z[0] < -4.0 and tr.z[2] > 4.0 and tr.z[1] == 0.0
     with pytest.raises(ValueError, match='rho_inf_rad'):
         PrescribedPerformance(rho0_rad=0.01, rho_inf_rad=0.05)
+
+
+def test_holding_brake_stops_the_joint_and_holds_it_against_the_external_torque():
+    from actuator_plant.model import JointPlant, PlantParameters
+
+    plant = JointPlant(PlantParameters(), 1.0e-3)
+    for _ in range(200):
+        plant.step(10.0)  # moving at several rad/s
+    assert abs(plant.velocity_rad_s) > 1.0
+    for _ in range(500):
+        plant.step(0.0, brake=True)
+    held = plant.position_rad
+    assert plant.velocity_rad_s == 0.0
+    for _ in range(3000):  # 3 s of eq. (40)'s torque: the brake holds
+        plant.step(0.0, brake=True)
+    assert plant.position_rad == held and plant.velocity_rad_s == 0.0
+    free = JointPlant(PlantParameters(), 1.0e-3, position_rad=held)
+    for _ in range(500):
+        free.step(0.0)
+    assert abs(free.position_rad - held) > 0.5  # without it the external torque drives the joint
+    weak = JointPlant(dataclasses.replace(PlantParameters(), brake_holding_torque_nm=5.0), 1.0e-3)
+    for _ in range(500):
+        weak.step(0.0, brake=True)  # 5 N m cannot hold 20-30 N m: it slips
+    assert abs(weak.position_rad) > 0.01

@@ -4,6 +4,7 @@
 """Each node on its own against bad input: refused and logged, safe output, clean shutdown."""
 
 import math
+import os
 import time
 
 import pytest
@@ -684,3 +685,49 @@ def test_lifecycle_transitions_and_parameters_read_at_configure(harness, ros_pro
     assert change(Transition.TRANSITION_CONFIGURE) and state() == 'inactive'
     assert change(Transition.TRANSITION_INACTIVE_SHUTDOWN) and state() == 'finalized'
     assert ctrl.stop() == 0 and 'Traceback' not in ctrl.output
+
+
+@pytest.mark.parametrize('executable', ['plant_node', 'eso_node', 'controller_node'])
+# The interpreter's own start and the console-script wrapper take the first 0.1-0.15 s here, before
+# any code of ours runs; the entry point then quiets the signals while rclpy imports (0.3-0.5 s).
+@pytest.mark.parametrize('delay_s', [0.3, 0.6])
+def test_a_signal_while_the_node_still_imports_ends_it_quietly(ros_process, executable, delay_s):
+    import signal
+
+    package = {'plant_node': 'actuator_plant', 'eso_node': 'actuator_eso'}.get(
+        executable, 'actuator_controller'
+    )
+    proc = ros_process(package, executable, AUTOSTART)
+    time.sleep(delay_s)  # rclpy is being imported (0.3-0.5 s)
+    proc.popen.send_signal(signal.SIGINT)
+    assert proc.wait(10.0) == 0
+    assert 'Traceback' not in proc.output and 'KeyboardInterrupt' not in proc.output
+
+
+def test_sigterm_to_bringup_stops_every_node_it_started(ros_env, tmp_path):
+    import signal
+
+    import psutil
+
+    from actuator_tools.supervisor import RosProcess
+
+    runner = RosProcess.installed(
+        'actuator_tools',
+        'bringup',
+        ['--duration', '30', '--bags', str(tmp_path / 'b')],
+        env=ros_env,
+        log_dir=tmp_path,
+        name='bringup',
+        cwd=tmp_path,
+    )
+    deadline = time.monotonic() + 60.0
+    children = []
+    while time.monotonic() < deadline and len(children) < 4:
+        children = psutil.Process(runner.pid).children(recursive=True)
+        time.sleep(0.2)
+    assert len(children) >= 4, runner.describe()
+    time.sleep(2.0)
+    os.kill(runner.pid, signal.SIGTERM)  # to the runner alone, not its group
+    runner.wait(60.0)
+    assert not [c for c in children if c.is_running() and c.status() != psutil.STATUS_ZOMBIE]
+    assert 'stopped by a signal: stopping every node' in runner.output

@@ -56,6 +56,8 @@ from actuator_ros.runner import run_node
 from sensor_msgs.msg import JointState
 
 NODE_NAME = 'actuator_controller'
+#: What clocks the control update (README "Nodes and topic contract").
+TRIGGERS = ('measurement', 'timer')
 #: Inputs, and the output: another publisher on current_command drives the joint beside this node.
 WATCHED_TOPICS = ('joint_states', 'eso/estimate', 'current_command')
 NAN = float('nan')
@@ -189,6 +191,20 @@ class ControllerNode(ManagedNode):
             'rad',
             '|e| beyond latches a safe stop',
         )
+        self.trigger = declare_choice(
+            self,
+            'trigger',
+            'measurement',
+            TRIGGERS,
+            'measurement: control each sample as soon as its measurement and estimate are in; '
+            'timer: control on a timer of sample_time_s with the newest measurement (a drive '
+            'whose cycle differs from the loop\'s); realtime only',
+        )
+        if self.trigger == 'timer' and self.mode == 'sim':
+            raise ParameterError(
+                "parameter 'trigger' = 'timer' refused in sim mode: the lockstep advances "
+                'only when a command answers its sample'
+            )
         self.future_tolerance_s = declare_number(
             self,
             'future_stamp_tolerance_s',
@@ -237,6 +253,10 @@ class ControllerNode(ManagedNode):
             min(self.measurement_timeout_ns, self.estimate_timeout_ns) * 0.5e-9, self.on_watchdog
         )
         self.graph_timer = self.create_timer(0.1, self.on_graph_check)
+        self.tick_timer = (
+            self.create_timer(self.common.dt_s, self.on_tick) if self.trigger == 'timer' else None
+        )
+        self.newest: tuple | None = None  # timer trigger: (stamp, y) of the newest measurement
         self.conflict = ''
         self.status = Status.WAITING
         self.late = self.refused = self.stale_events = 0
@@ -260,8 +280,9 @@ class ControllerNode(ManagedNode):
 
     def drop(self) -> None:
         """Destroy topics and timers."""
-        for timer in (self.watchdog, self.graph_timer):
-            self.destroy_timer(timer)
+        for timer in (self.watchdog, self.graph_timer, self.tick_timer):
+            if timer is not None:
+                self.destroy_timer(timer)
         for sub in self.subs:
             self.destroy_subscription(sub)
         for pub in (self.cmd_pub, self.state_pub):
@@ -313,6 +334,21 @@ class ControllerNode(ManagedNode):
                 'brake until the observer has converged, then the reference restarts here'
             )
             self.assembly.resync(stamp)
+        if self.tick_timer is not None:  # timer trigger: the tick takes the newest measurement
+            self.newest = (stamp, y)
+            return
+        self._take_measurement(stamp, y)
+
+    def on_tick(self) -> None:
+        """Timer trigger: control with the newest measurement not controlled yet."""
+        if not self.active or self.newest is None:
+            return
+        stamp, y = self.newest
+        self.newest = None
+        self._take_measurement(stamp, y)
+
+    def _take_measurement(self, stamp: int, y: float) -> None:
+        """Hand y(k) to the assembly; log a resync it started."""
         resyncs = self.assembly.resyncs
         started = time.perf_counter_ns()
         self._control(self.assembly.add_measurement(stamp, y), started)
