@@ -326,7 +326,7 @@ def test_controller_on_a_1_khz_timer_closes_the_loop_with_the_newest_measurement
         results_root=isolated / 'runs',
         quiet=True,
         thread_priority=50,
-        extra_params=['-p', 'trigger:=timer'],
+        extra_params=['-p', 'actuator_controller:trigger:=timer'],
     )
     assert all(code == 0 for code in result.exit_codes.values()), result.exit_codes
     log = np.load(result.timing_log)
@@ -334,7 +334,9 @@ def test_controller_on_a_1_khz_timer_closes_the_loop_with_the_newest_measurement
         np.diff(log['stamp_ns']) > 0
     )  # one update per sample
     age_us = log['latency_ns'] / 1e3  # measurement age when its command went out
-    assert 0.0 < np.percentile(age_us, 50) < 1000.0
+    assert (
+        100.0 < np.percentile(age_us, 50) < 2000.0
+    )  # up to a period on top of the hop: 1.1 ms here
     run = load_run(result.bag, quiet=True)
     controlled = run.status == 0
     assert 'safe stop latched' not in process_log(result.run_dir, 'controller')
