@@ -16,9 +16,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-pytest.importorskip('rosbags')
-pytest.importorskip('actuator_core.metrics')
-
 from actuator_bag.analyze import analyze_run, load_run, main  # noqa: E402
 from actuator_bag.bag_format import mcap_name  # noqa: E402
 from test_bag_support import REPO, synthetic_run, write_run_bag  # noqa: E402

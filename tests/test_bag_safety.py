@@ -23,8 +23,6 @@ from pathlib import Path
 
 import pytest
 
-pytest.importorskip('rosbags')
-
 from rosbags.highlevel import AnyReader  # noqa: E402
 
 from actuator_bag.bag_format import BagWriter, mcap_name, topic_spec  # noqa: E402

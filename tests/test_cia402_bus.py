@@ -20,6 +20,9 @@ from actuator_cia402.master import Cia402Error, Cia402Master
 from actuator_cia402.scaling import Scaling
 from actuator_cia402.sim_drive import FaultPlan, SimulatedDrive, plant_parameters
 
+
+pytestmark = pytest.mark.realtime  # master and simulated drive paced by threads in real time
+
 EDS = str(
     Path(__file__).resolve().parent.parent
     / 'src'

@@ -153,6 +153,7 @@ def test_case2_ordering_with_margins(case2_metrics):
     assert nft * 1.5 < pi
 
 
+@pytest.mark.slow
 def test_case1_pp_stays_inside_its_bounds_and_near_table5():
     for scenario, paper in case1():
         trace, metrics, radius, _ = run_scenario(scenario)

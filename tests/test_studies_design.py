@@ -21,6 +21,9 @@ from actuator_studies.cli import design_main
 from actuator_studies.design import DesignRequest, run_design
 from actuator_studies.gains_yaml import read_gains_yaml, write_gains_yaml
 
+
+pytestmark = pytest.mark.slow  # designs gains: seconds of simulation per test
+
 ROOT = Path(__file__).resolve().parent.parent
 CASE2 = ROOT / 'src' / 'actuator_bringup' / 'config' / 'case2_pp_nftsmc_eso.yaml'
 

@@ -15,6 +15,9 @@ from actuator_studies import distributed
 from actuator_studies.distributed import ChunkFailed, InjectedFailure
 from actuator_studies.sweep import SweepRequest, run_sweep
 
+
+pytestmark = pytest.mark.ros  # a local Ray instance: worker processes
+
 SHORT_S = 5.2
 
 

@@ -100,6 +100,7 @@ def _single_run_metrics(depth, temperature, noise, delay, seed) -> RunMetrics:
     return dataclasses.replace(m, diverged=True) if len(trace['t_s']) < s.samples else m
 
 
+@pytest.mark.slow
 def test_grid_rows_equal_single_closed_loop_runs_of_the_same_points(tmp_path):
     req = SweepRequest(
         vary=[
@@ -148,6 +149,7 @@ def test_grid_rows_equal_single_closed_loop_runs_of_the_same_points(tmp_path):
     )  # the worst run that has a figure
 
 
+@pytest.mark.ros
 def test_an_interrupted_sweep_resumes_to_the_same_table(tmp_path):
     args = [
         '--vary',
@@ -242,6 +244,7 @@ def test_an_existing_output_folder_is_refused_and_left_untouched(tmp_path, capsy
     ).read_text() == 'earlier results'
 
 
+@pytest.mark.ros
 def test_the_installed_sweep_executable_reports_bad_input_with_exit_2(tmp_path):
     from ros_helpers import executable_path
 
