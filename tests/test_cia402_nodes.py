@@ -17,6 +17,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from actuator_core import limits
+
 from ros_helpers import executable_path
 
 DRIVER = ('actuator_cia402', 'cia402_driver')
@@ -410,11 +412,13 @@ def test_end_to_end_fast_deep_sea_case_tracks_within_a_factor_of_the_offline_cor
         f'drive model {rms_model:.2e}); longest gap between samples {longest_gap_ms:.1f} ms'
     )
     assert max_run < 0.5  # the following-error limit: no latch
-    if 'running under SCHED_FIFO' not in procs['driver'].output or longest_gap_ms > 10.0:
-        # Tracking is claimed for runs the machine let keep time (SCHED_FIFO, no stall beyond the
-        # 10 ms command timeout): other sessions' SCHED_FIFO jobs on these 2 cores stalled runs by
-        # 30-55 ms, which cost an envelope restart and up to 0.3 rad, as they would the
-        # simulated plant.
+    stall_ms = limits.MEASUREMENT_TIMEOUT_S * 1e3
+    if 'running under SCHED_FIFO' not in procs['driver'].output or longest_gap_ms >= stall_ms:
+        # Tracking is claimed for runs the machine let keep time (SCHED_FIFO, no gap as long as the
+        # controller's 5 ms measurement timeout, whose safe stop costs a transient: a fresh-clone
+        # run with one 8 ms gap reached 5.7e-2 rad, RMS 4.3e-3); other sessions' SCHED_FIFO jobs on
+        # these 2 cores stalled runs by 30-55 ms, which cost an envelope restart and up to 0.3 rad,
+        # as they would the simulated plant.
         return
     # Measured here under SCHED_FIFO (load 2): max 1.21e-3 rad against 9.7e-4 for the offline core
     # and the simulated plant in real time, and 1.20e-3 for the offline core with the drive model
