@@ -16,7 +16,7 @@ import sys
 import numpy as np
 import pytest
 
-from actuator_tools import bench, floor
+from actuator_tools import bench, bench_figures, bench_table, floor
 
 PERIOD_NS = 1_000_000
 
@@ -27,7 +27,7 @@ def ticks_ns(periods_us: list[float]) -> np.ndarray:
 
 
 def test_period_gap_of_2_5_ms_counts_once():
-    f = bench.period_figures(ticks_ns([1000.0] * 98 + [2500.0]), PERIOD_NS)
+    f = bench_figures.period_figures(ticks_ns([1000.0] * 98 + [2500.0]), PERIOD_NS)
     assert f['periods_over_2x'] == 1
     assert f['period_max_us'] == pytest.approx(2500.0)
     assert f['period_mean_us'] == pytest.approx((98 * 1000.0 + 2500.0) / 99)
@@ -35,27 +35,26 @@ def test_period_gap_of_2_5_ms_counts_once():
 
 
 def test_period_of_exactly_2_ms_is_not_over():
-    assert (
-        bench.period_figures(ticks_ns([1000.0, 2000.0, 1000.0]), PERIOD_NS)['periods_over_2x'] == 0
-    )
+    figures = bench_figures.period_figures(ticks_ns([1000.0, 2000.0, 1000.0]), PERIOD_NS)
+    assert figures['periods_over_2x'] == 0
 
 
 def test_period_p99_deviation_is_of_the_absolute_deviation():
     # half the periods exact, half 200 us short: the signed deviation's p99 would be 0
-    f = bench.period_figures(ticks_ns([800.0, 1000.0] * 50), PERIOD_NS)
+    f = bench_figures.period_figures(ticks_ns([800.0, 1000.0] * 50), PERIOD_NS)
     assert f['period_mean_us'] == pytest.approx(900.0)
     assert f['period_dev_p99_us'] == pytest.approx(200.0)
 
 
 def test_period_of_too_few_ticks_is_missing():
-    f = bench.period_figures(np.array([5], dtype=np.int64), PERIOD_NS)
+    f = bench_figures.period_figures(np.array([5], dtype=np.int64), PERIOD_NS)
     assert f['period_mean_us'] is None and f['periods_over_2x'] is None
 
 
 def test_latency_percentiles_and_late_count():
     latency_ns = np.arange(1, 101, dtype=np.int64) * 10_000  # 10 us .. 1000 us
     latency_ns[-1] = 1_500_000  # one command 1.5 ms after its stamp
-    f = bench.latency_figures(latency_ns, PERIOD_NS)
+    f = bench_figures.latency_figures(latency_ns, PERIOD_NS)
     assert f['latency_p50_us'] == pytest.approx(505.0)  # linear interpolation between 500 and 510
     assert f['latency_p99_us'] == pytest.approx(990.0 + 0.01 * (1500.0 - 990.0))
     assert f['latency_max_us'] == pytest.approx(1500.0)
@@ -66,7 +65,7 @@ def test_missed_samples_from_stamp_gaps():
     stamps = (
         np.array([0, 1, 2, 5, 6, 6, 8], dtype=np.int64) * PERIOD_NS
     )  # a repeated stamp is no gap
-    assert bench.missed_samples(stamps, PERIOD_NS) == 3
+    assert bench_figures.missed_samples(stamps, PERIOD_NS) == 3
 
 
 def test_held_command_fractions():
@@ -78,7 +77,7 @@ def test_held_command_fractions():
     held[0] = -1
     held[9] = -1  # no command held (timeout)
     held[10] = stamps[10] - 1  # not on the grid: odd
-    f = bench.held_command_fractions(stamps, held, PERIOD_NS)
+    f = bench_figures.held_command_fractions(stamps, held, PERIOD_NS)
     assert f['held_same_pct'] == pytest.approx(50.0)
     assert f['held_next_pct'] == pytest.approx(20.0)
     assert f['held_later_pct'] == pytest.approx(10.0)
@@ -90,7 +89,7 @@ def test_held_command_fractions():
 def test_sim_speed_from_plant_span():
     stamps = 1_000_000_000 + np.arange(1001, dtype=np.int64) * PERIOD_NS  # 1 s simulated
     wall = 5_000 + np.arange(1001, dtype=np.int64) * 250_000  # in 0.25 s of wall time
-    f = bench.plant_figures(stamps, wall, PERIOD_NS)
+    f = bench_figures.plant_figures(stamps, wall, PERIOD_NS)
     assert f['speed_x'] == pytest.approx(4.0)
     assert f['plant_interval_p50_us'] == pytest.approx(250.0)
 
@@ -101,14 +100,14 @@ def test_latency_breakdown_joins_by_stamp():
     ctrl_stamps = stamps[1:]  # controller never saw sample 0
     received = ctrl_stamps + 20_000 + 100_000  # 100 us transport
     latency = np.full(4, 20_000 + 100_000 + 30_000)  # 30 us in the controller
-    f = bench.latency_breakdown(stamps, published, ctrl_stamps, received, latency)
+    f = bench_figures.latency_breakdown(stamps, published, ctrl_stamps, received, latency)
     assert f['plant_late_p99_us'] == pytest.approx(20.0)
     assert f['transport_p99_us'] == pytest.approx(100.0)
     assert f['controller_wait_p50_us'] == pytest.approx(30.0)
 
 
 def test_coverage_of_the_controller_log():
-    f = bench.coverage_figures(
+    f = bench_figures.coverage_figures(
         np.arange(500, dtype=np.int64) * PERIOD_NS, np.arange(2000, dtype=np.int64) * PERIOD_NS
     )
     assert f['controlled_pct'] == pytest.approx(25.0)
@@ -121,11 +120,11 @@ def test_log_figures(tmp_path):
         '[ERROR] |error| 0.501 rad beyond following_error_limit_rad 0.5: '
         'safe stop latched (0 A) until restart\n'
     )
-    assert bench.log_figures(tmp_path) == {'fifo_nodes': 1.0, 'safe_stop': 1.0}
+    assert bench_figures.log_figures(tmp_path) == {'fifo_nodes': 1.0, 'safe_stop': 1.0}
 
 
 def test_eso_figures():
-    f = bench.eso_figures(
+    f = bench_figures.eso_figures(
         {
             'steps': 200,
             'exact_pairs': 150,
@@ -137,11 +136,11 @@ def test_eso_figures():
     assert f['eso_exact_pct'] == pytest.approx(75.0)
     assert f['eso_exact_or_repaired_pct'] == pytest.approx(95.0) and f['eso_repaired'] == 40
     assert f['eso_substituted'] == 50 and f['eso_refused'] == 2
-    assert bench.eso_figures({'steps': 0})['eso_exact_pct'] is None
+    assert bench_figures.eso_figures({'steps': 0})['eso_exact_pct'] is None
 
 
 def test_error_ratios():
-    r = bench.error_ratios(
+    r = bench_figures.error_ratios(
         {'max_steady_error_rad': 1.1e-3, 'rms_error_rad': 4e-4},
         {'max_steady_error_rad': 1e-3, 'rms_error_rad': float('nan')},
     )
@@ -151,23 +150,23 @@ def test_error_ratios():
 
 def test_spread_and_verdict():
     values = [3.0, None, 1.0, float('nan'), 2.0]
-    s = bench.spread(values)
+    s = bench_table.spread(values)
     assert (s.median, s.low, s.high, s.n) == (2.0, 1.0, 3.0, 3)
-    at_most_2 = bench.Target('<= 2', high=2.0)
-    assert bench.verdict(at_most_2, values) == 'PASS 2/3'
-    assert bench.verdict(bench.Target('<= 1.5', high=1.5), values) == 'MISS 1/3'
-    assert bench.verdict(at_most_2, [None]) == 'n/a'
-    assert bench.verdict(None, values) == ''
+    at_most_2 = bench_table.Target('<= 2', high=2.0)
+    assert bench_table.verdict(at_most_2, values) == 'PASS 2/3'
+    assert bench_table.verdict(bench_table.Target('<= 1.5', high=1.5), values) == 'MISS 1/3'
+    assert bench_table.verdict(at_most_2, [None]) == 'n/a'
+    assert bench_table.verdict(None, values) == ''
 
 
 def test_table_lines_carry_target_and_verdict():
     rows = [
-        bench.Row(
-            'latency_p99_us', 'latency p99', 'us', '.1f', bench.Target('<= 300', high=300.0)
+        bench_table.Row(
+            'latency_p99_us', 'latency p99', 'us', '.1f', bench_table.Target('<= 300', high=300.0)
         ),
-        bench.Row('absent', 'absent figure', 'us'),
+        bench_table.Row('absent', 'absent figure', 'us'),
     ]
-    table = bench.format_table(
+    table = bench_table.format_table(
         [('realtime', rows, [{'latency_p99_us': 250.0}, {'latency_p99_us': 400.0}])]
     )
     line = next(line for line in table.splitlines() if 'latency p99' in line)
