@@ -351,6 +351,7 @@ def test_silent_bus_or_drive_fault_gives_the_stale_measurement_stop_of_the_contr
         assert proc.stop() == 0 and 'Traceback' not in proc.output
 
 
+@pytest.mark.realtime
 def test_end_to_end_fast_deep_sea_case_tracks_within_a_factor_of_the_offline_core(
     ros_process, tmp_path
 ):
