@@ -198,7 +198,7 @@ class ControllerNode(ManagedNode):
             TRIGGERS,
             'measurement: control each sample as soon as its measurement and estimate are in; '
             'timer: control on a timer of sample_time_s with the newest measurement (a drive '
-            'whose cycle differs from the loop\'s); realtime only',
+            "whose cycle differs from the loop's); realtime only",
         )
         if self.trigger == 'timer' and self.mode == 'sim':
             raise ParameterError(
@@ -407,10 +407,7 @@ class ControllerNode(ManagedNode):
 
         More than one publisher on a watched topic stops control until one is left, then resync.
         """
-        crowded = [
-            f'{n} publishers on {t}' for t in WATCHED_TOPICS if (n := self.count_publishers(t)) > 1
-        ]
-        conflict = ', '.join(crowded)
+        conflict = self.crowded(WATCHED_TOPICS)
         if conflict != self.conflict:
             if conflict:
                 self.get_logger().error(f'{conflict}: commanding 0 A until one publisher is left')

@@ -152,10 +152,7 @@ class EsoNode(ManagedNode):
 
         More than one publisher on a control input stops the observer until one is left.
         """
-        crowded = [
-            f'{n} publishers on {t}' for t in WATCHED_TOPICS if (n := self.count_publishers(t)) > 1
-        ]
-        conflict = ', '.join(crowded)
+        conflict = self.crowded(WATCHED_TOPICS)
         if conflict != self.conflict:
             if conflict:
                 self.get_logger().error(f'{conflict}: not estimating until one publisher is left')

@@ -174,6 +174,12 @@ class ManagedNode(LifecycleNode):
         self._drop()
         return TransitionCallbackReturn.SUCCESS
 
+    def crowded(self, topics) -> str:
+        """Which of ``topics`` have more than one publisher ('2 publishers on x, ...'), or ''."""
+        return ', '.join(
+            f'{n} publishers on {t}' for t in topics if (n := self.count_publishers(t)) > 1
+        )
+
     def halt(self) -> None:
         """Stop acting now (at exit, before the last messages are acknowledged); idempotent."""
         self._stop()

@@ -104,6 +104,7 @@ class ClosedLoop:
         self.sample_index = 0
         self.held_current = zero
         self.estimate = None
+        self.input_current_gain = self.eso.dt_s * self.eso.gains.theta1n  # as the ESO node has it
         self.encoder = (
             None if scenario.encoder is None else Encoder.from_parameters(scenario.encoder)
         )
@@ -127,16 +128,7 @@ class ClosedLoop:
         if self.encoder is not None:
             y = self.encoder.measure(y)
         truth = self.plant.truth(self.held_current)
-        for estimate in self.pairing.add_measurement(stamp, y):
-            self.estimate = estimate
-            self.assembly.add_estimate(
-                estimate.sample_ns,
-                estimate.x_hat[1],
-                estimate.x_hat[2],
-                estimate.input_ns,
-                estimate.input_current_a,
-                self.eso.dt_s * self.eso.gains.theta1n,
-            )
+        self._forward(self.pairing.add_measurement(stamp, y))
         x1_hat, x2_hat, x3_hat = self.estimate.x_hat
         sample = self.assembly.add_measurement(stamp, y)
         if not command_lost:
@@ -144,18 +136,11 @@ class ClosedLoop:
         applied = self.gate.hold(stamp).current_a
         if self.command_delay is not None:
             applied = self.command_delay.apply(applied)
-        for estimate in self.pairing.add_command(
-            stamp, applied if eso_integrates_applied else sample.current_a
-        ):
-            self.estimate = estimate
-            self.assembly.add_estimate(
-                estimate.sample_ns,
-                estimate.x_hat[1],
-                estimate.x_hat[2],
-                estimate.input_ns,
-                estimate.input_current_a,
-                self.eso.dt_s * self.eso.gains.theta1n,
+        self._forward(
+            self.pairing.add_command(
+                stamp, applied if eso_integrates_applied else sample.current_a
             )
+        )
         self.plant.step(applied)
         self.held_current = applied
         self.sample_index += 1
@@ -186,6 +171,19 @@ class ClosedLoop:
         record['current_a'] = sample.current_a
         record['status'] = sample.status
         return record
+
+    def _forward(self, estimates) -> None:
+        """Hand the observer's new estimates to the controller, as the estimate topic does."""
+        for estimate in estimates:
+            self.estimate = estimate
+            self.assembly.add_estimate(
+                estimate.sample_ns,
+                estimate.x_hat[1],
+                estimate.x_hat[2],
+                estimate.input_ns,
+                estimate.input_current_a,
+                self.input_current_gain,
+            )
 
     def run(
         self, samples: int | None = None, stop_on_divergence: bool = True
