@@ -4,7 +4,7 @@ SHELL := /bin/bash
 ARGS ?=
 
 .DEFAULT_GOAL := test
-.PHONY: setup build main test bench clean distclean
+.PHONY: setup build main test bench mutation clean distclean
 
 setup:
 	@bash scripts/setup.sh
@@ -20,6 +20,11 @@ test: setup build
 
 bench: setup build
 	@bash scripts/bench.sh $(ARGS)
+
+# Mutation score of the ROS-free core into docs/mutation-report.md (hours; not in CI),
+# e.g. make mutation ARGS="'actuator_core.gate*'"
+mutation: setup build
+	@bash scripts/mutation.sh $(ARGS)
 
 # Build products only; `make distclean` also removes the virtual environment.
 clean:

@@ -11,6 +11,10 @@
                     ``context=`` to Node and executors
     ros_process     factory: ros_process(pkg, exe, args) -> started RosProcess, logs in
                     tmp_path, stopped (SIGINT, SIGTERM, SIGKILL) when the test ends
+    isolated        bring-up code run in this process: os.environ set to ros_env, cwd a
+                    scratch folder (returned)
+    run_bag         (path, SyntheticRun) of one synthetic 1 s run bag with the five system
+                    topics in 64 KiB chunks (bag_helpers), written once per session; read only
 
 Run the tests through ``make test`` (or ``scripts/test.sh``), or after
 ``source scripts/env.sh``.
@@ -97,6 +101,23 @@ def ros_process(ros_env, tmp_path):
     yield start
     for proc in started:
         proc.stop()
+
+
+@pytest.fixture
+def isolated(ros_env, monkeypatch, tmp_path):
+    for key, value in ros_env.items():
+        monkeypatch.setenv(key, value)
+    monkeypatch.chdir(tmp_path)
+    return tmp_path
+
+
+@pytest.fixture(scope='session')
+def run_bag(tmp_path_factory):
+    from bag_helpers import synthetic_run, write_run_bag
+
+    run = synthetic_run(duration_s=1.0)
+    path = write_run_bag(tmp_path_factory.mktemp('run_bag') / 'case', run, chunk_size=64 * 1024)
+    return path, run
 
 
 @pytest.fixture(autouse=True)

@@ -312,3 +312,167 @@ def wait_until(predicate, timeout: float, interval: float = 0.05) -> bool:
             return True
         time.sleep(interval)
     return bool(predicate())
+
+
+def _stamp(ns: int):
+    """builtin_interfaces/Time of ``ns`` (imported here: the unit set runs without ROS)."""
+    from actuator_ros.conversions import ns_to_stamp
+
+    return ns_to_stamp(ns)
+
+
+#: A controller that latches at 0.05 rad and waits 50 ms for its inputs: the latch tests.
+LATCHING_CONTROLLER_ARGS = [
+    '--ros-args',
+    '-p',
+    'autostart:=true',
+    '-p',
+    'following_error_limit_rad:=0.05',
+    '-p',
+    'measurement_timeout_s:=0.05',
+    '-p',
+    'estimate_timeout_s:=0.05',
+]
+
+
+class TestNode:
+    """An rclpy node of the test on its own executor: spin, wait, call services, lifecycle."""
+
+    __test__ = False  # not a pytest test class
+
+    def __init__(self, context, name: str):
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.node import Node
+
+        self.node = Node(name, context=context)
+        self.executor = SingleThreadedExecutor(context=context)
+        self.executor.add_node(self.node)
+        self._lifecycle: dict = {}
+
+    def spin(self, seconds: float) -> None:
+        """Run the node's callbacks for ``seconds``."""
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            self.executor.spin_once(timeout_sec=0.005)
+
+    def wait_for(self, predicate, timeout: float = 20.0, what: str = '') -> None:
+        """Spin until ``predicate()`` holds; fail after ``timeout`` seconds."""
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            if predicate():
+                return
+            self.executor.spin_once(timeout_sec=0.01)
+        raise AssertionError(f'timed out waiting for {what}')
+
+    def call(self, client, request, timeout: float = 20.0):
+        """Call a service and return its response (fail when it is absent or silent)."""
+        assert client.wait_for_service(timeout_sec=timeout), f'{client.srv_name} not available'
+        future = client.call_async(request)
+        self.wait_for(future.done, timeout, f'an answer from {client.srv_name}')
+        return future.result()
+
+    def transition(self, node_name: str, label) -> bool:
+        """Request a lifecycle transition of ``node_name`` (``ros2 lifecycle set``); True if done.
+
+        ``label``: 'configure', 'activate', 'deactivate', 'cleanup', or a Transition id.
+        """
+        from lifecycle_msgs.msg import Transition
+        from lifecycle_msgs.srv import ChangeState
+
+        ids = {
+            'configure': Transition.TRANSITION_CONFIGURE,
+            'activate': Transition.TRANSITION_ACTIVATE,
+            'deactivate': Transition.TRANSITION_DEACTIVATE,
+            'cleanup': Transition.TRANSITION_CLEANUP,
+        }
+        transition = Transition(id=label if isinstance(label, int) else ids[label])
+        client = self._lifecycle_client(node_name, 'change_state', ChangeState)
+        return self.call(client, ChangeState.Request(transition=transition)).success
+
+    def lifecycle_state(self, node_name: str) -> str:
+        """Return the lifecycle state label of ``node_name`` (``ros2 lifecycle get``)."""
+        from lifecycle_msgs.srv import GetState
+
+        client = self._lifecycle_client(node_name, 'get_state', GetState)
+        return self.call(client, GetState.Request()).current_state.label
+
+    def _lifecycle_client(self, node_name: str, service: str, kind):
+        key = (node_name, service)
+        if key not in self._lifecycle:
+            self._lifecycle[key] = self.node.create_client(kind, f'/{node_name}/{service}')
+        return self._lifecycle[key]
+
+    def close(self) -> None:
+        """Stop the executor and destroy the node."""
+        self.executor.shutdown()
+        self.node.destroy_node()
+
+
+class Harness(TestNode):
+    """A test-side node that publishes into and records from the node under test."""
+
+    def __init__(self, context):
+        from actuator_ros.qos import control_qos
+        from actuator_msgs.msg import ControllerState, CurrentCommand, PlantTruth, StateEstimate
+        from sensor_msgs.msg import JointState
+
+        super().__init__(context, 'harness')
+        qos = control_qos('realtime')
+        self.joint = self.node.create_publisher(JointState, 'joint_states', qos)
+        self.estimate = self.node.create_publisher(StateEstimate, 'eso/estimate', qos)
+        self.qos = qos
+        self.command = (
+            None  # created by the first send_command: another publisher on it stops a controller
+        )
+        self.got = {'command': [], 'state': [], 'estimate': [], 'truth': []}
+        self.node.create_subscription(
+            CurrentCommand, 'current_command', self.got['command'].append, qos
+        )
+        self.node.create_subscription(
+            ControllerState, 'controller/state', self.got['state'].append, qos
+        )
+        self.node.create_subscription(
+            StateEstimate, 'eso/estimate', self.got['estimate'].append, qos
+        )
+        self.node.create_subscription(PlantTruth, 'plant/truth', self.got['truth'].append, qos)
+        self.types = {
+            'JointState': JointState,
+            'StateEstimate': StateEstimate,
+            'CurrentCommand': CurrentCommand,
+        }
+
+    def send_sample(
+        self, stamp_ns: int, position: float, velocity=0.0, disturbance=0.0, estimate=True
+    ) -> None:
+        js = self.types['JointState'](name=['joint'], position=[position])
+        js.header.stamp = _stamp(stamp_ns)
+        self.joint.publish(js)  # first: an estimate counts only for a measurement seen
+        if estimate:
+            self.spin(0.002)
+            est = self.types['StateEstimate'](
+                velocity_rad_s=velocity, disturbance_rad_s2=disturbance
+            )
+            est.header.stamp = _stamp(stamp_ns)
+            self.estimate.publish(est)
+
+    def send_command(self, stamp_ns: int, current: float) -> None:
+        if self.command is None:
+            self.command = self.node.create_publisher(
+                self.types['CurrentCommand'], 'current_command', self.qos
+            )
+            self.spin(0.3)  # discovery before the first command
+        cmd = self.types['CurrentCommand'](current_a=current)
+        cmd.header.stamp = _stamp(stamp_ns)
+        self.command.publish(cmd)
+
+
+def now_ns(harness) -> int:
+    """Return the harness node's clock [ns]."""
+    return harness.node.get_clock().now().nanoseconds
+
+
+def run_off(harness, start_ns: int) -> None:
+    """Send 8 samples of a joint running off at a plausible 2500 rad/s^2 (52.5 mrad at 6 ms)."""
+    for k in range(8):
+        harness.send_sample(start_ns + k * 1_000_000, 1.25e-3 * k * (k + 1))
+        harness.spin(0.002)

@@ -12,16 +12,23 @@ recorded run: no latched stop, the reason in the nodes' logs, and controlled sam
 again (|e| small) at the end.
 """
 
+import collections
 import math
+import os
+import re
+import signal
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
+from actuator_core import limits
 from actuator_core.timing import stamp_to_ns
 from actuator_ros.conversions import ns_to_stamp
 from actuator_tools.graph import closed_loop, ros_arguments
 from actuator_tools.supervisor import RosProcess, process_log
+from ros_helpers import TestNode
 
 pytestmark = [pytest.mark.realtime, pytest.mark.slow]
 
@@ -30,6 +37,11 @@ SCENARIO = 'case2_pp_nftsmc_eso'
 #: paper's run stays below 1e-3 rad in steady state; after a restart the envelope's transient
 #: (rho0 = 0.25 rad) is still decaying, hence the margin.
 TRACKING_RAD = 0.05
+#: Seconds after an attack by which a calm second must have come (see _assert_recovered).
+RECOVERY_DEADLINE_S = 20.0
+#: ControllerState statuses whose command is the law's (OK, RECOVERING).
+CONTROLLED = (0, 9)
+STATUS_CONFLICT, STATUS_LATCHED, STATUS_RESYNC = 7, 5, 6
 
 
 class Loop:
@@ -85,23 +97,20 @@ class Loop:
         return {k: p.stop() for k, p in reversed(list(self.procs.items()))}
 
 
-class Attacker:
+class Attacker(TestNode):
     """An rclpy node in the test process: the rogue publisher and the listener."""
 
     def __init__(self, context):
-        from rclpy.executors import SingleThreadedExecutor
-        from rclpy.node import Node
-
         from actuator_msgs.msg import ControllerState, CurrentCommand, PlantTruth, StateEstimate
         from actuator_ros.qos import control_qos
         from sensor_msgs.msg import JointState
 
+        super().__init__(context, 'attacker')
         self.types = {
             'joint_states': JointState,
             'eso/estimate': StateEstimate,
             'current_command': CurrentCommand,
         }
-        self.node = Node('attacker', context=context)
         self.qos = control_qos('realtime')
         self.states: list = []
         self.truth: list = []
@@ -109,37 +118,36 @@ class Attacker:
             ControllerState, 'controller/state', self.states.append, self.qos
         )
         self.node.create_subscription(PlantTruth, 'plant/truth', self.truth.append, self.qos)
-        self.executor = SingleThreadedExecutor(context=context)
-        self.executor.add_node(self.node)
-
-    def spin(self, seconds: float) -> None:
-        end = time.monotonic() + seconds
-        while time.monotonic() < end:
-            self.executor.spin_once(timeout_sec=0.01)
 
     def wait_until_controlling(self, timeout: float = 60.0) -> None:
         end = time.monotonic() + timeout
         while time.monotonic() < end:
             self.spin(0.2)
-            if sum(s.status == 0 for s in self.states[-200:]) > 150:
+            if sum(s.status in CONTROLLED for s in self.states[-200:]) > 150:
                 return
         raise AssertionError('the loop never reached closed-loop control')
 
     def newest_stamp_ns(self) -> int:
         return stamp_to_ns(self.truth[-1].header.stamp)
 
-    def publisher(self, topic: str):
-        return self.node.create_publisher(self.types[topic], topic, self.qos)
-
-    def close(self) -> None:
-        self.executor.shutdown()
-        self.node.destroy_node()
+    def publisher(self, topic: str, matched: bool = True):
+        """Create a rogue publisher; ``matched``: wait until every subscriber matched it."""
+        pub = self.node.create_publisher(self.types[topic], topic, self.qos)
+        end = time.monotonic() + 20.0
+        while matched and time.monotonic() < end:
+            wanted = self.node.count_subscribers(topic)  # the graph's view, this node included
+            if wanted and pub.get_subscription_count() >= wanted:
+                break
+            self.spin(0.005)
+        return pub
 
 
 def tracking_again(attacker: Attacker, seconds: float = 1.0) -> float:
     """Max |e| of the controlled samples in the last ``seconds`` (inf when none was controlled)."""
     recent = attacker.states[-int(seconds * 1000) :]
-    errors = [abs(s.error_rad) for s in recent if s.status == 0 and math.isfinite(s.error_rad)]
+    errors = [
+        abs(s.error_rad) for s in recent if s.status in CONTROLLED and math.isfinite(s.error_rad)
+    ]
     return max(errors) if len(errors) > 0.5 * len(recent) else math.inf
 
 
@@ -158,61 +166,126 @@ def loop(ros_env, rclpy_context, tmp_path):
 
 
 def _assert_recovered(running: Loop, attacker: Attacker) -> None:
+    """No latched stop, and a second of controlled samples tracking within RECOVERY_DEADLINE_S.
+
+    Judged from 3 s after the attack on; a later stall of this shared machine can cost another
+    resync, so the loop gets until the deadline to show one calm second (a loop that never
+    recovers, or latches, still fails). The failure names the statuses and the logs' ends.
+    """
     attacker.spin(3.0)
+    end = time.monotonic() + RECOVERY_DEADLINE_S - 3.0
+    while tracking_again(attacker) >= TRACKING_RAD and time.monotonic() < end:
+        assert 'safe stop latched' not in running.log('controller')
+        attacker.spin(0.5)
     assert 'safe stop latched' not in running.log('controller')
-    assert tracking_again(attacker) < TRACKING_RAD, tracking_again(attacker)
+    error = tracking_again(attacker)
+    if error >= TRACKING_RAD:
+        recent = attacker.states[-1000:]
+        statuses = collections.Counter(s.status for s in recent)
+        tails = {key: running.log(key).splitlines()[-8:] for key in ('controller', 'eso', 'plant')}
+        raise AssertionError(
+            f'not tracking {RECOVERY_DEADLINE_S:g} s after the attack: max |e| {error} rad, '
+            f'statuses of the last {len(recent)} states {dict(statuses)} (of '
+            f'{len(attacker.states)} received)\n'
+            + '\n'.join(f'--- {key}:\n' + '\n'.join(lines) for key, lines in tails.items())
+        )
 
 
-def test_future_and_past_stamps_on_every_input_are_refused_and_tracking_goes_on(loop):
+def _logged_after(log: str, text: str, after_s: float) -> bool:
+    """Whether a log line containing ``text`` was written after wall time ``after_s``."""
+    for line in log.splitlines():
+        match = re.match(r'\[\w+\] \[(\d+\.\d+)\]', line)
+        if text in line and match and float(match.group(1)) > after_s:
+            return True
+    return False
+
+
+def _log_time_s(log: str, text: str) -> float:
+    """Wall time [s] of the first log line containing ``text`` (rclpy's [LEVEL] [time] prefix)."""
+    for line in log.splitlines():
+        if text in line:
+            match = re.match(r'\[\w+\] \[(\d+\.\d+)\]', line)
+            if match:
+                return float(match.group(1))
+    raise AssertionError(f'no log line with {text!r}')
+
+
+def test_stamp_attacks_are_refused_with_their_reasons_and_tracking_goes_on(loop):
     running, attacker = loop
+    est = attacker.publisher('eso/estimate')
     now = attacker.newest_stamp_ns()
-    js, est, cmd = (
-        attacker.publisher(t) for t in ('joint_states', 'eso/estimate', 'current_command')
-    )
-    future = ns_to_stamp(now + 1000 * 10**9)
-    m = attacker.types['joint_states'](name=['joint'], position=[0.0])
-    m.header.stamp = future
-    js.publish(m)  # one measurement 1000 s ahead
-    for k in range(100):  # 100 estimates ahead
-        e = attacker.types['eso/estimate'](velocity_rad_s=0.0, input_current_gain=0.03)
-        e.header.stamp = ns_to_stamp(now + (1000 + k) * 10**9)
+    ahead = [now + (1000 + k) * 10**9 for k in range(100)]  # 100 estimates far ahead
+    near = [now + k * 10**6 for k in range(5, 55)]  # a burst 5-54 ms ahead, for -20 A
+    past = [now - 2 * 10**9, now - 10**6, now]  # 2 s back, one sample back, a duplicate
+    for stamp in ahead + near + past:
+        e = attacker.types['eso/estimate'](
+            velocity_rad_s=7.77, disturbance_rad_s2=2000.0, input_current_gain=0.03
+        )
+        e.header.stamp = ns_to_stamp(stamp)
         est.publish(e)
-    c = attacker.types['current_command'](current_a=5.0)
-    c.header.stamp = future
-    cmd.publish(c)
-    for pub in (js, est, cmd):
-        attacker.node.destroy_publisher(pub)
+        attacker.spin(0.0005)
+    attacker.node.destroy_publisher(est)
     _assert_recovered(running, attacker)
-    assert 'refused: beyond the sample clock' in running.log('controller')
-    assert 'refused' in running.log('eso') and 'refused' in running.log('plant')
+    log = running.log('controller')
+    # The first refusal line names one of the far-ahead stamps (the rate-limited log keeps the
+    # first of each kind; a genuine estimate a lagging controller refused is another kind).
+    far = {str(t) for t in ahead}
+    first = next(
+        (
+            m
+            for m in re.finditer(
+                r'estimate stamped (\d+) ns refused: (\S+) ms ahead of the newest', log
+            )
+            if m.group(1) in far
+        ),
+        None,
+    )
+    assert first and float(first.group(2)) > 999_000.0, 'the far-ahead estimate was not refused'
+    assert 'ms ahead of the newest measurement seen (at most 1 sample)' in log
+    # None of the rogue's estimates was used: no state carries its velocity.
+    assert not any(s.estimated_velocity_rad_s == 7.77 for s in attacker.states)
+    assert '2 publishers on eso/estimate (' in log and '/attacker gid ' in log
 
 
 def test_nan_and_absurd_values_in_each_field_are_refused(loop):
     running, attacker = loop
     est = attacker.publisher('eso/estimate')
-    attacker.spin(0.3)
     now = attacker.newest_stamp_ns()
-    for field, value in (
-        ('input_current_a', math.nan),
-        ('velocity_rad_s', 1.0e9),
-        ('input_current_gain', 1.0e12),
-        ('disturbance_rad_s2', math.inf),
-    ):
+    stamp = now + 2 * 10**6
+    cases = (
+        ('input_current_a', math.nan, limits.CURRENT_LIMIT_A),
+        ('velocity_rad_s', 1.0e9, limits.VELOCITY_LIMIT_RAD_S),
+        ('input_current_gain', 1.0e12, limits.input_current_gain_limit(limits.SAMPLE_TIME_S)),
+        ('disturbance_rad_s2', math.inf, limits.DISTURBANCE_LIMIT_RAD_S2),
+        ('disturbance_rad_s2', 1.0e5, limits.DISTURBANCE_LIMIT_RAD_S2),  # in range before
+    )
+    for field, value, _ in cases:
         e = attacker.types['eso/estimate'](input_current_gain=0.03)
         setattr(e, field, value)
-        e.header.stamp = ns_to_stamp(now + 2 * 10**6)
+        e.header.stamp = ns_to_stamp(stamp)
         est.publish(e)
+        attacker.spin(1.1)  # one report per field and second (rate-limited log)
     attacker.node.destroy_publisher(est)
     _assert_recovered(running, attacker)
     log = running.log('controller')
-    for field in ('input_current_a', 'velocity_rad_s', 'input_current_gain', 'disturbance_rad_s2'):
-        assert f'{field} = ' in log
+    for field, value, bound in cases:
+        assert (
+            f'estimate for {stamp} ns refused: {field} = {value} is not finite or beyond '
+            f'+-{bound:g}'
+        ) in log
 
 
-@pytest.mark.parametrize('topic, guard', [('current_command', 'plant'), ('joint_states', 'eso')])
-def test_a_second_publisher_stops_control_safely_until_it_leaves(loop, topic, guard):
+@pytest.mark.parametrize(
+    'topic, guards',
+    [
+        ('current_command', ('eso',)),  # the controller polls its output at 10 Hz
+        ('joint_states', ('eso', 'controller')),
+    ],
+)
+def test_a_second_publisher_is_seen_when_it_matches_and_control_stops_safely(loop, topic, guards):
     running, attacker = loop
-    rogue = attacker.publisher(topic)
+    rogue = attacker.publisher(topic)  # matched everywhere before its first message
+    sent = []
     end = time.monotonic() + 0.6
     while time.monotonic() < end:  # a rogue script drives the topic for 0.6 s
         m = attacker.types[topic]()
@@ -222,23 +295,36 @@ def test_a_second_publisher_stops_control_safely_until_it_leaves(loop, topic, gu
             m.name, m.position = ['joint'], [1.0]
         m.header.stamp = ns_to_stamp(attacker.newest_stamp_ns())
         rogue.publish(m)
+        sent.append(time.time())
         attacker.spin(0.002)
-    assert any(s.status == 7 for s in attacker.states[-1000:]), (
-        'the controller never reported the conflict'
-    )
+    conflict = [s for s in attacker.states[-1000:] if s.status == STATUS_CONFLICT]
+    assert conflict or topic == 'current_command', 'the controller never reported the conflict'
     attacker.node.destroy_publisher(rogue)
     _assert_recovered(running, attacker)
-    assert f'2 publishers on {topic}' in running.log(guard)
-    assert f'2 publishers on {topic}' in running.log('controller')
+    text = f'2 publishers on {topic} ('
+    for guard in ('eso', 'controller'):
+        log = running.log(guard)
+        # The log names both publishers by GID (and by node once discovery knows the name:
+        # at match time the attacker's is often still _NODE_NAME_UNKNOWN_).
+        line = next(x for x in log.splitlines() if text in x)
+        assert line.count(' gid ') == 2 and '/actuator_' in line, line
+        if guard in guards:  # seen when it matched: before its second message was sent
+            assert _log_time_s(log, text) < sent[1], (_log_time_s(log, text) - sent[0], guard)
+    if conflict:  # the brake holds over the conflict (from 20 ms after it was seen)
+        first, last = (stamp_to_ns(s.header.stamp) for s in (conflict[0], conflict[-1]))
+        window = [
+            t.brake_engaged
+            for t in attacker.truth
+            if first + 20 * 10**6 <= stamp_to_ns(t.header.stamp) <= last
+        ]
+        assert window and all(window)
 
 
 @pytest.mark.parametrize(
     'key, what',
     [
         ('plant', 'time base jumped'),
-        # The controller resyncs on the restarted observer's first estimate, or first on the
-        # measurement gap the restart caused (seen once in a fresh-clone run): either says this.
-        ('eso', "then the reference restarts from the joint's angle"),
+        ('eso', 'resync, 0 A and brake while the observer converges'),
         ('controller', ''),
     ],
 )
@@ -256,5 +342,57 @@ def test_a_restarted_node_resumes_control(loop, key, what):
     _assert_recovered(running, attacker)
     if what:
         assert what in running.log('controller')
+    resync = {stamp_to_ns(s.header.stamp) for s in attacker.states if s.status == STATUS_RESYNC}
+    if key != 'controller':  # the brake holds while the controller resyncs
+        held = [t.brake_engaged for t in attacker.truth if stamp_to_ns(t.header.stamp) in resync]
+        assert resync and np.mean(held) > 0.9
     braked = [t.brake_engaged for t in attacker.truth]
     assert any(braked), 'the joint was never braked while control was down'
+
+
+#: Stall lengths [s] (issue 21): each node is stopped (SIGSTOP) this long, in turn.
+STALLS_S = (0.005, 0.02, 0.06, 0.3)
+#: Samples at the current limit a stall may cost at most ("a handful").
+AT_LIMIT_MAX = 5
+#: After a stall |e| is back under this [rad] within RECOVER_S: the resync hold (50 ms) plus
+#: the RECOVERING window (50 ms) plus the stall's own backlog, with margin for a loaded host.
+RECOVERED_RAD = 5e-3
+RECOVER_S = 0.3
+
+
+@pytest.mark.parametrize('key', ['eso', 'controller'])
+def test_a_stalled_node_ends_in_a_calm_recovery(loop, key):
+    running, attacker = loop
+    proc = running.procs[key]
+    table = []
+    for stall_s in STALLS_S:
+        attacker.spin(1.0)
+        mark = len(attacker.states)
+        os.killpg(proc.pid, signal.SIGSTOP)
+        stopped = time.time()
+        time.sleep(stall_s)
+        os.killpg(proc.pid, signal.SIGCONT)
+        resumed_ns = int(time.time() * 1e9)
+        attacker.spin(1.5)
+        after = attacker.states[mark:]
+        at_limit = sum(abs(s.current_a) >= limits.CURRENT_LIMIT_A - 1e-9 for s in after)
+        errors = [
+            (stamp_to_ns(s.header.stamp), abs(s.error_rad))
+            for s in after
+            if s.status in CONTROLLED and math.isfinite(s.error_rad)
+        ]
+        late = [t for t, e in errors if t > resumed_ns and e >= RECOVERED_RAD]
+        recover_s = (max(late) - resumed_ns) / 1e9 if late else 0.0
+        table.append((key, stall_s, at_limit, max((e for _, e in errors), default=0.0), recover_s))
+        assert not any(s.status == STATUS_LATCHED for s in after), table
+        assert at_limit <= AT_LIMIT_MAX, table
+        assert recover_s <= RECOVER_S, table
+        if stall_s > limits.COMMAND_TIMEOUT_S:  # the recovery, logged after this stall
+            assert _logged_after(running.log('controller'), 'RECOVERING', stopped), table
+    log = running.log('controller')
+    assert 'RECOVERING: the law runs again after a gap or a resync' in log
+    # a stalled controller finds the gap itself; a stalled ESO restarts and says so first
+    assert 'resync, 0 A and brake while the observer converges' in log, table
+    print('\nstall table (node, stall s, samples at the limit, max |e| rad, recovered after s):')
+    for row in table:
+        print('  %-10s %5.3f %4d %9.2e %6.3f' % row)

@@ -16,9 +16,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from actuator_bag.analyze import analyze_run, load_run, main  # noqa: E402
-from actuator_bag.bag_format import mcap_name  # noqa: E402
-from test_bag_support import REPO, synthetic_run, write_run_bag  # noqa: E402
+from actuator_bag.analyze import analyze_run, load_run, main
+from actuator_bag.bag_format import mcap_name
+from bag_helpers import REPO, synthetic_run, write_run_bag
 
 CONTROLLERS = ('pp_nftsmc_eso', 'nftsmc_eso', 'smc_eso', 'pi')
 

@@ -15,10 +15,10 @@ import yaml
 
 import mcap.reader as mcap_reader  # noqa: E402 - pinned: a broken install fails, never skips
 
-from rosbags.highlevel import AnyReader  # noqa: E402
-from rosbags.rosbag2 import Reader  # noqa: E402
+from rosbags.highlevel import AnyReader
+from rosbags.rosbag2 import Reader
 
-from actuator_bag.bag_format import (  # noqa: E402
+from actuator_bag.bag_format import (
     BagWriter,
     QosProfile,
     TopicSpec,
@@ -26,9 +26,14 @@ from actuator_bag.bag_format import (  # noqa: E402
     qos_from_yaml,
     topic_spec,
 )
-from actuator_bag.errors import BagWriteError, DefinitionError  # noqa: E402
-from actuator_bag.msgdefs import DefinitionSource, msg_dependencies, normalize_msgtype  # noqa: E402
-from test_bag_support import SOURCE, TOPICS, synthetic_run, write_run_bag  # noqa: E402
+from actuator_bag.errors import BagWriteError, DefinitionError
+from actuator_bag.msgdefs import DefinitionSource, msg_dependencies, normalize_msgtype
+from bag_helpers import (
+    SOURCE,
+    TOPICS,
+    add_command_topic,
+    command_cdr,
+)
 
 V9_TOP_KEYS = {
     'version',
@@ -55,14 +60,6 @@ QOS_KEYS = {
     'liveliness_lease_duration',
     'avoid_ros_namespace_conventions',
 }
-
-
-@pytest.fixture(scope='module')
-def run_bag(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, object]:
-    """Write a small synthetic bag with all five topics, in several chunks."""
-    run = synthetic_run(duration_s=1.0)
-    path = write_run_bag(tmp_path_factory.mktemp('fmt') / 'case', run, chunk_size=64 * 1024)
-    return path, run
 
 
 def test_layout_and_metadata_v9(run_bag) -> None:
@@ -143,23 +140,12 @@ def test_rosbags_reads_back_bytes_and_types(tmp_path: Path) -> None:
 
     AnyReader checks hashes and decodes.
     """
-    store = SOURCE.typestore(['actuator_msgs/msg/CurrentCommand'])
-    types = store.types
     written = []
     path = tmp_path / 'bytes'
     with BagWriter(path, chunk_size=2048) as writer:
-        handle = writer.add_topic(
-            topic_spec('/ns/current_command', 'actuator_msgs/msg/CurrentCommand', SOURCE)
-        )
+        handle = add_command_topic(writer, '/ns/current_command')
         for k in range(500):
-            msg = types['actuator_msgs/msg/CurrentCommand'](
-                header=types['std_msgs/msg/Header'](
-                    stamp=types['builtin_interfaces/msg/Time'](sec=3, nanosec=k), frame_id='f'
-                ),
-                current_a=k * 0.01,
-                safe_stop=k % 2 == 0,
-            )
-            data = bytes(store.serialize_cdr(msg, 'actuator_msgs/msg/CurrentCommand'))
+            data = command_cdr(k, k * 0.01, safe_stop=k % 2 == 0, sec=3, frame_id='f')
             writer.write(handle, 1_000 + k, data)
             written.append((1_000 + k, data))
     with Reader(path) as reader:

@@ -17,18 +17,17 @@ import time
 from pathlib import Path
 
 if __name__ != '__main__':
+    # No rclpy at the top: the module collects where rclpy is unimportable (the unit set runs
+    # without ROS); its ROS tests start the installed executables, so a broken install fails
+    # them, it never skips them.
     import pytest
+else:
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-    import rclpy  # noqa: F401 - pinned and built: a broken install fails, never skips
-    import actuator_msgs.msg  # noqa: F401
+from bag_helpers import TOPICS as SYSTEM_TOPICS  # noqa: E402
 
-TOPICS = {
-    '/joint_states': ('sensor_msgs.msg', 'JointState'),
-    '/current_command': ('actuator_msgs.msg', 'CurrentCommand'),
-    '/eso/estimate': ('actuator_msgs.msg', 'StateEstimate'),
-    '/controller/state': ('actuator_msgs.msg', 'ControllerState'),
-    '/plant/truth': ('actuator_msgs.msg', 'PlantTruth'),
-}
+#: The five system topics and their types ('sensor_msgs/msg/JointState', ...).
+TOPICS = dict(SYSTEM_TOPICS.values())
 SIM_T0_S = 1000
 
 
@@ -60,8 +59,9 @@ def publish(argv: list[str]) -> int:
         else ReliabilityPolicy.BEST_EFFORT,
     )
     pubs, msgs = [], []
-    for topic, (module, name) in TOPICS.items():
-        cls = getattr(importlib.import_module(module), name)
+    for topic, msgtype in TOPICS.items():
+        module, name = msgtype.rsplit('/', 1)
+        cls = getattr(importlib.import_module(module.replace('/', '.')), name)
         pubs.append(node.create_publisher(cls, topic, qos))
         msgs.append(fill_message(cls(), seed=len(msgs) + 1))
     clock_pub = node.create_publisher(Clock, '/clock', 10) if args.clock else None
@@ -96,7 +96,6 @@ def publish(argv: list[str]) -> int:
 
 
 if __name__ == '__main__':
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
     raise SystemExit(publish(sys.argv[1:]))
 
 
@@ -294,7 +293,7 @@ def test_replay_reproduces_the_recording(ros_env, ros_process, tmp_path: Path) -
 
 def test_player_rate_and_topic_selection(ros_env, ros_process, tmp_path: Path) -> None:
     """Rate 2 halves the playing time; a topic selection plays only those topics."""
-    from test_bag_support import synthetic_run, write_run_bag
+    from bag_helpers import synthetic_run, write_run_bag
 
     src = write_run_bag(tmp_path / 'src', synthetic_run(duration_s=2.0))
     out = tmp_path / 'sel'
@@ -352,7 +351,7 @@ def test_bad_input_one_line_error(
 
 def test_player_unknown_topic(ros_process, tmp_path: Path) -> None:
     """Selecting a topic the bag lacks names the topics it has."""
-    from test_bag_support import synthetic_run, write_run_bag
+    from bag_helpers import synthetic_run, write_run_bag
 
     src = write_run_bag(tmp_path / 'src', synthetic_run(duration_s=0.1), topics=('state',))
     proc = ros_process('actuator_bag', 'player', [str(src), '--topics', 'nope'])
@@ -531,7 +530,7 @@ def test_signal_at_any_moment_exits_0(
 
     An opened bag is closed.
     """
-    from test_bag_support import synthetic_run, write_run_bag
+    from bag_helpers import synthetic_run, write_run_bag
 
     bag = tmp_path / 'sig'
     if exe == 'recorder':

@@ -21,15 +21,13 @@ from pathlib import Path
 
 import pytest
 
-from rosbags.highlevel import AnyReader  # noqa: E402
-from rosbags.rosbag2 import Reader  # noqa: E402
+from rosbags.highlevel import AnyReader
+from rosbags.rosbag2 import Reader
 
-from actuator_bag.bag_format import BagWriter, mcap_name, topic_spec  # noqa: E402
-from actuator_bag.errors import RepairError  # noqa: E402
-from actuator_bag.repair import main, repair_bag  # noqa: E402
-from test_bag_support import SOURCE  # noqa: E402
-
-MSGTYPE = 'actuator_msgs/msg/CurrentCommand'
+from actuator_bag.bag_format import BagWriter, mcap_name
+from actuator_bag.errors import RepairError
+from actuator_bag.repair import main, repair_bag
+from bag_helpers import add_command_topic, command_cdr
 
 
 def _digest(path: Path) -> str:
@@ -42,21 +40,12 @@ def _interrupted_bag(path: Path, flushed: int, unflushed: int) -> list[bytes]:
 
     Abort: no summary, no metadata.yaml.
     """
-    store = SOURCE.typestore([MSGTYPE])
-    types = store.types
     payloads = []
     writer = BagWriter(path, chunk_size=4096)
     writer.open()
-    handle = writer.add_topic(topic_spec('/current_command', MSGTYPE, SOURCE))
+    handle = add_command_topic(writer)
     for k in range(flushed + unflushed):
-        msg = types[MSGTYPE](
-            header=types['std_msgs/msg/Header'](
-                stamp=types['builtin_interfaces/msg/Time'](sec=1, nanosec=k), frame_id=''
-            ),
-            current_a=0.001 * k,
-            safe_stop=False,
-        )
-        data = bytes(store.serialize_cdr(msg, MSGTYPE))
+        data = command_cdr(k, 0.001 * k)
         payloads.append(data)
         writer.write(handle, 10_000 + k, data)
         if k + 1 == flushed:
@@ -136,19 +125,11 @@ def test_corrupt_chunk_keeps_what_precedes_it(tmp_path: Path) -> None:
 
 def test_complete_bag_repairs_to_same_messages(tmp_path: Path) -> None:
     """Repairing an intact bag gives the same messages and keeps its custom_data."""
-    store = SOURCE.typestore([MSGTYPE])
     src = tmp_path / 'ok'
     with BagWriter(src, custom_data={'note': 'kept'}) as writer:
-        handle = writer.add_topic(topic_spec('/current_command', MSGTYPE, SOURCE))
-        msg = store.types[MSGTYPE](
-            header=store.types['std_msgs/msg/Header'](
-                stamp=store.types['builtin_interfaces/msg/Time'](sec=1, nanosec=2), frame_id=''
-            ),
-            current_a=1.0,
-            safe_stop=True,
-        )
+        handle = add_command_topic(writer)
         for k in range(20):
-            writer.write(handle, k, bytes(store.serialize_cdr(msg, MSGTYPE)))
+            writer.write(handle, k, command_cdr(2, 1.0, safe_stop=True))
     result = repair_bag(src, tmp_path / 'again', quiet=True)
     assert _read(tmp_path / 'again') == _read(src)
     with Reader(tmp_path / 'again') as reader:
@@ -402,19 +383,11 @@ def test_complete_bag_with_a_corrupt_chunk_reaches_its_end(tmp_path: Path) -> No
 
     The scan goes on to the end of the data section.
     """
-    store = SOURCE.typestore([MSGTYPE])
     src = tmp_path / 'ok'
     with BagWriter(src, chunk_size=2048) as writer:
-        handle = writer.add_topic(topic_spec('/current_command', MSGTYPE, SOURCE))
+        handle = add_command_topic(writer)
         for k in range(400):
-            msg = store.types[MSGTYPE](
-                header=store.types['std_msgs/msg/Header'](
-                    stamp=store.types['builtin_interfaces/msg/Time'](sec=1, nanosec=k), frame_id=''
-                ),
-                current_a=float(k),
-                safe_stop=False,
-            )
-            writer.write(handle, k, bytes(store.serialize_cdr(msg, MSGTYPE)))
+            writer.write(handle, k, command_cdr(k, float(k)))
     mcap = src / mcap_name(src)
     per_chunk = _chunk_messages(mcap)
     chunks = [r for r in _records(mcap) if r[0] == CHUNK]
@@ -458,20 +431,12 @@ def test_closed_bag_with_its_first_chunk_lost_keeps_the_rest(tmp_path: Path) -> 
 
     Later chunks are recovered.
     """
-    store = SOURCE.typestore([MSGTYPE])
     src = tmp_path / 'ok'
     payloads = []
     with BagWriter(src, chunk_size=2048) as writer:
-        handle = writer.add_topic(topic_spec('/current_command', MSGTYPE, SOURCE))
+        handle = add_command_topic(writer)
         for k in range(300):
-            msg = store.types[MSGTYPE](
-                header=store.types['std_msgs/msg/Header'](
-                    stamp=store.types['builtin_interfaces/msg/Time'](sec=1, nanosec=k), frame_id=''
-                ),
-                current_a=float(k),
-                safe_stop=False,
-            )
-            payloads.append(bytes(store.serialize_cdr(msg, MSGTYPE)))
+            payloads.append(command_cdr(k, float(k)))
             writer.write(handle, k, payloads[-1])
     mcap = src / mcap_name(src)
     per_chunk = _chunk_messages(mcap)

@@ -23,15 +23,13 @@ from pathlib import Path
 
 import pytest
 
-from rosbags.highlevel import AnyReader  # noqa: E402
+from rosbags.highlevel import AnyReader
 
-from actuator_bag.bag_format import BagWriter, mcap_name, topic_spec  # noqa: E402
-from actuator_bag.datafile import FULL_AFTER_ENV  # noqa: E402
-from actuator_bag.errors import BagIOError  # noqa: E402
-from actuator_bag.repair import repair_bag  # noqa: E402
-from test_bag_support import SOURCE, synthetic_run, write_run_bag  # noqa: E402
-
-MSGTYPE = 'actuator_msgs/msg/CurrentCommand'
+from actuator_bag.bag_format import BagWriter, mcap_name
+from actuator_bag.datafile import FULL_AFTER_ENV
+from actuator_bag.errors import BagIOError
+from actuator_bag.repair import repair_bag
+from bag_helpers import add_command_topic, command_cdr, synthetic_run, write_run_bag
 
 
 def _tree(root: Path) -> dict[str, str]:
@@ -63,10 +61,10 @@ def _one_error(proc: subprocess.CompletedProcess, prog: str, expect: str) -> Non
     )
 
 
-@pytest.fixture(scope='module')
-def bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """Write a small complete run bag (all five topics)."""
-    return write_run_bag(tmp_path_factory.mktemp('safety') / 'run', synthetic_run(duration_s=0.5))
+@pytest.fixture
+def bag(run_bag) -> Path:
+    """Return the path of the session's synthetic run bag (conftest.run_bag)."""
+    return run_bag[0]
 
 
 def _interrupted(path: Path, count: int = 300) -> Path:
@@ -74,20 +72,11 @@ def _interrupted(path: Path, count: int = 300) -> Path:
 
     Interrupted: no summary, no metadata.yaml.
     """
-    store = SOURCE.typestore([MSGTYPE])
-    types = store.types
     writer = BagWriter(path, chunk_size=4096)
     writer.open()
-    handle = writer.add_topic(topic_spec('/current_command', MSGTYPE, SOURCE))
+    handle = add_command_topic(writer)
     for k in range(count):
-        msg = types[MSGTYPE](
-            header=types['std_msgs/msg/Header'](
-                stamp=types['builtin_interfaces/msg/Time'](sec=1, nanosec=k), frame_id=''
-            ),
-            current_a=0.1,
-            safe_stop=False,
-        )
-        writer.write(handle, 1000 + k, bytes(store.serialize_cdr(msg, MSGTYPE)))
+        writer.write(handle, 1000 + k, command_cdr(k, 0.1))
     writer.flush()
     writer.abort()
     return path
@@ -245,21 +234,12 @@ def test_writer_full_disk_is_one_error_and_leaves_a_repairable_file(
     Repair recovers exactly `durable`.
     """
     monkeypatch.setenv(FULL_AFTER_ENV, str(limit))
-    store = SOURCE.typestore([MSGTYPE])
-    types = store.types
     writer = BagWriter(tmp_path / 'full', chunk_size=4096)
     writer.open()
-    handle = writer.add_topic(topic_spec('/current_command', MSGTYPE, SOURCE))
+    handle = add_command_topic(writer)
     with pytest.raises(BagIOError) as err:
         for k in range(100_000):
-            msg = types[MSGTYPE](
-                header=types['std_msgs/msg/Header'](
-                    stamp=types['builtin_interfaces/msg/Time'](sec=1, nanosec=k), frame_id=''
-                ),
-                current_a=0.5,
-                safe_stop=False,
-            )
-            writer.write(handle, 1000 + k, bytes(store.serialize_cdr(msg, MSGTYPE)))
+            writer.write(handle, 1000 + k, command_cdr(k, 0.5))
     assert err.value.errno == errno.ENOSPC and 'No space left on device' in str(err.value)
     assert not writer.is_open and 0 < writer.durable <= sum(writer.counts)
     mcap = tmp_path / 'full' / mcap_name(tmp_path / 'full')

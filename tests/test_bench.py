@@ -16,7 +16,7 @@ import sys
 import numpy as np
 import pytest
 
-from actuator_tools import bench, bench_figures, bench_table, floor
+from actuator_tools import bench, bench_figures, bench_table
 
 PERIOD_NS = 1_000_000
 
@@ -204,12 +204,14 @@ def test_bad_input_is_one_line_and_exit_2(argv, capsys, tmp_path):
 
 
 def test_hop_figures_halve_the_round_trip_and_count_lost_messages():
-    figures = floor.hop_figures(np.array([2_000, 4_000, 6_000]), sent=4)
+    figures = bench_figures.hop_figures(np.array([2_000, 4_000, 6_000]), sent=4)
     assert figures['floor_lost_pct'] == pytest.approx(25.0)
     assert figures['floor_hop_p50_us'] == pytest.approx(2.0)
     assert figures['floor_hop_max_us'] == pytest.approx(3.0)
-    assert floor.hop_figures(np.array([], dtype=np.int64), sent=5) == {'floor_lost_pct': 100.0}
-    assert floor.hop_figures(np.array([], dtype=np.int64), sent=0) == {}
+    assert bench_figures.hop_figures(np.array([], dtype=np.int64), sent=5) == {
+        'floor_lost_pct': 100.0
+    }
+    assert bench_figures.hop_figures(np.array([], dtype=np.int64), sent=0) == {}
 
 
 def test_steal_share_between_two_readings():
@@ -261,3 +263,61 @@ def test_short_sim_run_end_to_end(ros_env, tmp_path):
     assert hops['floor_hop_p50_us'] > 0 and hops['floor_lost_pct'] < 50.0
     assert hops['cpu_echo_pct'] > 0
     assert 'middleware floor' in proc.stdout
+
+
+def test_missing_tool_skips_its_variant_with_one_line_and_each_run_is_saved_as_it_ends(
+    monkeypatch, capsys, tmp_path
+):
+    """No ros2 on PATH: fifo-launch is skipped; every finished run is on disk before the next."""
+    monkeypatch.setenv('PATH', str(tmp_path / 'no-tools'))
+    calls = []
+
+    def fake_run(variant, repeat, args, base, period_ns):
+        if calls:  # the run before this one is already written
+            saved = (base / 'runs.jsonl').read_text().splitlines()
+            assert [json.loads(x)['variant'] for x in saved] == [c.slug for c in calls]
+            assert (base / 'runs.csv').read_text().count('\n') == len(calls) + 1
+        calls.append(variant)
+        return bench.RunRecord(variant.slug, repeat, error='fake run')
+
+    monkeypatch.setattr(bench, 'run_one', fake_run)
+    argv = [
+        '--modes',
+        'realtime',
+        '--rt-variants',
+        'normal',
+        'fifo-launch',
+        'fifo',
+        '--repeats',
+        '2',
+        '--duration',
+        '1',
+        '--floor-s',
+        '0',
+        '--skip-offline',
+        '--quiet',
+        '--out',
+        str(tmp_path),
+    ]
+    assert bench.main(argv) == 1  # the fake runs report an error
+    err = capsys.readouterr().err
+    skips = [x for x in err.splitlines() if 'skipping' in x]
+    assert skips == [
+        'bench: skipping realtime_fifo50_launch: ros2 launch is not installed (no ros2 on PATH)'
+    ]
+    assert [v.slug for v in calls] == ['realtime_normal', 'realtime_fifo50'] * 2
+    (base,) = [p for p in tmp_path.iterdir() if p.is_dir() and p.name != 'no-tools']
+    assert len((base / 'runs.jsonl').read_text().splitlines()) == 4
+
+
+def test_a_run_that_raises_is_that_runs_error(monkeypatch, tmp_path):
+    """An unexpected exception in one run (a tool that vanished) is recorded, not raised."""
+    import actuator_tools.bringup as bringup
+
+    def boom(*args, **kwargs):
+        raise FileNotFoundError(2, 'No such file or directory', 'ros2')
+
+    monkeypatch.setattr(bringup, 'run_launched', boom)
+    args = bench.build_parser().parse_args(['--duration', '1', '--quiet'])
+    record = bench.run_one(bench.Variant('realtime', 50, False, True), 1, args, tmp_path, 10**6)
+    assert record.error.startswith('run failed: FileNotFoundError') and 'ros2' in record.error

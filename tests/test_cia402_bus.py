@@ -1,299 +1,183 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""CiA 402 master against the simulated drive on python-can's virtual bus (no ROS processes).
+"""The simulated drive and the CAN hub in this process: what a real drive does on the bus.
 
-Enable, disable, fault and fault-reset sequences; the cycle's process data; injected faults
-(over-current, following error, EMCY warning, dropped TPDOs, silent bus); OD checks.
+A ``Hub`` on 127.0.0.1, a ``SimulatedDrive`` on one ``HubBus`` and a tool (canopen
+RemoteNode, SDO and raw frames) on another; the drive's behaviour objects one by one. The
+hazards against the joint, with the drive in its own process, are tests/test_cia402_hazards.py.
 """
 
-import itertools
-import math
+from __future__ import annotations
+
+import struct
 import time
-from pathlib import Path
 
 import canopen
 import pytest
 
 from actuator_cia402 import profile as p
-from actuator_cia402.master import Cia402Error, Cia402Master
+from actuator_cia402.hub import Hub, HubBus, bus_error, error_frame
 from actuator_cia402.scaling import Scaling
-from actuator_cia402.sim_drive import FaultPlan, SimulatedDrive, plant_parameters
+from actuator_cia402.sim_drive import SimulatedDrive, plant_parameters
+from actuator_cia402.sim_drive_main import default_eds
+from actuator_cia402.sim_faults import FaultPlan
 
-
-pytestmark = pytest.mark.realtime  # master and simulated drive paced by threads in real time
-
-EDS = str(
-    Path(__file__).resolve().parent.parent
-    / 'src'
-    / 'actuator_cia402'
-    / 'eds'
-    / 'sim_joint_drive.eds'
-)
+pytestmark = pytest.mark.ros  # bus threads in real time over loopback TCP
 SCALING = Scaling(4096, 100.0, 1.05, 10.0, 0.105)
-DT = 1e-3
+DT = 2e-3
 NODE = 3
-ENABLE = p.Command.ENABLE_OPERATION.value
-_channels = itertools.count()
 
 
 @pytest.fixture
 def bus():
-    """Provide a factory of (master, drive) on a fresh virtual bus.
-
-    Both leave the bus at test end.
-    """
+    """Make (tool node, drive) on a fresh hub; everything leaves at the end."""
     made = []
 
-    def make(faults=FaultPlan(), scaling=SCALING, **drive_kwargs):
-        """Return a drive and a master on their own virtual bus channel."""
-        channel = f'test_cia402_{next(_channels)}'
-        drive = SimulatedDrive(
-            EDS, NODE, SCALING, DT, channel, faults=faults, **drive_kwargs
-        ).start()
-        network = canopen.Network()
-        network.NOTIFIER_CYCLE = 0.05
-        network.connect(interface='virtual', channel=channel, receive_own_messages=False)
-        made.append((network, drive))
-        master = Cia402Master(
-            network, NODE, EDS, scaling, DT, 0x200 + NODE, 0x180 + NODE, 0x280 + NODE, 20.0
-        )
-        return master, drive
+    def make(faults=FaultPlan(), **drive_kwargs):
+        hub = Hub().start()
+        networks = []
+        for _ in range(2):
+            network = canopen.Network(HubBus(hub.address))
+            network.NOTIFIER_CYCLE = 0.05
+            network.connect()
+            networks.append(network)
+        drive = SimulatedDrive(default_eds(), NODE, SCALING, DT, faults=faults, **drive_kwargs)
+        drive.attach(networks[0])
+        tool = canopen.RemoteNode(NODE, default_eds())
+        networks[1].add_node(tool)
+        tool.sdo.RESPONSE_TIMEOUT = 1.0
+        made.append((hub, networks, drive))
+        return tool, drive
 
     yield make
-    for network, drive in made:
-        network.disconnect()
+    for hub, networks, drive in made:
         drive.stop()
+        for network in networks:
+            network.disconnect()
+        hub.stop()
 
 
-def run_cycles(master, n, current_a=0.0, controlword=ENABLE, wait_s=0.02):
-    """Run n cycles with a constant command; return the feedbacks (None where TPDO1 missed)."""
-    return [master.cycle(controlword, current_a, wait_s) for _ in range(n)]
+def enable(tool, target_permille: int = 0) -> None:
+    """CST, target, enable sequence over SDO (the old driver's way)."""
+    tool.sdo[p.MODES_OF_OPERATION].raw = p.MODE_CST
+    tool.sdo[p.TARGET_TORQUE].raw = target_permille
+    for command in p.ENABLE_SEQUENCE:
+        tool.sdo[p.CONTROLWORD].raw = command.value
 
 
-def test_configure_maps_pdos_and_sets_cst_then_enable_and_disable_sequences(bus):
-    """Configure maps PDOs (0x1600/0x1A00), sets 0x6060 = 10; activate enables.
-
-    Deactivate quick-stops.
-    """
-    master, drive = bus()
-    assert master.configure() == []
-    assert drive.mode == p.MODE_CST and master.read_state()[1] is p.State.SWITCH_ON_DISABLED
-    # the mapping is written over SDO; the drive takes it on NMT start
-    assert not drive._pdo_ready
-    assert int.from_bytes(drive.node.data_store[0x1A00][1], 'little') == 0x60410010
-    master.activate()
-    assert drive.state is p.State.OPERATION_ENABLED and drive.node.nmt.state == 'OPERATIONAL'
-    assert [v.index for v in drive.node.rpdo[1].map] == [p.CONTROLWORD, p.TARGET_TORQUE]
-    assert [v.index for v in drive.node.tpdo[1].map] == [
-        p.STATUSWORD,
-        p.POSITION_ACTUAL,
-        p.TORQUE_ACTUAL,
-    ]
-    feedback = run_cycles(master, 5)
-    assert all(f is not None for f in feedback)
-    assert p.decode_state(feedback[-1].statusword) is p.State.OPERATION_ENABLED
-    master.deactivate()
-    assert (
-        drive.state is p.State.SWITCH_ON_DISABLED
-        and drive.brake
-        and drive.node.nmt.state == 'PRE-OPERATIONAL'
-    )
-    assert not drive.gate.active
+def rpdo(tool, controlword: int, permille: int) -> None:
+    """RPDO1 in the EDS default mapping (controlword, target torque)."""
+    tool.network.send_message(0x200 + NODE, struct.pack('<Hh', controlword, permille))
 
 
-def test_enable_is_refused_without_cst_mode(bus):
-    """The drive stays switched on when 0x6060 is not CST; activate says which state it reached."""
-    master, drive = bus()
-    master.configure()
-    master._sdo(p.MODES_OF_OPERATION).raw = 0
-    with pytest.raises(Cia402Error, match="did not reach 'operation enabled'"):
-        master.activate()
-    assert drive.state is p.State.SWITCHED_ON
+def test_0x6071_is_kept_across_nmt_start_and_enable(bus):
+    # The old simulated drive zeroed its RPDO image on NMT start, hiding a stale 0x6071.
+    tool, drive = bus()
+    tool.sdo[p.TARGET_TORQUE].raw = 400
+    tool.nmt.state = 'OPERATIONAL'
+    enable(tool, 400)
+    time.sleep(0.05)
+    assert tool.sdo[p.TARGET_TORQUE].raw == 400
+    assert tool.sdo[p.CURRENT_ACTUAL].raw == pytest.approx(400, abs=5)  # 4 A of the 10 A rated
+    assert 'operation enabled with 0x6071 = 400 per mille' in drive.events[-2]
 
 
-def test_cycle_drives_the_joint_through_the_torque_loop_with_quantised_position(bus):
-    """RPDO 0x6071 acts at the next SYNC through the first-order torque loop.
-
-    0x6064 comes in whole counts.
-    """
-    master, drive = bus(torque_time_constant_s=2e-4)
-    master.configure()
-    master.activate()
-    run_cycles(master, 1, 0.0)  # first command releases the brake
-    assert not drive.brake
-    fb = run_cycles(master, 1, 5.0)
-    # SYNC k latches the RPDO; the current reaches 5 A (1 - exp(-dt/tau)) one period later.
-    assert drive.current_a == pytest.approx(5.0 * (1 - math.exp(-DT / 2e-4)), rel=1e-6)
-    fb += run_cycles(master, 300, 5.0)
-    assert fb[-1].current_a == pytest.approx(5.0, abs=0.01) and fb[-1].torque_nm == pytest.approx(
-        0.525, abs=1e-3
-    )
-    positions = [f.position_rad for f in fb if f is not None]
-    assert positions[-1] > positions[0] + 1e-3  # 5 A lifts the joint against the 20 N m load
-    for q in positions:
-        assert abs(q / SCALING.rad_per_count - round(q / SCALING.rad_per_count)) < 1e-6
+def test_an_rpdo_later_than_the_sync_window_is_discarded(bus):
+    tool, drive = bus()
+    tool.sdo[p.SYNC_WINDOW_US].raw = 1000
+    enable(tool)
+    tool.nmt.state = 'OPERATIONAL'
+    tool.sdo[p.STATUSWORD].raw  # noqa: B018 - NMT taken (in order)
+    tool.network.sync.transmit()
+    rpdo(tool, p.Command.ENABLE_OPERATION.value, 100)  # in the window
+    time.sleep(0.0005)
+    tool.network.sync.transmit()
+    time.sleep(0.02)
+    assert tool.sdo[p.TARGET_TORQUE].raw == 100
+    tool.network.sync.transmit()
+    time.sleep(0.01)  # 10 ms > the 1 ms window
+    rpdo(tool, p.Command.ENABLE_OPERATION.value, 300)
+    tool.network.sync.transmit()
+    time.sleep(0.02)
+    assert tool.sdo[p.TARGET_TORQUE].raw == 100 and drive.rpdos_discarded == 1
 
 
-def test_after_a_missed_cycle_the_late_tpdo_of_the_previous_sync_is_not_taken_for_this_one(bus):
-    """A TPDO1 arriving after its deadline.
-
-    The next cycle takes the newest TPDO1, that of its own SYNC.
-    """
-    master, drive = bus()
-    master.configure()
-    master.activate()
-    run_cycles(master, 100, 8.0)  # the joint moves: each TPDO1 has another angle
-    assert master.cycle(ENABLE, 8.0, 0.0) is None  # deadline 0: the answer comes late
-    feedback = master.cycle(ENABLE, 8.0, 0.02)
-    assert feedback is not None and feedback.position_rad == SCALING.counts_to_rad(
-        drive.last_tpdo_counts
-    )
-    assert (
-        master.tpdo1_count == drive.syncs - drive.idle_periods
-    )  # both answers arrived, the newest was used
-    assert master.cycle(ENABLE, 8.0, 0.02) is not None  # and the next cycle waits for one again
+def test_drive_time_follows_the_wall_clock_without_sync_and_the_torque_stays(bus):
+    # A real drive does not stop when SYNC stops; the old simulated drive only stepped on SYNC.
+    tool, drive = bus()
+    enable(tool, 200)
+    start = drive.syncs
+    time.sleep(0.4)
+    periods = drive.syncs - start
+    assert 0.7 * 0.4 / DT < periods < 1.1 * 0.4 / DT
+    assert tool.sdo[p.CURRENT_ACTUAL].raw == pytest.approx(200, abs=3)
 
 
-def test_gate_of_the_drive_goes_to_zero_and_brake_when_rpdos_stop(bus):
-    """SYNCs without RPDO beyond command_timeout_s.
+def test_tpdo1_carries_the_quantised_wrapping_position_and_the_torque_loop_current(bus):
+    tool, drive = bus(encoder_offset_counts=2**31 - 1, torque_time_constant_s=2e-4)
+    got = []
+    tool.network.subscribe(0x180 + NODE, lambda cob, data, ts: got.append(bytes(data)))
+    tool.sdo[p.MODES_OF_OPERATION].raw = p.MODE_CST
+    tool.nmt.state = 'OPERATIONAL'
+    tool.sdo[p.STATUSWORD].raw  # noqa: B018 - NMT taken
+    tool.network.sync.transmit()
+    time.sleep(0.05)
+    statusword, counts, torque = struct.unpack('<Hih', got[-1][:8])
+    q = float(drive.joint.plant.position_rad)
+    assert counts == round(q / SCALING.rad_per_count) + 2**31 - 1 or counts < 0  # wraps
+    assert p.decode_state(statusword) is p.State.SWITCH_ON_DISABLED
 
-    The drive's own gate applies 0 A and the brake.
-    """
-    master, drive = bus(command_timeout_s=0.005)
-    master.configure()
-    master.activate()
-    run_cycles(master, 50, 3.0)
-    assert drive.target_current_a == pytest.approx(3.0, abs=0.01) and not drive.brake
-    for _ in range(10):  # SYNC without RPDO: 10 ms > 5 ms timeout
-        master.network.sync.transmit()
-        time.sleep(0.001)
+
+def test_reset_communication_restores_communication_objects_but_not_the_power_state(bus):
+    tool, drive = bus()
+    tool.sdo[p.HEARTBEAT_CONSUMER][1].raw = (127 << 16) | 100
+    tool.sdo[p.SYNC_WINDOW_US].raw = 1500
+    enable(tool, 150)
+    booted = []
+    tool.nmt.add_heartbeat_callback(booted.append)
+    tool.nmt.state = 'RESET COMMUNICATION'
+    time.sleep(0.1)
+    assert 0 in booted  # the boot-up
+    assert tool.sdo[p.HEARTBEAT_CONSUMER][1].raw == 0 and tool.sdo[p.SYNC_WINDOW_US].raw == 0
+    assert p.decode_state(tool.sdo[p.STATUSWORD].raw) is p.State.OPERATION_ENABLED
+    assert tool.sdo[p.TARGET_TORQUE].raw == 150
+
+
+def test_a_fault_goes_through_fault_reaction_active_with_the_ramp(bus):
+    tool, drive = bus(faults=FaultPlan('following_error', 0.3))  # 0.3 s after the first SYNC
+    tool.sdo[p.TORQUE_SLOPE].raw = 1000  # 300 per mille: 0.3 s of ramp
+    enable(tool, 300)
+    tool.network.sync.transmit()
+    assert p.decode_state(tool.sdo[p.STATUSWORD].raw) is p.State.OPERATION_ENABLED
+    states = set()
     deadline = time.monotonic() + 2.0
-    while drive.syncs < 60 and time.monotonic() < deadline:
-        time.sleep(0.01)
-    assert drive.target_current_a == 0.0 and drive.brake and drive.gate.timeouts == 1
+    while time.monotonic() < deadline and p.State.FAULT not in states:
+        states.add(p.decode_state(tool.sdo[p.STATUSWORD].raw))
+    assert {p.State.FAULT_REACTION_ACTIVE, p.State.FAULT} <= states
+    assert tool.sdo[p.ERROR_CODE].raw == 0x8611
+    assert tool.sdo[p.DIGITAL_INPUTS].raw & (1 << 16)  # brake closed at the end
 
 
-def test_a_late_sync_lets_the_skipped_periods_pass_for_the_joint(bus):
-    """A master stall of 30 ms.
-
-    The drive integrates the 30 periods (its watchdog applying 0 A and brake after 10 ms).
-    """
-    master, drive = bus()
-    master.configure()
-    master.activate()
-    start = time.monotonic()
-    for k in range(20):  # paced on the 1 ms grid
-        master.cycle(ENABLE, 2.0, 0.01)
-        time.sleep(max(0.0, start + (k + 1) * DT - time.monotonic()))
-    assert drive.idle_periods <= 10 and not drive.brake  # paced: (almost) no catching up
-    periods, idle = drive.syncs, drive.idle_periods
-    time.sleep(0.030)
-    master.cycle(ENABLE, 2.0, 0.01)
-    assert drive.syncs - periods >= 30 and drive.idle_periods - idle >= 29
-    assert drive.gate.timeouts == 1  # the stall outlasted command_timeout_s
+def test_error_frames_are_read_as_socketcan_codes_them():
+    assert bus_error(error_frame('bus_off')) == 'CAN controller bus-off'
+    assert bus_error(error_frame('error_passive')) == 'CAN controller error-passive'
+    with pytest.raises(ValueError):
+        error_frame('warning')
 
 
-@pytest.mark.parametrize(
-    'kind, code, text',
-    [
-        ('over_current', 0x2310, 'continuous over-current'),
-        ('following_error', 0x8611, 'following error'),
-    ],
-)
-def test_injected_fault_mid_run_gives_the_error_code_then_fault_reset_recovers(
-    bus, kind, code, text
-):
-    """Fault bit, EMCY and 0x603F carry the code.
+def test_the_hub_is_loopback_only_and_a_closed_hub_is_a_vanished_adapter():
+    with pytest.raises(ValueError, match='loopback'):
+        HubBus('10.0.0.1:1')
+    hub = Hub().start()
+    bus = HubBus(hub.address)
+    hub.stop()
+    import can
 
-    Activate resets the fault (controlword bit 7) and re-enables.
-    """
-    master, drive = bus(faults=FaultPlan(fault_kind=kind, fault_at_s=0.05))
-    master.configure()
-    master.activate()
-    fb = run_cycles(master, 80, 2.0)
-    assert master.fault is not None and master.fault.code == code and master.fault.text == text
-    assert master.fault.source == 'emcy'  # the EMCY came before the TPDO with the fault bit
-    assert drive.state is p.State.FAULT and drive.brake and drive.error_code == code
-    assert p.decode_state(fb[-1].statusword) is p.State.FAULT and fb[-1].error_code == code
-    assert master.read_error() == (code, text)
-    master.deactivate()  # quick stop / disable are accepted in fault
-    notes = master.activate()  # fault reset, then the enable sequence
-    assert notes and f'0x{code:04X}' in notes[0] and 'fault reset' in notes[0]
-    assert (
-        drive.state is p.State.OPERATION_ENABLED and master.fault is None and drive.error_code == 0
-    )
-    fb = run_cycles(master, 5, 0.0)
-    assert all(f is not None and not f.statusword & p.SW_FAULT for f in fb)
-
-
-def test_real_over_current_faults_the_drive(bus):
-    """A current above over_current_a faults the drive with 0x2310."""
-    master, drive = bus(over_current_a=4.0)
-    master.configure()
-    master.activate()
-    run_cycles(master, 20, 6.0)
-    assert (
-        master.fault is not None and master.fault.code == 0x2310 and drive.state is p.State.FAULT
-    )
-
-
-def test_emcy_without_error_register_is_a_warning_not_a_fault(bus):
-    """An EMCY with error register 0 is kept as a warning; operation goes on."""
-    master, drive = bus(faults=FaultPlan(emcy_code=0x4210, emcy_at_s=0.01))
-    master.configure()
-    master.activate()
-    run_cycles(master, 30, 1.0)
-    deadline = time.monotonic() + 1.0
-    while not master.warnings and time.monotonic() < deadline:
-        time.sleep(0.01)
-    assert master.fault is None and drive.state is p.State.OPERATION_ENABLED
-    assert (
-        master.warnings and '0x4210' in master.warnings[0] and 'temperature' in master.warnings[0]
-    )
-
-
-def test_dropped_tpdos_are_missed_cycles_not_faults(bus):
-    """Each dropped TPDO1 is one missed cycle (None), nothing more."""
-    master, drive = bus(faults=FaultPlan(drop_tpdo_fraction=0.3, seed=7))
-    master.configure()
-    master.activate()
-    fb = run_cycles(master, 200, 0.0, wait_s=0.005)
-    missed = sum(f is None for f in fb)
-    assert 30 <= drive.tpdos_dropped <= 90  # seeded: the same draws every run
-    # every drop is a miss; a few more when other jobs starve this process for the 5 ms deadline
-    assert drive.tpdos_dropped <= missed <= drive.tpdos_dropped + 10
-    assert master.fault is None
-
-
-def test_silent_bus_gives_no_feedback_and_no_sdo_answer(bus):
-    """From silent_at_s on: no TPDO, and SDO times out."""
-    master, drive = bus(faults=FaultPlan(silent_at_s=0.02))
-    master.configure()
-    master.activate()
-    fb = run_cycles(master, 40, 0.0, wait_s=0.005)
-    assert all(f is not None for f in fb[:15]) and all(f is None for f in fb[25:])
-    assert drive.silent
-    with pytest.raises(canopen.SdoCommunicationError):
-        master.read_state()
-
-
-def test_configure_refuses_a_drive_that_does_not_match_the_parameters(bus):
-    """0x6075 or 0x608F differing from the parameters: configure refuses, naming both values."""
-    master, _ = bus(scaling=Scaling(4096, 100.0, 1.05, 8.0, 0.105))
-    with pytest.raises(Cia402Error, match='rated current 0x6075 .* 10000 mA, configured 8000 mA'):
-        master.configure()
-    master, _ = bus(scaling=Scaling(16384, 100.0, 1.05, 10.0, 0.105))
-    with pytest.raises(Cia402Error, match='encoder resolution'):
-        master.configure()
-
-
-def test_configure_without_a_drive_says_so(bus):
-    """No SDO answer at all: configure says the node does not answer."""
-    master, drive = bus(faults=FaultPlan(silent_at_s=0.0))
-    drive.silent = True
-    with pytest.raises(Cia402Error, match='does not answer SDO'):
-        master.configure()
+    with pytest.raises(can.CanOperationError, match='vanished|closed'):
+        for _ in range(3):
+            bus.recv(0.5)
+    bus.shutdown()
 
 
 def test_lab_and_deep_sea_drives_differ_by_the_oil():

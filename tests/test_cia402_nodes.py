@@ -3,12 +3,15 @@
 
 """CiA 402 driver node as a ROS process (ROS-PROCESS TESTS: each starts installed executables).
 
-Parameter refusals, the lifecycle driven through its services (what ``ros2 lifecycle set``
-calls), a drive fault in mid-run, a silent bus against the real controller, and the end-to-end
-closed loop: driver (with the simulated drive) + ESO + controller + recorder in real time.
+The driver is the joint node holding a Cia402Joint; the simulated drive (``cia402_sim_drive``)
+runs in a process of its own, as hardware would. Parameter refusals, the lifecycle driven
+through its services (what ``ros2 lifecycle set`` calls), a drive fault in mid-run and its
+acknowledgement by a person, a silent drive against the real controller, kill -9 of the driver
+in closed loop, and the end-to-end closed loop in real time.
 """
 
 import os
+import re
 import signal
 import subprocess
 import time
@@ -19,10 +22,21 @@ import pytest
 
 from actuator_core import limits
 
-from ros_helpers import executable_path
+from ros_helpers import TestNode, executable_path
 
 DRIVER = ('actuator_cia402', 'cia402_driver')
 NODE = 'actuator_cia402_driver'
+
+
+#: SCHED_FIFO priority of the ESO and controller in the closed loops through the drive (driver
+#: one above, simulated drive one above that: graph.closed_loop), as in test_adversarial. Under
+#: normal scheduling on a 2-core VM the loop through the drive kept 43-96 % of the 1 kHz grid and
+#: ran away to the 20 rad/s soft limit in 0.2-1.6 s (issue 20); under SCHED_FIFO 99.6-99.9 % of
+#: SYNCs had a command, median lag 1 ms (README "CiA 402 drive").
+CLOSED_LOOP_PRIORITY = 50
+#: Tracking of the 5 s end-to-end run through the drive on [1, 5) s, as measured (README of
+#: actuator_cia402): the larger max |e| and RMS [rad] of the runs without a stall.
+END_TO_END_MAX_RAD, END_TO_END_RMS_RAD = 9.3e-3, 5.6e-4
 
 
 def wait_for_output(proc, pattern, timeout):
@@ -52,87 +66,52 @@ def scenario_file() -> Path:
     )
 
 
-def driver_args(**params) -> list:
-    """Command line of the driver: simulated drive on a virtual bus, plus ``params``."""
+def driver_args(address='127.0.0.1:1', **params) -> list:
+    """Command line of the driver: the simulated drive's hub at ``address``, plus ``params``."""
     from actuator_cia402.launch_spec import driver_arguments
 
-    base = {'simulated_drive': True, 'interface': 'virtual', 'channel': 'test_bus'}
+    base = {'simulated_drive': True, 'interface': 'hub', 'channel': address}
     base.update(params)
     return driver_arguments(base)
 
 
-class Harness:
-    """Test-side node.
+@pytest.fixture
+def sim_drive(ros_process):
+    """Start ``cia402_sim_drive`` with extra arguments; return (process, hub address)."""
 
-    Lifecycle service client, joint_states / diagnostics / current_command recorder.
-    """
+    def start(*args):
+        drive = ros_process('actuator_cia402', 'cia402_sim_drive', ['--port', '0', *args])
+        drive.wait_for_output(r'^drive 1 ready$', timeout=30)
+        return drive, re.search(r'bus hub on (\S+)', drive.stdout).group(1)
+
+    return start
+
+
+class Harness(TestNode):
+    """The driver's test node: joint_states, diagnostics, commands; its lifecycle services."""
 
     def __init__(self, context):
-        """Subscriptions and lifecycle service clients on the test's rclpy context."""
+        """Subscriptions on the test's rclpy context."""
         from diagnostic_msgs.msg import DiagnosticArray
-        from lifecycle_msgs.srv import ChangeState, GetState
-        from rclpy.executors import SingleThreadedExecutor
-        from rclpy.node import Node
         from sensor_msgs.msg import JointState
 
         from actuator_msgs.msg import CurrentCommand
         from actuator_ros.qos import control_qos
 
-        self.node = Node('cia402_harness', context=context)
+        super().__init__(context, 'cia402_harness')
         qos = control_qos('realtime')
         self.joint, self.diag, self.command = [], [], []
         self.node.create_subscription(JointState, 'joint_states', self.joint.append, qos)
         self.node.create_subscription(DiagnosticArray, 'diagnostics', self.diag.append, 10)
         self.node.create_subscription(CurrentCommand, 'current_command', self.command.append, qos)
-        self.change = self.node.create_client(ChangeState, f'/{NODE}/change_state')
-        self.get = self.node.create_client(GetState, f'/{NODE}/get_state')
-        self.types = (ChangeState, GetState)
-        self.executor = SingleThreadedExecutor(context=context)
-        self.executor.add_node(self.node)
-
-    def spin(self, seconds):
-        """Run the harness's callbacks for ``seconds``."""
-        end = time.monotonic() + seconds
-        while time.monotonic() < end:
-            self.executor.spin_once(timeout_sec=0.01)
-
-    def wait_for(self, predicate, timeout=20.0, what=''):
-        """Spin until ``predicate()`` holds; fail after ``timeout`` seconds."""
-        end = time.monotonic() + timeout
-        while time.monotonic() < end:
-            if predicate():
-                return
-            self.executor.spin_once(timeout_sec=0.01)
-        raise AssertionError(f'timed out waiting for {what}')
-
-    def call(self, client, request, timeout=20.0):
-        """Call a service and return its response."""
-        assert client.wait_for_service(timeout_sec=timeout), 'lifecycle service not available'
-        future = client.call_async(request)
-        self.executor.spin_until_future_complete(future, timeout_sec=timeout)
-        assert future.done(), 'no answer from the lifecycle service'
-        return future.result()
 
     def transition(self, label):
-        """Request a lifecycle transition by label (what ``ros2 lifecycle set`` does).
-
-        True on success.
-        """
-        from lifecycle_msgs.msg import Transition
-
-        ids = {
-            'configure': Transition.TRANSITION_CONFIGURE,
-            'activate': Transition.TRANSITION_ACTIVATE,
-            'deactivate': Transition.TRANSITION_DEACTIVATE,
-            'cleanup': Transition.TRANSITION_CLEANUP,
-        }
-        return self.call(
-            self.change, self.types[0].Request(transition=Transition(id=ids[label]))
-        ).success
+        """Request a lifecycle transition of the driver by label; True on success."""
+        return super().transition(NODE, label)
 
     def state(self):
         """Return the driver's lifecycle state label (``ros2 lifecycle get``)."""
-        return self.call(self.get, self.types[1].Request()).current_state.label
+        return self.lifecycle_state(NODE)
 
     def diag_values(self):
         """Key/values of the newest diagnostics status."""
@@ -144,8 +123,7 @@ def harness(rclpy_context):
     """Return a Harness for the test, destroyed at its end."""
     h = Harness(rclpy_context)
     yield h
-    h.executor.shutdown()
-    h.node.destroy_node()
+    h.close()
 
 
 @pytest.mark.parametrize(
@@ -153,25 +131,19 @@ def harness(rclpy_context):
     [
         (['-p', 'node_id:=0'], 'node_id'),
         (['-p', 'node_id:=abc'], 'node_id'),
-        (['-p', 'bitrate:=125000'], '304.0 % of 125 kbit/s'),
+        (['-p', 'bitrate:=125000'], '312.0 % of 125 kbit/s'),
         (['-p', 'interface:=pcan'], 'interface'),
-        (['-p', 'sync_period_s:=0.0'], 'sync_period_s'),
-        (['-p', 'interface:=socketcan', '-p', 'simulated_drive:=true'], 'simulated_drive'),
-        (['-p', 'sim.fault_kind:=meltdown'], 'fault_kind'),
+        (['-p', 'sample_time_s:=0.0'], 'sample_time_s'),
+        (['-p', 'interface:=socketcan'], 'simulated_drive'),
         (['-p', 'current_limit_a:=-1.0'], 'current_limit_a'),
         (['-p', 'use_sim_time:=true'], 'use_sim_time'),
-        (['-p', 'mode:=sim'], 'real time only'),
-        (['-p', 'eds_file:=/nonexistent/drive.eds'], 'eds_file'),
-        (['-p', 'sample_time_s:=0.002'], 'sync_period_s'),
+        (['-p', 'heartbeat_timeout_s:=0.01'], 'twice'),
     ],
 )
 def test_every_parameter_refusal_is_one_line_and_exit_2(ros_env, params, word):
-    """Bad values and combinations.
-
-    Exit 2, one line on stderr naming the parameter, no traceback.
-    """
+    """Bad values and combinations: exit 2, one line on stderr naming the parameter."""
     proc = subprocess.run(
-        [executable_path(*DRIVER), '--ros-args', *params],
+        [executable_path(*DRIVER), *driver_args(), *params],
         env=ros_env,
         capture_output=True,
         text=True,
@@ -185,58 +157,63 @@ def test_every_parameter_refusal_is_one_line_and_exit_2(ros_env, params, word):
     assert 'Traceback' not in proc.stderr + proc.stdout
 
 
+@pytest.mark.parametrize(
+    'params, words',
+    [
+        (['-p', 'simulated_drive:=false', '-p', 'interface:=socketcan'], 'eds_file must name'),
+        (['-p', 'eds_file:=/nonexistent/x.eds'], "parameter 'eds_file' = '/nonexistent/x.eds'"),
+    ],
+)
+def test_configure_refuses_a_real_bus_without_its_eds_before_the_bus(ros_env, params, words):
+    # Old driver: eds_file defaulted to the simulated drive's EDS, on a real bus too.
+    proc = subprocess.run(
+        [executable_path(*DRIVER), *driver_args(), *params, '-p', 'autostart:=true'],
+        env=ros_env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert f'configure refused: {words}' in proc.stderr and 'Traceback' not in proc.stderr
+    assert 'node 1 on' not in proc.stderr  # refused before the bus was opened
+
+
 def test_500_kbit_at_1_khz_starts_with_the_bus_load_warning(ros_process):
-    """76 % of 500 kbit/s is accepted with a warning that names the figure."""
+    """78 % of 500 kbit/s is accepted with a warning that names the figure."""
     driver = ros_process(*DRIVER, driver_args(bitrate=500000))
-    driver.wait_for_output(r'bus load 76\.0 % of 500 kbit/s .* is above 60 %', timeout=30)
+    driver.wait_for_output(r'bus load 78\.0 % of 500 kbit/s .* is above 60 %', timeout=30)
     assert driver.stop() == 0
 
 
-def test_lifecycle_configure_activate_deactivate_through_the_services(harness, ros_process):
-    """No joint_states until active; stamps on the 1 ms grid while active; none after deactivate.
-
-    Cleanup and again.
-    """
+def test_lifecycle_configure_activate_deactivate_through_the_services(
+    harness, ros_process, sim_drive
+):
+    """No joint_states until active; stamps on the 1 ms grid, effort; none after deactivate."""
     from actuator_core.timing import stamp_to_ns
 
-    driver = ros_process(*DRIVER, driver_args())
-    harness.wait_for(lambda: harness.get.service_is_ready(), what='lifecycle services')
+    drive, address = sim_drive()
+    driver = ros_process(*DRIVER, driver_args(address))
     assert harness.state() == 'unconfigured'
     from rcl_interfaces.srv import DescribeParameters
 
     describe = harness.node.create_client(DescribeParameters, f'/{NODE}/describe_parameters')
     answer = harness.call(
-        describe, DescribeParameters.Request(names=['sync_period_s', 'node_id', 'sim.fault_kind'])
+        describe, DescribeParameters.Request(names=['heartbeat_timeout_s', 'node_id'])
     )
-    sync, node_id, fault = answer.descriptors
-    assert 'SYNC period' in sync.description and '[s]' in sync.description and sync.read_only
-    assert (
-        sync.floating_point_range[0].from_value == 2.5e-4
-        and node_id.integer_range[0].to_value == 127
-    )
-    assert 'over_current' in fault.description
+    heartbeat, node_id = answer.descriptors
+    assert '0x1016' in heartbeat.description and node_id.integer_range[0].to_value == 127
     assert harness.transition('configure') and harness.state() == 'inactive'
     harness.spin(0.5)
     assert harness.joint == []  # configured: no joint_states
     assert harness.transition('activate') and harness.state() == 'active'
     harness.wait_for(lambda: len(harness.joint) > 300, what='joint_states while active')
     msg = harness.joint[-1]
-    assert (
-        list(msg.name) == ['joint']
-        and len(msg.position) == 1
-        and not msg.velocity
-        and not msg.effort
-    )
+    assert list(msg.name) == ['joint'] and len(msg.position) == 1 and len(msg.effort) == 1
+    assert msg.effort[0] == 0.0  # no command yet: the brake holds, no torque
     stamps = np.array([stamp_to_ns(m.header.stamp) for m in harness.joint])
-    assert np.all(stamps % 1_000_000 == 0) and np.all(np.diff(stamps) > 0)  # on the 1 ms SYNC grid
-    harness.wait_for(
-        lambda: harness.diag_values().get('lifecycle_state') == 'active', what='active diagnostics'
-    )
-    # No command yet: the gate holds the brake, so the driver sends 'disable operation'.
-    assert (
-        harness.diag_values()['drive_state'] == 'switched on'
-        and harness.diag_values()['brake'] == 'True'
-    )
+    period = np.diff(stamps)
+    assert np.all(period % 1_000_000 == 0) and np.all(period > 0)  # on the 1 ms grid
+    assert 'brake released' not in drive.stdout  # no command: never enabled
     assert harness.transition('deactivate') and harness.state() == 'inactive'
     harness.spin(0.3)
     count = len(harness.joint)
@@ -248,49 +225,36 @@ def test_lifecycle_configure_activate_deactivate_through_the_services(harness, r
         lambda: len(harness.joint) > count + 100, what='joint_states after re-activation'
     )
     assert driver.stop() == 0 and 'Traceback' not in driver.output
-    assert 'quick stop, voltage disabled, brake engaged' in driver.output
+    assert drive.running  # the drive outlives its master, as hardware does
 
 
-def test_drive_fault_mid_run_goes_to_error_processing_with_the_drive_error_code(
-    harness, ros_process
-):
-    """Over-current mid-run.
+def test_drive_fault_ends_control_and_only_a_person_resets_it(harness, ros_process, sim_drive):
+    """Over-current mid-run: error processing, and no activate until acknowledge_fault.
 
-    0x2310 logged, error processing to unconfigured, recovery by configure + activate.
+    Configure reports the fault; activate is refused until a person calls the service.
     """
-    driver = ros_process(
-        *DRIVER,
-        driver_args(autostart=True, **{'sim.fault_kind': 'over_current', 'sim.fault_at_s': 1.0}),
-    )
-    wait_for_output(driver, r'error code 0x2310 continuous over-current', timeout=30)
-    harness.wait_for(lambda: harness.get.service_is_ready(), what='lifecycle services')
-    assert harness.state() == 'unconfigured'  # error processing -> unconfigured
-    from diagnostic_msgs.msg import DiagnosticStatus
+    from std_srvs.srv import Trigger
 
-    harness.wait_for(
-        lambda: harness.diag and harness.diag[-1].status[0].level == DiagnosticStatus.ERROR,
-        what='error diagnostics',
-    )
-    status = harness.diag[-1].status[0]
-    assert (
-        '0x2310' in status.message
-        and harness.diag_values()['error_text'] == 'continuous over-current'
-    )
+    drive, address = sim_drive('--fault-kind', 'over_current', '--fault-at', '1.0')
+    driver = ros_process(*DRIVER, driver_args(address, autostart=True))
+    wait_for_output(driver, r'0x2310 continuous over-current', timeout=30)
+    harness.wait_for(lambda: harness.state() == 'unconfigured', what='error processing')
     harness.joint.clear()
     harness.spin(0.5)
     assert harness.joint == []  # measurements stopped
-    assert harness.transition('configure') and harness.transition(
-        'activate'
-    )  # activate resets the fault
-    harness.wait_for(lambda: len(harness.joint) > 50, what='joint_states after the fault reset')
-    assert (
-        'drive was in fault (0x603F = 0x2310: continuous over-current): fault reset'
-        in driver.output
-    )
+    assert harness.transition('configure')
+    wait_for_output(driver, r'drive is in fault 0x2310 .* no automatic reset', timeout=10)
+    assert not harness.transition('activate')  # refused: no automatic fault reset
+    wait_for_output(driver, r'activate refused: .*acknowledge', timeout=10)
+    acknowledge = harness.node.create_client(Trigger, f'/{NODE}/acknowledge_fault')
+    answer = harness.call(acknowledge, Trigger.Request())
+    assert answer.success and 'acknowledged' in answer.message
+    assert harness.transition('activate')
+    harness.wait_for(lambda: len(harness.joint) > 50, what='joint_states after acknowledging')
     assert driver.stop() == 0 and 'Traceback' not in driver.output
 
 
-def _closed_loop(ros_process, tmp_path, driver_params, record=True, rt_priority=0):
+def _closed_loop(ros_process, tmp_path, driver_params, record=True):
     """Return the run as graph.closed_loop describes it with the driver as the joint.
 
     What bringup --joint cia402_sim starts.
@@ -304,36 +268,41 @@ def _closed_loop(ros_process, tmp_path, driver_params, record=True, rt_priority=
         record=record,
         bag=tmp_path / 'bag',
         joint='cia402_sim',
-        thread_priority=rt_priority,
+        thread_priority=CLOSED_LOOP_PRIORITY,
         joint_parameters=params,
     )
     procs = {}
     for spec in specs:
         extra = ['-p', f'timing_log:={tmp_path / "samples.npz"}'] if spec.key == 'driver' else []
+        if spec.key == 'drive':  # the simulated drive: listening before the driver configures
+            procs['drive'] = ros_process(spec.package, spec.executable, ros_arguments(spec, None))
+            procs['drive'].wait_for_output(r'^drive 1 ready$', timeout=30)
+            continue
         procs[spec.key] = ros_process(
             spec.package, spec.executable, ros_arguments(spec, scenario_file()) + extra
         )
     return procs
 
 
+# A closed loop through the drive at 1 kHz: its timing is the machine's (one rerun, as for
+# every realtime-marked test; see conftest).
+@pytest.mark.realtime
 @pytest.mark.parametrize(
     'fault, driver_says',
     [
-        ({'sim.silent_at_s': 1.5}, r'drive fault \(feedback timeout\).*no TPDO from the drive'),
+        # the fault plan's clock starts with the first SYNC: under control by then
+        ({'sim.silent_at_s': 0.5}, r'CiA 402 drive fault: no TPDO from the drive in'),
         (
             {'sim.fault_kind': 'following_error', 'sim.fault_at_s': 1.5},
-            r'drive fault \(emcy\): error code 0x8611 following error',
+            r'CiA 402 drive fault: drive fault .*0x8611 following error',
         ),
     ],
 )
-def test_silent_bus_or_drive_fault_gives_the_stale_measurement_stop_of_the_controller(
+def test_silent_or_faulted_drive_gives_the_stale_measurement_stop_of_the_controller(
     harness, ros_process, tmp_path, fault, driver_says
 ):
-    """Silent or faulted drive in closed loop: the controller commands 0 A with safe_stop.
-
-    The driver logs why.
-    """
-    procs = _closed_loop(ros_process, tmp_path, fault, record=False, rt_priority=50)
+    """Silent or faulted drive in closed loop: the controller commands 0 A with safe_stop."""
+    procs = _closed_loop(ros_process, tmp_path, fault, record=False)
     wait_for_output(procs['driver'], driver_says, timeout=40)
     harness.command.clear()
     harness.wait_for(
@@ -342,13 +311,51 @@ def test_silent_bus_or_drive_fault_gives_the_stale_measurement_stop_of_the_contr
     harness.command.clear()
     harness.spin(0.5)
     assert harness.command, 'the controller keeps commanding while stale'
-    assert all(
-        c.current_a == 0.0 and c.safe_stop for c in harness.command
-    )  # no measurement comes back
+    assert all(c.current_a == 0.0 and c.safe_stop for c in harness.command)
     assert 'stale measurement' in procs['controller'].output
-    assert 'safe stop latched' not in procs['controller'].output
-    for proc in procs.values():
-        assert proc.stop() == 0 and 'Traceback' not in proc.output
+    for key, proc in procs.items():
+        code = proc.stop()
+        assert code == 0 and 'Traceback' not in proc.output, (key, proc.output[-1500:])
+
+
+# A closed loop through the drive at 1 kHz: its timing is the machine's (one rerun, as for
+# every realtime-marked test; see conftest).
+@pytest.mark.realtime
+def test_kill_9_of_the_driver_in_closed_loop_leaves_the_drive_to_stop_itself(
+    ros_process, tmp_path
+):
+    """The drive runs on after SIGKILL of its master and quick-stops by its heartbeat consumer.
+
+    Before issue 20 the drive was a thread of the driver (it died with it) and, on a real bus,
+    kept its last torque: no heartbeat consumer, no master heartbeat.
+    """
+    procs = _closed_loop(ros_process, tmp_path, {}, record=False)
+    wait_for_output(procs['drive'], r'operation enabled with 0x6071', timeout=40)
+    time.sleep(1.0)  # under control of the controller
+    procs['driver'].popen.send_signal(signal.SIGKILL)
+    wait_for_output(procs['drive'], r'heartbeat of node 127 lost for 300 ms', timeout=5)
+    time.sleep(0.5)  # the quick-stop ramp and the brake's closing time
+    import canopen
+
+    from actuator_cia402 import profile as p
+    from actuator_cia402.hub import HubBus
+    from actuator_cia402.sim_drive_main import default_eds
+
+    address = re.search(r'bus hub on (\S+)', procs['drive'].stdout).group(1)
+    network = canopen.Network(HubBus(address))
+    network.connect()
+    try:  # a service tool on the bus: the drive stopped itself
+        tool = canopen.RemoteNode(1, default_eds())
+        network.add_node(tool)
+        state = p.decode_state(tool.sdo[p.STATUSWORD].raw)
+        assert state in (p.State.QUICK_STOP_ACTIVE, p.State.SWITCH_ON_DISABLED), state
+        assert tool.sdo[p.CURRENT_ACTUAL].raw == 0
+        assert tool.sdo[p.DIGITAL_INPUTS].raw & (1 << 16)  # brake closed
+    finally:
+        network.disconnect()
+    assert procs['drive'].running
+    for key in ('eso', 'controller', 'drive'):
+        assert procs[key].stop() == 0, procs[key].describe()
 
 
 @pytest.mark.realtime
@@ -364,7 +371,7 @@ def test_end_to_end_fast_deep_sea_case_tracks_within_a_factor_of_the_offline_cor
     from actuator_sim.params_yaml import all_scenarios
 
     duration = 5.0
-    procs = _closed_loop(ros_process, tmp_path, {'stop_after_s': duration}, rt_priority=50)
+    procs = _closed_loop(ros_process, tmp_path, {'stop_after_s': duration})
     assert procs['driver'].wait(60 + 5 * duration) == 0, procs['driver'].describe()
     for key in ('eso', 'controller', 'recorder'):
         assert procs[key].stop() == 0, procs[key].describe()
@@ -372,7 +379,7 @@ def test_end_to_end_fast_deep_sea_case_tracks_within_a_factor_of_the_offline_cor
     # SYNC grid, the controller never latched, currents stayed within the limit.
     samples = np.load(tmp_path / 'samples.npz')  # the driver's log, as the plant's
     stamps = samples['stamp_ns']
-    assert stamps.size > 0.8 * duration * 1000 and np.all(stamps % 1_000_000 == 0)
+    assert stamps.size > 0.8 * duration * 1000 and np.all(np.diff(stamps) % 1_000_000 == 0)
     answered = samples['held_command_stamp_ns'] > 0
     assert answered.mean() > 0.8  # a command was applied on most SYNCs
     # the command applied over [t_k-1, t_k) answers a sample a few SYNCs older
@@ -414,19 +421,49 @@ def test_end_to_end_fast_deep_sea_case_tracks_within_a_factor_of_the_offline_cor
     )
     assert max_run < 0.5  # the following-error limit: no latch
     stall_ms = limits.MEASUREMENT_TIMEOUT_S * 1e3
-    if 'running under SCHED_FIFO' not in procs['driver'].output or longest_gap_ms >= stall_ms:
-        # Tracking is claimed for runs the machine let keep time (SCHED_FIFO, no gap as long as the
-        # controller's 5 ms measurement timeout, whose safe stop costs a transient: a fresh-clone
-        # run with one 8 ms gap reached 5.7e-2 rad, RMS 4.3e-3); other sessions' SCHED_FIFO jobs on
-        # these 2 cores stalled runs by 30-55 ms, which cost an envelope restart and up to 0.3 rad,
-        # as they would the simulated plant.
-        return
-    # Measured here under SCHED_FIFO (load 2): max 1.21e-3 rad against 9.7e-4 for the offline core
-    # and the simulated plant in real time, and 1.20e-3 for the offline core with the drive model
-    # (actuator_cia402.offline: encoder quantisation 1.5e-5 rad, a 0.2 ms torque loop, and one SYNC
-    # of command delay, the RPDO being applied at the next SYNC, which costs most); RMS 3.74e-4
-    # against 3.68e-4. With other jobs on the 2 cores single runs reached 2e-3 and 9.6e-3 rad: the
-    # bounds are generous on purpose (rho_inf for the peak, 4x for the RMS).
+    if not all('running under SCHED_FIFO' in procs[key].output for key in ('driver', 'drive')):
+        pytest.skip('SCHED_FIFO refused: tracking through the drive is claimed only under it')
+    if longest_gap_ms >= stall_ms:
+        # The controller's 5 ms measurement timeout safe-stops and costs a transient (a run with
+        # one 8 ms gap reached 5.7e-2 rad); such a run shows the machine, not the loop.
+        pytest.skip(
+            f'the machine stalled the loop {longest_gap_ms:.0f} ms (>= the {stall_ms:.0f} ms '
+            f'measurement timeout): max |e| {max_run:.2e} rad, not judged'
+        )
+    # Measured under SCHED_FIFO on a 2-core VM (src/actuator_cia402/README.md, 2026-12-02): max
+    # |e| 8.1e-3 and 9.3e-3 rad, RMS 4.8e-4 and 5.6e-4, in the runs without such a gap; the
+    # offline core with the drive model (quantisation, torque loop, one SYNC of command delay)
+    # 1.2e-3 and 3.7e-4. Bounds: 3x the measured figures.
     assert analyze_run(run).metrics.bounds_kept
-    assert rms_run < 4.0 * rms_offline
-    assert max_run < 0.05  # rho_inf, the final envelope half-width
+    assert rms_run < 3.0 * END_TO_END_RMS_RAD, rms_run
+    assert max_run < 3.0 * END_TO_END_MAX_RAD, max_run
+
+
+# A closed loop through the drive at 1 kHz: its timing is the machine's (one rerun, as for
+# every realtime-marked test; see conftest).
+@pytest.mark.realtime
+def test_a_second_publisher_on_current_command_keeps_the_drive_braked(
+    harness, ros_process, sim_drive
+):
+    # Old driver: no one-publisher guard and no stamp check; a second publisher at 20 A won
+    # every SYNC. The joint node's guard now holds the drive at 0 A with the brake.
+    from actuator_msgs.msg import CurrentCommand
+    from actuator_ros.qos import control_qos
+
+    drive, address = sim_drive()
+    driver = ros_process(*DRIVER, driver_args(address, autostart=True))
+    qos = control_qos('realtime')
+    rogue = harness.node.create_publisher(CurrentCommand, 'current_command', qos)
+    other = harness.node.create_publisher(CurrentCommand, 'current_command', qos)
+    harness.wait_for(lambda: len(harness.joint) > 100, what='joint_states')
+    wait_for_output(driver, r'2 publishers on current_command \(.*\): refusing every command', 20)
+    for _ in range(300):  # 20 A answering each newest sample, from both publishers
+        stamp = harness.joint[-1].header.stamp
+        for pub in (rogue, other):
+            msg = CurrentCommand(current_a=20.0)
+            msg.header.stamp = stamp
+            pub.publish(msg)
+        harness.spin(0.002)
+    assert 'operation enabled with' not in drive.stdout  # never enabled: braked throughout
+    assert all(m.effort[0] == 0.0 for m in harness.joint[-100:])
+    assert driver.stop() == 0 and 'Traceback' not in driver.output

@@ -8,10 +8,11 @@ Observer pairing, controller sample assembly, drive gate.
 
 import math
 
+import numpy as np
 import pytest
 
 from actuator_core import limits
-from actuator_core.assembly import RESYNC_SAMPLES, ControlSampleAssembly
+from actuator_core.assembly import RECOVERY_SAMPLES, RESYNC_SAMPLES, ControlSampleAssembly
 from actuator_core.gate import CommandGate
 from actuator_core.pairing import MAX_STEPS_PER_CALL, ObserverInputPairing
 from actuator_core.timebase import StampCheck, Verdict
@@ -159,7 +160,8 @@ def test_assembly_latches_on_following_error_and_on_non_finite_output():
     a.add_estimate(0, 0.0, 0.0)
     assert a.add_measurement(0, 0.0).status is Status.OK
     a.add_estimate(P, 0.0, 0.0)
-    assert a.add_measurement(P, 0.2).status is Status.LATCHED
+    latched = a.add_measurement(P, 0.2)
+    assert latched.status is Status.LATCHED and latched.safe_stop
     a.add_estimate(2 * P, 0.0, 0.0)
     later = a.add_measurement(2 * P, 0.0)
     assert later.status is Status.LATCHED and later.current_a == 0.0 and later.output is None
@@ -169,13 +171,25 @@ def test_assembly_latches_on_following_error_and_on_non_finite_output():
     assert s.status is Status.LATCHED and s.current_a == 0.0
 
 
-def test_assembly_watchdog_reports_stale_inputs():
+def test_assembly_watchdog_answers_stale_inputs_in_grades():
     a = assembly()
     assert a.watchdog(10**9, 5 * P, 5 * P) is None  # not started: nothing to guard
     a.add_estimate(0, 0.0, 0.0)
     a.add_measurement(0, 0.0)
-    assert a.watchdog(4 * P, 5 * P, 5 * P) is None
-    assert a.watchdog(6 * P, 5 * P, 5 * P) is Status.STALE_MEASUREMENT
+    assert a.watchdog(4 * P, 5 * P, 5 * P) is None  # the drive holds the last command
+    s = a.watchdog(6 * P, 5 * P, 5 * P)  # then 0 A, no brake, for the newest sample seen
+    assert (s.status, s.stamp_ns, s.current_a, s.safe_stop) == (
+        Status.STALE_MEASUREMENT,
+        0,
+        0.0,
+        False,
+    )
+    assert a.watchdog(11 * P, 5 * P, 5 * P).safe_stop  # brake only past BRAKE_AFTER_S
+    for k in range(1, 4):  # measurements flow (received just now), the observer is silent
+        a.add_measurement(k * P, 0.0, received_ns=8 * P)
+    s = a.watchdog(3 * P + 6 * P, 5 * P, 5 * P)
+    assert (s.status, s.stamp_ns, s.safe_stop) == (Status.STALE_ESTIMATE, 3 * P, False)
+    assert a.add_estimate(3 * P, 0.0, 0.0) is None  # that sample was answered already
 
 
 def test_assembly_resync_holds_zero_then_restarts_the_reference_from_the_held_angle():
@@ -183,14 +197,20 @@ def test_assembly_resync_holds_zero_then_restarts_the_reference_from_the_held_an
     a.add_estimate(0, 0.0, 0.0)
     a.add_measurement(0, 0.0)
     base = 10**12
-    a.add_estimate(base, 0.0, 0.0, initial=True)  # the observer restarted
+    a.add_estimate(base, 0.0, 0.0, initial=True)  # the observer restarted, ahead of y(base)
+    assert a.refusal.endswith('kept aside as a restart, used if that measurement comes')
     held = a.add_measurement(base, 0.3)
     assert held.status is Status.RESYNC and held.current_a == 0.0
-    after = base + RESYNC_SAMPLES * P
-    a.add_estimate(after, 0.0, 0.0)
-    s = a.add_measurement(after, 0.3)
-    assert s.status is Status.OK and s.t_s == 0.0
+    samples = []
+    for k in range(1, RESYNC_SAMPLES + RECOVERY_SAMPLES + 1):
+        a.add_estimate(base + k * P, 0.0, 0.0)
+        samples.append(a.add_measurement(base + k * P, 0.3))
+    assert {s.status for s in samples[: RESYNC_SAMPLES - 1]} == {Status.RESYNC}
+    s = samples[RESYNC_SAMPLES - 1]
+    assert s.status is Status.RECOVERING and s.t_s == 0.0 and not s.safe_stop
     assert s.output.error_rad == pytest.approx(0.0)  # the reference starts where the joint is
+    assert {x.status for x in samples[RESYNC_SAMPLES:-1]} == {Status.RECOVERING}
+    assert samples[-1].status is Status.OK  # RECOVERY_SAMPLES later, inside the envelope
 
 
 def test_assembly_resyncs_when_estimates_resume_after_a_long_gap():
@@ -212,7 +232,7 @@ def test_assembly_started_away_from_the_reference_start_tracks_from_there():
 
 
 def test_gate_honours_safe_stop_limit_timeout_and_brake():
-    g = CommandGate(timeout_s=0.01)
+    g = CommandGate(timeout_s=0.01, brake_delay_s=0.005)
     assert g.offer(1.0, 0, False, 0) == 'the drive is not active'
     assert g.hold(0) == (0.0, -1, True, 'inactive')
     g.activate()
@@ -226,12 +246,23 @@ def test_gate_honours_safe_stop_limit_timeout_and_brake():
     assert 'refused' in g.offer(float('nan'), 3 * P, False, 3 * P)
     g.offer(2.0, 4 * P, False, 4 * P)
     assert g.hold(4 * P + 10 * P).current_a == 2.0
-    late = g.hold(4 * P + 11 * P)
-    assert (
-        late.current_a == 0.0
-        and late.brake
-        and late.reason == 'command timeout'
-        and g.timeouts == 1
-    )
+    late = g.hold(4 * P + 11 * P)  # past the timeout: 0 A, coasting (the brake waits)
+    assert late == (0.0, -1, False, 'command timeout') and g.timeouts == 1
+    assert g.hold(4 * P + 15 * P).brake is False  # timeout + brake delay: not yet
+    braked = g.hold(4 * P + 16 * P)  # beyond it: the brake engages, and stays
+    assert braked == (0.0, -1, True, 'command timeout') and g.timeouts == 1
+    assert g.hold(4 * P + 12 * P).brake
+    g.offer(1.0, 20 * P, False, 20 * P)  # a valid command releases it again
+    assert g.hold(20 * P) == (1.0, 20 * P, False, '')
     g.deactivate()
     assert g.hold(0).reason == 'inactive' and g.offer(1.0, 0, False, 0) is not None
+
+
+def test_gate_takes_a_batch_of_safe_stops_elementwise():
+    g = CommandGate()
+    g.activate()
+    stop = np.array([False, True, False])
+    assert g.offer(np.array([1.0, 2.0, 30.0]), 0, stop, 0) is None
+    held = g.hold(0)
+    assert held.current_a.tolist() == [1.0, 0.0, 0.0]  # stopped and refused elements: 0 A
+    assert held.brake.tolist() == [False, True, False]

@@ -64,36 +64,86 @@ def test_ray_run_equals_the_local_run_row_for_row(ray_session, local_table, tmp_
     assert len(set(table.column('seed').to_pylist())) == 6
 
 
-@pytest.mark.parametrize('mode', ['raise', 'exit'])
-def test_a_chunk_whose_first_attempt_fails_or_loses_its_worker_is_retried(
-    ray_session, local_table, tmp_path, mode
+def test_a_chunk_whose_worker_dies_is_run_again_to_the_same_table(
+    ray_session, local_table, tmp_path
 ):
-    marker = tmp_path / 'failed-once'
+    marker = tmp_path / 'lost-once'
     run_sweep(
         _request(),
         tmp_path / 'ray',
         progress=False,
         ray_session=ray_session,
-        inject=InjectedFailure(chunk=1, marker=str(marker), mode=mode),
+        inject=InjectedFailure(chunk=1, marker=str(marker), mode='exit'),
     )
-    assert marker.exists()  # the first attempt did fail
+    assert marker.exists()  # the first attempt's process did die
     assert tables_identical(pq.read_table(tmp_path / 'ray' / 'runs.parquet'), local_table)
 
 
-def test_a_chunk_failing_every_attempt_ends_the_study_with_an_error_not_a_gap(
+def test_a_chunk_that_raises_ends_the_study_at_once_with_the_remote_error_in_full(
     ray_session, tmp_path
 ):
     out = tmp_path / 'ray'
-    with pytest.raises(ChunkFailed, match='chunk 2'):
+    marker = tmp_path / 'attempts'
+    with pytest.raises(ChunkFailed) as failed:
         run_sweep(
             _request(),
             out,
             progress=False,
             ray_session=ray_session,
-            inject=InjectedFailure(chunk=2, marker=str(tmp_path / 'm'), mode='always'),
+            inject=InjectedFailure(chunk=2, marker=str(marker), mode='raise'),
         )
+    text = str(failed.value)
+    assert text.startswith('chunk 2 failed on Ray:')
+    assert 'RuntimeError: injected failure of chunk 2' in text and 'ip=127.0.0.1' in text
+    assert 'attempt_chunk' in text  # the worker's own traceback, not a cut first line
+    assert marker.read_text().count('\n') == 1  # one attempt: a raise is not retried
     assert not (out / 'runs.parquet').exists() and not (out / 'summary.json').exists()
     assert not (out / 'chunks' / 'chunk_00002.parquet').exists()
+
+
+def test_in_flight_tasks_are_bounded_and_every_task_declares_its_memory(ray_session):
+    import time
+
+    calls = []
+
+    @ray_session.remote
+    def probe(i):
+        time.sleep(0.05)
+        return i
+
+    submitted = []
+    real_remote = probe.options
+
+    def counting_options(**options):
+        calls.append(options)
+        task = real_remote(**options)
+
+        class Counting:
+            def remote(self, *args):
+                submitted.append(args[0])
+                return task.remote(*args)
+
+        return Counting()
+
+    probe.options = counting_options
+    seen_before_first = []
+    out = []
+    for args, result in distributed.stream_tasks(
+        ray_session, probe, ((i,) for i in range(12)), in_flight=3, memory_bytes=123 * 2**20
+    ):
+        if not out:
+            seen_before_first.append(len(submitted))
+        out.append(result)
+        assert len(submitted) - len(out) <= 3  # never more than 3 submitted and unfinished
+    assert sorted(out) == list(range(12)) and seen_before_first == [4]
+    assert calls == [
+        {
+            'num_cpus': 1,
+            'max_retries': distributed.MAX_RETRIES,
+            'retry_exceptions': False,
+            'memory': 123 * 2**20,
+        }
+    ]
 
 
 def test_design_batches_on_ray_equal_the_local_batch(ray_session):

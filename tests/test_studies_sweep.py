@@ -21,7 +21,7 @@ from actuator_studies.results import tables_identical
 from actuator_core.metrics import RunMetrics
 from actuator_plant.encoder import Encoder, EncoderParameters
 from actuator_plant.model import WorkingCondition
-from actuator_sim.delay import CommandDelay
+from actuator_plant.drive import CommandDelay
 from actuator_sim.loop import ClosedLoop
 from actuator_sim.offline import trace_metrics
 from actuator_sim.scenarios import paper_scenario
@@ -147,6 +147,7 @@ def test_grid_rows_equal_single_closed_loop_runs_of_the_same_points(tmp_path):
     assert (
         saved['diverged'] == 8 and saved['worst_run']['depth_m'] == 0.0
     )  # the worst run that has a figure
+    assert saved['failed_runs'] == 8 + int(np.sum(rows['max_steady_error_rad'] > 1e-2))
 
 
 @pytest.mark.ros
@@ -215,6 +216,19 @@ def test_an_interrupted_sweep_resumes_to_the_same_table(tmp_path):
         (['--vary', 'depth_m=0:100', '--method', 'mc', '--samples', '0'], 'sample count'),
         (['--vary', 'depth_m=0:20000:3'], 'valid range'),
         (['--vary', 'depth_m=0:100:2', '--ray', '127.0.0.1:9'], 'unreachable'),
+        (['--vary', 'oil.nu40_mm2_s=20:24:3'], 'cannot vary inside a vectorised batch'),
+        (['--vary', 'common.current_limit_a=10,20'], 'cannot vary inside a vectorised batch'),
+        (
+            [
+                '--vary',
+                'geometry.rotor_end_diameter_m=0.05:0.06',
+                '--method',
+                'mc',
+                '--samples',
+                '4',
+            ],
+            'cannot vary inside a vectorised batch',
+        ),  # fmt: skip
     ],
 )
 def test_bad_input_is_one_line_on_stderr_exit_2_and_writes_nothing(
@@ -271,3 +285,54 @@ def test_tables_identical_takes_nan_as_equal_and_finds_a_one_ulp_difference():
     assert not a.equals(a) and tables_identical(a, a)
     b = pa.table({'x': [np.nextafter(1.0, 2.0), float('nan')], 'run': [0, 1]})
     assert not tables_identical(a, b)
+
+
+def test_task_size_is_separate_from_the_batch_and_study_json_records_its_provenance(tmp_path):
+    common = dict(
+        vary=['depth_m=0:2000:5', 'encoder.noise_std_rad=1e-4'],
+        set=['encoder.counts_per_rev=65536'],
+        duration_s=SHORT_S,
+        seed=9,
+    )
+    run_sweep(SweepRequest(batch=5, **common), tmp_path / 'one', progress=False)
+    summary = run_sweep(
+        SweepRequest(batch=2, chunk=3, **common), tmp_path / 'split', progress=False
+    )
+    assert summary['chunks'] == 2 and summary['chunk_runs'] == 3  # 3 + 2 runs, batches of 2
+    a, b = (table_arrays(tmp_path / d) for d in ('one', 'split'))
+    # Same runs, same seeds, same verdicts; numpy's SIMD loops may round an element differently
+    # by its position in the array, so another batching can move the last bits (README).
+    for key in ('run', 'seed', 'depth_m', 'diverged', 'saturated_samples', 'bounds_violations'):
+        assert np.array_equal(a[key], b[key])
+    for key in ('max_steady_error_rad', 'rms_error_rad', 'rms_current_a'):
+        assert np.allclose(a[key], b[key], rtol=1e-9, atol=0.0)
+    b = pq.read_table(tmp_path / 'split' / 'runs.parquet')
+    seeds = b.column('seed').to_pylist()
+    assert b.schema.field('seed').type == 'uint64' and len(set(seeds)) == 5
+    assert max(seeds) >= 2**40  # wider than the 32-bit seeds of before (2^32 - 1 at most)
+    study = json.loads((tmp_path / 'split' / 'study.json').read_text())
+    prov = study['provenance']
+    assert len(prov['commit']) == 40 and len(prov['lock_sha256']) == 64
+    assert prov['libraries']['numpy'] == np.__version__ and prov['seeds']['study'] == 9
+    # A resume with another commit or command line is the same study; another request is not.
+    study['provenance']['commit'] = '0' * 40
+    (tmp_path / 'split' / 'study.json').write_text(json.dumps(study))
+    again = run_sweep(
+        SweepRequest(batch=2, chunk=3, **common), tmp_path / 'split', resume=True, progress=False
+    )
+    assert again['chunks_resumed'] == 2
+
+
+def test_repeat_runs_each_point_with_its_own_noise_seed(tmp_path):
+    req = SweepRequest(
+        vary=['depth_m=0,1000'],
+        set=['encoder.counts_per_rev=65536', 'encoder.noise_std_rad=2e-4'],
+        repeat=3,
+        duration_s=SHORT_S,
+        seed=4,
+    )
+    summary = run_sweep(req, tmp_path / 'r', progress=False)
+    rows = table_arrays(tmp_path / 'r')
+    assert summary['runs'] == 6 and list(rows['depth_m']) == [0.0] * 3 + [1000.0] * 3
+    assert len(set(rows['seed'])) == 6
+    assert len(set(rows['max_steady_error_rad'][:3])) == 3  # the noise differs, so do the runs

@@ -279,6 +279,27 @@ def test_ros_process_escalates_and_leaves_no_orphans(tmp_path):
     assert (tmp_path / 'quick.stdout').read_text().strip() == 'hello'
 
 
+def test_ros_process_asks_a_hung_process_for_its_stacks_before_sigkill(tmp_path):
+    """A node that ignores SIGINT and SIGTERM leaves every thread's stack in its stderr."""
+    hung = (
+        'import faulthandler, signal, time\n'
+        'signal.signal(signal.SIGINT, signal.SIG_IGN)\n'
+        'signal.signal(signal.SIGTERM, signal.SIG_IGN)\n'
+        'faulthandler.register(signal.SIGUSR1, all_threads=True)\n'
+        'def stuck_in_shutdown():\n'
+        '    time.sleep(300)\n'
+        'print("ready", flush=True)\n'
+        'stuck_in_shutdown()\n'
+    )
+    proc = ros_helpers.RosProcess([sys.executable, '-c', hung], log_dir=tmp_path, name='hung')
+    with proc:
+        proc.wait_for_output(r'^ready$', timeout=20)
+        rc = proc.stop(sigint_timeout=0.5, sigterm_timeout=0.5)
+    assert rc == -9 and proc.stopped_by == 'SIGKILL'
+    stderr = (tmp_path / 'hung.stderr').read_text()
+    assert 'most recent call first' in stderr and 'stuck_in_shutdown' in stderr, stderr
+
+
 def test_executable_path_reports_missing_executables():
     from ament_index_python.packages import PackageNotFoundError
 

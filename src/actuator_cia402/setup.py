@@ -37,6 +37,8 @@ setup(
         'console_scripts': [
             'cia402_driver = actuator_cia402.driver_node:main',
             'cia402_bench = actuator_cia402.bench:main',
+            'cia402_sim_drive = actuator_cia402.sim_drive_main:main',
+            'cia402_torque_test = actuator_cia402.torque_test:main',
         ],
     },
 )

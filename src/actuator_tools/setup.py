@@ -26,6 +26,7 @@ setup(
         ('share/' + package_name, ['package.xml']),
         *share_files('launch', '*.launch.py'),
         *share_files('config', '*.yaml'),
+        *share_files('foxglove', '*.json'),
     ],
     install_requires=['setuptools'],
     zip_safe=True,
@@ -38,6 +39,8 @@ setup(
         'console_scripts': [
             'bringup = actuator_tools.bringup:main',
             'bench = actuator_tools.bench:main',
+            'loop_container = actuator_tools.container_entry:main',
+            'live_view = actuator_tools.live_view:main',
         ],
     },
 )

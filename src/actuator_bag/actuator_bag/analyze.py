@@ -14,6 +14,14 @@ and loop timing from stamps: the joint_states sample period and the command late
 Time zero of a run is the header.stamp of its first controller/state sample that is not
 Status.WAITING (actuator_core.status); samples before it (controller waiting for inputs) are
 left out.
+
+The clock of a bag is told from its content, whoever recorded it (this project's recorder or
+``ros2 bag record``): header stamps before 2000-01-01 are sim time (the plant's /clock starts at
+0), later ones wall time, and likewise the log times. The recorder delay (log time minus stamp)
+is read only when both are wall time: a sim-time log says when /clock had advanced, and a
+wall-clock log of sim-time stamps differs from them by the epoch. ``/diagnostics``
+(diagnostic_msgs/DiagnosticArray), where recorded, is summarised per component: reports per
+level and the reasons of the worst.
 """
 
 from __future__ import annotations
@@ -28,14 +36,14 @@ from pathlib import Path
 from typing import Any, Optional, Sequence
 
 import numpy as np
-import yaml
 from tabulate import tabulate
 from actuator_core.metrics import STEADY_STATE_START_S, RunMetrics, compute_run_metrics
 from actuator_core.stats import missed_samples
-from actuator_core.status import Status
+from actuator_core.status import CONTROLLED, Status
 from actuator_core.timing import stamp_to_ns
 
 from .errors import AnalysisError, BagError, run_cli
+from .figures import FIGURE_FILES, draw_figures  # noqa: F401 - draw_figures: part of this API
 from .msgdefs import DefinitionSource, definition_roots
 from .outputs import check_output_file, check_output_folder
 from .progress import Progress
@@ -46,15 +54,11 @@ STATE_ESTIMATE = 'actuator_msgs/msg/StateEstimate'
 PLANT_TRUTH = 'actuator_msgs/msg/PlantTruth'
 CURRENT_COMMAND = 'actuator_msgs/msg/CurrentCommand'
 JOINT_STATE = 'sensor_msgs/msg/JointState'
-#: The files draw_figures writes (the velocity and disturbance figures only when a bag has
-#: estimates).
-FIGURE_FILES = (
-    'position.png',
-    'tracking_error.png',
-    'velocity_estimate.png',
-    'disturbance_estimate.png',
-    'control_input.png',
-)
+DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
+#: Stamps and log times before this are on a sim clock (2000-01-01T00:00:00Z) [ns].
+WALL_CLOCK_START_NS = 946_684_800 * 1_000_000_000
+#: diagnostic_msgs/DiagnosticStatus level names, by value.
+DIAGNOSTIC_LEVELS = ('OK', 'WARN', 'ERROR', 'STALE')
 
 
 @dataclass
@@ -84,14 +88,19 @@ class RunData:
     disturbance_error: Optional[np.ndarray] = None
     sample_period_s: np.ndarray = field(default_factory=lambda: np.empty(0))
     command_latency_s: np.ndarray = field(default_factory=lambda: np.empty(0))
+    #: 'sim' or 'wall', told from the stamps; the log times' clock likewise.
+    stamp_clock: str = 'wall'
+    log_clock: str = ''
+    #: Per /diagnostics component: {'levels': {level: reports}, 'worst': level, 'reasons': [..]}.
+    diagnostics: dict[str, dict[str, Any]] = field(default_factory=dict)
 
     @property
     def has_envelope(self) -> bool:
         """True when the prescribed-performance bounds are finite at every controlled sample.
 
-        Controlled samples are those of status OK.
+        Controlled samples are those of status OK or RECOVERING (the law ran).
         """
-        ok = self.status == Status.OK
+        ok = np.isin(self.status, CONTROLLED)
         return bool(
             ok.any()
             and np.all(np.isfinite(self.lower[ok]))
@@ -118,6 +127,9 @@ class RunReport:
             'metrics': self.metrics.as_dict(),
             'timing': self.timing,
             'missed_samples': self.missed_samples,
+            'clock': {'stamps': self.run.stamp_clock, 'log_times': self.run.log_clock},
+            'steady_window_empty': _steady_empty(self.metrics),
+            'diagnostics': self.run.diagnostics,
         }
 
 
@@ -143,10 +155,13 @@ def load_run(
             'truth': find_topic(conns, PLANT_TRUTH, 'plant/truth'),
             'joint': find_topic(conns, JOINT_STATE, 'joint_states'),
             'command': find_topic(conns, CURRENT_COMMAND, 'current_command'),
+            'diagnostics': find_topic(conns, DIAGNOSTIC_ARRAY, '/diagnostics'),
         }
         present = {k: c for k, c in wanted.items() if c is not None}
         by_id = {c.id: k for k, c in present.items()}
-        store = bag_typestore(reader, source)
+        # Only the analysed topics need a definition: an `ros2 bag record -a` bag may hold types
+        # that are neither installed nor described in the bag.
+        store = bag_typestore(reader, source, list(present.values()))
         rows: dict[str, list[tuple]] = {k: [] for k in present}
         total = sum(c.msgcount for c in present.values())
         progress = Progress(f'bag_analyze {path.name}', total, unit='messages', enabled=not quiet)
@@ -164,22 +179,37 @@ def load_run(
             if done % 1000 == 0:
                 progress.update(done)
         progress.update(done)
-    run = _assemble(path, rows)
-    if _logged_in_sim_time(path):
-        # Log times on a sim clock say when /clock had advanced, not when a message arrived:
-        # no latency can be read from them.
-        run.command_latency_s = np.empty(0)
-    return run
+    return _assemble(path, rows)
 
 
-def _logged_in_sim_time(path: Path) -> bool:
-    """Tell whether the recorder wrote log times on sim time (metadata.yaml custom_data)."""
-    meta = path / 'metadata.yaml' if path.is_dir() else path.parent / 'metadata.yaml'
-    try:
-        info = yaml.safe_load(meta.read_text())['rosbag2_bagfile_information']
-        return 'sim time' in str((info.get('custom_data') or {}).get('log_time', ''))
-    except (OSError, KeyError, TypeError, yaml.YAMLError):
-        return False
+def _level(value: Any) -> int:
+    """Return a DiagnosticStatus level as an int (rosbags: the byte field as int or bytes)."""
+    return value[0] if isinstance(value, (bytes, bytearray)) else int(value)
+
+
+def clock_of(ns: np.ndarray) -> str:
+    """'sim' when the median time is before 2000 (a /clock from 0), else 'wall'; '' for none."""
+    if ns.size == 0:
+        return ''
+    return 'sim' if float(np.median(ns)) < WALL_CLOCK_START_NS else 'wall'
+
+
+def summarize_diagnostics(reports: Sequence[tuple]) -> dict[str, dict[str, Any]]:
+    """Per component: reports per level, the worst level, its distinct reasons (first 5)."""
+    out: dict[str, dict[str, Any]] = {}
+    severity = ('OK', 'WARN', 'STALE', 'ERROR')
+    for name, level, message in reports:
+        entry = out.setdefault(name, {'levels': {}, 'worst': 'OK', 'reasons': []})
+        label = DIAGNOSTIC_LEVELS[level] if 0 <= level < len(DIAGNOSTIC_LEVELS) else str(level)
+        entry['levels'][label] = entry['levels'].get(label, 0) + 1
+        rank = severity.index(label) if label in severity else len(severity)
+        worst = severity.index(entry['worst']) if entry['worst'] in severity else len(severity)
+        if rank > worst:
+            entry['worst'], entry['reasons'] = label, []
+        if label == entry['worst'] and label != 'OK' and message not in entry['reasons']:
+            if len(entry['reasons']) < 5:
+                entry['reasons'].append(message)
+    return out
 
 
 def _extract(kind: str, msg: Any, log_ns: int) -> tuple:
@@ -201,6 +231,8 @@ def _extract(kind: str, msg: Any, log_ns: int) -> tuple:
         return (stamp_to_ns(msg.header.stamp), msg.velocity_rad_s, msg.disturbance_rad_s2)
     if kind == 'truth':
         return (stamp_to_ns(msg.header.stamp), msg.velocity_rad_s, msg.disturbance_rad_s2)
+    if kind == 'diagnostics':
+        return tuple((s.name, _level(s.level), s.message) for s in msg.status)
     return (stamp_to_ns(msg.header.stamp), int(log_ns))
 
 
@@ -252,10 +284,15 @@ def _assemble(path: Path, rows: dict[str, list[tuple]]) -> RunData:
     joint = sorted({r[0] for r in rows.get('joint', [])})
     if len(joint) > 1:
         run.sample_period_s = np.diff(np.asarray(joint, dtype=np.int64)) * 1e-9
+    run.stamp_clock = clock_of(np.asarray(cols[0], dtype=np.int64))
     if rows.get('command'):
-        run.command_latency_s = np.array(
-            [(log - stamp) * 1e-9 for stamp, log in rows['command']], dtype=float
-        )
+        stamps, logs = (np.asarray(c, dtype=np.int64) for c in zip(*rows['command']))
+        run.log_clock = clock_of(logs)
+        if run.log_clock == 'wall' and clock_of(stamps) == 'wall':
+            run.command_latency_s = (logs - stamps) * 1e-9
+    run.diagnostics = summarize_diagnostics(
+        [status for statuses in rows.get('diagnostics', []) for status in statuses]
+    )
     return run
 
 
@@ -274,12 +311,14 @@ def analyze_run(run: RunData, steady_state_start_s: float = STEADY_STATE_START_S
     """Metrics (shared compute_run_metrics) over the controlled samples, and timing of one run.
 
     A safe-stop sample carries no error (NaN: the law did not run), so the error figures are
-    taken over the samples with status OK; a run that latched its safe stop is reported as
-    diverged, whatever its error was before.
+    taken over the samples the law controlled (OK, RECOVERING); a run that latched its safe
+    stop is reported as diverged, whatever its error was before.
     """
-    ok = run.status == Status.OK
+    ok = np.isin(run.status, CONTROLLED)
     if not ok.any():
-        raise AnalysisError(f'{run.path}: no sample of controller/state has status OK')
+        raise AnalysisError(
+            f'{run.path}: no sample of controller/state was controlled (status OK or RECOVERING)'
+        )
     metrics = compute_run_metrics(
         run.t[ok],
         run.error[ok],
@@ -304,6 +343,51 @@ def analyze_run(run: RunData, steady_state_start_s: float = STEADY_STATE_START_S
             )
     timing = {'sample_period': _stats(period), 'command_latency': _stats(run.command_latency_s)}
     return RunReport(run=run, metrics=metrics, timing=timing, missed_samples=missed)
+
+
+def _steady_empty(metrics: RunMetrics) -> bool:
+    """Tell whether the run ends before its steady window starts."""
+    start, end = metrics.steady_window_s
+    return end < start
+
+
+def _steady(r: RunReport, value: Optional[float], unit: str) -> str:
+    """Format a steady-window figure, or say why there is none."""
+    if _steady_empty(r.metrics):
+        return 'n/a (run shorter than the steady window)'
+    return _num(value, unit)
+
+
+def _window(r: RunReport) -> str:
+    """Format the steady window, or say that the run ends before it starts."""
+    start, end = r.metrics.steady_window_s
+    if end < start:
+        return f'none: the run lasts {end:.3f} s, the window starts at {start:g} s'
+    return f'{start:.1f}-{end:.3f} s'
+
+
+def _latency(r: RunReport) -> str:
+    """Format the recorder delay, or say why a bag has none."""
+    if r.timing['command_latency']:
+        return _timing(r.timing['command_latency'])
+    run = r.run
+    if run.log_clock == 'sim':
+        return 'n/a (logged on sim time)'
+    if run.log_clock == 'wall' and run.stamp_clock == 'sim':
+        return 'n/a (sim-time stamps, wall-clock log)'
+    return 'n/a'
+
+
+def _diagnostics(r: RunReport) -> str:
+    """``name: worst (reports per level)`` per component, or n/a."""
+    if not r.run.diagnostics:
+        return 'n/a (not recorded)'
+    parts = []
+    for name, d in sorted(r.run.diagnostics.items()):
+        levels = ' '.join(f'{k} {v}' for k, v in d['levels'].items())
+        why = f': {d["reasons"][0]}' if d['reasons'] else ''
+        parts.append(f'{name} {d["worst"]} ({levels}){why}')
+    return '\n'.join(parts)
 
 
 def _num(value: Optional[float], unit: str, fmt: str = '.3e') -> str:
@@ -340,9 +424,16 @@ def format_table(reports: Sequence[RunReport]) -> str:
         'status not OK',
         [f'{100 * np.mean(r.run.status != Status.OK):.2f} % of samples' for r in reports],
     )
-    add('steady window', ['{:.1f}-{:.3f} s'.format(*r.metrics.steady_window_s) for r in reports])
-    add('max |e| in steady window', [_num(r.metrics.max_steady_error_rad, 'rad') for r in reports])
-    add('RMS e in steady window', [_num(r.metrics.rms_steady_error_rad, 'rad') for r in reports])
+    add('clock (stamps)', [r.run.stamp_clock for r in reports])
+    add('steady window', [_window(r) for r in reports])
+    add(
+        'max |e| in steady window',
+        [_steady(r, r.metrics.max_steady_error_rad, 'rad') for r in reports],
+    )
+    add(
+        'RMS e in steady window',
+        [_steady(r, r.metrics.rms_steady_error_rad, 'rad') for r in reports],
+    )
     add('RMS e whole run', [_num(r.metrics.rms_error_rad, 'rad') for r in reports])
     add('max |u|', [_num(r.metrics.max_abs_current_a, 'A', '.4f') for r in reports])
     add('RMS u', [_num(r.metrics.rms_current_a, 'A', '.4f') for r in reports])
@@ -385,10 +476,8 @@ def format_table(reports: Sequence[RunReport]) -> str:
     )
     # The recorder's receive time minus the stamp: the recorder's own delay (it runs at normal
     # scheduling), not the loop's latency, which the controller measures (timing log).
-    add(
-        'recorder delay (log - stamp) p50/p99/max',
-        [_timing(r.timing['command_latency']) for r in reports],
-    )
+    add('recorder delay (log - stamp) p50/p99/max', [_latency(r) for r in reports])
+    add('/diagnostics (worst level)', [_diagnostics(r) for r in reports])
     (_, names), body = rows[0], rows[1:]
     return tabulate(
         [(label, *cells) for label, cells in body],
@@ -396,127 +485,6 @@ def format_table(reports: Sequence[RunReport]) -> str:
         tablefmt='simple',
         disable_numparse=True,
     )
-
-
-def _labels(runs: Sequence[RunData]) -> list[str]:
-    """Legend labels: controller names, made unique with the bag name when they repeat."""
-    names = [r.controller for r in runs]
-    return [n if names.count(n) == 1 else f'{n} ({r.name})' for n, r in zip(names, runs)]
-
-
-def draw_figures(runs: Sequence[RunData], out: Path) -> list[Path]:
-    """Write the paper's figures as PNG files into ``out``; return their paths."""
-    import matplotlib
-
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
-
-    out.mkdir(parents=True, exist_ok=True)
-    labels = _labels(runs)
-    written: list[Path] = []
-
-    def save(fig: Any, name: str) -> None:
-        path = out / name
-        fig.tight_layout()
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
-        written.append(path)
-
-    fig, ax = plt.subplots(figsize=(8, 4.5))
-    ax.plot(runs[0].t, runs[0].reference, 'k--', linewidth=1.2, label='reference')
-    for run, label in zip(runs, labels):
-        ax.plot(run.t, run.measured, linewidth=0.9, label=label)
-    ax.set(xlabel='time [s]', ylabel='joint angle [rad]', title='Position response')
-    ax.legend(loc='best', fontsize='small')
-    ax.grid(True, alpha=0.3)
-    save(fig, 'position.png')
-
-    # Two panels, as the paper's Figures 5b and 6b zoom: the whole run with the envelope, and the
-    # steady window at the error's own scale (the +-0.25 rad bounds flatten a 1e-3 rad error).
-    fig, (ax, zoom) = plt.subplots(2, 1, figsize=(8, 7))
-    steady_peak = 0.0
-    for run, label in zip(runs, labels):
-        (line,) = ax.plot(run.t, run.error, linewidth=0.9, label=label)
-        if run.has_envelope:
-            ax.plot(run.t, run.upper, ':', color=line.get_color(), linewidth=1.0)
-            ax.plot(
-                run.t,
-                run.lower,
-                ':',
-                color=line.get_color(),
-                linewidth=1.0,
-                label=f'{label} bounds',
-            )
-        steady = (run.t >= STEADY_STATE_START_S) & np.isfinite(run.error)
-        zoom.plot(
-            run.t[steady], run.error[steady], linewidth=0.9, color=line.get_color(), label=label
-        )
-        if steady.any():
-            steady_peak = max(steady_peak, float(np.max(np.abs(run.error[steady]))))
-    ax.set(
-        xlabel='time [s]',
-        ylabel='tracking error e [rad]',
-        title='Tracking error and prescribed performance bounds',
-    )
-    ax.legend(loc='best', fontsize='small')
-    ax.grid(True, alpha=0.3)
-    if steady_peak > 0.0:
-        zoom.set_ylim(-1.2 * steady_peak, 1.2 * steady_peak)
-    zoom.set(
-        xlabel='time [s]',
-        ylabel='tracking error e [rad]',
-        title=f'Steady window (t >= {STEADY_STATE_START_S:g} s) at its own scale',
-    )
-    zoom.ticklabel_format(axis='y', style='sci', scilimits=(-2, 2))
-    zoom.grid(True, alpha=0.3)
-    save(fig, 'tracking_error.png')
-
-    for name, title, unit, est_attr, truth_attr in (
-        (
-            'velocity_estimate.png',
-            'Velocity estimate vs truth',
-            'velocity [rad/s]',
-            'est_velocity',
-            'truth_velocity',
-        ),
-        (
-            'disturbance_estimate.png',
-            'Disturbance estimate vs truth',
-            'disturbance [rad/s^2]',
-            'est_disturbance',
-            'truth_disturbance',
-        ),
-    ):
-        with_data = [(r, lab) for r, lab in zip(runs, labels) if getattr(r, est_attr).size]
-        if not with_data:
-            continue
-        fig, ax = plt.subplots(figsize=(8, 4.5))
-        for run, label in with_data:
-            if getattr(run, truth_attr).size:
-                ax.plot(
-                    run.truth_t,
-                    getattr(run, truth_attr),
-                    'k-',
-                    linewidth=1.0,
-                    alpha=0.6,
-                    label=f'truth ({label})' if len(with_data) > 1 else 'truth',
-                )
-            ax.plot(
-                run.est_t, getattr(run, est_attr), '--', linewidth=0.9, label=f'estimate ({label})'
-            )
-        ax.set(xlabel='time [s]', ylabel=unit, title=title)
-        ax.legend(loc='best', fontsize='small')
-        ax.grid(True, alpha=0.3)
-        save(fig, name)
-
-    fig, ax = plt.subplots(figsize=(8, 4.5))
-    for run, label in zip(runs, labels):
-        ax.plot(run.t, run.current, linewidth=0.8, label=label)
-    ax.set(xlabel='time [s]', ylabel='motor current u [A]', title='Control input')
-    ax.legend(loc='best', fontsize='small')
-    ax.grid(True, alpha=0.3)
-    save(fig, 'control_input.png')
-    return written
 
 
 def build_parser() -> argparse.ArgumentParser:

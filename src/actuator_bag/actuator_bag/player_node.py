@@ -94,11 +94,11 @@ class PlayerNode(Node):
                 conns = [c for c in conns if c.topic in wanted]
             if not conns:
                 raise BagError(f'{self.bag}: nothing to play (no topics)')
-            for conn in conns:
-                self.publishers_[conn.id] = self.create_publisher(
-                    message_class(conn.msgtype), conn.topic, self.qos
-                )
+            conns = self._playable(conns)
+            for conn, cls in conns:
+                self.publishers_[conn.id] = self.create_publisher(cls, conn.topic, self.qos)
                 self.counts.setdefault(conn.topic, 0)
+            conns = [conn for conn, _ in conns]
             self._wait_for_subscribers(stop)
             total = sum(c.msgcount for c in conns)
             self.get_logger().info(
@@ -112,6 +112,30 @@ class PlayerNode(Node):
                 if not self.loop:
                     break
             return time.monotonic() - started
+
+    def _playable(self, conns: list) -> list:
+        """Return (connection, message class) of the topics whose type is installed.
+
+        A topic of a type that is not installed is skipped with a warning (an ``ros2 bag record
+        -a`` bag holds such topics, e.g. rosbag2_interfaces/msg/WriteSplitEvent), unless it was
+        asked for by name; BagError when nothing is left.
+        """
+        playable, skipped = [], []
+        for conn in conns:
+            try:
+                playable.append((conn, message_class(conn.msgtype)))
+            except BagError as err:
+                if self.topics:
+                    raise BagError(f'{self.bag}: {conn.topic}: {err}') from None
+                skipped.append(f'{conn.topic} [{conn.msgtype}, {conn.msgcount} messages]')
+        if skipped:
+            self.get_logger().warning(
+                f'skipping {len(skipped)} topic(s) whose type is not installed: '
+                f'{", ".join(skipped)}'
+            )
+        if not playable:
+            raise BagError(f'{self.bag}: nothing to play: no topic has an installed type')
+        return playable
 
     def _wait_for_subscribers(self, stop: StopFlag) -> None:
         """Block until every publisher has wait_for_subscribers matched subscriptions.

@@ -70,14 +70,18 @@ def open_bag(path: os.PathLike | str) -> Iterator[Reader]:
             pass
 
 
-def bag_typestore(reader: Reader, source: Optional[DefinitionSource] = None) -> Typestore:
-    """Typestore for a bag.
+def bag_typestore(
+    reader: Reader,
+    source: Optional[DefinitionSource] = None,
+    connections: Optional[Sequence[Connection]] = None,
+) -> Typestore:
+    """Typestore for a bag's ``connections`` (default: all).
 
     Installed .msg definitions first, the bag's embedded definitions for the rest.
     """
     source = source or DefinitionSource()
     store = source.typestore()
-    for conn in reader.connections:
+    for conn in reader.connections if connections is None else connections:
         if conn.msgtype in store.fielddefs:
             continue
         try:

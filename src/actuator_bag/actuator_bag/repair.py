@@ -221,6 +221,11 @@ def repair_bag(
                         record.data,
                         record.publish_time,
                     )
+            # rosbag2 writes the channel of a topic that never had a message only in the
+            # summary: keep it, as ``ros2 bag info`` shows it (0 messages).
+            for channel_id, channel in spare_channels.items():
+                if channel_id not in handles and channel.schema_id in spare_schemas:
+                    register(channel)
             if report.profile and report.profile != 'ros2':
                 raise RepairError(f'{path} has MCAP profile {report.profile!r}, not ros2')
             done += report.file_size

@@ -12,8 +12,10 @@ same description the ``bringup`` runner uses, with the same real-time settings (
 parameters thread_priority, cpu_affinity, executor). The managed nodes are driven through
 configure and activate by launch_ros's lifecycle events. The run ends when the joint process
 ends (``duration`` elapsed, or it failed): every other process is then stopped with SIGINT and
-the joint's exit code is reported. Booleans are launch conditions: true/false/1/0, anything
-else is refused.
+the joint's exit code is reported. ``composed:=true`` runs the joint, the ESO and the controller
+in one process (actuator_tools loop_container, graph.compose): the nodes then configure and
+activate themselves (autostart), and ``ros2 lifecycle`` still reaches each by its name.
+Booleans are launch conditions: true/false/1/0, anything else is refused.
 """
 
 import os
@@ -37,7 +39,7 @@ from launch_ros.event_handlers import OnStateTransition
 from launch_ros.events.lifecycle import ChangeState
 from lifecycle_msgs.msg import Transition
 
-from actuator_tools.graph import JOINTS, closed_loop
+from actuator_tools.graph import JOINTS, closed_loop, compose, ros_arguments
 
 
 def _flag(context, name):
@@ -97,6 +99,7 @@ def _processes(context):
         raise RuntimeError(f'no scenario {scenario!r}: {params} does not exist')
     bag = LaunchConfiguration('bag').perform(context)
     logs = LaunchConfiguration('logs').perform(context)
+    composed = _flag(context, 'composed')
     specs = closed_loop(
         mode,
         duration,
@@ -105,10 +108,38 @@ def _processes(context):
         joint=joint,
         thread_priority=priority,
         logs=Path(logs) if logs else None,
-        autostart=False,
+        autostart=composed,  # launch drives the lifecycle of a node that has a process alone
+        live_view=_flag(context, 'live_view'),
     )
+    if composed:
+        specs = compose(specs)
     actions = []
     for spec in specs:
+        if spec.arguments:  # a plain process (the simulated drive): its own command line
+            actions.append(
+                Node(
+                    package=spec.package,
+                    executable=spec.executable,
+                    arguments=list(spec.arguments),
+                    output='screen',
+                )
+            )
+            continue
+        if spec.members:  # the container: per-node parameters as node:name:=value
+            arguments = ros_arguments(spec, Path(params))
+            split = arguments.index('--ros-args')
+            action = Node(  # no name=: a __node remap would rename every node of the process
+                package=spec.package,
+                executable=spec.executable,
+                arguments=arguments[:split],
+                ros_arguments=arguments[split + 1 :],
+                output='screen',
+            )
+            actions.append(action)
+            actions.append(
+                RegisterEventHandler(OnProcessExit(target_action=action, on_exit=_on_leader_exit))
+            )
+            continue
         parameters = ([params] if spec.scenario_file else []) + [spec.parameters]
         common = dict(
             package=spec.package,
@@ -153,8 +184,9 @@ def generate_launch_description():
                 'joint',
                 default_value='plant',
                 choices=list(JOINTS),
-                description='plant: simulated joint; cia402_sim: CANopen driver with its '
-                'simulated drive; cia402: the driver on a real bus; none: a driver started '
+                description='plant: simulated joint; cia402_sim: CANopen driver and its '
+                'simulated drive (a process of its own); cia402: the driver on a real bus; '
+                'none: a driver started '
                 'elsewhere',
             ),
             DeclareLaunchArgument(
@@ -169,9 +201,20 @@ def generate_launch_description():
                 'bag', default_value='', description='bag folder (default bags/<UTC time>)'
             ),
             DeclareLaunchArgument(
+                'live_view',
+                default_value='false',
+                description='also serve the loop to Foxglove (actuator_tools live_view on '
+                'ws://127.0.0.1:8765)',
+            ),
+            DeclareLaunchArgument(
                 'logs',
                 default_value='',
                 description='folder for the per-node timing files of the benchmark (default none)',
+            ),
+            DeclareLaunchArgument(
+                'composed',
+                default_value='false',
+                description='true: the joint, ESO and controller in one process on one executor',
             ),
             DeclareLaunchArgument(
                 'thread_priority',

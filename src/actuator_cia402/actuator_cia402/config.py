@@ -10,16 +10,15 @@ README lists them.
 
 from __future__ import annotations
 
-import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from actuator_core import limits
 from actuator_core.params import spec, validate
 from actuator_cia402.busload import DEFAULT_LIMIT, check_bus_load
 from actuator_cia402.scaling import Scaling
-from actuator_cia402.sim_drive import FAULT_CODES, FaultPlan
+from actuator_cia402.sim_faults import FAULT_CODES
 
-INTERFACES = ('virtual', 'socketcan')
+INTERFACES = ('hub', 'socketcan')
 CONDITIONS = ('deep_sea', 'lab')
 #: Rated current of the joint motor [A] and its rated torque k_tn * I_rated [N m]
 #: (EDS 0x6075, 0x6076).
@@ -42,13 +41,17 @@ class SimDriveSettings:
         'none', 'fault to inject: none, over_current (0x2310) or following_error (0x8611)'
     )
     fault_at_s: float = spec(
-        -1.0, 'drive time of the injected fault (negative: never)', 's', -1.0, 1.0e6
+        -1.0, 'time of the injected fault after the first SYNC (negative: never)', 's', -1.0, 1.0e6
     )
     emcy_code: int = spec(
         0xFF00, 'code of an extra EMCY frame (error register 0: a warning)', '', 1, 0xFFFF
     )
     emcy_at_s: float = spec(
-        -1.0, 'drive time of the extra EMCY frame (negative: never)', 's', -1.0, 1.0e6
+        -1.0,
+        'time of the extra EMCY frame after the first SYNC (negative: never)',
+        's',
+        -1.0,
+        1.0e6,
     )
     over_current_a: float = spec(
         1.25 * limits.CURRENT_LIMIT_A,
@@ -62,7 +65,11 @@ class SimDriveSettings:
         0.0, 'share of SYNCs the drive answers without TPDOs', '', 0.0, 1.0
     )
     silent_at_s: float = spec(
-        -1.0, 'drive time from which the drive is silent (negative: never)', 's', -1.0, 1.0e6
+        -1.0,
+        'time after the first SYNC from which the drive is silent (negative: never)',
+        's',
+        -1.0,
+        1.0e6,
     )
     seed: int = spec(1, 'seed of the dropped-TPDO draw', '', 0, 2**31 - 1)
 
@@ -80,26 +87,103 @@ class SimDriveSettings:
                 f'{", ".join(FAULT_CODES)}'
             )
 
-    def fault_plan(self) -> FaultPlan:
-        """Return the faults to inject, as the simulated drive takes them."""
-        return FaultPlan(
+    def arguments(self) -> list[str]:
+        """Return the command line of cia402_sim_drive for these settings."""
+        return [
+            '--working-condition',
+            self.working_condition,
+            '--torque-time-constant',
+            repr(self.torque_time_constant_s),
+            '--initial-position',
+            repr(self.initial_position_rad),
+            '--fault-kind',
             self.fault_kind,
-            self.fault_at_s,
-            self.emcy_code,
-            self.emcy_at_s,
-            self.drop_tpdo_fraction,
-            self.silent_at_s,
-            self.seed,
-        )
+            '--fault-at',
+            repr(self.fault_at_s),
+            '--emcy-code',
+            str(self.emcy_code),
+            '--emcy-at',
+            repr(self.emcy_at_s),
+            '--over-current',
+            repr(self.over_current_a),
+            '--drop-tpdo',
+            repr(self.drop_tpdo_fraction),
+            '--silent-at',
+            repr(self.silent_at_s),
+            '--seed',
+            str(self.seed),
+        ]
 
 
 @dataclass(frozen=True)
 class DriverParameters:
-    """Every constant of the CiA 402 driver node."""
+    """Every constant of the CiA 402 drive and its bus (the joint node's common ones apart).
+
+    ``sync_period_s`` and ``current_limit_a`` are the joint node's ``sample_time_s`` and
+    ``current_limit_a`` (JointSettings): the driver node fills them in, it does not declare them.
+    """
 
     node_id: int = spec(1, 'CANopen node id of the drive', '', 1, 127)
-    interface: str = spec('virtual', 'python-can interface: virtual (in-process bus) or socketcan')
-    channel: str = spec('can0', 'CAN channel, e.g. can0 (socketcan) or any bus name (virtual)')
+    interface: str = spec(
+        'socketcan', 'CAN interface: socketcan, or hub (the simulated bus over loopback TCP)'
+    )
+    channel: str = spec('can0', 'CAN channel: can0 (socketcan) or 127.0.0.1:PORT (hub)')
+    master_node_id: int = spec(
+        127, 'node id of this master: its heartbeat goes out on 0x700 + this id', '', 1, 127
+    )
+    sync_producer: bool = spec(
+        True, 'this joint sends the SYNC (one producer per bus; the others wait for it)'
+    )
+    heartbeat_period_s: float = spec(
+        0.01, 'period of the master heartbeat (0x700 + master_node_id)', 's', 0.001, 1.0
+    )
+    heartbeat_timeout_s: float = spec(
+        0.3,
+        "drive's heartbeat consumer time 0x1016: the drive quick-stops (0x6007 = 3) when "
+        'the master heartbeat is silent this long',
+        's',
+        0.002,
+        10.0,
+    )
+    sync_window_fraction: float = spec(
+        2.0,
+        'SYNC window 0x1007 in SYNC periods: the RPDO goes out just before the SYNC it is '
+        'for, so the window must exceed one period; later RPDOs are discarded',
+        '',
+        1.05,
+        10.0,
+    )
+    zero_offset_rad: float = spec(
+        0.0, 'joint angle = unwrapped position actual - this offset', 'rad', -1.0e6, 1.0e6
+    )
+    polarity: int = spec(
+        0, 'expected polarity 0x607E (set in the drive tool); checked', '', 0, 255
+    )
+    velocity_limit_rad_s: float = spec(
+        limits.VELOCITY_LIMIT_RAD_S,
+        'joint speed limit, written as max motor speed 0x6080 [rpm]',
+        'rad/s',
+        0.0,
+        1.0e4,
+        low_open=True,
+    )
+    torque_slope_permille_s: int = spec(
+        10000, 'torque slope 0x6087 of the quick-stop and disable ramps', 'per mille/s', 1, 10**7
+    )
+    brake_status_index: int = spec(
+        0x60FD,
+        'object whose bit (brake_status_mask) reads 1 while the brake is closed; 0: the '
+        'drive cannot tell (deactivate then waits brake_closing_s)',
+        '',
+        0,
+        0xFFFF,
+    )
+    brake_status_mask: int = spec(
+        1 << 16, 'bit mask of brake closed in that object', '', 1, 2**32 - 1
+    )
+    brake_closing_s: float = spec(
+        0.1, 'longest wait for the brake to report closed after the ramp', 's', 0.0, 10.0
+    )
     bitrate: int = spec(
         1_000_000,
         'CAN bitrate (socketcan: set with ip link, checked here for the bus load)',
@@ -121,7 +205,7 @@ class DriverParameters:
         0, 'COB-ID of TPDO1 (statusword, position, torque); 0 = 0x180 + node_id', '', 0, 0x7FF
     )
     tpdo2_cob_id: int = spec(
-        0, 'COB-ID of TPDO2 (current, error code); 0 = 0x280 + node_id', '', 0, 0x7FF
+        0, 'COB-ID of TPDO2 (current, error code, mode display); 0 = 0x280 + node_id', '', 0, 0x7FF
     )
     encoder_counts_per_rev: int = spec(
         4096, 'motor encoder counts per motor revolution (0x608F)', 'counts/rev', 1, 2**24
@@ -165,20 +249,6 @@ class DriverParameters:
         *limits.CURRENT_LIMIT_RANGE_A,
         low_open=True,
     )
-    command_timeout_s: float = spec(
-        limits.COMMAND_TIMEOUT_S,
-        '0 A and brake once the newest command is older',
-        's',
-        *limits.TIMEOUT_RANGE_S,
-    )
-    brake_delay_s: float = spec(
-        0.1,
-        'a safe stop or command timeout lasting this long disables operation '
-        '(holding brake); shorter ones apply 0 A in operation',
-        's',
-        0.0,
-        10.0,
-    )
     state_timeout_s: float = spec(
         1.0, 'longest wait for the drive to reach a CiA 402 state in a transition', 's', 0.01, 60.0
     )
@@ -186,7 +256,11 @@ class DriverParameters:
         0.3, 'SDO response timeout (configure, activate, deactivate only)', 's', 0.001, 10.0
     )
     feedback_timeout_s: float = spec(
-        0.05, 'error when no TPDO arrived for this long', 's', *limits.TIMEOUT_RANGE_S
+        0.05,
+        'control ends after this much time in cycles without a TPDO (the cycles the master '
+        'ran, in a row)',
+        's',
+        *limits.TIMEOUT_RANGE_S,
     )
     tpdo_wait_fraction: float = spec(
         0.5, 'how long a cycle waits for TPDO1 after SYNC, in sync periods', '', 0.05, 0.9
@@ -200,40 +274,13 @@ class DriverParameters:
         low_open=True,
     )
     eds_file: str = spec(
-        '', "the drive's EDS; empty = share/actuator_cia402/eds/sim_joint_drive.eds"
-    )
-    joint_name: str = spec('joint', 'name in joint_states')
-    autostart: bool = spec(
-        False, 'configure and activate at start (otherwise: ros2 lifecycle set)'
+        '',
+        "the drive's EDS (required on a real bus); empty with simulated_drive = the "
+        "simulated drive's share/actuator_cia402/eds/sim_joint_drive.eds",
     )
     simulated_drive: bool = spec(
-        False, 'run the simulated drive in this process on the virtual bus'
+        False, "the drive is this project's simulated drive (process cia402_sim_drive on a hub)"
     )
-    wait_for_subscribers: int = spec(
-        0, 'autostart: activate once joint_states has this many subscribers', '', 0, 100
-    )
-    stop_after_s: float = spec(
-        0.0, 'deactivate and exit 0 after this long active; 0 = run until stopped', 's', 0.0, 1.0e6
-    )
-    timing_log: str = spec(
-        '',
-        'at exit write per-sample stamps (.npz: stamp_ns, published_wall_ns, '
-        'held_command_stamp_ns), as the plant node does',
-    )
-    mode: str = spec(
-        'realtime',
-        "run mode of the suite; 'sim' (lockstep /clock) is refused: a drive runs in real time",
-    )
-    sample_time_s: float = spec(
-        0.0,
-        "the scenario's sample time (its '/**' block); when set it must equal "
-        'sync_period_s (0: not set)',
-        's',
-        0.0,
-        0.1,
-    )
-    diagnostics_period_s: float = spec(0.5, 'period of the diagnostics message', 's', 0.05, 60.0)
-    sim: SimDriveSettings = field(default_factory=SimDriveSettings)
 
     def __post_init__(self) -> None:
         """Range checks, then the combinations.
@@ -245,21 +292,17 @@ class DriverParameters:
             raise ValueError(
                 f'interface = {self.interface!r} refused: one of {", ".join(INTERFACES)}'
             )
-        if self.simulated_drive and self.interface != 'virtual':
+        if self.simulated_drive and self.interface != 'hub':
             raise ValueError(
-                'simulated_drive = true needs interface = virtual '
-                '(the simulated drive shares this process; this kernel has no vcan)'
+                'simulated_drive = true needs interface = hub (the simulated drive process '
+                'cia402_sim_drive serves its bus on 127.0.0.1)'
             )
-        if self.mode != 'realtime':
+        if self.master_node_id == self.node_id:
+            raise ValueError(f'master_node_id = {self.master_node_id} is the drive node_id')
+        if self.heartbeat_timeout_s < 2 * self.heartbeat_period_s:
             raise ValueError(
-                f'mode = {self.mode!r} refused: the CiA 402 driver runs in real time only '
-                '(SYNC on the system clock); use the simulated plant for sim mode'
-            )
-        if self.sample_time_s and abs(self.sample_time_s - self.sync_period_s) > 1e-12:
-            raise ValueError(
-                f'sample_time_s = {self.sample_time_s} differs from sync_period_s = '
-                f'{self.sync_period_s}: '
-                'the drive samples once per SYNC'
+                f'heartbeat_timeout_s = {self.heartbeat_timeout_s} must be at least twice '
+                f'heartbeat_period_s = {self.heartbeat_period_s}'
             )
         check_bus_load(self.bitrate, self.sync_period_s, limit=self.bus_load_limit)
 
@@ -290,8 +333,11 @@ class DriverParameters:
         """
         if self.eds_file:
             return self.eds_file
-        from ament_index_python.packages import get_package_share_directory
+        if not self.simulated_drive:
+            raise ValueError(
+                "eds_file must name the drive's EDS on a real bus (the simulated drive's EDS is "
+                'used only with simulated_drive = true)'
+            )
+        from actuator_cia402.sim_drive_main import default_eds
 
-        return os.path.join(
-            get_package_share_directory('actuator_cia402'), 'eds', 'sim_joint_drive.eds'
-        )
+        return default_eds()

@@ -1,32 +1,30 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""The CiA 402 master for one joint drive on a canopen.Network (RemoteNode from the drive's EDS).
+"""The CiA 402 master's SDO side for one drive: configure, enable, stop, fault acknowledgement.
 
-Layered like ros2_canopen's cia402 driver: ROS-free, called by the driver node's lifecycle
-transitions and by its cycle thread.
+ROS-free; called by ``Cia402Joint`` (joint.py) in its lifecycle transitions, never in the cycle.
+Every object it reads or writes, and why, is in the README's object table.
 
-  configure   NMT pre-operational; object dictionary checks over SDO (device type 0x1000 =
-              profile 402, CST supported in 0x6502, rated current 0x6075 / torque 0x6076 and
-              encoder resolution 0x608F as configured, max torque 0x6072); PDO mapping (RPDO1:
-              0x6040 + 0x6071; TPDO1: 0x6041 + 0x6064 + 0x6077; TPDO2: 0x6078 + 0x603F; all
-              synchronous, transmission type 1); communication cycle 0x1006; mode of operation
-              0x6060 = CST (10), checked in 0x6061.
-  activate    fault reset if the drive is in fault; shutdown, switch on, enable operation (each
-              waited for in the statusword); NMT operational. SYNC then comes from the cycle.
-  cycle       write RPDO1 (controlword, target torque), send SYNC, wait at most a deadline for
-              TPDO1 of this SYNC (after a miss, for the newest of two); never an SDO transfer or
-              a state wait.
-  deactivate  quick stop, disable voltage (the drive engages its brake), NMT pre-operational.
-  error       the statusword fault bit (TPDO1) or an EMCY with a non-zero error register sets
-              ``fault`` with the drive's error code (0x603F / EMCY) and its text.
+  configure   NMT reset communication and boot-up; device type, identity 0x1018 against the
+              EDS; a drive left enabled is stopped (quick stop, ramp, brake, disable voltage);
+              0x6071 = 0; rated current/torque, encoder resolution, factor group 0x6091/0x6092
+              and polarity 0x607E checked; limits 0x6072/0x6073/0x6080 written and read back;
+              option codes 0x605A/0x605C/0x605E and torque slope 0x6087 set; SYNC period 0x1006,
+              window 0x1007, interpolation period 0x60C2; PDO mapping; heartbeat consumer 0x1016
+              and abort connection option 0x6007 written and verified; mode 0x6060 = CST.
+  enable      0x6071 = 0, mode display 0x6061 polled; shutdown, switch on (brake still closed);
+              NMT operational. Operation is enabled by the first valid command, in the cycle.
+  stop        quick stop; wait for the ramp's end (quick stop active + target reached, 0x605A
+              = 6) and the brake's 'closed' (brake_status_index); then disable voltage.
+  acknowledge fault reset (rising edge of controlword bit 7), only when a person asks.
 """
 
 from __future__ import annotations
 
-import threading
+import math
 import time
-from typing import NamedTuple, Optional
+from typing import Optional
 
 import canopen
 
@@ -39,143 +37,191 @@ class Cia402Error(RuntimeError):
     """A drive did not do what the master asked (one line: what, and what the drive said)."""
 
 
-class Feedback(NamedTuple):
-    """Process data of one SYNC, in SI units."""
-
-    position_rad: float
-    torque_nm: float
-    current_a: float
-    statusword: int
-    error_code: int
-    received_s: float  # canopen receive timestamp of TPDO1
-
-
-class DriveFault(NamedTuple):
-    """What made the master leave operation: the drive's error code and its text."""
-
-    code: int
-    text: str
-    source: str  # 'statusword', 'emcy' or 'feedback timeout'
-
-
 #: Transmission type 1: synchronous, every SYNC (CiA 301).
 SYNCHRONOUS = 1
-STATE_TIMEOUT_S = 1.0
+#: Option codes this master sets (CiA 402-2): quick stop = ramp at the quick-stop slope and
+#: stay in 'quick stop active' (the master disables voltage once the brake is closed);
+#: disable operation = ramp, then disable; abort connection (heartbeat lost) = quick stop.
+QUICK_STOP_OPTION = 6
+DISABLE_OPERATION_OPTION = 1
+ABORT_CONNECTION_QUICK_STOP = 3
+#: Cycle PDO layout: RPDO1, TPDO1, TPDO2 (README bus load: 4, 8, 5 bytes).
+RPDO1 = (p.CONTROLWORD, p.TARGET_TORQUE)
+TPDO1 = (p.STATUSWORD, p.POSITION_ACTUAL, p.TORQUE_ACTUAL)
+TPDO2 = (p.CURRENT_ACTUAL, p.ERROR_CODE, p.MODES_OF_OPERATION_DISPLAY)
+ENABLED_STATES = (
+    p.State.SWITCHED_ON,
+    p.State.OPERATION_ENABLED,
+    p.State.QUICK_STOP_ACTIVE,
+    p.State.READY_TO_SWITCH_ON,
+)
 
 
 class Cia402Master:
-    """One drive in cyclic synchronous torque mode."""
+    """SDO configuration and state transitions of one drive in cyclic synchronous torque."""
 
     def __init__(
-        self,
-        network: canopen.Network,
-        node_id: int,
-        eds_path: str,
-        scaling: Scaling,
-        sync_period_s: float,
-        rpdo_cob_id: int,
-        tpdo1_cob_id: int,
-        tpdo2_cob_id: int,
-        max_current_a: float,
-        state_timeout_s: float = STATE_TIMEOUT_S,
-        sdo_timeout_s: float = 0.3,
+        self, network: canopen.Network, node_id: int, eds_path: str, scaling: Scaling, cfg
     ):
-        """Attach a RemoteNode built from the drive's EDS to ``network`` (already connected)."""
+        """Attach a RemoteNode from the drive's EDS; ``cfg`` is a DriverParameters."""
         self.network = network
         self.node = canopen.RemoteNode(node_id, eds_path)
         network.add_node(self.node)
-        self.node.sdo.RESPONSE_TIMEOUT = sdo_timeout_s
-        self.state_timeout_s = state_timeout_s
+        self.node.sdo.RESPONSE_TIMEOUT = cfg.sdo_timeout_s
+        self.cfg = cfg
         self.scaling = scaling
-        self.sync_period_s = sync_period_s
-        self.cob_ids = (rpdo_cob_id, tpdo1_cob_id, tpdo2_cob_id)
-        self.max_current_a = max_current_a
-        self.fault: Optional[DriveFault] = None
-        self.warnings: list[str] = []
-        self.feedback: Optional[Feedback] = None
-        self.error_code = 0
-        self.current_actual_a = 0.0
-        self.tpdo1_count = 0
-        self._arrived = (
-            threading.Condition()
-        )  # TPDO1 arrivals since the last SYNC (bus thread -> cycle)
-        self._arrivals = 0
-        self._missed_last = False
-        self._rpdo = None
-        self.node.emcy.add_callback(self._on_emcy)
+        self.codecs: tuple = ()
+        self.identity = ''
+        self.fault_reaction = 0
 
-    # --- configure --------------------------------------------------------------------------
-    def _sdo(self, index: int, subindex: int | None = None):
-        """Return the SDO variable of an object.
-
-        Blocking transfers: configure/activate/deactivate only.
-        """
+    def _sdo(self, index: int, subindex: Optional[int] = None):
+        """Return the SDO variable of an object (blocking transfers: transitions only)."""
         return self.node.sdo[index] if subindex is None else self.node.sdo[index][subindex]
 
-    def configure(self) -> list[str]:
-        """NMT pre-operational, OD checks, PDO mapping, CST mode.
+    def _write_verified(self, index: int, subindex: Optional[int], value: int, what: str) -> None:
+        """Write an object and read it back; Cia402Error when the drive keeps another value."""
+        var = self._sdo(index, subindex)
+        var.raw = value
+        back = var.raw
+        if back != value:
+            raise Cia402Error(f'{what} 0x{index:04X} reads {back} after writing {value}')
 
-        Returns notes (raises Cia402Error).
-        """
-        self.node.nmt.state = 'PRE-OPERATIONAL'
+    # --- configure --------------------------------------------------------------------------
+    def reset_communication(self) -> None:
+        """NMT reset communication; wait for the boot-up (communication objects at defaults)."""
+        booted = []
+        self.node.nmt.add_heartbeat_callback(
+            lambda state: booted.append(state) if state == 0 else None
+        )
+        self.node.nmt.state = 'RESET COMMUNICATION'
+        deadline = time.monotonic() + self.cfg.state_timeout_s
+        while not booted:
+            if time.monotonic() > deadline:
+                raise Cia402Error(
+                    f'node {self.node.id} sent no boot-up within {self.cfg.state_timeout_s:g} s '
+                    'of NMT reset communication: check node_id, bitrate, wiring and termination'
+                )
+            time.sleep(0.002)
+        self.node.nmt._callbacks.clear()
+
+    def check_identity(self) -> str:
+        """Device type 402 with CST; identity 0x1018 equal to the EDS's vendor and product."""
         try:
             device_type = self._sdo(p.DEVICE_TYPE).raw
         except canopen.SdoCommunicationError as exc:
-            raise Cia402Error(
-                f'node {self.node.id} does not answer SDO ({exc}): check node_id, bitrate, '
-                f'wiring and termination'
-            ) from None
-        notes = []
+            raise Cia402Error(f'node {self.node.id} does not answer SDO ({exc})') from None
         if device_type & 0xFFFF != p.DEVICE_PROFILE_402:
             raise Cia402Error(
                 f'node {self.node.id} is not a CiA 402 drive: device type 0x{device_type:08X}'
             )
-        if not self._sdo(p.SUPPORTED_DRIVE_MODES).raw & p.SUPPORTED_CST_BIT:
+        info = self.node.object_dictionary.device_information
+        vendor, product = self._sdo(p.IDENTITY, 1).raw, self._sdo(p.IDENTITY, 2).raw
+        if (vendor, product) != (info.vendor_number, info.product_number):
             raise Cia402Error(
-                f'node {self.node.id} does not support cyclic synchronous torque (0x6502 bit 9)'
+                f'identity 0x1018 of node {self.node.id} is vendor 0x{vendor:08X} product '
+                f'0x{product:08X}; the EDS {info.product_name!r} is for vendor'
+                f' 0x{info.vendor_number or 0:08X} product '
+                f'0x{info.product_number or 0:08X}: name the EDS of this drive'
             )
+        if not self._sdo(p.SUPPORTED_DRIVE_MODES).raw & p.SUPPORTED_CST_BIT:
+            raise Cia402Error(f'node {self.node.id} does not support cyclic synchronous torque')
+        revision, serial = self._sdo(p.IDENTITY, 3).raw, self._sdo(p.IDENTITY, 4).raw
+        return (
+            f'vendor 0x{vendor:08X} product 0x{product:08X} rev 0x{revision:08X} serial {serial}'
+        )
+
+    def make_safe(self) -> list[str]:
+        """Stop a drive found enabled (a crashed master); report a fault, never reset it."""
+        statusword, state = self.read_state()
+        notes = []
+        if state in (p.State.OPERATION_ENABLED, p.State.QUICK_STOP_ACTIVE):
+            notes.append(
+                f'drive was left {state.value} (statusword 0x{statusword:04X}, 0x6071 = '
+                f'{self._sdo(p.TARGET_TORQUE).raw} per mille): quick stop, brake, '
+                'disable voltage'
+            )
+            self.stop()
+        elif state in (p.State.SWITCHED_ON, p.State.READY_TO_SWITCH_ON):
+            self._sdo(p.CONTROLWORD).raw = p.Command.DISABLE_VOLTAGE.value
+        elif state in (p.State.FAULT, p.State.FAULT_REACTION_ACTIVE):
+            code = self._sdo(p.ERROR_CODE).raw
+            notes.append(
+                f'drive is in fault 0x{code:04X} ({p.error_text(code)}): find the '
+                'cause, then acknowledge it (acknowledge_fault); no automatic reset'
+            )
+        return notes
+
+    def configure(self) -> list[str]:
+        """Every step of the module docstring's configure; returns notes (raises Cia402Error)."""
+        cfg, s = self.cfg, self.scaling
+        self.reset_communication()
+        self.identity = self.check_identity()
+        notes = self.make_safe()
+        self._write_verified(p.TARGET_TORQUE, None, 0, 'target torque')
         self._check_equal(
-            p.RATED_CURRENT,
-            None,
-            round(self.scaling.rated_current_a * 1000),
-            'rated current',
-            'mA',
+            p.RATED_CURRENT, None, round(s.rated_current_a * 1000), 'rated current', 'mA'
         )
         self._check_equal(
-            p.RATED_TORQUE,
-            None,
-            round(self.scaling.rated_torque_nm * 1000),
-            'rated torque',
-            'mN m',
+            p.RATED_TORQUE, None, round(s.rated_torque_nm * 1000), 'rated torque', 'mN m'
         )
         increments = self._sdo(p.ENCODER_RESOLUTION, 1).raw / max(
             1, self._sdo(p.ENCODER_RESOLUTION, 2).raw
         )
-        if increments != self.scaling.encoder_counts_per_rev:
+        if increments != s.encoder_counts_per_rev:
             raise Cia402Error(
-                f'encoder resolution 0x608F is {increments:g} counts/rev, configured '
-                f'encoder_counts_per_rev = {self.scaling.encoder_counts_per_rev}'
+                f'encoder resolution 0x608F is {increments:g} counts/rev, '
+                f'configured encoder_counts_per_rev = {s.encoder_counts_per_rev}'
             )
-        max_torque = self._sdo(p.MAX_TORQUE).raw
-        needed = self.scaling.current_to_torque_permille(self.max_current_a)
-        if max_torque < needed:
-            notes.append(
-                f'max torque 0x6072 = {max_torque} per mille is below the current limit '
-                f'({needed} per mille): the drive clips commands beyond '
-                f'{self.scaling.torque_permille_to_current(max_torque):.2f} A'
+        for index, what in ((p.GEAR_RATIO, 'gear ratio'), (p.FEED_CONSTANT, 'feed constant')):
+            a, b = self._sdo(index, 1).raw, self._sdo(index, 2).raw
+            if a != b:
+                raise Cia402Error(
+                    f'{what} 0x{index:04X} is {a}:{b}; this driver needs 1:1 (position actual in '
+                    'motor encoder counts; gear_ratio is applied here)'
+                )
+        polarity = self._sdo(p.POLARITY).raw
+        if polarity != cfg.polarity:
+            raise Cia402Error(
+                f'polarity 0x607E of the drive is 0x{polarity:02X}, configured '
+                f'polarity = 0x{cfg.polarity:02X}: check the drive tool'
             )
+        limit_permille = s.current_to_torque_permille(cfg.current_limit_a)
+        self._write_verified(p.MAX_TORQUE, None, limit_permille, 'max torque')
+        self._write_verified(
+            p.MAX_CURRENT, None, s.current_to_permille(cfg.current_limit_a), 'max current'
+        )
+        rpm = math.ceil(cfg.velocity_limit_rad_s * s.gear_ratio * 60.0 / (2.0 * math.pi))
+        self._write_verified(p.MAX_MOTOR_SPEED, None, rpm, 'max motor speed')
+        self._write_verified(p.TORQUE_SLOPE, None, cfg.torque_slope_permille_s, 'torque slope')
+        self._write_verified(p.QUICK_STOP_OPTION, None, QUICK_STOP_OPTION, 'quick stop option')
+        self._write_verified(
+            p.DISABLE_OPERATION_OPTION, None, DISABLE_OPERATION_OPTION, 'disable operation option'
+        )
+        self.fault_reaction = self._sdo(p.FAULT_REACTION_OPTION).raw  # the drive tool's
+        period_us = int(round(cfg.sync_period_s * 1e6))
+        self._write_verified(p.COMMUNICATION_CYCLE_US, None, period_us, 'communication cycle')
+        self._write_verified(
+            p.SYNC_WINDOW_US, None, int(round(cfg.sync_window_fraction * period_us)), 'SYNC window'
+        )
+        exponent = -6 if period_us % 1000 else -3
+        value = period_us if exponent == -6 else period_us // 1000
+        if value > 255:
+            raise Cia402Error(f'interpolation period {period_us} us does not fit 0x60C2')
+        self._write_verified(p.INTERPOLATION_PERIOD, 1, value, 'interpolation period')
+        self._write_verified(p.INTERPOLATION_PERIOD, 2, exponent, 'interpolation index')
         self._map_pdos()
-        self._sdo(p.COMMUNICATION_CYCLE_US).raw = int(round(self.sync_period_s * 1e6))
-        self._sdo(p.MODES_OF_OPERATION).raw = p.MODE_CST
-        shown = self._sdo(p.MODES_OF_OPERATION_DISPLAY).raw
-        if shown != p.MODE_CST:
-            raise Cia402Error(
-                f'drive refused mode CST (0x6061 shows {shown} after writing 10 to 0x6060)'
-            )
+        timeout_ms = int(round(cfg.heartbeat_timeout_s * 1000))
+        self._write_verified(
+            p.HEARTBEAT_CONSUMER, 1, (cfg.master_node_id << 16) | timeout_ms, 'heartbeat consumer'
+        )
+        self._write_verified(
+            p.ABORT_CONNECTION_OPTION, None, ABORT_CONNECTION_QUICK_STOP, 'abort connection option'
+        )
+        self._write_verified(p.MODES_OF_OPERATION, None, p.MODE_CST, 'modes of operation')
         return notes
 
     def _check_equal(
-        self, index: int, subindex: int | None, expected: int, what: str, unit: str
+        self, index: int, subindex: Optional[int], expected: int, what: str, unit: str
     ) -> None:
         """Refuse a drive whose object differs from the configured value by more than 1 %."""
         actual = self._sdo(index, subindex).raw
@@ -186,12 +232,12 @@ class Cia402Master:
             )
 
     def _map_pdos(self) -> None:
-        """RPDO1, TPDO1, TPDO2 as listed in the module docstring; the other PDOs disabled."""
-        rpdo_cob, tpdo1_cob, tpdo2_cob = self.cob_ids
+        """RPDO1, TPDO1, TPDO2 synchronous (transmission type 1); the other PDOs disabled."""
+        rpdo_cob, tpdo1_cob, tpdo2_cob = self.cfg.cob_ids
         layout = (
-            (self.node.rpdo[1], rpdo_cob, (p.CONTROLWORD, p.TARGET_TORQUE)),
-            (self.node.tpdo[1], tpdo1_cob, (p.STATUSWORD, p.POSITION_ACTUAL, p.TORQUE_ACTUAL)),
-            (self.node.tpdo[2], tpdo2_cob, (p.CURRENT_ACTUAL, p.ERROR_CODE)),
+            (self.node.rpdo[1], rpdo_cob, RPDO1),
+            (self.node.tpdo[1], tpdo1_cob, TPDO1),
+            (self.node.tpdo[2], tpdo2_cob, TPDO2),
         )
         for pdo_map, cob_id, objects in layout:
             pdo_map.clear()
@@ -208,163 +254,110 @@ class Cia402Master:
                     )
                     pdo_map.trans_type, pdo_map.enabled = SYNCHRONOUS, False
                     pdo_map.save()
-        # The layouts just written, compiled once: the cycle packs and unpacks whole frames.
-        self._rpdo = PdoCodec.compile(self.node.rpdo[1])
-        self._t1 = PdoCodec.compile(self.node.tpdo[1])
-        self._t2 = PdoCodec.compile(self.node.tpdo[2])
-        if None in (self._rpdo, self._t1, self._t2):
+        self.codecs = tuple(PdoCodec.compile(m) for m, _, _ in layout)
+        if None in self.codecs:
             raise Cia402Error('the EDS gives a PDO layout that is not byte aligned')
-        self.node.tpdo[1].add_callback(self._on_tpdo1)
-        self.node.tpdo[2].add_callback(self._on_tpdo2)
 
     # --- state machine over SDO (transitions only) ------------------------------------------
-    def read_state(self) -> tuple[int, p.State | None]:
+    def read_state(self) -> tuple[int, Optional[p.State]]:
         """Statusword 0x6041 over SDO and its decoded state."""
         statusword = self._sdo(p.STATUSWORD).raw
         return statusword, p.decode_state(statusword)
 
-    def command(self, command: p.Command, wanted: tuple[p.State, ...]) -> p.State:
-        """Write a controlword command and wait for one of the ``wanted`` states.
-
-        Waits up to state_timeout_s until the statusword shows one of ``wanted``.
-        """
-        timeout_s = self.state_timeout_s
+    def command(
+        self, command: p.Command, wanted: tuple, timeout_s: Optional[float] = None, done=None
+    ) -> int:
+        """Write a controlword command; wait until the state is in ``wanted`` (and ``done``)."""
+        timeout_s = self.cfg.state_timeout_s if timeout_s is None else timeout_s
         self._sdo(p.CONTROLWORD).raw = command.value
         deadline = time.monotonic() + timeout_s
         while True:
             statusword, state = self.read_state()
-            if state in wanted:
-                return state
+            if state in wanted and (done is None or done(statusword)):
+                return statusword
             if time.monotonic() > deadline:
                 names = ' or '.join(f"'{s.value}'" for s in wanted)
                 raise Cia402Error(
                     f'{command.name.lower()}: the drive did not reach {names} within '
-                    f'{timeout_s:g} s '
-                    f'(statusword 0x{statusword:04X} = {state.value if state else "undefined"})'
+                    f'{timeout_s:g} s (statusword 0x{statusword:04X} = '
+                    f'{state.value if state else "undefined"})'
                 )
             time.sleep(0.002)
 
-    def fault_reset(self) -> None:
-        """Rising edge of controlword bit 7 (CiA 402 transition 15), then 'switch on disabled'."""
-        self._sdo(p.CONTROLWORD).raw = 0
-        self.command(p.Command.FAULT_RESET, (p.State.SWITCH_ON_DISABLED,))
-        self._sdo(p.CONTROLWORD).raw = p.Command.DISABLE_VOLTAGE.value
-
-    def activate(self) -> list[str]:
-        """Fault reset if needed, shutdown, switch on, enable operation, NMT operational.
-
-        Returns notes.
-        """
-        notes = []
+    def enable(self) -> None:
+        """0x6071 = 0, CST shown in 0x6061, shutdown, switch on (brake closed), NMT operational."""
         statusword, state = self.read_state()
         if state in (p.State.FAULT, p.State.FAULT_REACTION_ACTIVE):
             code = self._sdo(p.ERROR_CODE).raw
-            notes.append(
-                f'drive was in fault (0x603F = 0x{code:04X}: {p.error_text(code)}): fault reset'
+            raise Cia402Error(
+                f'drive in fault 0x{code:04X} ({p.error_text(code)}): acknowledge '
+                'it (acknowledge_fault) after finding the cause'
             )
-            self.fault_reset()
-        self.fault = None
-        self.node.emcy.reset()
+        self._write_verified(p.TARGET_TORQUE, None, 0, 'target torque')
+        deadline = time.monotonic() + self.cfg.state_timeout_s
+        while (shown := self._sdo(p.MODES_OF_OPERATION_DISPLAY).raw) != p.MODE_CST:
+            if time.monotonic() > deadline:
+                raise Cia402Error(
+                    f'mode display 0x6061 shows {shown}, not CST (10), '
+                    f'{self.cfg.state_timeout_s:g} s after 0x6060 = 10'
+                )
+            time.sleep(0.002)
         self.command(p.Command.SHUTDOWN, (p.State.READY_TO_SWITCH_ON,))
         self.command(p.Command.SWITCH_ON, (p.State.SWITCHED_ON,))
-        self.command(p.Command.ENABLE_OPERATION, (p.State.OPERATION_ENABLED,))
-        self.feedback = None
         self.node.nmt.state = 'OPERATIONAL'
-        # NMT has no answer; an SDO round trip after it (same bus, in order) shows the drive
-        # took it.
-        statusword, state = self.read_state()
-        if state is not p.State.OPERATION_ENABLED:
-            raise Cia402Error(
-                f'the drive left operation enabled on NMT start (statusword 0x{statusword:04X})'
-            )
-        return notes
+        statusword, state = self.read_state()  # SDO after NMT, in order: NMT taken
+        if state is not p.State.SWITCHED_ON:
+            raise Cia402Error(f'the drive left switched on at NMT start (0x{statusword:04X})')
 
-    def deactivate(self) -> None:
-        """Quick stop, then disable voltage (brake engaged by the drive), NMT pre-operational."""
-        try:
+    def brake_closed(self) -> Optional[bool]:
+        """Read the brake status bit (None when the drive cannot tell: brake_status_index 0)."""
+        if not self.cfg.brake_status_index:
+            return None
+        return bool(self._sdo(self.cfg.brake_status_index).raw & self.cfg.brake_status_mask)
+
+    def stop(self) -> list[str]:
+        """Quick stop, the ramp's end, the brake closed, then disable voltage; returns notes."""
+        notes = []
+        statusword, state = self.read_state()
+        if state in (p.State.OPERATION_ENABLED, p.State.QUICK_STOP_ACTIVE):
             self.command(
                 p.Command.QUICK_STOP,
                 (p.State.QUICK_STOP_ACTIVE, p.State.SWITCH_ON_DISABLED, p.State.FAULT),
+                done=lambda sw: (
+                    p.decode_state(sw) is not p.State.QUICK_STOP_ACTIVE or sw & p.SW_TARGET_REACHED
+                ),
             )
-            self.command(p.Command.DISABLE_VOLTAGE, (p.State.SWITCH_ON_DISABLED, p.State.FAULT))
-        finally:
-            self.node.nmt.state = 'PRE-OPERATIONAL'
-        self.read_state()  # NMT taken (see activate)
+        deadline = time.monotonic() + self.cfg.brake_closing_s
+        closed = self.brake_closed()
+        while closed is False and time.monotonic() < deadline:
+            time.sleep(0.002)
+            closed = self.brake_closed()
+        if closed is None:
+            time.sleep(self.cfg.brake_closing_s)
+            notes.append(
+                f'brake not verified (no brake status object): waited '
+                f'{self.cfg.brake_closing_s:g} s'
+            )
+        elif not closed:
+            notes.append(
+                f'brake not closed {self.cfg.brake_closing_s:g} s after the ramp: '
+                'voltage disabled anyway'
+            )
+        self.command(p.Command.DISABLE_VOLTAGE, (p.State.SWITCH_ON_DISABLED, p.State.FAULT))
+        return notes
+
+    def acknowledge_fault(self) -> str:
+        """Fault reset (rising edge of bit 7) on a person's request; returns what was reset."""
+        statusword, state = self.read_state()
+        if state not in (p.State.FAULT, p.State.FAULT_REACTION_ACTIVE):
+            return f'no fault to acknowledge (drive {state.value if state else "undefined"})'
+        code = self._sdo(p.ERROR_CODE).raw
+        self._sdo(p.CONTROLWORD).raw = 0
+        self.command(p.Command.FAULT_RESET, (p.State.SWITCH_ON_DISABLED,))
+        self._sdo(p.CONTROLWORD).raw = p.Command.DISABLE_VOLTAGE.value
+        return f'fault 0x{code:04X} ({p.error_text(code)}) acknowledged'
 
     def read_error(self) -> tuple[int, str]:
-        """Return the drive's error code 0x603F over SDO, with its text."""
+        """Read the drive's error code 0x603F over SDO, with its text."""
         code = self._sdo(p.ERROR_CODE).raw
         return code, p.error_text(code)
-
-    # --- cycle (never blocks beyond ``wait_s``) ---------------------------------------------
-    def cycle(self, controlword: int, current_a: float, wait_s: float) -> Optional[Feedback]:
-        """RPDO1 with the command, SYNC, then TPDO1 of this SYNC (None when it missed ``wait_s``).
-
-        TPDO1 carries no SYNC counter, so after a missed cycle the first TPDO1 to arrive may be
-        the late answer to the previous SYNC: then the cycle waits for a second one until the
-        deadline and takes the newest (at most one extra wait, in the cycle after a miss).
-        """
-        rpdo = self._rpdo
-        expected = 2 if self._missed_last else 1
-        with self._arrived:
-            self._arrivals = 0
-        self.network.send_message(
-            rpdo.cob_id,
-            rpdo.pack((controlword, self.scaling.current_to_torque_permille(current_a))),
-        )
-        self.network.sync.transmit()
-        deadline = time.monotonic() + wait_s
-        with self._arrived:
-            while self._arrivals < expected:
-                left = deadline - time.monotonic()
-                if left <= 0.0 or not self._arrived.wait(left):
-                    break
-            got = self._arrivals > 0
-        self._missed_last = not got
-        return self.feedback if got else None
-
-    def _on_tpdo1(self, pdo_map) -> None:
-        """TPDO1 received (bus thread): statusword, position, torque.
-
-        The fault bit sets ``fault``.
-        """
-        statusword, counts, torque = self._t1.unpack(pdo_map.data)
-        s = self.scaling
-        self.feedback = Feedback(
-            s.counts_to_rad(counts),
-            s.torque_permille_to_nm(torque),
-            self.current_actual_a,
-            statusword,
-            self.error_code,
-            pdo_map.timestamp,
-        )
-        self.tpdo1_count += 1
-        if statusword & p.SW_FAULT and self.fault is None:
-            code = self.error_code
-            self.fault = DriveFault(code, p.error_text(code), 'statusword')
-        with self._arrived:
-            self._arrivals += 1
-            self._arrived.notify()
-
-    def _on_tpdo2(self, pdo_map) -> None:
-        """TPDO2 received (bus thread): current actual and error code."""
-        current, code = self._t2.unpack(pdo_map.data)
-        self.current_actual_a = self.scaling.permille_to_current(current)
-        self.error_code = code
-        if self.fault is not None and self.fault.code == 0 and code:
-            self.fault = DriveFault(code, p.error_text(code), self.fault.source)
-
-    def _on_emcy(self, emcy) -> None:
-        """EMCY (bus thread): an error register != 0 is a fault.
-
-        Otherwise a warning kept in ``warnings``.
-        """
-        if emcy.code == 0:
-            return
-        if emcy.register:
-            if self.fault is None or self.fault.code == 0:
-                self.fault = DriveFault(emcy.code, p.error_text(emcy.code), 'emcy')
-        else:
-            self.warnings.append(
-                f'EMCY 0x{emcy.code:04X} ({p.error_text(emcy.code)}) without error register'
-            )

@@ -1,12 +1,14 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""The offline core (actuator_sim.loop.ClosedLoop) with what the CiA 402 drive adds to the plant.
+"""The offline core (actuator_sim.loop.ClosedLoop) with what the CiA 402 drive adds to the joint.
 
-Explains the difference between a run through the driver and the offline core: the drive
+Explains the difference between a run through the driver and the offline core. The drive
 (sim_drive.py) applies the RPDO at the next SYNC (one sample of command delay, as any
 synchronous CANopen drive), follows it with a first-order torque loop (tau), and the angle
-comes back quantised to encoder counts. Each effect can be switched off to see its share:
+comes back quantised to encoder counts. All three are parts of the one simulated joint
+(``actuator_plant.sim_joint.SimulatedJoint``: ``CommandDelay``, ``torque_loop``, ``Encoder``),
+set through the scenario; each can be switched off to see its share:
 
     python -m actuator_cia402.offline --duration 5
 """
@@ -14,54 +16,31 @@ comes back quantised to encoder counts. Each effect can be switched off to see i
 from __future__ import annotations
 
 import argparse
-from collections import deque
+import dataclasses
 from typing import Sequence
 
 import numpy as np
 
-from actuator_plant.model import JointPlant
-from actuator_cia402.config import DriverParameters, SimDriveSettings
-from actuator_cia402.scaling import Scaling
-from actuator_cia402.sim_drive import torque_loop
+from actuator_core import limits
+from actuator_plant.encoder import EncoderParameters
+from actuator_cia402.config import SimDriveSettings
+
+#: The simulated drive's encoder: counts per motor revolution (EDS 0x608F).
+MOTOR_COUNTS_PER_REV = 4096
 
 
-class DrivePlant:
-    """A JointPlant behind the drive: command delay in SYNCs, torque loop, encoder quantisation."""
-
-    def __init__(self, plant: JointPlant, scaling: Scaling | None, tau_s: float, delay_syncs: int):
-        """Wrap ``plant``; ``scaling`` None reports the exact angle."""
-        self.plant, self.scaling, self.tau_s = plant, scaling, tau_s
-        self.queue = deque([0.0] * delay_syncs)
-        self.current_a = 0.0
-
-    @property
-    def position_rad(self) -> float:
-        """Position actual 0x6064 as the driver converts it back: counts * 2 pi / (cpr N)."""
-        q = self.plant.position_rad
-        return (
-            q
-            if self.scaling is None
-            else self.scaling.counts_to_rad(self.scaling.rad_to_counts(q))
-        )
-
-    @property
-    def velocity_rad_s(self) -> float:
-        """True joint velocity (only the trace records it)."""
-        return self.plant.velocity_rad_s
-
-    def truth(self, current_a):
-        """Ground truth of the joint, with the current actually flowing."""
-        return self.plant.truth(self.current_a)
-
-    def step(self, current_a: float) -> None:
-        """Put the command into the delay line.
-
-        The drive integrates the one it latched at this SYNC.
-        """
-        self.queue.append(current_a)
-        target = self.queue.popleft()
-        mean, self.current_a = torque_loop(self.current_a, target, self.plant.dt_s, self.tau_s)
-        self.plant.step(mean)
+def drive_scenario(
+    scenario, delay_syncs: int = 1, tau_s: float | None = None, quantise: bool = True
+):
+    """``scenario`` with the drive's command delay, torque loop and encoder counts."""
+    tau = SimDriveSettings().torque_time_constant_s if tau_s is None else tau_s
+    counts = MOTOR_COUNTS_PER_REV * limits.NOMINAL_GEAR_RATIO if quantise else 0
+    return dataclasses.replace(
+        scenario,
+        command_delay_samples=delay_syncs,
+        torque_time_constant_s=tau,
+        encoder=EncoderParameters(counts_per_rev=counts) if quantise else None,
+    )
 
 
 def run(
@@ -75,14 +54,8 @@ def run(
     from actuator_sim.loop import ClosedLoop
     from actuator_sim.params_yaml import all_scenarios
 
-    scenario = all_scenarios()[scenario_name]
-    scenario.duration_s = duration_s
-    loop = ClosedLoop(scenario)
-    tau = SimDriveSettings().torque_time_constant_s if tau_s is None else tau_s
-    loop.plant = DrivePlant(
-        loop.plant, DriverParameters().scaling if quantise else None, tau, delay_syncs
-    )
-    return loop.run()
+    scenario = dataclasses.replace(all_scenarios()[scenario_name], duration_s=duration_s)
+    return ClosedLoop(drive_scenario(scenario, delay_syncs, tau_s, quantise)).run()
 
 
 def window_errors(trace: dict[str, np.ndarray], start_s: float = 1.0) -> tuple[float, float]:

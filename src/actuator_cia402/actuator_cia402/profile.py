@@ -17,22 +17,38 @@ DEVICE_TYPE = 0x1000  # UNSIGNED32; low 16 bits = device profile number (402)
 ERROR_REGISTER = 0x1001  # UNSIGNED8 (CiA 301)
 SYNC_COB_ID = 0x1005  # UNSIGNED32
 COMMUNICATION_CYCLE_US = 0x1006  # UNSIGNED32, SYNC period [us]
+SYNC_WINDOW_US = 0x1007  # UNSIGNED32, synchronous window length [us]
+HEARTBEAT_CONSUMER = 0x1016  # ARRAY of UNSIGNED32: bits 16-23 producer node id, 0-15 time [ms]
 HEARTBEAT_PRODUCER_MS = 0x1017  # UNSIGNED16
 IDENTITY = 0x1018  # RECORD
+BRAKE_CLOSING_MS = 0x2100  # UNSIGNED16 [ms], the simulated drive's (manufacturer-specific)
+ABORT_CONNECTION_OPTION = 0x6007  # INTEGER16: 0 none, 1 fault, 2 disable voltage, 3 quick stop
 ERROR_CODE = 0x603F  # UNSIGNED16, last error code (same codes as EMCY)
 CONTROLWORD = 0x6040  # UNSIGNED16
 STATUSWORD = 0x6041  # UNSIGNED16
 QUICK_STOP_OPTION = 0x605A  # INTEGER16
+SHUTDOWN_OPTION = 0x605B  # INTEGER16
+DISABLE_OPERATION_OPTION = 0x605C  # INTEGER16: 0 disable at once, 1 ramp, then disable
+HALT_OPTION = 0x605D  # INTEGER16
+FAULT_REACTION_OPTION = 0x605E  # INTEGER16: 0 disable at once, 2 quick-stop ramp
 MODES_OF_OPERATION = 0x6060  # INTEGER8
 MODES_OF_OPERATION_DISPLAY = 0x6061  # INTEGER8
 POSITION_ACTUAL = 0x6064  # INTEGER32 [encoder counts]
 TARGET_TORQUE = 0x6071  # INTEGER16 [per mille of rated torque 0x6076]
 MAX_TORQUE = 0x6072  # UNSIGNED16 [per mille of rated torque]
+MAX_CURRENT = 0x6073  # UNSIGNED16 [per mille of rated current]
 RATED_CURRENT = 0x6075  # UNSIGNED32 [mA]
 RATED_TORQUE = 0x6076  # UNSIGNED32 [mN m]
 TORQUE_ACTUAL = 0x6077  # INTEGER16 [per mille of rated torque]
 CURRENT_ACTUAL = 0x6078  # INTEGER16 [per mille of rated current]
+POLARITY = 0x607E  # UNSIGNED8: bit 7 position, bit 6 velocity
+MAX_MOTOR_SPEED = 0x6080  # UNSIGNED32 [rpm]
+TORQUE_SLOPE = 0x6087  # UNSIGNED32 [per mille of rated torque per s]
 ENCODER_RESOLUTION = 0x608F  # ARRAY: 1 = encoder increments, 2 = motor revolutions
+GEAR_RATIO = 0x6091  # ARRAY: 1 = motor revolutions, 2 = shaft revolutions
+FEED_CONSTANT = 0x6092  # ARRAY: 1 = feed, 2 = shaft revolutions
+INTERPOLATION_PERIOD = 0x60C2  # RECORD: 1 = value (UNSIGNED8), 2 = index (INTEGER8, 10^index s)
+DIGITAL_INPUTS = 0x60FD  # UNSIGNED32; bits 16-31 manufacturer-specific
 SUPPORTED_DRIVE_MODES = 0x6502  # UNSIGNED32, bit 9 = cyclic synchronous torque
 
 #: CiA 402 device profile number in the low word of 0x1000.
@@ -75,6 +91,8 @@ SW_QUICK_STOP = 1 << 5  # 0 = quick stop active (low active)
 SW_WARNING = 1 << 7
 SW_REMOTE = 1 << 9
 SW_TARGET_REACHED = 1 << 10
+SW_FOLLOWS_TARGET = 1 << 12  # cyclic modes: 1 = the drive follows the target, 0 = ignores it
+SW_FOLLOWING_ERROR = 1 << 13
 
 
 def decode_state(statusword: int) -> State | None:
@@ -122,6 +140,7 @@ class Command(enum.Enum):
 
 
 CW_FAULT_RESET = 1 << 7
+CW_HALT = 1 << 8
 
 
 def decode_command(controlword: int) -> Command:

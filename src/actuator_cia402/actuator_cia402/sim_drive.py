@@ -1,109 +1,66 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""A simulated CiA 402 joint drive: a canopen LocalNode on the bus, this project's joint behind it.
+"""A simulated CiA 402 joint drive: a canopen LocalNode on the bus, the simulated joint behind it.
 
-The drive answers SDO and NMT like a real one, runs the CiA 402 power state machine
-(profile.TRANSITIONS), and in cyclic synchronous torque mode (0x6060 = 10) steps once per
-SYNC, as a synchronous drive does (CiA 301: a synchronous RPDO takes effect at the next SYNC):
+It behaves as a real CST drive does, hazards included, so the master can be tested against
+them (the console script ``cia402_sim_drive`` runs it in a process of its own):
 
-  0. when the SYNC comes late (the master overran and skipped cycles), the skipped periods pass
-     first with the command held by the gate (0 A and brake once it timed out): the joint's
-     time goes on as the wall clock's, as for a real drive and as the plant node does;
-  1. latch the RPDO received since the last SYNC (controlword 0x6040, target torque 0x6071)
-     and offer the target to its own CommandGate (0 A and brake when not enabled, on quick
-     stop or when RPDOs stop for command_timeout_s: the drive's RPDO watchdog);
-  2. sample the joint at t_k: encoder counts 0x6064 (quantised), torque 0x6077, current 0x6078,
-     statusword 0x6041, error code 0x603F, and send TPDO1/TPDO2;
-  3. integrate the joint model (actuator_plant.model.JointPlant, deep sea or lab) over
-     [t_k, t_k+1) with the current of a first-order torque loop following the target
-     (time constant tau: i(t) = i* + (i(t_k) - i*) exp(-(t - t_k)/tau), mean over the sample held),
-     or hold the joint still while the holding brake is engaged.
+- drive time follows the wall clock whether SYNCs come or not (a clock thread steps the
+  periods no SYNC stepped); a SYNC latches the RPDO received since the last SYNC (0x6040,
+  0x6071), samples and answers TPDO1/TPDO2. With no master the drive keeps its last target
+  torque: only its heartbeat consumer (0x1016) stops it, by the abort connection option 0x6007;
+- 0x6071 is a stored object: kept across NMT start and across enable (no zeroing);
+- the SYNC window 0x1007 discards an RPDO that arrives later than the window after the SYNC;
+- quick stop (0x605A), disable operation (0x605C) and the fault reaction (0x605E) ramp the
+  torque to 0 at the torque slope 0x6087, then close the brake, which takes its closing time
+  (0x2100); the state changes when that is done ('fault reaction active' meanwhile). Disable
+  voltage during a ramp cuts it (logged as an event);
+- the brake's state is readable: 0x60FD bit 16 (manufacturer-specific) = brake closed;
+- injectable: drive faults, EMCY, dropped TPDOs, a silent drive, STO (operation left without a
+  fault, voltage off), a quick-stop input, remote off, 'target ignored' (statusword bit 12 low),
+  and bus errors (sent by the hub as error frames);
+- polarity 0x607E bit 7 inverts position and torque; position actual 0x6064 wraps as INTEGER32;
+- NMT reset communication restores the communication objects (0x1000-0x1FFF) to the EDS's
+  defaults and sends the boot-up; the power state machine and 0x6071 are not reset.
 
-Faults to inject (FaultPlan): an over-current or following-error fault (fault state, EMCY,
-0x603F), extra EMCY frames without a fault, dropped TPDOs, and a silent bus (the drive stops
-answering anything: a cut cable). A real over-current (|i| > over_current_a) faults too.
+The joint is ``actuator_plant.sim_joint.SimulatedJoint`` (model, torque loop, holding brake):
+the one brake model. Position is quantised through the drive's ``Scaling``.
 """
 
 from __future__ import annotations
 
-import math
 import random
 import threading
 import time
-from dataclasses import dataclass
+from typing import Callable
 
 import canopen
 
-from actuator_core import limits
-from actuator_core.gate import CommandGate
-from actuator_plant.model import JointPlant, PlantParameters, WorkingCondition
+from actuator_plant.model import PlantParameters
+from actuator_plant.sim_joint import SimulatedJoint
 from actuator_cia402 import profile as p
 from actuator_cia402.pdo_codec import PdoCodec
 from actuator_cia402.scaling import Scaling
+from actuator_cia402.sim_faults import FAULT_CODES, FaultPlan, inject_due, plant_parameters
 
-#: Error register 0x1001 bits (CiA 301): generic error, current.
 ERROR_REGISTER_GENERIC = 0x01
 ERROR_REGISTER_CURRENT = 0x02
-FAULT_CODES = {'over_current': 0x2310, 'following_error': 0x8611}
-#: Longest gap a late SYNC is caught up over [periods]; beyond it the joint model's time is lost.
+HEARTBEAT_ERROR = 0x8130
+#: Longest gap caught up at once [periods]; beyond it the joint model's time is lost.
 MAX_CATCH_UP_PERIODS = 1000
+#: 0x60FD bit 16 (manufacturer-specific): the holding brake is closed.
+DI_BRAKE_CLOSED = 1 << 16
+INT32 = 2**32
 
 
-@dataclass(frozen=True)
-class FaultPlan:
-    """Faults to inject, at drive time t [s] counted in SYNCs since NMT operational.
-
-    Negative = never.
-    """
-
-    fault_kind: str = 'none'  # 'none', 'over_current' or 'following_error'
-    fault_at_s: float = -1.0
-    emcy_code: int = 0xFF00  # extra EMCY frame (error register 0: a warning, no fault)
-    emcy_at_s: float = -1.0
-    drop_tpdo_fraction: float = 0.0  # share of SYNCs answered without TPDOs
-    silent_at_s: float = -1.0  # from then on the drive is silent (no TPDO, SDO, heartbeat)
-    seed: int = 1
-
-    def __post_init__(self) -> None:
-        """Refuse an unknown fault kind or a fraction outside [0, 1]."""
-        if self.fault_kind not in ('none', *FAULT_CODES):
-            raise ValueError(
-                f'fault_kind must be none, {", ".join(FAULT_CODES)}; got {self.fault_kind!r}'
-            )
-        if not 0.0 <= self.drop_tpdo_fraction <= 1.0:
-            raise ValueError(
-                f'drop_tpdo_fraction must be in [0, 1], got {self.drop_tpdo_fraction}'
-            )
-
-
-def plant_parameters(working_condition: str) -> PlantParameters:
-    """Return the joint model of the paper in ``working_condition``.
-
-    'deep_sea': 10 MPa, 2 degC; 'lab': 0 MPa, 25 degC.
-    """
-    conditions = {'deep_sea': WorkingCondition.deep_sea, 'lab': WorkingCondition.lab}
-    if working_condition not in conditions:
-        raise ValueError(f'working_condition must be deep_sea or lab, got {working_condition!r}')
-    return PlantParameters(condition=conditions[working_condition]())
-
-
-def torque_loop(
-    current_a: float, target_a: float, dt_s: float, tau_s: float
-) -> tuple[float, float]:
-    """First-order torque loop over one period: (mean current, end current).
-
-    i = i* + (i0 - i*) exp(-t/tau).
-    """
-    if tau_s <= 0.0:
-        return target_a, target_a
-    decay = math.exp(-dt_s / tau_s)
-    mean = target_a + (current_a - target_a) * (tau_s / dt_s) * (1.0 - decay)
-    return mean, target_a + (current_a - target_a) * decay
+def wrap_int32(value: int) -> int:
+    """``value`` as an INTEGER32 counter shows it (two's complement wrap)."""
+    return (value + 2**31) % INT32 - 2**31
 
 
 class SimulatedDrive:
-    """CiA 402 drive in CST mode on a (virtual) CAN bus, with the joint model as motor and load."""
+    """CiA 402 drive in CST mode on a CAN bus, with the simulated joint as motor and load."""
 
     def __init__(
         self,
@@ -111,82 +68,119 @@ class SimulatedDrive:
         node_id: int,
         scaling: Scaling,
         sync_period_s: float,
-        channel: str,
-        interface: str = 'virtual',
         plant: PlantParameters | None = None,
         torque_time_constant_s: float = 2.0e-4,
         faults: FaultPlan = FaultPlan(),
-        current_limit_a: float = limits.CURRENT_LIMIT_A,
-        command_timeout_s: float = limits.COMMAND_TIMEOUT_S,
-        over_current_a: float = 1.25 * limits.CURRENT_LIMIT_A,
+        over_current_a: float = 25.0,
         initial_position_rad: float = 0.0,
+        encoder_offset_counts: int = 0,
+        on_event: Callable[[str], None] | None = None,
     ):
-        """Build the drive (not yet on the bus: call start())."""
-        if not torque_time_constant_s >= 0.0:
-            raise ValueError(f'torque_time_constant_s must be >= 0, got {torque_time_constant_s}')
+        """Build the drive (not yet on a bus: ``attach`` it to a connected network)."""
         self.scaling = scaling
         self.dt_s = sync_period_s
         self.period_ns = int(round(sync_period_s * 1e9))
-        self.plant = JointPlant(
-            plant or plant_parameters('deep_sea'), sync_period_s, position_rad=initial_position_rad
+        self.joint = SimulatedJoint(
+            plant or plant_parameters('deep_sea'),
+            sync_period_s,
+            position_rad=initial_position_rad,
+            torque_time_constant_s=torque_time_constant_s,
         )
-        self.tau_s = torque_time_constant_s
+        self.joint.read(0)  # the first read only samples: from now on each read integrates
         self.faults = faults
         self.over_current_a = over_current_a
-        self.gate = CommandGate(current_limit_a, command_timeout_s)
+        self.encoder_offset_counts = encoder_offset_counts
         self.rng = random.Random(faults.seed)
         self.node = canopen.LocalNode(node_id, eds_path)
-        self.network = canopen.Network()
-        self.network.NOTIFIER_CYCLE = 0.1  # stop() returns within 0.1 s
-        self.channel, self.interface = channel, interface
+        self.od = self.node.object_dictionary
+        self.on_event = on_event or (lambda text: None)
+        self.events: list[str] = []
         self.lock = threading.RLock()
-        self.state = p.State.NOT_READY_TO_SWITCH_ON
-        self.mode = 0
+        self.state = p.State.SWITCH_ON_DISABLED
         self.last_controlword = 0
+        self.target_permille = 0  # 0x6071, a stored object
         self.error_code = 0
         self.error_register = 0
-        self.current_a = 0.0  # actual motor current (torque loop output)
-        self.target_current_a = 0.0
-        self.brake = True
-        self.syncs = 0  # SYNCs stepped in NMT operational
+        self.brake_closed = True
+        self._brake_closing_at: float | None = None  # drive time the brake will be closed
+        self.ramp_permille = 0.0  # the torque the drive applies while it ramps down
+        self._stopping: p.State | None = None  # state reached once ramp and brake are done
+        self._cut_ramps = 0
+        self.sto = self.remote_off = self.target_ignored = self.silent = False
+        self.syncs = 0  # periods of drive time
+        self.origin: int | None = None  # period of the first SYNC: time 0 of the fault plan
+        self.sync_frames = 0
         self.tpdos_dropped = 0
-        self.emcy_sent = 0
-        self.silent = False
-        self._rpdo_new = False
+        self.rpdos_discarded = 0
+        self._rpdo_data: tuple | None = None
+        self._last_sync_mono = 0.0
         self._pdo_ready = False
-        self._fault_injected = False
-        self._emcy_injected = False
-        self._sync_t0_ns: int | None = (
-            None  # wall time of drive time 0 (set on the first SYNC in operational)
-        )
-        self.idle_periods = 0  # periods integrated without a SYNC (the master was late)
-        self.last_tpdo_counts = 0  # position actual in the newest TPDO1
+        self._injected: set = set()
+        self._heartbeat_seen: float | None = None
+        self._heartbeat_lost = False
+        self._heartbeat_producer = 0
+        self.network: canopen.Network | None = None
+        self._t0_ns = time.monotonic_ns()
+        self._clock_stop = threading.Event()
+        self._cache: dict = {}
 
     # --- bus --------------------------------------------------------------------------------
-    def start(self) -> 'SimulatedDrive':
-        """Join the bus.
-
-        Boot (boot-up message, NMT pre-operational) and reach 'switch on disabled'.
-        """
-        self.network.connect(
-            interface=self.interface, channel=self.channel, receive_own_messages=False
-        )
-        self.network.add_node(self.node)
-        # Route SDO and NMT through this drive, so a silent drive answers nothing.
-        self.network.unsubscribe(self.node.sdo.rx_cobid, self.node.sdo.on_request)
-        self.network.subscribe(self.node.sdo.rx_cobid, self._on_sdo)
-        self.network.unsubscribe(0, self.node.nmt.on_command)
-        self.network.subscribe(0, self._on_nmt)
-        self.network.subscribe(0x80, self._on_sync)
+    def attach(self, network: canopen.Network) -> 'SimulatedDrive':
+        """Join a connected network, send the boot-up and start the drive's clock."""
+        self.network = network
+        network.add_node(self.node)
+        network.unsubscribe(self.node.sdo.rx_cobid, self.node.sdo.on_request)
+        network.subscribe(self.node.sdo.rx_cobid, self._on_sdo)
+        network.unsubscribe(0, self.node.nmt.on_command)
+        network.subscribe(0, self._on_nmt)
+        network.subscribe(0x80, self._on_sync)
         self.node.add_read_callback(self._on_read)
         self.node.add_write_callback(self._on_write)
-        self.node.nmt.send_command(0x80)  # boot-up -> pre-operational
-        self.state = p.State.SWITCH_ON_DISABLED  # not ready -> switch on disabled (transition 1)
+        self._boot()
+        threading.Thread(target=self._clock, name=f'drive-{self.node.id}', daemon=True).start()
         return self
 
     def stop(self) -> None:
-        """Leave the bus."""
-        self.network.disconnect()
+        """Stop the drive's clock."""
+        self._clock_stop.set()
+
+    def _boot(self) -> None:
+        """Boot-up message, then NMT pre-operational (CiA 301)."""
+        self.node.nmt.send_command(0x82)  # state 'initialising': sends the boot-up
+        self.node.nmt.send_command(0x80)
+
+    def leave_enabled(self, target_permille: int) -> None:
+        """Put the drive where a crashed master left it: operational, enabled, a target."""
+        with self.lock:
+            self.node.nmt.send_command(0x01)
+            self._take_pdo_config()
+            self.target_permille = target_permille
+            self.node.data_store.setdefault(p.MODES_OF_OPERATION, {})[0] = bytes([p.MODE_CST])
+            self._cache.clear()
+            self.state = p.State.OPERATION_ENABLED
+            self.brake_closed, self._brake_closing_at = False, None
+            self._event(f'left enabled with 0x6071 = {target_permille} per mille')
+
+    def _event(self, text: str) -> None:
+        """Keep and report one event of the drive."""
+        line = f'drive {self.node.id} t={self.syncs * self.dt_s:.3f} s: {text}'
+        self.events.append(line)
+        self.on_event(line)
+
+    def _cfg(self, index: int, subindex: int = 0) -> int:
+        """Value of a configuration object (stored, else the EDS default), cached until written."""
+        key = (index, subindex)
+        value = self._cache.get(key)
+        if value is None:
+            obj = self.od[index]
+            if not isinstance(obj, canopen.objectdictionary.ODVariable):
+                obj = obj[subindex]
+            try:
+                raw = self.node.data_store[index][subindex]
+            except KeyError:
+                raw = obj.encode_raw(obj.default)
+            value = self._cache[key] = obj.decode_raw(raw)
+        return value
 
     def _on_sdo(self, can_id, data, timestamp) -> None:
         """SDO request: answered unless the drive is silent."""
@@ -194,233 +188,337 @@ class SimulatedDrive:
             self.node.sdo.on_request(can_id, data, timestamp)
 
     def _on_nmt(self, can_id, data, timestamp) -> None:
-        """NMT command.
-
-        On entering operational the drive takes the PDO configuration the master wrote.
-        """
-        if self.silent:
+        """NMT: reset communication restores 0x1000-0x1FFF; operational takes the PDO set-up."""
+        if self.silent or data[1] not in (0, self.node.id):
             return
-        self.node.nmt.on_command(can_id, data, timestamp)
-        if self.node.nmt.state == 'OPERATIONAL' and not self._pdo_ready:
-            self._sync_t0_ns = None
-            self.node.rpdo.read()
-            self.node.tpdo.read()
-            self._rpdo_map = self.node.rpdo[1]
-            if self._on_rpdo not in self._rpdo_map.callbacks:
-                self._rpdo_map.add_callback(self._on_rpdo)
-            self._rpdo_cw, self._rpdo_torque = (
-                self._rpdo_map[p.CONTROLWORD],
-                self._rpdo_map[p.TARGET_TORQUE],
-            )
-            self._tpdo1, self._tpdo2 = self.node.tpdo[1], self.node.tpdo[2]
-            self._tpdo_codecs = [
-                (m, PdoCodec.compile(m), [v.index for v in m.map])
-                for m in (self._tpdo1, self._tpdo2)
-            ]
-            self._pdo_ready = True
-        elif self.node.nmt.state != 'OPERATIONAL':
-            self._pdo_ready = False
+        with self.lock:
+            if data[0] in (0x81, 0x82):
+                for index in [i for i in self.node.data_store if i < 0x2000]:
+                    del self.node.data_store[index]
+                self._cache.clear()
+                self._heartbeat_seen, self._heartbeat_lost = None, False
+                self._pdo_ready = False
+                self._event('NMT reset communication: communication objects at defaults')
+                self._boot()
+                return
+            self.node.nmt.on_command(can_id, data, timestamp)
+            if self.node.nmt.state == 'OPERATIONAL':
+                self._last_sync_mono = 0.0  # the window counts from the first SYNC
+                self._take_pdo_config()
+            else:
+                self._pdo_ready = False
+
+    def _take_pdo_config(self) -> None:
+        """Read the PDO configuration the master wrote and compile the cycle's codecs."""
+        self.node.rpdo.read()
+        self.node.tpdo.read()
+        rpdo = self.node.rpdo[1]
+        if self._on_rpdo not in rpdo.callbacks:
+            rpdo.add_callback(self._on_rpdo)
+        self._rpdo_codec = PdoCodec.compile(rpdo)
+        self._rpdo_indices = [v.index for v in rpdo.map]
+        self._tpdo_codecs = [
+            (m, PdoCodec.compile(m), [v.index for v in m.map])
+            for m in (self.node.tpdo[1], self.node.tpdo[2])
+            if m.enabled
+        ]
+        self._pdo_ready = True
 
     def _on_rpdo(self, pdo_map) -> None:
-        """RPDO received: taken at the next SYNC (synchronous transmission type)."""
-        self._rpdo_new = True
+        """RPDO: kept for the next SYNC unless it came after the SYNC window."""
+        window_s = self._cfg(p.SYNC_WINDOW_US) * 1e-6
+        since_sync_s = time.monotonic() - self._last_sync_mono
+        if window_s and self._last_sync_mono and since_sync_s > window_s:
+            self.rpdos_discarded += 1
+            if self.rpdos_discarded == 1:
+                self._event('RPDO after the SYNC window discarded')
+            return
+        values = self._rpdo_codec.unpack(bytes(pdo_map.data))
+        self._rpdo_data = dict(zip(self._rpdo_indices, values))
+
+    def _on_heartbeat(self, can_id, data, timestamp) -> None:
+        """Note a heartbeat of the monitored producer (0x1016 sub 1)."""
+        self._heartbeat_seen = time.monotonic()
+        self._heartbeat_lost = False
 
     # --- object dictionary ------------------------------------------------------------------
     def _on_read(self, index: int, subindex: int, od) -> int | None:
-        """Live values of the process objects for SDO reads.
-
-        0x6041, 0x6061, 0x6064, 0x6077, 0x6078, 0x603F, 0x1001.
-        """
+        """Live values of the process objects for SDO reads."""
         with self.lock:
             live = {
                 p.STATUSWORD: self.statusword,
-                p.MODES_OF_OPERATION_DISPLAY: self.mode,
+                p.MODES_OF_OPERATION_DISPLAY: self._cfg(p.MODES_OF_OPERATION),
                 p.POSITION_ACTUAL: self.position_counts,
                 p.TORQUE_ACTUAL: self.torque_permille,
                 p.CURRENT_ACTUAL: self.scaling.current_to_permille(self.current_a),
                 p.ERROR_CODE: self.error_code,
                 p.ERROR_REGISTER: self.error_register,
+                p.TARGET_TORQUE: self.target_permille,
+                p.DIGITAL_INPUTS: DI_BRAKE_CLOSED if self.brake_closed else 0,
             }
             return live.get(index)
 
     def _on_write(self, index: int, subindex: int, od, data: bytes) -> None:
-        """SDO writes that act at once.
-
-        Controlword 0x6040 (state machine), modes of operation 0x6060.
-        """
+        """SDO writes that act at once: controlword, target torque, heartbeat consumer."""
         with self.lock:
+            self._cache.pop((index, subindex), None)
+            self.node.data_store.setdefault(index, {})[subindex] = bytes(data)
             if index == p.CONTROLWORD:
                 self.apply_controlword(od.decode_raw(data))
-            elif index == p.MODES_OF_OPERATION:
-                self.mode = od.decode_raw(data)
+            elif index == p.TARGET_TORQUE:
+                self.target_permille = od.decode_raw(data)
+            elif index == p.HEARTBEAT_CONSUMER and subindex == 1:
+                value = od.decode_raw(data)
+                if self._heartbeat_producer:
+                    self.network.unsubscribe(0x700 + self._heartbeat_producer, self._on_heartbeat)
+                self._heartbeat_producer = (value >> 16) & 0x7F
+                if self._heartbeat_producer:
+                    self.network.subscribe(0x700 + self._heartbeat_producer, self._on_heartbeat)
+                self._heartbeat_seen, self._heartbeat_lost = None, False
+
+    @property
+    def current_a(self) -> float:
+        """Motor current actual [A]: the torque loop's mean over the last period."""
+        return float(self.joint.applied_a)
+
+    @property
+    def _sign(self) -> int:
+        """-1 when polarity 0x607E bit 7 inverts position and torque."""
+        return -1 if self._cfg(p.POLARITY) & 0x80 else 1
 
     @property
     def statusword(self) -> int:
-        """Statusword 0x6041 of the present state."""
-        return p.encode_statusword(self.state)
+        """Statusword 0x6041: state, remote, 'follows the target' in operation."""
+        word = p.encode_statusword(self.state, remote=not self.remote_off)
+        if self.sto:
+            word &= ~p.SW_VOLTAGE_ENABLED
+        if self.state is p.State.OPERATION_ENABLED and not self.target_ignored:
+            word |= p.SW_FOLLOWS_TARGET
+        if self.state is p.State.QUICK_STOP_ACTIVE and self._stopping is None:
+            word |= p.SW_TARGET_REACHED  # halted
+        return word
 
     @property
     def position_counts(self) -> int:
-        """Position actual 0x6064: the joint angle quantised to encoder counts."""
-        return self.scaling.rad_to_counts(float(self.plant.position_rad))
+        """Position actual 0x6064: the joint angle in encoder counts, INTEGER32 (wraps)."""
+        counts = round(float(self.joint.plant.position_rad) / self.scaling.rad_per_count)
+        return wrap_int32(self._sign * counts + self.encoder_offset_counts)
 
     @property
     def torque_permille(self) -> int:
-        """Torque actual 0x6077 [per mille of rated torque]: k_tn i / T_rated."""
-        return self.scaling.current_to_torque_permille(self.current_a)
+        """Torque actual 0x6077 [per mille of rated torque]: k_t i / T_rated."""
+        return self._sign * self.scaling.current_to_torque_permille(self.current_a)
 
     # --- state machine ----------------------------------------------------------------------
     def apply_controlword(self, controlword: int) -> None:
         """One controlword 0x6040: CiA 402 transition; fault reset on the rising edge of bit 7."""
+        if self.remote_off:
+            return  # controlled locally: the bus's controlword is ignored
         command = p.decode_command(controlword)
-        rising_reset = (
-            bool(controlword & p.CW_FAULT_RESET) and not self.last_controlword & p.CW_FAULT_RESET
-        )
+        reset_bit = p.CW_FAULT_RESET
+        rising = bool(controlword & reset_bit) and not self.last_controlword & reset_bit
         self.last_controlword = controlword
         if command is p.Command.FAULT_RESET:
-            if rising_reset and self.state is p.State.FAULT:
-                self._clear_fault()
+            if rising and self.state is p.State.FAULT:
+                self.state, self.error_code, self.error_register = p.State.SWITCH_ON_DISABLED, 0, 0
+                self._send_emcy(0x0000, 0)
             return
-        if (
-            command is p.Command.ENABLE_OPERATION
-            and self.state is p.State.SWITCHED_ON
-            and self.mode != p.MODE_CST
-        ):
-            return  # this drive runs CST only
         before = self.state
-        self.state = p.next_state(self.state, command)
-        if self.state is p.State.OPERATION_ENABLED and before is not p.State.OPERATION_ENABLED:
-            self.gate.activate()
-        elif self.state is not p.State.OPERATION_ENABLED and before is p.State.OPERATION_ENABLED:
-            self.gate.deactivate()
-            self.brake, self.target_current_a = True, 0.0
+        after = p.next_state(before, command)
+        stopping = self._stopping is not None and command is not p.Command.DISABLE_VOLTAGE
+        if after is before or stopping:
+            return
+        if self.sto and after in (
+            p.State.READY_TO_SWITCH_ON,
+            p.State.SWITCHED_ON,
+            p.State.OPERATION_ENABLED,
+        ):
+            return  # no power stage: stays in 'switch on disabled'
+        if after is p.State.OPERATION_ENABLED:
+            if self._cfg(p.MODES_OF_OPERATION) != p.MODE_CST:
+                return  # this drive runs CST only
+            self._event(f'operation enabled with 0x6071 = {self.target_permille} per mille')
+            self.state, self.brake_closed, self._brake_closing_at = after, False, None
+            self._event('brake released')
+            return
+        if before is p.State.OPERATION_ENABLED:
+            if after is p.State.QUICK_STOP_ACTIVE:
+                self._begin_stop(self._cfg(p.QUICK_STOP_OPTION), p.State.QUICK_STOP_ACTIVE)
+                self.state = p.State.QUICK_STOP_ACTIVE
+                return
+            if after is p.State.SWITCHED_ON and self._cfg(p.DISABLE_OPERATION_OPTION) == 1:
+                self._begin_stop(1, after)
+                return
+            self._close_brake()
+        if self._stopping is not None and after is p.State.SWITCH_ON_DISABLED:
+            self._cut_ramps += 1
+            self._event(
+                f'ramp cut by disable voltage at {self.ramp_permille:.0f} per mille, '
+                f'brake {"closed" if self.brake_closed else "open"}'
+            )
+            self._stopping = None
+            self.ramp_permille = 0.0
+            self._close_brake()
+        elif after is p.State.SWITCH_ON_DISABLED and not self.brake_closed:
+            self._event('voltage disabled with the brake open')
+        self.state = after
+
+    def _begin_stop(self, option: int, final: p.State) -> None:
+        """Ramp (option 1, 2, 5, 6) or not (0), then the brake, then ``final``."""
+        self.ramp_permille = float(self._applied_target()) if option else 0.0
+        stay = option in (5, 6)
+        if final is p.State.QUICK_STOP_ACTIVE and not stay:
+            final = p.State.SWITCH_ON_DISABLED
+        self._stopping = final
+        self._event(f'stopping: ramp from {self.ramp_permille:.0f} per mille (option {option})')
+
+    def _close_brake(self) -> None:
+        """Start closing the brake (closing time 0x2100)."""
+        if not self.brake_closed and self._brake_closing_at is None:
+            self._brake_closing_at = self.syncs * self.dt_s + self._cfg(p.BRAKE_CLOSING_MS) * 1e-3
 
     def _raise_fault(self, code: int) -> None:
-        """Fault reaction: 0 A, brake, state fault, 0x603F and 0x1001 set, EMCY sent."""
-        self.gate.deactivate()
-        self.brake, self.target_current_a = True, 0.0
-        self.state = p.State.FAULT
+        """Fault reaction (0x605E): ramp, brake, then 'fault'; 0x603F, 0x1001 set, EMCY sent."""
+        powered = self.state in (p.State.OPERATION_ENABLED, p.State.QUICK_STOP_ACTIVE)
         self.error_code = code
         self.error_register = ERROR_REGISTER_GENERIC | (
             ERROR_REGISTER_CURRENT if code >> 12 == 0x2 else 0
         )
         self._send_emcy(code, self.error_register)
-
-    def _clear_fault(self) -> None:
-        """Fault reset (transition 15).
-
-        'switch on disabled', error code cleared, EMCY 'error reset'.
-        """
-        self.state = p.State.SWITCH_ON_DISABLED
-        self.error_code = 0
-        self.error_register = 0
-        self._send_emcy(0x0000, 0)
+        self._event(f'fault 0x{code:04X} {p.error_text(code)}')
+        if powered:
+            self._begin_stop(2 if self._cfg(p.FAULT_REACTION_OPTION) else 0, p.State.FAULT)
+            self.state = p.State.FAULT_REACTION_ACTIVE
+        else:
+            self.state = p.State.FAULT
 
     def _send_emcy(self, code: int, register: int) -> None:
         """EMCY frame (CiA 301: code, error register, 5 vendor bytes)."""
         if not self.silent:
             self.node.emcy.send(code, register)
-            self.emcy_sent += 1
 
     # --- the cycle --------------------------------------------------------------------------
+    def _clock(self) -> None:
+        """Step the periods no SYNC stepped (drive time follows the wall clock)."""
+        while not self._clock_stop.wait(max(0.002, 2 * self.dt_s)):
+            with self.lock:
+                self._catch_up(margin=1)
+
+    def _catch_up(self, margin: int) -> None:
+        """Step idle periods until drive time is ``margin`` periods behind the wall clock."""
+        due = (time.monotonic_ns() - self._t0_ns) // self.period_ns
+        for _ in range(min(MAX_CATCH_UP_PERIODS, due - margin - self.syncs)):
+            self._advance(cycle=False)
+
     def _on_sync(self, can_id, data, timestamp) -> None:
-        """SYNC.
-
-        The periods a late SYNC skipped pass first (time goes on for the joint), then one drive
-        cycle.
-        """
-        if self.silent or not self._pdo_ready:
+        """SYNC: the periods before it pass, then one drive cycle."""
+        if self.silent:
             return
-        now = time.monotonic_ns()
         with self.lock:
-            if self._sync_t0_ns is None:  # first SYNC in operational: drive time meets wall time
-                self._sync_t0_ns = now - self.syncs * self.period_ns
-            due = (now - self._sync_t0_ns + self.period_ns // 2) // self.period_ns
-            for _ in range(min(MAX_CATCH_UP_PERIODS, due - self.syncs)):
-                self._advance(cycle=False)
-            self._advance(cycle=True)
+            self.sync_frames += 1
+            if self.origin is None:  # the faults' clock starts with the first SYNC
+                self.origin = self.syncs
+            self._catch_up(margin=0)
+            self._advance(cycle=self._pdo_ready)
+            self._last_sync_mono = time.monotonic()
 
-    def step(self) -> None:
-        """One drive cycle as on a SYNC.
-
-        Latch the RPDO, faults, sample and send TPDOs, integrate one period.
-        """
-        self._advance(cycle=True)
+    def _applied_target(self) -> int:
+        """Target torque [per mille] within 0x6072 and 0x6073, in the motor's sense (0x607E)."""
+        limit = min(
+            self._cfg(p.MAX_TORQUE),
+            self.scaling.current_to_torque_permille(
+                self._cfg(p.MAX_CURRENT) * self.scaling.rated_current_a / 1000.0
+            ),
+        )
+        return max(-limit, min(limit, self._sign * self.target_permille))
 
     def _advance(self, cycle: bool) -> None:
-        """One sync period of drive time.
-
-        ``cycle``: with the RPDO latched and TPDOs sent (a SYNC), else idle.
-        """
+        """One period of drive time; ``cycle``: a SYNC (RPDO latched, TPDOs sent)."""
         t_s = self.syncs * self.dt_s
-        now_ns = self.syncs * self.period_ns
         self.syncs += 1
-        f = self.faults
-        if 0.0 <= f.silent_at_s <= t_s:
-            self.silent = True
+        if self.origin is not None:
+            inject_due(self, (self.syncs - 1 - self.origin) * self.dt_s)
+        if self.silent:
             return
-        if cycle and self._rpdo_new:
-            self._rpdo_new = False
-            self.apply_controlword(self._rpdo_cw.raw)
-            current = self.scaling.torque_permille_to_current(self._rpdo_torque.raw)
-            self.gate.offer(current, now_ns, False, now_ns)
-        if f.fault_kind != 'none' and 0.0 <= f.fault_at_s <= t_s and not self._fault_injected:
-            self._fault_injected = True
-            self._raise_fault(FAULT_CODES[f.fault_kind])
-        if 0.0 <= f.emcy_at_s <= t_s and not self._emcy_injected:
-            self._emcy_injected = True
-            self._send_emcy(f.emcy_code, 0)
-        if (
-            self.state is p.State.QUICK_STOP_ACTIVE
-        ):  # option code 2: stopped (brake) -> switch on disabled
-            self.state = p.State.SWITCH_ON_DISABLED
-        held = self.gate.hold(now_ns)
-        self.target_current_a, self.brake = held.current_a, held.brake
+        if cycle and self._rpdo_data is not None:
+            data, self._rpdo_data = self._rpdo_data, None
+            if not self.remote_off:
+                if p.TARGET_TORQUE in data:
+                    self.target_permille = data[p.TARGET_TORQUE]
+                if p.CONTROLWORD in data:
+                    self.apply_controlword(data[p.CONTROLWORD])
+        self._supervise_heartbeat()
+        current = self._power_stage(t_s)
         if cycle:
             self._send_tpdos()
-        else:
-            self.idle_periods += 1
-        self._integrate()
-        if abs(self.current_a) > self.over_current_a and self.state is not p.State.FAULT:
+        self.joint.write(current, self.brake_closed)
+        self.joint.read(self.syncs * self.period_ns)
+        if abs(self.joint._flowing_a) > self.over_current_a and self.error_code == 0:
             self._raise_fault(FAULT_CODES['over_current'])
 
-    def _send_tpdos(self) -> None:
-        """TPDO1/TPDO2 with the objects the master mapped.
+    def _power_stage(self, t_s: float) -> float:
+        """Return the motor current applied over this period [A]; ramps and brake advance."""
+        s = self.scaling
+        if self._brake_closing_at is not None and t_s >= self._brake_closing_at:
+            self.brake_closed, self._brake_closing_at = True, None
+            self._event('brake closed')
+        if self._stopping is not None:
+            step = self._cfg(p.TORQUE_SLOPE) * self.dt_s
+            r = self.ramp_permille
+            self.ramp_permille = 0.0 if abs(r) <= step else r - step * (1 if r > 0 else -1)
+            if self.ramp_permille == 0.0:
+                self._close_brake()
+                if self.brake_closed:
+                    self.state, self._stopping = self._stopping, None
+                    self._event(f'stopped: {self.state.value}')
+            return s.torque_permille_to_current(round(self.ramp_permille))
+        if self.state is p.State.OPERATION_ENABLED and not self.sto:
+            if self.target_ignored or self.last_controlword & p.CW_HALT:
+                return 0.0
+            return s.torque_permille_to_current(self._applied_target())
+        self._close_brake()
+        return 0.0
 
-        Statusword, position, torque; current, error code.
-        """
-        if f_drop := self.faults.drop_tpdo_fraction:
-            if self.rng.random() < f_drop:
-                self.tpdos_dropped += 1
-                return
-        self.last_tpdo_counts = self.position_counts
+    def _supervise_heartbeat(self) -> None:
+        """Heartbeat consumer 0x1016: a producer silent beyond its time triggers 0x6007."""
+        time_ms = self._cfg(p.HEARTBEAT_CONSUMER, 1) & 0xFFFF
+        seen = self._heartbeat_seen
+        if not time_ms or seen is None or self._heartbeat_lost:
+            return
+        if time.monotonic() - seen > time_ms * 1e-3:
+            self._heartbeat_lost = True
+            option = self._cfg(p.ABORT_CONNECTION_OPTION)
+            self._event(
+                f'heartbeat of node {self._heartbeat_producer} lost for {time_ms} ms: '
+                f'abort connection option {option}'
+            )
+            self._send_emcy(HEARTBEAT_ERROR, ERROR_REGISTER_GENERIC)
+            if option == 1:
+                self._raise_fault(HEARTBEAT_ERROR)
+            elif option == 2:
+                self.apply_controlword(p.Command.DISABLE_VOLTAGE.value)
+            elif option == 3:
+                self.apply_controlword(p.Command.QUICK_STOP.value)
+
+    def _send_tpdos(self) -> None:
+        """TPDO1/TPDO2 with the objects the master mapped."""
+        if self.faults.drop_tpdo_fraction and self.rng.random() < self.faults.drop_tpdo_fraction:
+            self.tpdos_dropped += 1
+            return
         live = {
             p.STATUSWORD: self.statusword,
-            p.POSITION_ACTUAL: self.last_tpdo_counts,
+            p.POSITION_ACTUAL: self.position_counts,
             p.TORQUE_ACTUAL: self.torque_permille,
             p.CURRENT_ACTUAL: self.scaling.current_to_permille(self.current_a),
             p.ERROR_CODE: self.error_code,
-            p.MODES_OF_OPERATION_DISPLAY: self.mode,
+            p.MODES_OF_OPERATION_DISPLAY: self._cfg(p.MODES_OF_OPERATION),
+            p.DIGITAL_INPUTS: DI_BRAKE_CLOSED if self.brake_closed else 0,
         }
         for pdo_map, codec, indices in self._tpdo_codecs:
             values = [live[i] for i in indices]
             if codec is not None:
                 self.network.send_message(codec.cob_id, codec.pack(values))
-            else:  # a mapping the codec does not compile: canopen's accessors
+            else:
                 for index, value in zip(indices, values):
                     pdo_map[index].raw = value
                 pdo_map.transmit()
-
-    def _integrate(self) -> None:
-        """Joint over one sync period.
-
-        The torque loop's mean current held (or the brake holding the joint).
-        """
-        target = self.target_current_a
-        if self.brake:
-            self.current_a = 0.0
-            self.plant.velocity_rad_s = 0.0
-            self.plant.sample_index += 1
-            return
-        mean, self.current_a = torque_loop(self.current_a, target, self.dt_s, self.tau_s)
-        self.plant.step(mean)

@@ -15,12 +15,15 @@ objects as the offline loop: sample k is controlled as soon as y(k) and x_hat(k)
 comes in, publishes what the assembly decides, and measures the timing.
 
 Safety (statuses: actuator_core/status.py): every field of every input is checked against the
-physical ranges of actuator_core.limits; stamps pass a ``StampCheck`` (a stamp from the future
-is refused; a jump of the sensor's time base, or an observer restart, starts the resync
-policy: 0 A with the brake while the observer converges, then the reference restarts from the
-joint's angle). A watchdog timer at half the staleness timeout commands 0 A with safe_stop when
-an input is stale; more than one publisher on an input, or another one on current_command,
-stops control (0 A) until one is left, and control then restarts as after a resync.
+physical ranges of actuator_core.limits, before its stamp; a measurement no joint can make is
+refused (``MeasurementPlausibility``); stamps pass a ``StampCheck`` (a stamp from the future
+is refused; an estimate counts only for a measurement seen or the next sample; a jump of the
+sensor's time base, or an observer restart, starts the resync policy: 0 A with the brake while
+the observer converges, then the reference restarts from the joint's angle). A watchdog timer
+at half the staleness timeout answers a stale input in grades (the assembly's recovery
+policy), on the monotonic clock; more than one publisher on an input (seen when it matches,
+``GraphGuard``), or another one on current_command (polled), stops control (0 A) until one is
+left, and control then restarts as after a resync.
 A non-finite output or a following error beyond the limit latches 0 A until the node is
 cleaned up and configured again. Not active: no command at all; deactivate sends one 0 A
 safe-stop command so the drive brakes at once.
@@ -32,7 +35,10 @@ import math
 import time
 
 from actuator_core import limits
-from actuator_core.assembly import ControlSample, ControlSampleAssembly
+from actuator_core.assembly import ESTIMATE_AHEAD_SAMPLES, ControlSample, ControlSampleAssembly
+from actuator_core.binding import MeasurementPlausibility
+from actuator_core.clock import Clock
+from actuator_core.health import HealthMonitor, Level, Snapshot
 from actuator_core.sample_log import SampleLog
 from actuator_core.stats import percentiles
 from actuator_core.status import Status
@@ -42,6 +48,8 @@ from actuator_controller.laws import CONTROLLER_NAMES, GAINS_BY_NAME, CommonConf
 from actuator_controller.reference import make_reference
 from actuator_msgs.msg import ControllerState, CurrentCommand, StateEstimate
 from actuator_ros.conversions import joint_position, ns_to_stamp
+from actuator_ros.diagnostics import NodeDiagnostics
+from actuator_ros.guard import GraphGuard
 from actuator_ros.node import ManagedNode
 from actuator_ros.parameters import (
     ParameterError,
@@ -53,13 +61,19 @@ from actuator_ros.parameters import (
 )
 from actuator_ros.qos import MODES, control_qos
 from actuator_ros.runner import run_node
+from rclpy.clock import Clock as RosClock
+from rclpy.clock import ClockType
 from sensor_msgs.msg import JointState
 
 NODE_NAME = 'actuator_controller'
+STEADY = ClockType.STEADY_TIME
 #: What clocks the control update (README "Nodes and topic contract").
 TRIGGERS = ('measurement', 'timer')
-#: Inputs, and the output: another publisher on current_command drives the joint beside this node.
-WATCHED_TOPICS = ('joint_states', 'eso/estimate', 'current_command')
+#: Inputs (matched events), and the output: another publisher on current_command drives the
+#: joint beside this node (polled: this node does not subscribe it).
+INPUT_TOPICS = ('joint_states', 'eso/estimate')
+OUTPUT_TOPICS = ('current_command',)
+WATCHED_TOPICS = INPUT_TOPICS + OUTPUT_TOPICS
 NAN = float('nan')
 #: ControllerState fields only a control update computes: NaN on a safe-stop sample.
 LAW_FIELDS = (
@@ -208,9 +222,8 @@ class ControllerNode(ManagedNode):
         self.future_tolerance_s = declare_number(
             self,
             'future_stamp_tolerance_s',
-            0.05,
-            0.0,
-            10.0,
+            limits.FUTURE_STAMP_TOLERANCE_S,
+            *limits.FUTURE_STAMP_TOLERANCE_RANGE_S,
             's',
             'realtime: inputs stamped later than now plus this are refused (clock offset '
             'between hosts)',
@@ -221,6 +234,7 @@ class ControllerNode(ManagedNode):
         self.timing_log = declare_output_path(
             self, 'timing_log', 'per-update timing (.npz) written at shutdown'
         )
+        self.refuse_sim_time_in_realtime(self.mode)
         if self.mode == 'sim' and not self.get_parameter('use_sim_time').value:
             raise ParameterError(
                 "parameter 'use_sim_time' must be true in sim mode (the plant owns /clock)"
@@ -240,32 +254,52 @@ class ControllerNode(ManagedNode):
         self.estimate_check = StampCheck(
             self.period_ns, self.mode == 'sim', tolerance + self.period_ns
         )
+        self.clock = Clock()
+        self.plausibility = MeasurementPlausibility()
+        self.guard = GraphGuard(self, self.on_conflict)
         qos = control_qos(self.mode)
         self.cmd_pub = self.create_lifecycle_publisher(CurrentCommand, 'current_command', qos)
         self.state_pub = self.create_lifecycle_publisher(ControllerState, 'controller/state', qos)
         self.subs = [
-            self.create_subscription(JointState, 'joint_states', self.on_measurement, qos),
-            self.create_subscription(StateEstimate, 'eso/estimate', self.on_estimate, qos),
+            self.create_subscription(
+                kind, topic, callback, qos, event_callbacks=self.guard.callbacks(topic)
+            )
+            for kind, topic, callback in (
+                (JointState, 'joint_states', self.on_measurement),
+                (StateEstimate, 'eso/estimate', self.on_estimate),
+            )
         ]
         # Half the shortest timeout is enough to notice staleness in time; a 1 kHz watchdog would
         # add a Python callback to every sample for nothing.
+        # Real time: timers on the steady clock, so a wall-clock step neither stalls nor races
+        # them; sim: on /clock, which the lockstep advances.
+        timer_clock = self.get_clock() if self.mode == 'sim' else RosClock(clock_type=STEADY)
         self.watchdog = self.create_timer(
-            min(self.measurement_timeout_ns, self.estimate_timeout_ns) * 0.5e-9, self.on_watchdog
+            min(self.measurement_timeout_ns, self.estimate_timeout_ns) * 0.5e-9,
+            self.on_watchdog,
+            clock=timer_clock,
         )
-        self.graph_timer = self.create_timer(0.1, self.on_graph_check)
+        self.graph_timer = self.create_timer(
+            0.1, lambda: self.guard.poll(OUTPUT_TOPICS), clock=timer_clock
+        )
         self.tick_timer = (
-            self.create_timer(self.common.dt_s, self.on_tick) if self.trigger == 'timer' else None
+            self.create_timer(self.common.dt_s, self.on_tick, clock=timer_clock)
+            if self.trigger == 'timer'
+            else None
         )
         self.newest: tuple | None = None  # timer trigger: (stamp, y) of the newest measurement
         self.conflict = ''
         self.status = Status.WAITING
-        self.late = self.refused = self.stale_events = 0
+        self.late = self.refused = self.stale_events = self.gap_resyncs = 0
+        self.refusals: dict[str, int] = {}  # by reason, for /diagnostics
         self.measurements_in = self.estimates_in = 0
         self.envelope_restarts = 0
         self.received_ns = 0
+        self.received_mono_ns = None
         self.cmd = CurrentCommand()
         self.state = ControllerState(controller_name=self.name)
         self.timing = SampleLog(('received_wall_ns', 'stamp_ns', 'latency_ns', 'compute_ns'))
+        self.diagnostics = NodeDiagnostics(self, self.health_monitor(), self.health)
         self.get_logger().info(
             f'{self.name} on the {self.kind} reference, {self.mode} mode, current limit '
             f'{self.common.current_limit_a} A'
@@ -280,6 +314,7 @@ class ControllerNode(ManagedNode):
 
     def drop(self) -> None:
         """Destroy topics and timers."""
+        self.diagnostics.destroy()
         for timer in (self.watchdog, self.graph_timer, self.tick_timer):
             if timer is not None:
                 self.destroy_timer(timer)
@@ -290,50 +325,71 @@ class ControllerNode(ManagedNode):
 
     # --- inputs ----------------------------------------------------------------------------------
     def _refuse(self, key: str, stamp: int, why) -> None:
-        """Count and log a refused input; answer its sample with 0 A."""
+        """Count and log a refused input; answer its sample with 0 A (no brake: one sample)."""
         self.refused += 1
+        self.refusals[key] = self.refusals.get(key, 0) + 1
         self.log.error(key, why)
         if stamp is not None:
-            self._publish(self.assembly.safe_sample(stamp, Status.INVALID_INPUT), None)
+            self._publish(
+                self.assembly.safe_sample(stamp, Status.INVALID_INPUT, safe_stop=False), None
+            )
+
+    def _received(self) -> int:
+        """Receipt time for ages: monotonic in real time; None in sim (the stamps are time)."""
+        return self.clock.now_ns() if self.mode == 'realtime' else None
 
     def on_measurement(self, msg: JointState) -> None:
         """y(k): checked, then the assembly; control sample k as soon as x_hat(k) is in."""
         if not self.active:
             return
-        self.received_ns = time.time_ns()
+        self.received_ns = self.clock.stamp_ns()
+        self.received_mono_ns = self._received()
         self.measurements_in += 1
         stamp = stamp_to_ns(msg.header.stamp)
-        verdict = self.measurement_check.check(stamp, self.received_ns)
-        if verdict is Verdict.FUTURE:
-            self._refuse(
-                'future',
+        y = joint_position(msg, self.joint_name)
+        if y is None or not math.isfinite(y) or abs(y) > limits.POSITION_LIMIT_RAD:
+            self._refuse(  # before its stamp is taken: a refused value moves nothing
+                'bad_measurement',
                 None,
-                lambda: f'measurement stamped {stamp} ns refused: beyond the sample clock',
+                lambda: (
+                    f'measurement refused (joint {self.joint_name!r} missing, '
+                    f'non-finite or beyond {limits.POSITION_LIMIT_RAD} rad): '
+                    f'{list(msg.position)}'
+                ),
+            )
+            return
+        if self.conflict:  # whose sample this is cannot be told: no stamp is taken
+            self._publish(self.assembly.safe_sample(stamp, Status.CONFLICT), None)
+            return
+        implausible = self.plausibility.check(stamp, y)
+        rebased = bool(implausible) and self.plausibility.refuse(stamp, y)
+        if implausible and not rebased:
+            self._refuse('implausible', None, lambda: implausible)
+            return
+        verdict = self.measurement_check.check(stamp, self.received_ns)
+        if verdict in (Verdict.FUTURE, Verdict.INVALID):
+            self._refuse(
+                verdict.value,
+                None,
+                lambda: (
+                    f'measurement stamped {stamp} ns refused: '
+                    + ('beyond the sample clock' if verdict is Verdict.FUTURE else 'not a stamp')
+                ),
             )
             return
         if verdict is Verdict.OLD:
             return
-        if self.conflict:
-            self._publish(self.assembly.safe_sample(stamp, Status.CONFLICT), None)
-            return
-        y = joint_position(msg, self.joint_name)
-        if y is None or not math.isfinite(y) or abs(y) > limits.POSITION_LIMIT_RAD:
-            self._refuse(
-                'bad_measurement',
-                stamp,
-                lambda: (
-                    f'measurement refused (joint {self.joint_name!r} missing, '
-                    f'non-finite or beyond {limits.POSITION_LIMIT_RAD} rad): '
-                    f'{list(msg.position)}; 0 A'
-                ),
-            )
-            return
-        if verdict is Verdict.JUMP:
+        if verdict is Verdict.JUMP or rebased:
             self.get_logger().warning(
-                f'joint_states time base jumped to {stamp} ns (a restarted sensor?): 0 A and '
-                'brake until the observer has converged, then the reference restarts here'
+                'joint_states '
+                + ('time base jumped' if verdict is Verdict.JUMP else 'stepped and stayed')
+                + f' at {stamp} ns (a restarted sensor?): 0 A and brake until the observer has '
+                'converged, then the reference restarts here'
             )
+            self.plausibility.rebase(stamp, y)
             self.assembly.resync(stamp)
+        else:
+            self.plausibility.accept(stamp, y)
         if self.tick_timer is not None:  # timer trigger: the tick takes the newest measurement
             self.newest = (stamp, y)
             return
@@ -349,14 +405,8 @@ class ControllerNode(ManagedNode):
 
     def _take_measurement(self, stamp: int, y: float) -> None:
         """Hand y(k) to the assembly; log a resync it started."""
-        resyncs = self.assembly.resyncs
         started = time.perf_counter_ns()
-        self._control(self.assembly.add_measurement(stamp, y), started)
-        if self.assembly.resyncs != resyncs:
-            self.get_logger().warning(
-                'measurements resumed after a gap: 0 A and brake while the observer converges, '
-                "then the reference restarts from the joint's angle"
-            )
+        self._control(self.assembly.add_measurement(stamp, y, self.received_mono_ns), started)
 
     def on_estimate(self, msg: StateEstimate) -> None:
         """x_hat(k): every field checked against its physical range, then the assembly."""
@@ -370,7 +420,9 @@ class ControllerNode(ManagedNode):
             msg.input_current_a,
             msg.input_current_gain,
         )
-        field, problem = _estimate_problem(x2, x3, u, gain, self.common.current_limit_a)
+        field, problem = _estimate_problem(
+            x2, x3, u, gain, self.common.current_limit_a, self.common.dt_s
+        )
         if problem:  # rate-limited per field, so each kind of refusal is reported
             self._refuse(
                 f'bad_estimate {field}',
@@ -378,36 +430,51 @@ class ControllerNode(ManagedNode):
                 lambda: f'estimate for {stamp} ns refused: {problem}',
             )
             return
-        verdict = self.estimate_check.check(stamp, time.time_ns())
-        if verdict is Verdict.FUTURE:
-            self._refuse(
-                'future_estimate',
-                None,
-                lambda: f'estimate stamped {stamp} ns refused: beyond the sample clock',
-            )
-            return
-        if verdict is Verdict.OLD:
-            return
-        resyncs = self.assembly.resyncs
-        started = time.perf_counter_ns()
-        self._control(
+        newest = self.assembly.newest_measurement_ns
+        limit = None if newest is None else newest + ESTIMATE_AHEAD_SAMPLES * self.period_ns
+        if msg.initial and limit is not None and limit < stamp <= limits.STAMP_MAX_NS:
+            # A restarted observer (a new time base) may be ahead of this node's measurements:
+            # the assembly keeps it aside, unused unless that measurement comes; no stamp taken.
             self.assembly.add_estimate(
-                stamp, x2, x3, stamp_to_ns(msg.input_stamp), u, gain, msg.initial
-            ),
-            started,
-        )
-        if self.assembly.resyncs != resyncs:
-            self.get_logger().warning(
-                'the observer restarted (or its estimates resumed after a gap): 0 A and brake '
-                "until it has converged, then the reference restarts from the joint's angle"
+                stamp, x2, x3, stamp_to_ns(msg.input_stamp), u, gain, True, self._received()
             )
+            self.log.warn('initial_ahead', lambda: self.assembly.refusal)
+            return
+        now = self.clock.stamp_ns()
+        verdict = self.estimate_check.check(stamp, now, limit)
+        if verdict in (Verdict.FUTURE, Verdict.INVALID):
+            # Two kinds, each reported: beyond this node's clock (no genuine estimate is), or
+            # only ahead of its newest measurement (also this node lagging the observer's input:
+            # dropped, since a law run on samples it sees late would chase at the limit).
+            if verdict is Verdict.INVALID:
+                kind = 'invalid_estimate'
+            elif self.mode == 'sim' or stamp > now + self.estimate_check.future_tolerance_ns:
+                kind = 'future_estimate'
+            else:
+                kind = 'estimate_ahead'
+            self._refuse(
+                kind,
+                None,
+                lambda: (
+                    self.assembly.estimate_refusal(stamp)
+                    or f'estimate stamped {stamp} ns refused: '
+                    + ('beyond the sample clock' if verdict is Verdict.FUTURE else 'not a stamp')
+                ),
+            )
+            return
+        if verdict is Verdict.OLD and not msg.initial:
+            return
+        started = time.perf_counter_ns()
+        sample = self.assembly.add_estimate(
+            stamp, x2, x3, stamp_to_ns(msg.input_stamp), u, gain, msg.initial, self._received()
+        )
+        why = self.assembly.refusal
+        if why:
+            self._refuse('estimate_binding', None, lambda: why)
+        self._control(sample, started)
 
-    def on_graph_check(self) -> None:
-        """10 Hz.
-
-        More than one publisher on a watched topic stops control until one is left, then resync.
-        """
-        conflict = self.crowded(WATCHED_TOPICS)
+    def on_conflict(self, conflict: str) -> None:
+        """Handle a change of the matched publishers: more than one stops control (then resync)."""
         if conflict != self.conflict:
             if conflict:
                 self.get_logger().error(f'{conflict}: commanding 0 A until one publisher is left')
@@ -424,14 +491,23 @@ class ControllerNode(ManagedNode):
         """Stale measurement or estimate: command 0 A and say so (rate-limited)."""
         if not self.active:
             return
-        now = self.get_clock().now().nanoseconds
-        status = self.assembly.watchdog(now, self.measurement_timeout_ns, self.estimate_timeout_ns)
-        if status is None:
+        now = (
+            self.clock.now_ns() if self.mode == 'realtime' else self.get_clock().now().nanoseconds
+        )
+        sample = self.assembly.watchdog(now, self.measurement_timeout_ns, self.estimate_timeout_ns)
+        if sample is None:
             return
+        status = sample.status
         if self.status != status:
             self.stale_events += 1
-        self.log.warn('stale', lambda: f'{status.name.lower().replace("_", " ")}: commanding 0 A')
-        self._publish(self.assembly.safe_sample(now, status), None)
+        self.log.warn(
+            'stale',
+            lambda: (
+                f'{status.name.lower().replace("_", " ")}: commanding 0 A'
+                + (' with the brake' if sample.safe_stop else ' (no brake yet)')
+            ),
+        )
+        self._publish(sample, None)
 
     # --- output ----------------------------------------------------------------------------------
     def _control(self, sample: ControlSample | None, started_ns: int) -> None:
@@ -441,6 +517,7 @@ class ControllerNode(ManagedNode):
         """
         if sample is None:
             return
+        self._log_recovery(sample)
         law = self.assembly.law
         if getattr(law, 'envelope_restarts', 0) != self.envelope_restarts:
             self.envelope_restarts = law.envelope_restarts
@@ -473,15 +550,41 @@ class ControllerNode(ManagedNode):
             )
         self.timing.append((self.received_ns, sample.stamp_ns, latency_ns, compute_ns))
 
+    def _log_recovery(self, sample: ControlSample) -> None:
+        """Say when a resync starts, when RECOVERING starts and when it ends."""
+        a = self.assembly
+        if a.gap_resyncs != self.gap_resyncs:
+            self.gap_resyncs = a.gap_resyncs
+            self.get_logger().warning(
+                f'no law sample for more than {a.gap_limit_ns / 1e6:g} ms (the joint was braked): '
+                'resync, 0 A and brake while the observer converges, then the reference restarts '
+                "from the joint's angle"
+            )
+        elif sample.status is Status.RESYNC and self.status is not Status.RESYNC:
+            self.get_logger().warning(
+                'the observer restarted or the time base jumped: resync, 0 A and brake while '
+                "the observer converges, then the reference restarts from the joint's angle"
+            )
+        if sample.status is Status.RECOVERING and self.status is not Status.RECOVERING:
+            self.log.warn(  # rate-limited: a marginal envelope may flip it often
+                'recovering',
+                lambda: (
+                    'RECOVERING: the law runs again after a gap or a resync (or |e| left the '
+                    'envelope); the state says RECOVERING until it is back inside'
+                ),
+            )
+        elif sample.status is Status.OK and self.status is Status.RECOVERING:
+            self.log.info('recovered', lambda: 'recovered: status OK again')
+
     def _publish(self, sample: ControlSample, started_ns: int | None, state: bool = True) -> None:
         """current_command and controller/state for one sample (NaN where the law did not run)."""
         stamp = ns_to_stamp(sample.stamp_ns)
         self.status = Status(sample.status)
         self.cmd.header.stamp = stamp
         self.cmd.current_a = float(sample.current_a)
-        self.cmd.safe_stop = self.status.safe_stop
+        self.cmd.safe_stop = bool(sample.safe_stop)
         self.cmd_pub.publish(self.cmd)
-        self.command_done_ns, self.command_wall_ns = time.perf_counter_ns(), time.time_ns()
+        self.command_done_ns, self.command_wall_ns = time.perf_counter_ns(), self.clock.stamp_ns()
         if not state:
             return
         s = self.state
@@ -512,6 +615,50 @@ class ControllerNode(ManagedNode):
             s.saturated = bool(out.saturated)
         self.state_pub.publish(s)
 
+    # --- /diagnostics ----------------------------------------------------------------------------
+    def health_monitor(self) -> HealthMonitor:
+        """Rules of /diagnostics: STALE when an input stops; WARN on refusals, lateness, resync."""
+        self.reported_rows = 0
+        return HealthMonitor(
+            NODE_NAME,
+            inputs={'measurements_in': 'joint_states', 'estimates_in': 'eso/estimate'},
+            warn_on={
+                'refused *': 'refused inputs',
+                'late': 'late samples',
+                'missed': 'missed samples',
+                'stale_events': 'stale-input safe stops',
+                'resyncs': 'resyncs',
+                'envelope_restarts': 'envelope restarts',
+            },
+        )
+
+    def health(self) -> Snapshot:
+        """Report to /diagnostics: counts, status, timing percentiles since the last report."""
+        a, rows = self.assembly, self.timing.since(self.reported_rows)
+        self.reported_rows += len(rows)
+        values = {'controller': self.name, 'mode': self.mode, 'status': self.status.name}
+        values.update(percentiles(rows[:, 3] / 1e3, 'compute_us'))
+        if self.mode == 'realtime':
+            values.update(percentiles(rows[:, 2] / 1e3, 'latency_us'))
+        problems = [(Level.ERROR, f'{self.conflict}: commanding 0 A')] if self.conflict else []
+        if a.latched:
+            problems.append((Level.ERROR, 'safe stop latched (0 A) until cleanup'))
+        elif self.active and self.status is not Status.OK:
+            problems.append((Level.WARN, f'status {self.status.name}: 0 A'))
+        counts = {
+            'updates': self.timing.rows,
+            'measurements_in': self.measurements_in,
+            'estimates_in': self.estimates_in,
+            'late': self.late,
+            'missed': a.missed,
+            'refused_inputs': self.refused,
+            'stale_events': self.stale_events,
+            'resyncs': a.resyncs,
+            'envelope_restarts': self.envelope_restarts,
+            **{f'refused {k}': n for k, n in self.refusals.items()},
+        }
+        return Snapshot('active' if self.active else 'inactive', counts, values, problems)
+
     # --- shutdown --------------------------------------------------------------------------------
     def timing_summary(self) -> dict:
         """Period, latency and compute-time percentiles of the control updates so far."""
@@ -529,6 +676,10 @@ class ControllerNode(ManagedNode):
             'corrected_estimates': a.corrected,
             'envelope_restarts': self.envelope_restarts,
             'resyncs': a.resyncs,
+            'gap_resyncs': a.gap_resyncs,
+            'refused_estimates_binding': a.refused,
+            'estimate_conflicts': a.conflicts,
+            'implausible_measurements': self.plausibility.refused,
         }
         if len(rows) > 2:
             summary.update(percentiles((rows[1:, 0] - rows[:-1, 0]) / 1e3, 'period_us', mean=True))
@@ -550,7 +701,7 @@ class ControllerNode(ManagedNode):
             self.timing.save(self.timing_log)
 
 
-def _estimate_problem(x2, x3, u, gain, current_limit_a: float) -> tuple[str, str]:
+def _estimate_problem(x2, x3, u, gain, current_limit_a: float, dt_s: float) -> tuple[str, str]:
     """Return (field, why) when an estimate's field is not physical, else ('', '').
 
     The ranges are those of actuator_core.limits.
@@ -559,7 +710,7 @@ def _estimate_problem(x2, x3, u, gain, current_limit_a: float) -> tuple[str, str
         ('velocity_rad_s', x2, limits.VELOCITY_LIMIT_RAD_S),
         ('disturbance_rad_s2', x3, limits.DISTURBANCE_LIMIT_RAD_S2),
         ('input_current_a', u, current_limit_a),
-        ('input_current_gain', gain, limits.INPUT_CURRENT_GAIN_LIMIT),
+        ('input_current_gain', gain, limits.input_current_gain_limit(dt_s)),
     )
     for name, value, bound in checks:
         if not math.isfinite(value) or abs(value) > bound:

@@ -18,6 +18,22 @@ observer converges on the new samples, and then the reference and the law restar
 joint's angle: y_d(t - t_r) + q(t_r), so the run goes on as it would from a standstill. A
 controller (re)started while the joint is away from y_d(0) starts its reference there too.
 
+Bound to what it saw (actuator_core.binding): an estimate counts only for the newest
+measurement received or the next one (x_hat(k+1) is made before y(k+1) exists); one stamped
+further ahead is refused with its reason and moves nothing. Two different estimates for one
+sample (a second publisher racing the observer) are both dropped: that sample gets 0 A.
+
+Recovery policy (README "Safety"), every gap alike: a stale input is answered in grades by
+``watchdog``: up to its timeout nothing (the drive holds the last command), then 0 A without
+the brake, and 0 A with the brake once the input is ``brake_after`` old. When the law is to
+run again after more than ``gap_limit_samples`` (the drive's command timeout: the joint was
+braked by its gate or by this watchdog) without a law sample, the resync path runs instead: no
+chase of the error the reference accumulated meanwhile. After a resync, and after a shorter
+gap the watchdog answered, the law's samples say RECOVERING for ``RECOVERY_SAMPLES``, and
+always while |e| is outside the prescribed envelope: a state never says OK there. Ages are
+measured on the receiver's monotonic clock (``received_ns`` of each input; the stamp itself in
+sim and offline, where stamps are the clock).
+
 Scalars take the node's path; numpy arrays (a batch of offline runs) go through the same
 arithmetic elementwise, the latch included.
 """
@@ -26,6 +42,8 @@ from __future__ import annotations
 
 from typing import NamedTuple, Optional
 
+import numpy as np
+
 from actuator_core import limits
 from actuator_core import xmath as xm
 from actuator_core.status import Status
@@ -33,13 +51,20 @@ from actuator_core.timing import sample_time_s
 
 #: Estimates kept while waiting for their measurement.
 PENDING_LIMIT = 64
-#: A gap in an input stream this long (an observer or sensor restart whose first message was
-#: lost, a cable drop) is handled as a resync: the joint was braked meanwhile, so the reference
-#: restarts from where it is. Machine stalls (2-9 ms here) stay far below it.
-RESYNC_GAP_SAMPLES = 100
 #: Samples of 0 A after a resync: five time constants of the observer's poles at -c w0 = -300
 #: rad/s (17 ms) and margin, so x2_hat and x3_hat have converged before control restarts.
 RESYNC_SAMPLES = 50
+#: Samples after the law restarts (a resync, a short gap) that say RECOVERING.
+RECOVERY_SAMPLES = RESYNC_SAMPLES
+#: Held in place of an estimate two publishers claimed differently.
+CONFLICTED = ('conflicted',)
+#: An estimate may be stamped up to this many samples after the newest measurement seen.
+ESTIMATE_AHEAD_SAMPLES = 1
+
+
+def gap_limit_samples(period_ns: int) -> int:
+    """Return the samples without a law sample after which the resync runs (command timeout)."""
+    return max(1, int(round(limits.COMMAND_TIMEOUT_S * 1e9 / period_ns)))
 
 
 class ControlSample(NamedTuple):
@@ -53,6 +78,7 @@ class ControlSample(NamedTuple):
     estimate: Optional[tuple]  # (x2_hat, x3_hat) as used, after any correction
     reference: object  # ReferenceSample or None
     output: object  # ControlOutput or None
+    safe_stop: bool = False  # the command asks the drive for 0 A and the brake
 
 
 class ControlSampleAssembly:
@@ -66,6 +92,7 @@ class ControlSampleAssembly:
         needs_estimate: bool = True,
         following_error_limit_rad: float = limits.FOLLOWING_ERROR_LIMIT_RAD,
         resync_samples: int = RESYNC_SAMPLES,
+        brake_after_s: float = limits.BRAKE_AFTER_S,
     ):
         """``law``: an actuator_controller.laws controller; ``reference``: has ``sample(t)``."""
         self.law = law
@@ -75,15 +102,26 @@ class ControlSampleAssembly:
         self.needs_estimate = needs_estimate
         self.following_error_limit_rad = following_error_limit_rad
         self.resync_samples = resync_samples
+        self.brake_after_s = brake_after_s
+        self.brake_after_ns = int(round(brake_after_s * 1e9))
+        self.gap_limit_ns = gap_limit_samples(period_ns) * period_ns
         self.estimates: dict[int, tuple] = {}
         self.commanded: tuple = (-1, 0.0)  # (stamp, current) of the newest command
         self.pending: Optional[tuple] = None  # (stamp, y) waiting for its estimate
         self.start_ns: Optional[int] = None  # reference t = 0
         self.newest_measurement_ns: Optional[int] = None
         self.newest_estimate_ns: Optional[int] = None
+        self.measurement_received_ns: Optional[int] = None  # monotonic receipt of the newest
+        self.estimate_received_ns: Optional[int] = None
+        self.controlled_ns: Optional[int] = None  # stamp of the newest sample the law ran for
+        self.stale_answered = False  # the watchdog answered a sample since the law's last one
+        self.recovering_until_ns: Optional[int] = None
         self.latched = False
         self.resync_until_ns: Optional[int] = None
+        self.refusal = ''  # why the last input was refused ('' when it was not)
+        self.initial_ahead: Optional[tuple] = None  # an observer restart ahead of y, kept aside
         self.corrected = self.unanswered = self.missed = self.resyncs = 0
+        self.refused = self.conflicts = self.gap_resyncs = 0
 
     # --- inputs ---------------------------------------------------------------------------------
     def add_estimate(
@@ -95,43 +133,72 @@ class ControlSampleAssembly:
         input_current_a=0.0,
         input_current_gain=0.0,
         initial: bool = False,
+        received_ns: Optional[int] = None,
     ) -> Optional[ControlSample]:
-        """x_hat(k); an ``initial`` one after the start means the observer restarted.
+        """x_hat(k), received at monotonic ``received_ns`` (default: its stamp).
 
-        Resync (PI uses none).
+        Refused (None, ``refusal`` says why) when stamped beyond the newest measurement seen
+        plus one sample. An ``initial`` one after the start means the observer restarted:
+        resync (PI uses none).
         """
-        if (
-            self.start_ns is not None
-            and self.needs_estimate
-            and (initial or self._gap(self.newest_estimate_ns, stamp_ns))
-        ):
+        entry = (x2_hat, x3_hat, input_ns, input_current_a, input_current_gain)
+        self.refusal = self.estimate_refusal(stamp_ns)
+        if self.refusal:
+            self.refused += 1
+            if initial:  # a restarted observer may be ahead of this node's measurements
+                self.initial_ahead = (stamp_ns, entry, received_ns)
+                self.refusal += '; kept aside as a restart, used if that measurement comes'
+            return None
+        held = self.estimates.get(stamp_ns)
+        if held is not None and not initial and not _same(held, entry):
+            self.conflicts += 1
+            self.estimates[stamp_ns] = CONFLICTED  # neither is trusted: the sample gets 0 A
+            self.refusal = (
+                f'two different estimates for sample {stamp_ns} ns (a second publisher?): '
+                'neither used, 0 A for that sample'
+            )
+            return None
+        if self.start_ns is not None and self.needs_estimate and initial:
             self.resync(stamp_ns)
-        self.estimates[stamp_ns] = (x2_hat, x3_hat, input_ns, input_current_a, input_current_gain)
-        self.newest_estimate_ns = (
-            stamp_ns if self.newest_estimate_ns is None else max(self.newest_estimate_ns, stamp_ns)
-        )
+        self.estimates[stamp_ns] = entry
+        if self.newest_estimate_ns is None or stamp_ns >= self.newest_estimate_ns:
+            self.newest_estimate_ns = stamp_ns
+            self.estimate_received_ns = stamp_ns if received_ns is None else received_ns
         while len(self.estimates) > PENDING_LIMIT:
             self.estimates.pop(min(self.estimates))
         return self._try_control()
 
-    def add_measurement(self, stamp_ns: int, y) -> Optional[ControlSample]:
-        """y(k): control sample k now, or as soon as x_hat(k) is in."""
-        if self.start_ns is not None and self._gap(self.newest_measurement_ns, stamp_ns):
-            self.resync(stamp_ns)
+    def estimate_refusal(self, stamp_ns: int) -> str:
+        """'' when an estimate stamped ``stamp_ns`` answers a measurement seen, else why not."""
+        newest = self.newest_measurement_ns
+        if newest is not None and stamp_ns > newest + ESTIMATE_AHEAD_SAMPLES * self.period_ns:
+            return (
+                f'estimate stamped {stamp_ns} ns refused: {(stamp_ns - newest) / 1e6:g} ms ahead '
+                f'of the newest measurement seen (at most {ESTIMATE_AHEAD_SAMPLES} sample)'
+            )
+        return ''
+
+    def add_measurement(
+        self, stamp_ns: int, y, received_ns: Optional[int] = None
+    ) -> Optional[ControlSample]:
+        """y(k) received at monotonic ``received_ns``: control k now, or once x_hat(k) is in."""
         if (
             self.newest_measurement_ns is not None
             and stamp_ns - self.newest_measurement_ns > self.period_ns * 3 // 2
         ):
             self.missed += (stamp_ns - self.newest_measurement_ns) // self.period_ns - 1
         self.newest_measurement_ns = stamp_ns
+        self.measurement_received_ns = stamp_ns if received_ns is None else received_ns
         if self.pending is not None:
             self.unanswered += 1  # the previous sample's estimate never came in time
         self.pending = (stamp_ns, y)
+        if self.initial_ahead is not None and self.initial_ahead[0] <= stamp_ns:
+            restart, self.initial_ahead = self.initial_ahead, None
+            if restart[0] == stamp_ns:  # the observer's restart was for this very sample
+                return self.add_estimate(
+                    stamp_ns, *restart[1], initial=True, received_ns=restart[2]
+                )
         return self._try_control()
-
-    def _gap(self, newest_ns: Optional[int], stamp_ns: int) -> bool:
-        """Return True on a gap of more than RESYNC_GAP_SAMPLES since ``newest_ns``."""
-        return newest_ns is not None and stamp_ns - newest_ns > RESYNC_GAP_SAMPLES * self.period_ns
 
     def resync(self, stamp_ns: int) -> None:
         """Handle a time base jump at ``stamp_ns``.
@@ -145,6 +212,7 @@ class ControlSampleAssembly:
         self.estimates = {s: e for s, e in self.estimates.items() if s >= stamp_ns}
         if self.pending is not None and self.pending[0] < stamp_ns:
             self.pending = None
+        self.controlled_ns = None
 
     def reset(self) -> None:
         """Clear the latch and start over (lifecycle: cleanup and configure)."""
@@ -155,6 +223,7 @@ class ControlSampleAssembly:
             self.needs_estimate,
             self.following_error_limit_rad,
             self.resync_samples,
+            self.brake_after_s,
         )
         self.law.reset()
 
@@ -171,7 +240,18 @@ class ControlSampleAssembly:
                 return None
             for old in [s for s in self.estimates if s < stamp]:
                 del self.estimates[old]
+            self.pending = None
+            if entry is CONFLICTED:  # two publishers' estimates for this sample
+                return self.safe_sample(stamp, Status.INVALID_INPUT, y, safe_stop=False)
             estimate = self._exact_estimate(*entry)
+            vmax = limits.VELOCITY_LIMIT_RAD_S  # a non-finite one goes on to the latch
+            if _scalar(estimate[0]) and xm.isfinite(estimate[0]) and abs(estimate[0]) > vmax:
+                self.refused += 1
+                self.refusal = (
+                    f'estimate for {stamp} ns refused: x2_hat corrected for the current '
+                    f'commanded is {estimate[0]:.4g} rad/s, beyond +-{vmax:g}'
+                )
+                return self.safe_sample(stamp, Status.INVALID_INPUT, y, safe_stop=False)
         self.pending = None
         return self._control(stamp, y, estimate)
 
@@ -187,6 +267,12 @@ class ControlSampleAssembly:
         """Run the law for sample ``stamp``; latch on a non-finite output or a following error."""
         if self.latched is True:
             return self.safe_sample(stamp, Status.LATCHED, y)
+        if self.controlled_ns is not None and stamp - self.controlled_ns > self.gap_limit_ns:
+            self.gap_resyncs += 1  # the joint was braked: no chase of what the reference ran on
+            self.resync(stamp)
+        elif self.stale_answered:
+            self._recover_until(stamp)  # a short gap: the law goes on, saying RECOVERING
+        self.stale_answered = False
         if self.resync_until_ns is not None:
             if stamp < self.resync_until_ns:
                 return self.safe_sample(stamp, Status.RESYNC, y)
@@ -194,6 +280,8 @@ class ControlSampleAssembly:
             self.reference_offset_rad = y - self.reference.sample(0.0).position_rad
             self.law.reset()
             self.start_ns = stamp
+            self._recover_until(stamp)
+        self.controlled_ns = stamp
         if self.start_ns is None:  # the first sample: the reference starts from the joint's angle
             self.start_ns = stamp
             offset = y - self.reference.sample(0.0).position_rad
@@ -211,36 +299,82 @@ class ControlSampleAssembly:
         )
         self.latched = self.latched | bad
         current = xm.where(self.latched, 0.0, out.current_a)
-        status = xm.where(self.latched, int(Status.LATCHED), int(Status.OK))
-        if not isinstance(status, int):
+        recovering = xm.logical_not(out.bounds_kept) | (
+            self.recovering_until_ns is not None and stamp < self.recovering_until_ns
+        )
+        status = xm.where(
+            self.latched,
+            int(Status.LATCHED),
+            xm.where(recovering, int(Status.RECOVERING), int(Status.OK)),
+        )
+        if not isinstance(status, (int, np.integer)):
             status = status.astype(int)
         else:
-            status = Status(status)
+            status = Status(int(status))
         self.commanded = (stamp, current)
-        return ControlSample(stamp, current, status, t, y, estimate, ref, out)
+        latched = self.latched is True  # a node's scalar latch brakes at once
+        return ControlSample(stamp, current, status, t, y, estimate, ref, out, latched)
 
-    def safe_sample(self, stamp_ns: int, status: Status, y=float('nan')) -> ControlSample:
+    def _recover_until(self, stamp_ns: int) -> None:
+        """Say RECOVERING for RECOVERY_SAMPLES from ``stamp_ns``."""
+        self.recovering_until_ns = stamp_ns + RECOVERY_SAMPLES * self.period_ns
+
+    def safe_sample(
+        self, stamp_ns: int, status: Status, y=float('nan'), safe_stop: bool = True
+    ) -> ControlSample:
         """0 A with ``status`` for sample ``stamp_ns`` (nothing from the law: no stale values)."""
         self.commanded = (stamp_ns, 0.0)
-        return ControlSample(stamp_ns, 0.0, status, None, y, None, None, None)
+        return ControlSample(stamp_ns, 0.0, status, None, y, None, None, None, safe_stop)
 
-    def watchdog(
+    def stale(
         self, now_ns: int, measurement_timeout_ns: int, estimate_timeout_ns: int
-    ) -> Optional[Status]:
-        """STALE_MEASUREMENT or STALE_ESTIMATE when the newest input is older than its timeout.
+    ) -> Optional[tuple]:
+        """(status, age [ns]) of the stalest input older than its timeout, else None.
 
-        Else None.
+        Ages on the monotonic clock: ``now_ns`` against the inputs' ``received_ns``.
         """
         if self.start_ns is None or self.latched is True:
             return None
-        if (
-            self.newest_measurement_ns is None
-            or now_ns - self.newest_measurement_ns > measurement_timeout_ns
-        ):
-            return Status.STALE_MEASUREMENT
-        if self.needs_estimate and (
-            self.newest_estimate_ns is None
-            or now_ns - self.newest_estimate_ns > estimate_timeout_ns
-        ):
-            return Status.STALE_ESTIMATE
+        if self.measurement_received_ns is None:
+            return Status.STALE_MEASUREMENT, measurement_timeout_ns + 1
+        age = now_ns - self.measurement_received_ns
+        if age > measurement_timeout_ns:
+            return Status.STALE_MEASUREMENT, age
+        if self.needs_estimate:
+            if self.estimate_received_ns is None:
+                return Status.STALE_ESTIMATE, estimate_timeout_ns + 1
+            age = now_ns - self.estimate_received_ns
+            if age > estimate_timeout_ns:
+                return Status.STALE_ESTIMATE, age
         return None
+
+    def watchdog(
+        self, now_ns: int, measurement_timeout_ns: int, estimate_timeout_ns: int
+    ) -> Optional[ControlSample]:
+        """Return the graded answer to a stale input for the newest measurement, or None.
+
+        Up to the timeout: None (the drive holds the last command); then 0 A without the
+        brake; once the input is ``brake_after`` old, 0 A with the brake. The sample is
+        answered: its estimate, should it come, is not used any more.
+        """
+        stale = self.stale(now_ns, measurement_timeout_ns, estimate_timeout_ns)
+        if stale is None or self.newest_measurement_ns is None:
+            return None
+        status, age = stale
+        stamp = self.newest_measurement_ns
+        y = self.pending[1] if self.pending is not None else float('nan')
+        if self.pending is not None and self.pending[0] == stamp:
+            self.pending = None
+            self.unanswered += 1
+        self.stale_answered = True
+        return self.safe_sample(stamp, status, y, safe_stop=age > self.brake_after_ns)
+
+
+def _same(a: tuple, b: tuple) -> bool:
+    """Whether two held estimates are the same values (NaN never is)."""
+    return a is not CONFLICTED and all(xm.all_true(x == y) for x, y in zip(a, b))
+
+
+def _scalar(value) -> bool:
+    """Tell a node's scalar from a batch of offline runs (an array)."""
+    return not isinstance(value, np.ndarray)

@@ -44,19 +44,64 @@ DIVERGENCE_ERROR_RAD = 1.0
 #: these is refused as a measurement or estimate (the fast trajectory peaks at 1.4 rad,
 #: 8.8 rad/s; the paper's disturbances at about 1e3 rad/s^2).
 POSITION_LIMIT_RAD = 100.0
-VELOCITY_LIMIT_RAD_S = 100.0
-DISTURBANCE_LIMIT_RAD_S2 = 1.0e5
+#: Joint velocity a measurement or estimate may imply [rad/s]: 2.3 times the fast trajectory's
+#: peak of 8.8 rad/s (880 rad/s, 8400 rpm at the motor through N = 100; the printed SMC-ESO
+#: gains, which only bang between the limits, reach 13.6). A measurement whose change from the
+#: last accepted one implies more is refused, and so is an estimate's x2_hat beyond it, before
+#: and after the correction of a substituted current.
+VELOCITY_LIMIT_RAD_S = 20.0
+#: theta_1n * I_max: the acceleration the current limit can command [rad/s^2] (629).
+CURRENT_ACCELERATION_RAD_S2 = THETA1N * CURRENT_LIMIT_A
+#: |x3_hat| beyond this [rad/s^2] is refused: 4 times what the current limit can compensate
+#: (2515 rad/s^2); a lumped disturbance the law cannot cancel even at 20 A is not an estimate
+#: to act on (the paper's disturbances stay below 1e3 rad/s^2, the deep-sea case's ESO below
+#: 400).
+DISTURBANCE_LIMIT_RAD_S2 = 4.0 * CURRENT_ACCELERATION_RAD_S2
+#: Change of the implied joint velocity per second a measurement may show [rad/s^2]: what the
+#: current limit and the largest accepted disturbance can do together (3144). A 20 mrad glitch
+#: in one 1 ms sample changes the implied velocity by 20 rad/s, 2e4 rad/s^2: refused.
+ACCELERATION_LIMIT_RAD_S2 = CURRENT_ACCELERATION_RAD_S2 + DISTURBANCE_LIMIT_RAD_S2
+#: A step of the measurement that persists over this many consecutive samples is a real
+#: discontinuity (a re-homed encoder), no glitch: it becomes the new baseline and the
+#: receivers restart as after a jump of the time base.
+PLAUSIBILITY_CONFIRM_SAMPLES = 3
 #: d(x2_hat)/d(u) of one observer step is dt * theta_1n (0.031 rad/s/A at 1 kHz); an estimate
-#: claiming a gain beyond this [rad/s/A] is refused.
-INPUT_CURRENT_GAIN_LIMIT = 10.0
+#: claiming more than twice the nominal theta_1n times the receiver's sample time is refused
+#: (``input_current_gain_limit``).
+INPUT_CURRENT_GAIN_THETA1_FACTOR = 2.0
+
+
+def input_current_gain_limit(dt_s: float) -> float:
+    """Largest d(x2_hat)/d(u) an estimate may claim at sample time ``dt_s`` [rad/s/A]."""
+    return INPUT_CURRENT_GAIN_THETA1_FACTOR * THETA1N * dt_s
+
 
 # --- timeouts ---------------------------------------------------------------------------------
 #: The drive (plant or driver) applies 0 A when the newest command is older than this [s].
 COMMAND_TIMEOUT_S = 0.01
+#: After the command timeout the drive coasts at 0 A for this long [s] before it engages the
+#: holding brake: a short gap (a stalled controller) is no reason to brake a moving joint.
+BRAKE_DELAY_S = 0.05
+BRAKE_DELAY_RANGE_S = (0.0, 10.0)
 #: The controller safe-stops when its newest measurement or estimate is older than this [s].
 MEASUREMENT_TIMEOUT_S = 0.005
 ESTIMATE_TIMEOUT_S = 0.005
 TIMEOUT_RANGE_S = (1.0e-3, 10.0)
+#: The controller's graded answer to a stale input (README "Safety", recovery policy): up to
+#: the measurement/estimate timeout it sends nothing and the drive holds the last command;
+#: then 0 A without the brake; once the input is older than this [s], 0 A with the brake
+#: (safe_stop). Equal to the drive's command timeout: a joint that has not been commanded
+#: for that long is braked by its own gate too, and any gap beyond it ends in the resync.
+BRAKE_AFTER_S = COMMAND_TIMEOUT_S
+#: Realtime: a stamp later than the receiver's clock plus this [s] is refused. The joint stamps
+#: each sample at its instant, before it is sent, so on one host a genuine stamp is never
+#: ahead; 2 ms covers clock granularity and scheduling. Raise it (parameter
+#: future_stamp_tolerance_s) only for nodes on hosts with offset clocks.
+FUTURE_STAMP_TOLERANCE_S = 2.0e-3
+FUTURE_STAMP_TOLERANCE_RANGE_S = (0.0, 10.0)
+#: Largest stamp any node accepts [ns]: one hour before builtin_interfaces/Time's int32
+#: seconds overflow (2^31 - 1 s), so a stamp plus the few samples a node adds stays writable.
+STAMP_MAX_NS = (2**31 - 1 - 3600) * 1_000_000_000
 
 # --- metrics ----------------------------------------------------------------------------------
 #: Start of the steady-state window [s]: the references carry (1 - exp(-t)), within 0.7 % of

@@ -16,6 +16,12 @@ nothing is lost and a PI controller can run ahead of the observer. A command tha
 after its sample was stepped with a substitute repairs the state exactly, since (15) is
 linear (``correction(du, steps)`` gives the change of the state ``steps`` steps later).
 
+Bound to what it saw (actuator_core.binding): a command counts only for a measurement the
+pairing received, or for the next sample (the controller may answer y(k+1) before this node has
+it; the command then waits for its measurement); one stamped further ahead, or off the sample
+grid, is refused with its reason (``refusal``) and takes no slot. Two different commands for
+one sample (a second publisher) leave that sample to the substitute, and say so.
+
 Work per call is bounded (``MAX_STEPS_PER_CALL``). Stamps are checked before they get here
 (``actuator_core.timebase``); on a discontinuity (a restarted sensor, a new grid) the caller
 calls ``restart``: the observer starts again from that measurement, as at start-up.
@@ -32,6 +38,8 @@ MAX_STEPS_PER_CALL = 16
 #: Real time: wait one sample for the missing half; sim: up to this many (nothing is lost).
 REALTIME_PATIENCE_SAMPLES = 1
 SIM_PATIENCE_SAMPLES = 100
+#: A command may be stamped up to this many samples after the newest measurement received.
+COMMAND_AHEAD_SAMPLES = 1
 
 
 class Observer(Protocol):
@@ -75,15 +83,23 @@ class ObserverInputPairing:
         period_ns: int,
         correction: Callable[[float, int], tuple],
         patience_samples: int = REALTIME_PATIENCE_SAMPLES,
+        restart_gap_samples: Optional[int] = None,
     ):
         """``correction(du, steps)``.
 
-        Change of x_hat ``steps`` steps after u(k) changed by du (eq. 15).
+        Change of x_hat ``steps`` steps after u(k) changed by du (eq. 15). With
+        ``restart_gap_samples`` (real time), a measurement that many samples or more ahead of
+        x_hat (the node stalled, its input was cut) restarts the observer from it: no back-fill
+        of the gap with predictions.
         """
         self.observer = observer
         self.period_ns = period_ns
         self.correction = correction
         self.patience_ns = period_ns * patience_samples
+        self.restart_gap_ns = (
+            None if restart_gap_samples is None else restart_gap_samples * period_ns
+        )
+        self.gap_restarts = 0
         self.sample_ns: Optional[int] = None  # stamp x_hat is valid at
         self.measurements: dict[int, object] = {}
         self.currents: dict[int, object] = {}
@@ -92,6 +108,9 @@ class ObserverInputPairing:
         self.last_current = 0.0
         self.steps = self.substituted = self.repaired = self.restarts = 0
         self.ignored = 0  # duplicates and samples older than x_hat's
+        self.refused = self.conflicts = 0
+        self.refusal = ''  # why the last command was refused ('' when it was not)
+        self.conflicted: set[int] = set()  # samples two different commands claimed
 
     def add_measurement(self, stamp_ns: int, y) -> list[Estimate]:
         """y(k); the first one starts the observer there."""
@@ -100,22 +119,50 @@ class ObserverInputPairing:
         if stamp_ns < self.sample_ns or stamp_ns in self.measurements:
             self.ignored += 1
             return []
+        if self.restart_gap_ns is not None and stamp_ns - self.sample_ns >= self.restart_gap_ns:
+            self.gap_restarts += 1
+            return self.restart(stamp_ns, y)
         self.measurements[stamp_ns] = y
         self.newest_measurement_ns = max(self.newest_measurement_ns, stamp_ns)
         return self._advance()
 
     def add_command(self, stamp_ns: int, u) -> list[Estimate]:
-        """u(k), filed under the stamp of the sample it answers; a late one repairs the state."""
+        """u(k), filed under the stamp of the sample it answers; a late one repairs the state.
+
+        Refused ([] and ``refusal`` says why) beyond the newest measurement plus one sample,
+        or off the sample grid.
+        """
+        self.refusal = ''
         if self.sample_ns is None:  # before the first measurement: kept for the start
             self.currents[stamp_ns] = u
             while len(self.currents) > PENDING_LIMIT:
                 self.currents.pop(min(self.currents))
             return []
+        ahead = stamp_ns - self.newest_measurement_ns
+        if ahead > COMMAND_AHEAD_SAMPLES * self.period_ns or ahead % self.period_ns:
+            self.refused += 1
+            self.refusal = f'command stamped {stamp_ns} ns refused: ' + (
+                'off the sample grid'
+                if ahead % self.period_ns
+                else f'{ahead / 1e6:g} ms ahead of the newest measurement received'
+            )
+            return []
         if stamp_ns < self.sample_ns:
             self._repair(stamp_ns, u)
             return []
-        if stamp_ns in self.currents or stamp_ns - self.sample_ns > PENDING_LIMIT * self.period_ns:
-            self.ignored += 1
+        if stamp_ns in self.conflicted:
+            return []
+        if stamp_ns in self.currents:
+            if not _same(self.currents[stamp_ns], u):
+                self.conflicts += 1
+                self.conflicted.add(stamp_ns)
+                del self.currents[stamp_ns]
+                self.refusal = (
+                    f'two different commands for sample {stamp_ns} ns (a second publisher?): '
+                    'neither used, the sample is integrated with the last current'
+                )
+            else:
+                self.ignored += 1
             return []
         self.currents[stamp_ns] = u
         return self._advance()
@@ -132,8 +179,13 @@ class ObserverInputPairing:
         self.observer.reset((y, zero, zero))
         self.sample_ns = stamp_ns
         self.measurements.clear()
-        self.currents = {s: u for s, u in self.currents.items() if s >= stamp_ns}
+        self.currents = {
+            s: u
+            for s, u in self.currents.items()
+            if stamp_ns <= s <= stamp_ns + COMMAND_AHEAD_SAMPLES * self.period_ns
+        }
         self.substitutes.clear()
+        self.conflicted.clear()
         self.newest_measurement_ns = stamp_ns
         self.measurements[stamp_ns] = y
         self.last_current = 0.0
@@ -186,4 +238,12 @@ class ObserverInputPairing:
         for buffer in (self.measurements, self.currents, self.substitutes):
             while len(buffer) > PENDING_LIMIT:
                 buffer.pop(min(buffer))
+        if self.conflicted:
+            self.conflicted = {s for s in self.conflicted if s >= self.sample_ns}
         return out
+
+
+def _same(a, b) -> bool:
+    """Whether two currents are equal (a batch: everywhere)."""
+    equal = a == b
+    return bool(equal.all()) if hasattr(equal, 'all') else bool(equal)

@@ -46,6 +46,14 @@ class SampleLog:
             return np.empty((0, len(self.columns)), dtype=np.int64)
         return np.concatenate(self._chunks[:-1] + [self._chunks[-1][: self._fill]])
 
+    def since(self, start: int) -> np.ndarray:
+        """Rows ``start`` onwards (e.g. those of the last report), joining only their chunks."""
+        first = max(start, 0) // CHUNK_ROWS
+        if first >= len(self._chunks):
+            return np.empty((0, len(self.columns)), dtype=np.int64)
+        parts = self._chunks[first:-1] + [self._chunks[-1][: self._fill]]
+        return np.concatenate(parts)[max(start, 0) - first * CHUNK_ROWS :]
+
     def save(self, path: str) -> None:
         """Write the columns as arrays of an .npz file."""
         data = self.array()

@@ -25,8 +25,23 @@ class Status(IntEnum):
     #: the observer has converged on the new samples, then control restarts
     CONFLICT = 7  #: more than one publisher feeds a control input: 0 A until one is left
     INACTIVE = 8  #: the node is not active (lifecycle): it commands nothing but 0 A
+    RECOVERING = 9  #: the law runs, but |e| is outside the prescribed envelope or the loop is
+    #: within RECOVERY_SAMPLES of a restart after a gap or a resync: never OK meanwhile
+
+    @property
+    def controlled(self) -> bool:
+        """The command is the law's output (OK, RECOVERING)."""
+        return self in CONTROLLED
 
     @property
     def safe_stop(self) -> bool:
-        """Every status but OK commands 0 A with ``safe_stop`` set."""
-        return self is not Status.OK
+        """Default of the command's ``safe_stop``: set on every status the law did not run.
+
+        The controller's stale-input answer is graded (actuator_core.assembly): its first
+        samples are 0 A without the brake; the sample says so itself.
+        """
+        return self not in CONTROLLED
+
+
+#: Statuses whose command is the law's output.
+CONTROLLED = (Status.OK, Status.RECOVERING)

@@ -13,13 +13,21 @@ Every stamp is checked against the receiver's clock and the sample grid. Held by
   JUMP     a discontinuity (a restarted sensor or driver): off the grid, or back in time (by
            more than ``jump_samples`` in real time, by any amount in sim, where nothing comes
            late), or ahead by more than ``jump_samples``. The stamp becomes the new grid
-           origin and the receiver applies its restart policy (README "Safety").
+           origin and the receiver applies its restart policy (README "Safety");
+  INVALID  negative, or beyond ``limits.STAMP_MAX_NS`` (builtin_interfaces/Time's int32 seconds
+           would overflow on the stamps a node derives from it): refused.
+A caller may pass ``limit_ns``, the newest stamp it may accept (the newest measurement it has
+seen, plus what the protocol allows): beyond it the verdict is FUTURE, in every mode. A refused
+stamp (FUTURE, INVALID) never becomes the stream's newest. Values are checked by the caller
+before the stamp is: a refused value never gets here.
 """
 
 from __future__ import annotations
 
 from enum import Enum
 from typing import Optional
+
+from actuator_core.limits import STAMP_MAX_NS
 
 #: Samples back (or, in real time, ahead) that count as a restarted time base, not jitter.
 JUMP_SAMPLES = 1000
@@ -32,6 +40,7 @@ class Verdict(Enum):
     FUTURE = 'future'
     OLD = 'old'
     JUMP = 'jump'
+    INVALID = 'invalid'
 
 
 class StampCheck:
@@ -46,13 +55,20 @@ class StampCheck:
         self.future_tolerance_ns = future_tolerance_ns
         self.jump_ns = jump_samples * period_ns
         self.last_ns: Optional[int] = None
-        self.refused_future = self.ignored_old = self.jumps = 0
+        self.refused_future = self.ignored_old = self.jumps = self.invalid = 0
 
-    def check(self, stamp_ns: int, now_ns: int) -> Verdict:
+    def check(self, stamp_ns: int, now_ns: int, limit_ns: Optional[int] = None) -> Verdict:
         """Return the verdict on ``stamp_ns``.
 
-        ``now_ns`` is what the receiver's clock read when the stamp was received.
+        ``now_ns`` is what the receiver's wall clock read when the stamp was received;
+        ``limit_ns`` the newest stamp the receiver may accept (None: no such bound).
         """
+        if stamp_ns < 0 or stamp_ns > STAMP_MAX_NS:
+            self.invalid += 1
+            return Verdict.INVALID
+        if limit_ns is not None and stamp_ns > limit_ns:
+            self.refused_future += 1
+            return Verdict.FUTURE
         if not self.sim and stamp_ns > now_ns + self.future_tolerance_ns:
             self.refused_future += 1
             return Verdict.FUTURE

@@ -13,24 +13,32 @@ the same objects as the offline loop: the pairing steps the observer once per (y
 pair by stamp and says what it did (substituted, repaired, restarted); the node only checks
 what comes in and publishes what comes out (docs/architecture.md).
 
-Inputs: every stamp passes a ``StampCheck``: a measurement from the future is refused; a
+Inputs: values are checked before stamps (a refused value never moves a stream's newest
+stamp); a measurement whose implied velocity no joint can make is refused
+(``MeasurementPlausibility``); every stamp passes a ``StampCheck``: a measurement from the
+future or beyond what a stamp can hold is refused; a command counts only for a measurement
+received or the next sample (the pairing's binding); a
 discontinuity (a restarted plant or driver, a new grid) restarts the observer from the new
 measurement (x_hat = (y, 0, 0)) and the restarted estimate is flagged ``initial``, which tells
 the controller to hold 0 A until the observer has converged. A command stamped
 from the future (real time) is refused; one far ahead of the observer is ignored by the
 pairing (bounded work). Values beyond the physical ranges of actuator_core.limits are refused.
-While more than one node publishes on joint_states or current_command, the observer does not
-step (the controller, without estimates, stops safely) and says so; once one publisher is left
-it restarts from the next measurement.
+While more than one node publishes on joint_states or current_command (seen when it matches,
+``GraphGuard``), the observer does not step (the controller, without estimates, stops safely)
+and says so; once one publisher is left it restarts from the next measurement, as after every
+activation.
 """
 
 from __future__ import annotations
 
 import json
 import math
-import time
 
 from actuator_core import limits
+from actuator_core.assembly import gap_limit_samples
+from actuator_core.binding import MeasurementPlausibility
+from actuator_core.clock import Clock
+from actuator_core.health import HealthMonitor, Level, Snapshot
 from actuator_core.pairing import (
     REALTIME_PATIENCE_SAMPLES,
     SIM_PATIENCE_SAMPLES,
@@ -42,6 +50,8 @@ from actuator_core.timing import period_ns, stamp_to_ns
 from actuator_eso.observer import EsoGains, ExtendedStateObserver
 from actuator_msgs.msg import CurrentCommand, StateEstimate
 from actuator_ros.conversions import joint_position, ns_to_stamp
+from actuator_ros.diagnostics import NodeDiagnostics
+from actuator_ros.guard import GraphGuard
 from actuator_ros.node import ManagedNode
 from actuator_ros.parameters import (
     declare_choice,
@@ -91,9 +101,8 @@ class EsoNode(ManagedNode):
         self.future_tolerance_s = declare_number(
             self,
             'future_stamp_tolerance_s',
-            0.05,
-            0.0,
-            10.0,
+            limits.FUTURE_STAMP_TOLERANCE_S,
+            *limits.FUTURE_STAMP_TOLERANCE_RANGE_S,
             's',
             'realtime: measurements stamped later than now plus this are refused (clock offset '
             'between hosts)',
@@ -104,6 +113,7 @@ class EsoNode(ManagedNode):
         self.stats_log = declare_output_path(
             self, 'stats_log', 'pairing counts (.json) written at shutdown'
         )
+        self.refuse_sim_time_in_realtime(self.mode)
 
     # --- lifecycle -------------------------------------------------------------------------------
     def build(self) -> None:
@@ -112,47 +122,90 @@ class EsoNode(ManagedNode):
         self.observer = ExtendedStateObserver(self.gains, self.dt_s)
         patience = SIM_PATIENCE_SAMPLES if self.mode == 'sim' else REALTIME_PATIENCE_SAMPLES
         self.pairing = ObserverInputPairing(
-            self.observer, self.period_ns, self.observer.correction, patience
+            self.observer,
+            self.period_ns,
+            self.observer.correction,
+            patience,
+            None if self.mode == 'sim' else gap_limit_samples(self.period_ns),
         )
         self.measurement_check = StampCheck(
             self.period_ns, self.mode == 'sim', int(self.future_tolerance_s * 1e9)
         )
         self.input_current_gain = self.dt_s * self.gains.theta1n
+        self.clock = Clock()
+        self.plausibility = MeasurementPlausibility()
         self.refused = 0
+        self.refusals: dict[str, int] = {}  # by reason, for /diagnostics
         self.conflict = ''
         self.restart_next = False
+        self.guard = GraphGuard(self, self.on_conflict)
         qos = control_qos(self.mode)
         self.pub = self.create_lifecycle_publisher(StateEstimate, 'eso/estimate', qos)
         self.subs = [
-            self.create_subscription(JointState, 'joint_states', self.on_measurement, qos),
-            self.create_subscription(CurrentCommand, 'current_command', self.on_command, qos),
+            self.create_subscription(
+                kind, topic, callback, qos, event_callbacks=self.guard.callbacks(topic)
+            )
+            for kind, topic, callback in (
+                (JointState, 'joint_states', self.on_measurement),
+                (CurrentCommand, 'current_command', self.on_command),
+            )
         ]
-        self.graph_timer = self.create_timer(0.1, self.on_graph_check)
         self.msg = StateEstimate()
+        self.diagnostics = NodeDiagnostics(self, self.health_monitor(), self.health)
         beta = ', '.join(f'{b:.4g}' for b in self.gains.beta)
         self.get_logger().info(
             f'{self.mode} mode, w0 = {self.gains.omega0_rad_s} rad/s, beta = ({beta}), '
             f'dt = {self.dt_s} s'
         )
 
+    def start(self) -> None:
+        """(Re)activation: the observer restarts from the next measurement (no back-fill)."""
+        self.restart_next = True
+
     def stop(self) -> None:
         """Stop stepping; log and write the counts."""
         self.close_log()
 
     def drop(self) -> None:
-        """Destroy the topics and timers."""
-        self.destroy_timer(self.graph_timer)
+        """Destroy the topics and the diagnostics."""
+        self.diagnostics.destroy()
         for sub in self.subs:
             self.destroy_subscription(sub)
         self.destroy_lifecycle_publisher(self.pub)
 
-    # --- inputs ----------------------------------------------------------------------------------
-    def on_graph_check(self) -> None:
-        """10 Hz.
+    def health_monitor(self) -> HealthMonitor:
+        """Rules of /diagnostics: STALE without paired samples; WARN on refusals, substitutions."""
+        return HealthMonitor(
+            NODE_NAME,
+            inputs={'steps': 'paired samples (joint_states with current_command)'},
+            warn_on={
+                'refused *': 'refused inputs',
+                'substituted_pairs': 'substituted commands',
+                'restarts': 'observer restarts',
+            },
+        )
 
-        More than one publisher on a control input stops the observer until one is left.
-        """
-        conflict = self.crowded(WATCHED_TOPICS)
+    def health(self) -> Snapshot:
+        """Report to /diagnostics: counts, mode, a publisher conflict."""
+        p = self.pairing
+        return Snapshot(
+            'active' if self.active else 'inactive',
+            {
+                'steps': p.steps,
+                'substituted_pairs': p.substituted,
+                'repaired_pairs': p.repaired,
+                'restarts': p.restarts,
+                'refused_inputs': self.refused,
+                'ignored_inputs': p.ignored + self.measurement_check.ignored_old,
+                **{f'refused {k}': n for k, n in self.refusals.items()},
+            },
+            {'mode': self.mode, 'omega0_rad_s': self.gains.omega0_rad_s},
+            [(Level.ERROR, f'{self.conflict}: not estimating')] if self.conflict else [],
+        )
+
+    # --- inputs ----------------------------------------------------------------------------------
+    def on_conflict(self, conflict: str) -> None:
+        """Handle a change of the matched publishers: more than one stops the observer."""
         if conflict != self.conflict:
             if conflict:
                 self.get_logger().error(f'{conflict}: not estimating until one publisher is left')
@@ -167,6 +220,7 @@ class EsoNode(ManagedNode):
     def _refuse(self, key: str, why) -> None:
         """Count and log (rate-limited) a refused input."""
         self.refused += 1
+        self.refusals[key] = self.refusals.get(key, 0) + 1
         self.log.error(key, why)
 
     def on_measurement(self, msg: JointState) -> None:
@@ -184,24 +238,47 @@ class EsoNode(ManagedNode):
             )
             return
         stamp = stamp_to_ns(msg.header.stamp)
-        verdict = self.measurement_check.check(stamp, time.time_ns())
-        if verdict is Verdict.FUTURE:
-            self._refuse(
-                'future',
-                lambda: f'measurement stamped {stamp} ns refused: beyond the sample clock',
-            )
-        elif self.conflict:
+        if self.conflict:
             return
-        elif verdict is Verdict.JUMP or (self.restart_next and verdict is Verdict.OK):
+        implausible = self.plausibility.check(stamp, y)
+        rebased = bool(implausible) and self.plausibility.refuse(stamp, y)
+        if implausible and not rebased:
+            self._refuse('implausible', lambda: implausible)
+            return
+        verdict = self.measurement_check.check(stamp, self.clock.stamp_ns())
+        if verdict in (Verdict.FUTURE, Verdict.INVALID):
+            self._refuse(
+                verdict.value,
+                lambda: (
+                    f'measurement stamped {stamp} ns refused: '
+                    + ('beyond the sample clock' if verdict is Verdict.FUTURE else 'not a stamp')
+                ),
+            )
+        elif verdict is Verdict.JUMP or (verdict is Verdict.OK and (self.restart_next or rebased)):
+            why = (
+                'a jump of the time base: a restarted sensor?'
+                if verdict is Verdict.JUMP
+                else 'a step of the measurement that persisted'
+                if rebased
+                else 'activation, or the end of a publisher conflict'
+            )
             self.restart_next = False
+            self.plausibility.rebase(stamp, y)
             self.get_logger().warning(
-                f'observer restarted from the measurement at {stamp} ns (a jump of the '
-                'time base: a restarted sensor?, or the end of a publisher conflict)'
+                f'observer restarted from the measurement at {stamp} ns ({why})'
             )
             for estimate in self.pairing.restart(stamp, y):
                 self._publish(estimate)
         elif verdict is Verdict.OK:
-            for estimate in self.pairing.add_measurement(stamp, y):
+            self.plausibility.accept(stamp, y)
+            restarts = self.pairing.gap_restarts
+            estimates = self.pairing.add_measurement(stamp, y)
+            if self.pairing.gap_restarts != restarts:
+                self.get_logger().warning(
+                    f'observer restarted from the measurement at {stamp} ns: no measurement '
+                    'paired for longer than the command timeout (a stall?); no back-fill'
+                )
+            for estimate in estimates:
                 self._publish(estimate)
 
     def on_command(self, msg: CurrentCommand) -> None:
@@ -216,19 +293,15 @@ class EsoNode(ManagedNode):
             )
             return
         stamp = stamp_to_ns(msg.header.stamp)
-        if (
-            self.mode == 'realtime'
-            and stamp > time.time_ns() + self.measurement_check.future_tolerance_ns
-        ):
-            self._refuse(
-                'future_command',
-                lambda: f'command stamped {stamp} ns refused: beyond the sample clock',
-            )
-            return
         if self.conflict:
             return
         for estimate in self.pairing.add_command(stamp, u):
             self._publish(estimate)
+        why = self.pairing.refusal
+        if why:
+            self._refuse(
+                'command_binding' if 'refused' in why else 'command_conflict', lambda: why
+            )
 
     def _publish(self, e: Estimate) -> None:
         """Publish x_hat for ``e.sample_ns``; log a substitution (rate-limited)."""

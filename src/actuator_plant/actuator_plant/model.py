@@ -198,6 +198,30 @@ class WorkingCondition:
         )
 
 
+#: The paper's named working conditions, the one table every node and tool reads.
+CONDITIONS = {'lab': WorkingCondition.lab, 'deep_sea': WorkingCondition.deep_sea}
+#: What a joint's ``working_condition`` parameter takes: a named one, or 'depth' (the
+#: hydrostatic pressure of ``depth_m``) or 'custom' (pressure and temperature as given).
+CONDITION_CHOICES = (*CONDITIONS, 'depth', 'custom')
+
+
+def working_condition(
+    name: str, depth_m: float = 1000.0, given: 'WorkingCondition | None' = None
+) -> WorkingCondition:
+    """Return the working condition ``name`` (one of CONDITION_CHOICES).
+
+    'depth' takes ``depth_m`` and the temperature of ``given``; 'custom' returns ``given``.
+    """
+    given = given if given is not None else WorkingCondition()
+    if name in CONDITIONS:
+        return CONDITIONS[name]()
+    if name == 'depth':
+        return WorkingCondition.at_depth(depth_m, given.temperature_c)
+    if name == 'custom':
+        return given
+    raise ValueError(f'working_condition must be one of {", ".join(CONDITION_CHOICES)}: {name!r}')
+
+
 @dataclass(frozen=True)
 class PlantParameters:
     """Everything the simulated joint needs; each effect can be switched off for tests."""
@@ -251,6 +275,12 @@ class PlantConstants(NamedTuple):
     stirring_coefficient_nm_s_rad: float  # k * mu, multiplies the rotor speed
     viscosity_pa_s: float
     seal_offset_nm: float  # c0 + exp(cp P)
+    # The parameters the per-instant terms read, flat (the same values, fewer look-ups):
+    gear_ratio: float
+    nominal: tuple  # (J_n, k_tn, k_bn)
+    drift: tuple | None  # (J_n, a_J, w_J, k_tn, a_k, w_k, k_bn, a_b, w_b); None without drift
+    external: tuple | None  # (mean, relative amplitude, w) of eq. (40); None without it
+    seal_velocity_coefficient: object  # c_v of eq. (42); None without seal friction
 
 
 def derive_constants(params: PlantParameters) -> PlantConstants:
@@ -261,7 +291,33 @@ def derive_constants(params: PlantParameters) -> PlantConstants:
     seal_offset = params.seal.base_nm + np.exp(
         params.seal.pressure_coefficient_per_mpa * condition.pressure_pa / PA_PER_MPA
     )
-    return PlantConstants(params, _plain(k_mu), _plain(mu), _plain(seal_offset))
+    n, d, e = params.nominal, params.drift, params.external
+    nominal = (n.inertia_kg_m2, n.torque_constant_nm_a, n.viscous_coefficient_nm_s_rad)
+    return PlantConstants(
+        params,
+        _plain(k_mu),
+        _plain(mu),
+        _plain(seal_offset),
+        n.gear_ratio,
+        nominal,
+        (
+            n.inertia_kg_m2,
+            d.inertia_amplitude,
+            d.inertia_frequency_rad_s,
+            n.torque_constant_nm_a,
+            d.torque_constant_amplitude,
+            d.torque_constant_frequency_rad_s,
+            n.viscous_coefficient_nm_s_rad,
+            d.viscous_amplitude,
+            d.viscous_frequency_rad_s,
+        )
+        if params.with_drift
+        else None,
+        (e.mean_nm, e.relative_amplitude, e.frequency_rad_s)
+        if params.with_external_torque
+        else None,
+        params.seal.velocity_coefficient_s_rad if params.with_seal_friction else None,
+    )
 
 
 def _plain(x):
@@ -283,55 +339,70 @@ class JointForces(NamedTuple):
     seal_torque_nm: object  # T_f at the output shaft
 
 
+class TimeTerms(NamedTuple):
+    """What eq. (40)-(41) give at one instant, whatever the velocity."""
+
+    inertia_kg_m2: object
+    torque_constant_nm_a: object
+    viscous_coefficient_nm_s_rad: object
+    external_torque_nm: object  # T_d at the output shaft
+
+
+def time_terms(t: float, c: PlantConstants) -> TimeTerms:
+    """Drifting parameters (41) and external torque (40) at time ``t`` [s]."""
+    if c.drift is not None:
+        j_n, a_j, w_j, k_n, a_k, w_k, b_n, a_b, w_b = c.drift
+        inertia = j_n * (1.0 + a_j * xm.sin(w_j * t))
+        torque_constant = k_n * (1.0 + a_k * xm.cos(w_k * t))
+        viscous = b_n * (1.0 + a_b * xm.cos(w_b * t))
+    else:
+        inertia, torque_constant, viscous = c.nominal
+    if c.external is not None:
+        mean, amplitude, w = c.external
+        external = mean * (1.0 + amplitude * xm.sin(w * t))
+    else:
+        external = 0.0 * t
+    return TimeTerms(inertia, torque_constant, viscous, external)
+
+
+def velocity_terms(velocity_rad_s, c: PlantConstants):
+    """Stirring loss T_v (6) at the motor shaft and seal friction T_f (42) [N m]."""
+    stirring = c.stirring_coefficient_nm_s_rad * c.gear_ratio * velocity_rad_s
+    if c.seal_velocity_coefficient is not None:
+        # sign(0) = 0: at rest the seal friction is zero in this model (no stiction state).
+        seal = (
+            c.seal_offset_nm + xm.exp(c.seal_velocity_coefficient * xm.fabs(velocity_rad_s))
+        ) * xm.sign(velocity_rad_s)
+    else:
+        seal = 0.0 * velocity_rad_s
+    return stirring, seal
+
+
 def joint_forces(t: float, velocity_rad_s, c: PlantConstants) -> JointForces:
     """Parameters and loss torques, eq. (6), (40)-(42).
 
     At time ``t`` [s] and joint velocity q' [rad/s].
     """
-    p = c.params
-    n = p.nominal
-    if p.with_drift:
-        d = p.drift
-        inertia = n.inertia_kg_m2 * (
-            1.0 + d.inertia_amplitude * xm.sin(d.inertia_frequency_rad_s * t)
-        )
-        torque_constant = n.torque_constant_nm_a * (
-            1.0 + d.torque_constant_amplitude * xm.cos(d.torque_constant_frequency_rad_s * t)
-        )
-        viscous = n.viscous_coefficient_nm_s_rad * (
-            1.0 + d.viscous_amplitude * xm.cos(d.viscous_frequency_rad_s * t)
-        )
-    else:
-        inertia, torque_constant, viscous = (
-            n.inertia_kg_m2,
-            n.torque_constant_nm_a,
-            n.viscous_coefficient_nm_s_rad,
-        )
-    stirring = c.stirring_coefficient_nm_s_rad * n.gear_ratio * velocity_rad_s
-    if p.with_external_torque:
-        e = p.external
-        external = e.mean_nm * (1.0 + e.relative_amplitude * xm.sin(e.frequency_rad_s * t))
-    else:
-        external = 0.0 * t
-    if p.with_seal_friction:
-        # sign(0) = 0: at rest the seal friction is zero in this model (no stiction state).
-        seal = (
-            c.seal_offset_nm + xm.exp(p.seal.velocity_coefficient_s_rad * xm.fabs(velocity_rad_s))
-        ) * xm.sign(velocity_rad_s)
-    else:
-        seal = 0.0 * velocity_rad_s
+    inertia, torque_constant, viscous, external = time_terms(t, c)
+    stirring, seal = velocity_terms(velocity_rad_s, c)
     return JointForces(inertia, torque_constant, viscous, stirring, external, seal)
+
+
+def acceleration_at(terms: TimeTerms, velocity_rad_s, current_a, c: PlantConstants):
+    """Compute q'' from eq. (1) with the instant's ``terms``: see ``joint_acceleration``."""
+    stirring, seal = velocity_terms(velocity_rad_s, c)
+    gear = c.gear_ratio
+    motor_torque = (
+        terms.torque_constant_nm_a * current_a
+        - terms.viscous_coefficient_nm_s_rad * gear * velocity_rad_s
+    )
+    load = stirring + (terms.external_torque_nm + seal) / gear
+    return (motor_torque - load) / (terms.inertia_kg_m2 * gear)
 
 
 def joint_acceleration(t: float, velocity_rad_s, current_a, c: PlantConstants):
     """Compute q'' from eq. (1): (k_t u - k_b N q' - T_v - T_d/N - T_f/N) / (J N) [rad/s^2]."""
-    f = joint_forces(t, velocity_rad_s, c)
-    gear = c.params.nominal.gear_ratio
-    motor_torque = (
-        f.torque_constant_nm_a * current_a - f.viscous_coefficient_nm_s_rad * gear * velocity_rad_s
-    )
-    load = f.stirring_torque_nm + (f.external_torque_nm + f.seal_torque_nm) / gear
-    return (motor_torque - load) / (f.inertia_kg_m2 * gear)
+    return acceleration_at(time_terms(t, c), velocity_rad_s, current_a, c)
 
 
 class DisturbanceParts(NamedTuple):
@@ -372,13 +443,14 @@ def rk4_step(t: float, position_rad, velocity_rad_s, current_a, dt: float, c: Pl
     x1, x2 = position_rad, velocity_rad_s
     for i in range(n_sub):
         ts = t + i * h
-        a1 = joint_acceleration(ts, x2, current_a, c)
+        middle = time_terms(ts + 0.5 * h, c)  # stages 2 and 3 share their instant
+        a1 = acceleration_at(time_terms(ts, c), x2, current_a, c)
         v2 = x2 + 0.5 * h * a1
-        a2 = joint_acceleration(ts + 0.5 * h, v2, current_a, c)
+        a2 = acceleration_at(middle, v2, current_a, c)
         v3 = x2 + 0.5 * h * a2
-        a3 = joint_acceleration(ts + 0.5 * h, v3, current_a, c)
+        a3 = acceleration_at(middle, v3, current_a, c)
         v4 = x2 + h * a3
-        a4 = joint_acceleration(ts + h, v4, current_a, c)
+        a4 = acceleration_at(time_terms(ts + h, c), v4, current_a, c)
         x1 = x1 + h / 6.0 * (x2 + 2.0 * v2 + 2.0 * v3 + v4)
         x2 = x2 + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
     return x1, x2

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import traceback
 
-from rcl_interfaces.msg import ParameterDescriptor, ParameterType
+from rcl_interfaces.msg import ParameterDescriptor, ParameterType, SetParametersResult
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 
 from actuator_ros.log import RateLimitedLog
@@ -104,6 +104,37 @@ class ManagedNode(LifecycleNode):
                 f'ignoring parameters this node does not have: {", ".join(unknown)}'
             )
         only_while_unconfigured(self)
+        # rclpy calls the newest callback first: every request is logged, refused ones too.
+        self.add_on_set_parameters_callback(self._log_outside_change)
+        self._internal_transition = False
+
+    def _log_outside_change(self, params):
+        """Log at warning level every parameter change requested from outside.
+
+        rclpy's parameter service does not tell who called it; the node's own declarations
+        do not come through here (this callback is added after them).
+        """
+        self.get_logger().warning(
+            'parameter change requested from outside (caller not known to rclpy): '
+            + ', '.join(f'{p.name}={p.value!r}' for p in params)
+        )
+        return SetParametersResult(successful=True)
+
+    def refuse_sim_time_in_realtime(self, mode: str) -> None:
+        """Realtime mode runs on the system clock: use_sim_time would stop the watchdog's clock."""
+        if mode == 'realtime' and self.get_parameter('use_sim_time').value:
+            raise ParameterError(
+                "parameter 'use_sim_time' = true refused in realtime mode: ages and the "
+                'watchdog would follow /clock, which nobody publishes there'
+            )
+
+    def _outside(self, transition: str) -> None:
+        """Log at warning level a lifecycle transition this process did not ask for itself."""
+        if not self._internal_transition:
+            self.get_logger().warning(
+                f'lifecycle transition {transition!r} requested from outside (service '
+                'change_state; rclpy does not tell the caller)'
+            )
 
     # --- what a node implements ---------------------------------------------------------------
     def load_parameters(self) -> None:
@@ -130,6 +161,7 @@ class ManagedNode(LifecycleNode):
 
         a refusal is logged and the node stays unconfigured.
         """
+        self._outside('configure')
         try:
             self.load_parameters()
             self.build()
@@ -142,6 +174,7 @@ class ManagedNode(LifecycleNode):
 
     def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
         """Enable the lifecycle publishers, then start acting."""
+        self._outside('activate')
         result = super().on_activate(state)
         self.active = True
         self.start()
@@ -150,12 +183,14 @@ class ManagedNode(LifecycleNode):
 
     def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
         """Stop acting, then disable the publishers."""
+        self._outside('deactivate')
         self._stop()
         self.get_logger().info('inactive')
         return super().on_deactivate(state)
 
     def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:
         """Back to unconfigured."""
+        self._outside('cleanup')
         self._drop()
         return TransitionCallbackReturn.SUCCESS
 
@@ -173,12 +208,6 @@ class ManagedNode(LifecycleNode):
         self._stop()
         self._drop()
         return TransitionCallbackReturn.SUCCESS
-
-    def crowded(self, topics) -> str:
-        """Which of ``topics`` have more than one publisher ('2 publishers on x, ...'), or ''."""
-        return ', '.join(
-            f'{n} publishers on {t}' for t in topics if (n := self.count_publishers(t)) > 1
-        )
 
     def halt(self) -> None:
         """Stop acting now (at exit, before the last messages are acknowledged); idempotent."""
@@ -203,8 +232,12 @@ class ManagedNode(LifecycleNode):
         """
         if not self.get_parameter('autostart').value:
             return True
-        self.trigger_configure()
-        if not self.configured:
-            return False
-        self.trigger_activate()
+        self._internal_transition = True
+        try:
+            self.trigger_configure()
+            if not self.configured:
+                return False
+            self.trigger_activate()
+        finally:
+            self._internal_transition = False
         return self.active

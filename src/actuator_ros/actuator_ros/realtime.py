@@ -106,8 +106,8 @@ def pre_init_settings(args: Sequence[str], node_name: str) -> RealtimeSettings:
             in_ros = False
         elif in_ros and arg in ('-p', '--param'):
             name, _, text = next(it, '').partition(':=')
-            name = name.split(':')[-1]  # node:name form
-            if name in names:
+            node, _, name = name.rpartition(':')  # 'node:name' applies to that node only
+            if name in names and node in ('', node_name, f'/{node_name}', '/**', '**'):
                 found[name] = _value(text)
         elif in_ros and arg == '--params-file':
             found.update(_from_file(next(it, ''), node_name, names))

@@ -4,13 +4,13 @@
 """The closed loop: the objects the three nodes hold, called in the order the nodes call them.
 
 Sample k (see docs/architecture.md), each step the same call a node makes:
-  1. the plant samples y(k) = q(t_k)                      (plant node: ``JointPlant``);
+  1. the joint integrates [t_k-1, t_k) and samples y(k)   (joint node: ``SimulatedJoint``);
   2. the observer pairing takes y(k)                      (ESO node: ``ObserverInputPairing``);
   3. the controller assembly takes x_hat(k) and y(k) and
      runs the law for u(k)                 (controller node: ``ControlSampleAssembly``);
-  4. the drive's gate takes u(k) and holds it (plant node: ``CommandGate``);
-  5. the pairing takes u(k): one observer step to x_hat(k+1);
-  6. the plant integrates [t_k, t_k+1) with the held current.
+  4. the joint's gate takes u(k) with its safe_stop and holds it, brake included
+                                          (joint node: ``CommandGate``), written to the joint;
+  5. the pairing takes u(k): one observer step to x_hat(k+1).
 The nodes hold these same classes (``actuator_core``), so a run in deterministic sim time
 reproduces this loop sample by sample by construction, and a test checks it bit for bit
 (``tests/test_closed_loop_nodes.py``). Stamps are integer nanoseconds from t_0 = 0.
@@ -32,8 +32,8 @@ from actuator_controller.laws import CommonConfig, ControlOutput, make_controlle
 from actuator_controller.reference import make_reference
 from actuator_eso.observer import EsoGains, ExtendedStateObserver
 from actuator_plant.encoder import Encoder, EncoderParameters
-from actuator_plant.model import JointPlant, PlantParameters
-from actuator_sim.delay import CommandDelay
+from actuator_plant.model import PlantParameters
+from actuator_plant.sim_joint import SimulatedJoint
 
 #: Per-sample quantities recorded besides the controller's own ControlOutput fields.
 EXTRA_FIELDS = (
@@ -68,6 +68,8 @@ class Scenario:
     encoder: EncoderParameters | None = None
     #: Samples between a command and its application by the plant (0: the paper's loop).
     command_delay_samples: int = 0
+    #: First-order torque loop of a drive between command and joint [s] (0: none, the paper's).
+    torque_time_constant_s: float = 0.0
 
     @property
     def samples(self) -> int:
@@ -87,7 +89,18 @@ class ClosedLoop:
         zero = 0.0 if batch is None else np.zeros(batch)
         self.scenario = scenario
         self.period_ns = period_ns(dt)
-        self.plant = JointPlant(scenario.plant, dt, position_rad=zero, velocity_rad_s=zero)
+        self.joint = SimulatedJoint(
+            scenario.plant,
+            dt,
+            position_rad=zero,
+            velocity_rad_s=zero,
+            encoder=None
+            if scenario.encoder is None
+            else Encoder.from_parameters(scenario.encoder),
+            command_delay_samples=scenario.command_delay_samples,
+            torque_time_constant_s=scenario.torque_time_constant_s,
+        )
+        self.plant = self.joint.plant
         self.eso = ExtendedStateObserver(scenario.eso, dt, x_hat0=(zero, zero, zero))
         self.pairing = ObserverInputPairing(
             self.eso, self.period_ns, self.eso.correction, SIM_PATIENCE_SAMPLES
@@ -101,48 +114,36 @@ class ClosedLoop:
         )
         self.gate = CommandGate(scenario.common.current_limit_a)
         self.gate.activate()
+        self.joint.activate()
         self.sample_index = 0
-        self.held_current = zero
         self.estimate = None
         self.input_current_gain = self.eso.dt_s * self.eso.gains.theta1n  # as the ESO node has it
-        self.encoder = (
-            None if scenario.encoder is None else Encoder.from_parameters(scenario.encoder)
-        )
-        self.command_delay = (
-            CommandDelay(scenario.command_delay_samples, zero)
-            if np.any(np.asarray(scenario.command_delay_samples) != 0)
-            else None
-        )
 
     def step(self, command_lost: bool = False, eso_integrates_applied: bool = False) -> dict:
         """Run sample k in the node order; return every recorded quantity of that sample.
 
         Fault injection for the real-time case (``late_commands``): ``command_lost`` keeps u(k)
-        from the drive (its gate holds the previous command until its timeout, then 0 A);
-        ``eso_integrates_applied`` makes the observer integrate the current the drive held
-        instead of the commanded one.
+        from the drive (its gate holds the previous command until its timeout, then 0 A and,
+        later, the brake); ``eso_integrates_applied`` makes the observer integrate the current
+        the drive's gate held instead of the commanded one.
         """
         stamp = self.sample_index * self.period_ns
         t = sample_time_s(stamp)
-        y, velocity = self.plant.position_rad, self.plant.velocity_rad_s
-        if self.encoder is not None:
-            y = self.encoder.measure(y)
-        truth = self.plant.truth(self.held_current)
+        y = self.joint.read(stamp).position_rad
+        velocity = self.plant.velocity_rad_s
+        truth = self.joint.truth()
         self._forward(self.pairing.add_measurement(stamp, y))
         x1_hat, x2_hat, x3_hat = self.estimate.x_hat
         sample = self.assembly.add_measurement(stamp, y)
         if not command_lost:
-            self.gate.offer(sample.current_a, stamp, False, stamp)
-        applied = self.gate.hold(stamp).current_a
-        if self.command_delay is not None:
-            applied = self.command_delay.apply(applied)
+            self.gate.offer(sample.current_a, stamp, sample.safe_stop, stamp)
+        held = self.gate.hold(stamp)
+        self.joint.write(held.current_a, held.brake)
         self._forward(
             self.pairing.add_command(
-                stamp, applied if eso_integrates_applied else sample.current_a
+                stamp, held.current_a if eso_integrates_applied else sample.current_a
             )
         )
-        self.plant.step(applied)
-        self.held_current = applied
         self.sample_index += 1
         ref = sample.reference
         record = dict(

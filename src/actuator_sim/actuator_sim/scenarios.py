@@ -21,7 +21,7 @@ import dataclasses
 
 from actuator_sim.loop import Scenario
 from actuator_controller.laws import SmcGains
-from actuator_plant.model import PlantParameters, WorkingCondition
+from actuator_plant.model import CONDITIONS, PlantParameters
 
 #: Table 5: maximum steady-state tracking error [rad] of PP-NFTSMC-ESO.
 PAPER_TABLE5 = {
@@ -33,7 +33,6 @@ PAPER_TABLE5 = {
 #: Table 6: maximum steady-state tracking error [rad], fast trajectory, deep sea.
 PAPER_TABLE6 = {'pi': 1.84e-2, 'smc_eso': 1.71e-2, 'nftsmc_eso': 6.64e-3, 'pp_nftsmc_eso': 6.96e-4}
 
-CONDITIONS = {'lab': WorkingCondition.lab, 'deep_sea': WorkingCondition.deep_sea}
 
 #: Spectral radius the substitute SMC-ESO gains are scaled to (stability margin at 1 kHz).
 SMC_TARGET_RADIUS = 0.95

@@ -146,6 +146,30 @@ def radius_along_envelope(
     ]
 
 
+def drift_extremes(plant: PlantParameters, viscous: bool = True) -> list[PlantParameters]:
+    """Return the vertices of the drift of eq. (41) as drift-free plants.
+
+    J_n (1 +- a_J), k_tn (1 +- a_kt), k_bn (1 +- a_kb) with the plant's own amplitudes (8
+    plants); ``viscous`` False keeps k_bn (1 - a_kb) only (4 plants). The linearised loop of a
+    drifting plant is judged at the parameters it passes through.
+    """
+    d, n = plant.drift, plant.nominal
+    out = []
+    for sj in (-1.0, 1.0):
+        for skt in (-1.0, 1.0):
+            for skb in (-1.0, 1.0) if viscous else (-1.0,):
+                nominal = dataclasses.replace(
+                    n,
+                    inertia_kg_m2=n.inertia_kg_m2 * (1.0 + sj * d.inertia_amplitude),
+                    torque_constant_nm_a=n.torque_constant_nm_a
+                    * (1.0 + skt * d.torque_constant_amplitude),
+                    viscous_coefficient_nm_s_rad=n.viscous_coefficient_nm_s_rad
+                    * (1.0 + skb * d.viscous_amplitude),
+                )
+                out.append(dataclasses.replace(plant, nominal=nominal, with_drift=False))
+    return out
+
+
 def largest_stable_scale(
     controller_name: str, gains, fields: Sequence[str], target_radius: float = 0.95, **kwargs
 ) -> float | None:

@@ -55,7 +55,7 @@ class _OneLineParser(argparse.ArgumentParser):
 def sweep_main(argv: Sequence[str] | None = None) -> int:
     """``sweep``: grid, Monte Carlo or Latin hypercube study of the closed loop."""
     from actuator_studies.distributed import ChunkFailed, InjectedFailure
-    from actuator_studies.sweep import SweepRequest, run_sweep
+    from actuator_studies.sweep import DEFAULT_BATCH, SweepRequest, run_sweep
 
     p = _OneLineParser(
         prog='sweep', description='Sweep scenario quantities through the vectorised closed loop.'
@@ -76,7 +76,21 @@ def sweep_main(argv: Sequence[str] | None = None) -> int:
     p.add_argument(
         '--seed', type=int, default=0, help="seed of the draws and of every run's encoder noise"
     )
-    p.add_argument('--batch', type=int, default=64, help='runs per vectorised chunk (default 64)')
+    p.add_argument(
+        '--batch', type=int, default=None, help='runs per vectorised ClosedLoop (default 8192)'
+    )
+    p.add_argument(
+        '--chunk',
+        type=int,
+        default=0,
+        help='runs per chunk: one task, one file, the unit of --resume (default: one batch)',
+    )
+    p.add_argument(
+        '--repeat',
+        type=int,
+        default=1,
+        help='runs per design point, each with its own noise seed (default 1)',
+    )
     p.add_argument(
         '--gains', default='', help='gains YAML (as design_gains writes) instead of Table 4'
     )
@@ -105,7 +119,9 @@ def sweep_main(argv: Sequence[str] | None = None) -> int:
         method=a.method,
         samples=a.samples,
         seed=a.seed,
-        batch=a.batch,
+        batch=a.batch if a.batch is not None else DEFAULT_BATCH,
+        chunk=a.chunk,
+        repeat=a.repeat,
         controller=a.controller,
         reference=a.reference,
         condition=a.condition,
@@ -129,7 +145,8 @@ def sweep_main(argv: Sequence[str] | None = None) -> int:
     except StudyInputError as exc:
         return _fail('sweep', str(exc))
     except ChunkFailed as exc:
-        print(f'sweep: {exc}; the finished chunks are kept, rerun with --resume', file=sys.stderr)
+        print(f'sweep: {exc}', file=sys.stderr)
+        print('sweep: the finished chunks are kept; rerun with --resume', file=sys.stderr)
         return 1
     err = summary['max_steady_error_rad']
     print(
@@ -154,22 +171,41 @@ def sweep_main(argv: Sequence[str] | None = None) -> int:
 def bench_main(argv: Sequence[str] | None = None) -> int:
     """``sweep-bench``: runs per second against batch size (one core) and against Ray workers."""
     from actuator_studies.bench import run_bench
+    from actuator_studies.sweep import DEFAULT_BATCH
 
     p = _OneLineParser(
         prog='sweep-bench', description='Throughput of the vectorised loop and of Ray workers.'
     )
-    p.add_argument('--batches', default='1,4,16,64,128', help='batch sizes on one core')
-    p.add_argument('--workers', default='1,2', help='Ray worker counts')
-    p.add_argument('--runs', type=int, default=256, help='runs per Ray measurement')
-    p.add_argument('--duration', type=float, default=6.0, help='simulated seconds per run')
+    p.add_argument('--batches', default='1024,4096,8192', help='batch sizes on one core')
+    p.add_argument('--workers', default='1,2', help="Ray worker counts ('' for none)")
+    p.add_argument(
+        '--runs-per-worker',
+        type=int,
+        default=4096,
+        help='runs per Ray worker in each Ray measurement (the same for every worker count)',
+    )
+    p.add_argument('--duration', type=float, default=2.0, help='simulated seconds per run')
+    p.add_argument(
+        '--driver-tasks',
+        type=int,
+        default=0,
+        help='no-op tasks to measure the driver overhead per task with (0: skip)',
+    )
     p.add_argument('--json', type=Path, help='write the figures as JSON')
     a = p.parse_args(argv)
     try:
         batches = [int(x) for x in a.batches.split(',') if x]
         workers = [int(x) for x in a.workers.split(',') if x]
-        if min(batches + workers) < 1 or a.runs < 1:
-            raise StudyInputError('batch sizes, worker counts and --runs must be >= 1')
-        figures = run_bench(batches, workers, a.runs, a.duration)
+        if min(batches + workers) < 1 or a.runs_per_worker < 1 or a.driver_tasks < 0:
+            raise StudyInputError('batch sizes, worker counts and --runs-per-worker must be >= 1')
+        figures = run_bench(
+            batches,
+            workers,
+            a.runs_per_worker,
+            a.duration,
+            a.driver_tasks,
+            default_chunk=DEFAULT_BATCH,
+        )
     except (StudyInputError, ValueError) as exc:
         return _fail('sweep-bench', str(exc))
     if a.json:
@@ -181,6 +217,7 @@ def bench_main(argv: Sequence[str] | None = None) -> int:
 def design_main(argv: Sequence[str] | None = None) -> int:
     """``design_gains``: robust PP-NFTSMC-ESO gains over an envelope, under a stability margin."""
     from actuator_studies.design import DEFAULT_CORNERS, DesignRequest, run_design
+    from actuator_studies.distributed import ChunkFailed
 
     p = _OneLineParser(
         prog='design_gains', description='Robust PP-NFTSMC-ESO gain design (Optuna TPE).'
@@ -210,6 +247,28 @@ def design_main(argv: Sequence[str] | None = None) -> int:
         '--set', action='append', default=[], metavar='NAME=VALUE', help='a fixed quantity'
     )
     _scenario_arguments(p)
+    p.add_argument(
+        '--noise-seeds', type=int, default=3, help='noise seeds per noisy corner in the search'
+    )
+    p.add_argument(
+        '--validate-seeds', type=int, default=5, help='held-out noise seeds per noisy corner'
+    )
+    p.add_argument(
+        '--validate-points',
+        type=int,
+        default=40,
+        help='held-out Latin-hypercube points inside the corners (0: none)',
+    )
+    p.add_argument(
+        '--storage', default='', help='Optuna journal file: the study resumes from it if it exists'
+    )
+    p.add_argument('--study-name', default='design_gains', help='study name in --storage')
+    p.add_argument(
+        '--prune',
+        action='store_true',
+        help='exact pruning over the cases: a trial worse than the best on the hard quarter '
+        'of the cases is not run on the rest (worst case only)',
+    )
     p.add_argument('--out', type=Path, required=True, help='output folder (must not exist)')
     p.add_argument(
         '--ray', default='', metavar='local:N|ADDRESS', help='evaluate trial batches as Ray tasks'
@@ -227,12 +286,31 @@ def design_main(argv: Sequence[str] | None = None) -> int:
         reference=a.reference,
         condition=a.condition,
         duration_s=a.duration,
+        noise_seeds=a.noise_seeds,
+        validate_seeds=a.validate_seeds,
+        validate_points=a.validate_points,
+        storage=a.storage,
+        study_name=a.study_name,
+        prune=a.prune,
     )
     try:
         report = run_design(req, a.out, a.ray)
     except StudyInputError as exc:
         return _fail('design_gains', str(exc))
-    print(json.dumps(report['comparison'], indent=2))
+    except ChunkFailed as exc:
+        print(f'design_gains: {exc}', file=sys.stderr)
+        return 1
+    for part, table in [('in sample', report['in_sample'])] + [
+        (f'held out ({v["what"]})', v) for v in report['validation'].values()
+    ]:
+        for label, row in table.items():
+            if isinstance(row, dict):
+                print(
+                    f'design_gains: {part}, {label}: worst {row["worst_error_rad"]:.3e} rad, '
+                    f'median {row["median_error_rad"]:.3e}, {row["failed_cases"]} of '
+                    f'{row["cases"]} above 1e-2 rad, '
+                    f'max saturated {row["max_saturated_fraction"]:.3f}'
+                )
     print(f'design_gains: {report["gains_yaml"]}, {a.out}/design.json')
     return 0
 

@@ -4,24 +4,32 @@
 """Robust PP-NFTSMC-ESO gain design: Optuna TPE over (k0, k1, k2, k3, omega0) for the envelope.
 
 Objective: the chosen percentile (default 100, the worst case) of the max steady-state
-error over the envelope's corners (the product of the --corner values), each corner one
-closed-loop run; a diverged corner counts as DIVERGED_ERROR_RAD. Constraints (Optuna's
-constrained TPE, a trial is feasible when every value is <= 0):
+error over the design cases: every corner of the envelope (the product of the --corner
+values), a corner with encoder noise once per noise seed (``--noise-seeds``, derived from
+--seed); a diverged case counts as DIVERGED_ERROR_RAD. Constraints (Optuna's constrained TPE, a
+trial is feasible when every value is <= 0):
   1. margin: the spectral radius of the linearised sampled loop (``actuator_sim.stability``)
-     at 0, 1 and 2 samples of command delay (plant applies u(k - D), the ESO integrates u(k)),
-     at frozen times along the PPF envelope and with each corner's stirring loss, at most
-     the target radius;
-  2. current: at most SATURATED_FRACTION_LIMIT of the samples at the current limit, every corner.
-Trials are asked ``parallel`` at a time (constant liar) and their corners run as one vectorised
-batch (gains are per-run arrays), locally or split into one Ray task per worker (retried like a
-sweep's chunks); corner i has the same encoder noise seed in every trial. A trial that fails the
-margin is not simulated. The paper's Table 4 gains are the first trial.
+     at 0, 1 and 2 samples of command delay, at frozen times along the PPF envelope, for every
+     distinct corner plant (stirring loss of its depth and temperature) at the vertices of the
+     drift of eq. (41) (J and k_t at both extremes, k_b at its low one: the k_b vertices moved
+     the radius by less than 2e-4 in a check of the committed gains), at most the target radius;
+  2. current: at most SATURATED_FRACTION_LIMIT of the samples at the current limit, every case.
+Trials are asked ``parallel`` at a time (constant liar); their margins, then the cases of the
+stable ones as one vectorised batch, run locally or as Ray tasks. A trial that fails the margin
+is not simulated; with ``prune`` (worst case only) a stable trial that is already worse than
+the best feasible one on the hard quarter of the cases is not run on the rest (``_simulate``).
+The paper's Table 4 gains are the first trial of a new study. With
+``--storage FILE`` the Optuna study lives in a journal file: a design that stops resumes
+there, and several drivers may share it.
+
+The result is validated out of sample (``validate``): on the design corners with noise seeds
+the search never saw, and on Latin-hypercube points inside the corners' box with their own
+seeds. design.json labels the search's own figures ``in_sample``.
 
 python-control is not used: the margin is the eigenvalues of the Jacobian that
-``actuator_sim.stability`` builds; ``numpy.linalg.eigvals`` on it is what python-control's
-``StateSpace.poles`` would compute too, with extra construction cost (timed in the README).
-Ray Tune is not used either: ``ray.tune`` is not installed here (its extra dependencies
-are not in the locks), so Optuna drives the search and Ray only runs the batches.
+``actuator_sim.stability`` builds. Ray Tune is not used either: ``ray.tune`` is not installed
+here (its extra dependencies are not in the locks), so Optuna drives the search and Ray runs
+the batches.
 """
 
 from __future__ import annotations
@@ -35,22 +43,32 @@ from pathlib import Path
 
 import numpy as np
 
-from actuator_core import limits
 from actuator_controller.laws import PpNftsmcGains
+from actuator_core import limits
 from actuator_eso.observer import EsoGains
-from actuator_plant.model import PlantParameters
-from actuator_sim.stability import radius_along_envelope
 from actuator_studies import distributed
+from actuator_studies.evaluation import (
+    DELAYS,
+    DIVERGED_ERROR_RAD,
+    ENVELOPE_TIMES_S,
+    HELD_OUT_SEEDS_TAG,
+    INTERIOR_TAG,
+    SEARCH_TAG,
+    Evaluator,
+    split_gains,
+)
 from actuator_studies.gains_yaml import write_gains_yaml
-from actuator_studies.runner import run_batch
+from actuator_studies.provenance import provenance
+from actuator_studies.results import FAILED_ERROR_RAD
 from actuator_studies.space import (
     BaseScenario,
     StudyInputError,
-    build_scenario,
+    lookup,
     parse_axis,
     parse_setting,
-    run_seeds,
 )
+
+__all__ = ['DELAYS', 'ENVELOPE_TIMES_S', 'Evaluator', 'split_gains']
 
 #: Searched gains: (quantity name, low, high), sampled log-uniformly.
 SEARCH_SPACE = (
@@ -60,12 +78,6 @@ SEARCH_SPACE = (
     ('pp_nftsmc_eso.k3_per_s', 20.0, 2000.0),
     ('eso.omega0_rad_s', 20.0, 150.0),
 )
-#: Error [rad] a diverged corner counts as (the divergence limit itself).
-DIVERGED_ERROR_RAD = limits.DIVERGENCE_ERROR_RAD
-#: Command delays [samples] the margin must hold for.
-DELAYS = (0, 1, 2)
-#: Frozen times [s] along the PPF envelope where the radius is evaluated.
-ENVELOPE_TIMES_S = (0.0, 2.0, 5.0, 10.0)
 #: Default corners: the depth range the joint can drive at all (README, section 1: beyond about
 #: 2500 m the seal friction of eq. (42) takes the motor's torque at the current limit), both
 #: ends of the temperature range, and no and two samples of command delay.
@@ -91,6 +103,12 @@ class DesignRequest:
     reference: str = 'fast'
     condition: str = 'deep_sea'
     duration_s: float = 10.0
+    noise_seeds: int = 3  # per corner with encoder noise, in the search
+    validate_seeds: int = 5  # held-out seeds per noisy corner
+    validate_points: int = 40  # held-out Latin-hypercube points inside the corners' box
+    storage: str = ''  # Optuna journal file ('' : in memory)
+    prune: bool = False  # exact pruning over the cases (worst case only)
+    study_name: str = 'design_gains'
 
 
 def corner_table(corners: list[str], controller: str) -> dict[str, np.ndarray]:
@@ -100,9 +118,27 @@ def corner_table(corners: list[str], controller: str) -> dict[str, np.ndarray]:
     return {a.name: np.asarray(c, dtype=float) for a, c in zip(axes, columns)}
 
 
+def interior_table(
+    corners: dict[str, np.ndarray], points: int, seed: int, controller: str
+) -> dict[str, np.ndarray]:
+    """Latin-hypercube points in the box of the corners (whole-number quantities rounded)."""
+    rng = np.random.default_rng(np.random.SeedSequence([seed, INTERIOR_TAG]))
+    table = {}
+    for name, values in corners.items():
+        low, high = float(np.min(values)), float(np.max(values))
+        u = (rng.permutation(points) + rng.uniform(size=points)) / points
+        x = low + u * (high - low)
+        table[name] = np.round(x) if lookup(name, controller).integer else x
+    return table
+
+
 def paper_values() -> dict[str, float]:
     """Table 4's values of the searched gains."""
-    g, eso = PpNftsmcGains(), EsoGains()
+    return gain_values(PpNftsmcGains(), EsoGains())
+
+
+def gain_values(g: PpNftsmcGains, eso: EsoGains) -> dict[str, float]:
+    """Return the searched gains of a gain set by name (the inverse of split_gains)."""
     return {
         'pp_nftsmc_eso.k0_per_s': g.k0_per_s,
         'pp_nftsmc_eso.k1': g.k1,
@@ -112,131 +148,127 @@ def paper_values() -> dict[str, float]:
     }
 
 
-def split_gains(values: dict[str, float]) -> tuple[PpNftsmcGains, EsoGains]:
-    """PP gains and ESO gains from a trial's named values (others keep Table 4's)."""
-    g = {k.split('.', 1)[1]: v for k, v in values.items() if k.startswith('pp_nftsmc_eso.')}
-    return dataclasses.replace(PpNftsmcGains(), **g), EsoGains(
-        omega0_rad_s=values['eso.omega0_rad_s']
-    )
-
-
-def worst_radius(
-    gains: PpNftsmcGains, eso: EsoGains, plants: list[PlantParameters]
-) -> dict[int, float]:
-    """Worst spectral radius along the envelope and over the corners' plants, per command delay."""
-    return {
-        d: max(
-            r
-            for plant in plants
-            for _, r in radius_along_envelope(
-                'pp_nftsmc_eso', gains, ENVELOPE_TIMES_S, eso=eso, plant=plant, plant_delay=d
-            )
-        )
-        for d in DELAYS
-    }
-
-
-class Evaluator:
-    """Runs gain sets over the corners as one batch, in this process or as Ray tasks."""
-
-    def __init__(
-        self, base: BaseScenario, corners: dict[str, np.ndarray], ray=None, workers: int = 1
-    ):
-        """Hold the base scenario, the corner table and, optionally, a started Ray."""
-        self.base, self.corners, self.ray, self.workers = base, corners, ray, workers
-        self.n_corners = len(next(iter(corners.values())))
-        self.plants = [
-            build_scenario(base, {k: float(v[i]) for k, v in corners.items()}).plant
-            for i in range(self.n_corners)
-        ]
-
-    def run(self, gain_sets: list[dict[str, float]]) -> list[dict[str, np.ndarray]]:
-        """Per gain set: arrays over the corners of max ss error and saturation.
-
-        A diverged run counts as DIVERGED_ERROR_RAD. Corner i draws its encoder noise from seed
-        run_seeds(0, [i]) for every gain set, so trials are compared on the same noise; the runs
-        are split into one slice per worker.
-        """
-        if not gain_sets:
-            return []
-        table = {
-            name: np.repeat([g[name] for g in gain_sets], self.n_corners) for name in gain_sets[0]
-        }
-        table.update({k: np.tile(v, len(gain_sets)) for k, v in self.corners.items()})
-        seeds = np.tile(run_seeds(0, np.arange(self.n_corners)), len(gain_sets))
-        n = len(seeds)
-        size = -(-n // self.workers)
-        slices = [slice(i, min(i + size, n)) for i in range(0, n, size)]
-        parts = [({k: v[s] for k, v in table.items()}, seeds[s]) for s in slices]
-        if self.ray is None:
-            outcome = [
-                evaluate_slice(self.base, values, part_seeds) for values, part_seeds in parts
-            ]
-        else:
-            task = self.ray.remote(
-                num_cpus=1, max_retries=distributed.MAX_RETRIES, retry_exceptions=True
-            )(evaluate_slice)
-            outcome = self.ray.get(
-                [task.remote(self.base, values, part_seeds) for values, part_seeds in parts]
-            )
-        err = np.concatenate([o[0] for o in outcome])
-        sat = np.concatenate([o[1] for o in outcome])
-        return [
-            {
-                'error_rad': err[i * self.n_corners : (i + 1) * self.n_corners],
-                'saturated_fraction': sat[i * self.n_corners : (i + 1) * self.n_corners],
-            }
-            for i in range(len(gain_sets))
-        ]
-
-
-def evaluate_slice(base: BaseScenario, values: dict[str, np.ndarray], seeds: np.ndarray):
-    """Return (max ss error, saturated fraction) of one vectorised batch.
-
-    A diverged run counts as DIVERGED_ERROR_RAD.
-    """
-    rows = [m for m, _ in run_batch(base, values, seeds)]
-    err = np.array([DIVERGED_ERROR_RAD if m.diverged else m.max_steady_error_rad for m in rows])
-    return np.where(np.isfinite(err), err, DIVERGED_ERROR_RAD), np.array(
-        [m.saturated_fraction for m in rows]
-    )
-
-
 def _objective(errors: np.ndarray, percentile: float) -> float:
-    """Return the percentile of the corners' max steady-state errors [rad]."""
+    """Return the percentile of the cases' max steady-state errors [rad]."""
     return float(np.percentile(errors, percentile))
 
 
-def search(
-    evaluator: Evaluator, req: DesignRequest, target: float, log=print
-) -> tuple[dict, list[dict]]:
-    """Optuna TPE with constraints.
-
-    Returns (best feasible values or None, every trial's record).
-    """
+def open_study(req: DesignRequest):
+    """Open the Optuna study: new in memory, or created or resumed in the journal --storage."""
     import optuna
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     sampler = optuna.samplers.TPESampler(
         seed=req.seed, constant_liar=True, n_startup_trials=min(16, req.trials)
     )
-    study = optuna.create_study(direction='minimize', sampler=sampler)
-    study.enqueue_trial(paper_values())
-    records = []
+    storage = None
+    if req.storage:
+        from optuna.storages import JournalStorage
+        from optuna.storages.journal import JournalFileBackend
+
+        storage = JournalStorage(JournalFileBackend(req.storage))
+    study = optuna.create_study(
+        direction='minimize',
+        sampler=sampler,
+        storage=storage,
+        study_name=req.study_name if storage is not None else None,
+        load_if_exists=storage is not None,
+    )
+    if storage is not None:
+        attrs = study.user_attrs
+        asked = {'corners': req.corners, 'settings': req.settings, 'seed': req.seed,
+                 'noise_seeds': req.noise_seeds, 'duration_s': req.duration_s,
+                 'percentile': req.percentile, 'target_radius': req.target_radius}  # fmt: skip
+        if not attrs:
+            for k, v in asked.items():
+                study.set_user_attr(k, v)
+        elif {k: attrs.get(k) for k in asked} != json.loads(json.dumps(asked)):
+            raise StudyInputError(
+                f'--storage {req.storage}: study {req.study_name!r} was asked something else '
+                '(corners, settings, seeds, duration, percentile or target differ)'
+            )
+    if not study.trials:
+        study.enqueue_trial(paper_values())
+    return study
+
+
+def _completed_records(study) -> list[dict]:
+    """Return the records of the study's completed trials, in trial order."""
+    import optuna
+
+    return [
+        t.user_attrs['record']
+        for t in sorted(study.trials, key=lambda t: t.number)
+        if t.state == optuna.trial.TrialState.COMPLETE and 'record' in t.user_attrs
+    ]
+
+
+def _simulate(
+    evaluator: Evaluator, values: list[dict], stable: list[int], incumbent, req: DesignRequest
+) -> tuple[dict, set]:
+    """Errors and saturation of the stable trials; pruned ones scored on the hard cases only.
+
+    Exact pruning for the worst case (percentile 100, ``--prune``): the trials are first run
+    on the quarter of the cases where the incumbent (best feasible so far) did worst; a trial
+    whose worst there already exceeds the incumbent's objective cannot become the best, and its
+    other cases are not run (its objective is recorded as that lower bound, flagged pruned).
+    """
+    chosen = [values[i] for i in stable]
+    if not (req.prune and req.percentile == 100.0 and incumbent and chosen):
+        return dict(zip(stable, evaluator.run(chosen))), set()
+    errors = np.asarray(incumbent['case_errors_rad'])
+    order = np.argsort(-errors, kind='stable')
+    hard, rest = order[: max(1, len(order) // 4)], order[max(1, len(order) // 4) :]
+    first = evaluator.run(chosen, hard)
+    pruned = {
+        i for i, o in zip(stable, first) if np.max(o['error_rad']) > incumbent['objective_rad']
+    }
+    survivors = [i for i in stable if i not in pruned]
+    second = dict(zip(survivors, evaluator.run([values[i] for i in survivors], rest)))
+    outcome = {}
+    for i, o in zip(stable, first):
+        if i in pruned:
+            outcome[i] = o
+            continue
+        err, sat = np.empty(len(order)), np.empty(len(order))
+        err[hard], sat[hard] = o['error_rad'], o['saturated_fraction']
+        err[rest], sat[rest] = second[i]['error_rad'], second[i]['saturated_fraction']
+        outcome[i] = {'error_rad': err, 'saturated_fraction': sat}
+    return outcome, pruned
+
+
+def search(
+    evaluator: Evaluator, req: DesignRequest, target: float, log=print
+) -> tuple[dict | None, list[dict]]:
+    """Optuna TPE with constraints until the study holds req.trials completed trials.
+
+    Returns (best feasible values or None, every completed trial's record).
+    """
+    study = open_study(req)
+    records = _completed_records(study)
+    if records:
+        log(f'design_gains: resuming {req.study_name!r} with {len(records)} trials')
     while len(records) < req.trials:
         trials = [study.ask() for _ in range(min(req.parallel, req.trials - len(records)))]
         values = [
             {name: t.suggest_float(name, lo, hi, log=True) for name, lo, hi in SEARCH_SPACE}
             for t in trials
         ]
-        radii = [worst_radius(*split_gains(v), evaluator.plants) for v in values]
+        radii = evaluator.radii(values, stop_above=target)
         stable = [i for i, r in enumerate(radii) if max(r.values()) <= target]
-        outcome = dict(zip(stable, evaluator.run([values[i] for i in stable])))
+        incumbent = min(
+            (r for r in records if r['feasible']), key=lambda r: r['objective_rad'], default=None
+        )
+        outcome, pruned = _simulate(evaluator, values, stable, incumbent, req)
         for i, (trial, v, r) in enumerate(zip(trials, values, radii)):
             margin = max(r.values()) - target
             if i in outcome:
                 o = outcome[i]
-                value = _objective(o['error_rad'], req.percentile)
+                value = (
+                    float(np.max(o['error_rad']))
+                    if i in pruned
+                    else _objective(o['error_rad'], req.percentile)
+                )
                 saturation = (
                     float(np.max(o['saturated_fraction'])) - limits.SATURATED_FRACTION_LIMIT
                 )
@@ -244,20 +276,23 @@ def search(
                 value, saturation = DIVERGED_ERROR_RAD, 1.0
             trial.set_constraint('margin', margin)  # feasible when <= 0 (Optuna 5 constrained TPE)
             trial.set_constraint('saturation', saturation)
+            record = {
+                'trial': trial.number,
+                **v,
+                'radius': {str(d): x for d, x in sorted(r.items())},
+                'objective_rad': value,
+                'feasible': margin <= 0 and saturation <= 0 and i not in pruned,
+                'simulated': i in outcome,
+                'pruned': i in pruned,  # objective_rad then a lower bound above the incumbent
+            }
+            if i in outcome and i not in pruned:
+                record['case_errors_rad'] = [float(x) for x in outcome[i]['error_rad']]
+            trial.set_user_attr('record', record)
             study.tell(trial, value)
-            records.append(
-                {
-                    'trial': trial.number,
-                    **v,
-                    'radius': {str(d): x for d, x in r.items()},
-                    'objective_rad': value,
-                    'feasible': margin <= 0 and saturation <= 0,
-                    'simulated': i in outcome,
-                }
-            )
+            records.append(record)
         best = [r for r in records if r['feasible']]
         best_text = (
-            f'best feasible {min(r["objective_rad"] for r in best):.3e} rad'
+            f'best feasible {min(r["objective_rad"] for r in best):.3e} rad (in sample)'
             if best
             else 'none feasible yet'
         )
@@ -269,40 +304,72 @@ def search(
     return {name: best[name] for name, _, _ in SEARCH_SPACE}, records
 
 
-def compare(evaluator: Evaluator, sets: dict[str, dict], percentile: float) -> dict:
-    """Margin, worst/median/percentile error and saturation over the corners.
-
-    Per named gain set.
-    """
+def compare(
+    evaluator: Evaluator, sets: dict[str, dict], percentile: float, radii: bool = True
+) -> dict:
+    """Per named gain set: margin, worst/median/percentile error, saturation, failures."""
     outcomes = evaluator.run(list(sets.values()))
     table = {}
     for (label, values), o in zip(sets.items(), outcomes):
-        radii = worst_radius(*split_gains(values), evaluator.plants)
-        table[label] = {
+        err = o['error_rad']
+        row = {
             'gains': values,
-            'radius_by_delay': {str(d): r for d, r in radii.items()},
-            'worst_error_rad': float(np.max(o['error_rad'])),
-            'median_error_rad': float(np.median(o['error_rad'])),
-            'percentile_error_rad': _objective(o['error_rad'], percentile),
+            'worst_error_rad': float(np.max(err)),
+            'median_error_rad': float(np.median(err)),
+            'percentile_error_rad': _objective(err, percentile),
+            'failed_cases': int(np.count_nonzero(err > FAILED_ERROR_RAD)),
             'max_saturated_fraction': float(np.max(o['saturated_fraction'])),
-            'corners': len(o['error_rad']),
+            'cases': len(err),
         }
+        if radii:
+            r = evaluator.radii([values])[0]
+            row['radius_by_delay'] = {str(d): x for d, x in sorted(r.items())}
+        table[label] = row
     return table
 
 
-def run_design(req: DesignRequest, out: Path, ray_target: str = '', log=print) -> dict:
-    """Run the whole command.
+def validate(
+    base: BaseScenario,
+    corners: dict[str, np.ndarray],
+    sets: dict[str, dict],
+    req: DesignRequest,
+    ray=None,
+    workers: int = 1,
+) -> dict:
+    """Held-out figures: the corners with unseen noise seeds, and interior LHS points."""
+    held_seeds = Evaluator(
+        base, corners, ray, workers, req.seed, req.validate_seeds, HELD_OUT_SEEDS_TAG
+    )
+    out = {
+        'held_out_seeds': {
+            'what': f'the design corners, {req.validate_seeds} unseen noise seeds per noisy one',
+            **compare(held_seeds, sets, req.percentile, radii=False),
+        }
+    }
+    if req.validate_points > 0:
+        interior = interior_table(corners, req.validate_points, req.seed, req.controller)
+        held_points = Evaluator(base, interior, ray, workers, req.seed, 1, INTERIOR_TAG)
+        out['held_out_interior'] = {
+            'what': f'{req.validate_points} Latin-hypercube points inside the corners, '
+            'each with its own unseen seed',
+            **compare(held_points, sets, req.percentile, radii=False),
+        }
+    return out
 
-    check input, search, verify on a finer envelope, write gains YAML and report.
-    """
+
+def _check(req: DesignRequest, out: Path) -> float:
+    """Return the target radius; StudyInputError for bad input (before anything is written)."""
     if req.controller != 'pp_nftsmc_eso':
         raise StudyInputError(
             'design_gains designs PP-NFTSMC-ESO gains only (--controller pp_nftsmc_eso)'
         )
-    if req.trials < 1 or req.parallel < 1:
+    if req.trials < 1 or req.parallel < 1 or req.noise_seeds < 1 or req.validate_seeds < 1:
         raise StudyInputError(
-            f'trials and parallel must be >= 1, got {req.trials} and {req.parallel}'
+            'trials, parallel, noise seeds and validation seeds must be >= 1, got '
+            f'{req.trials}, {req.parallel}, {req.noise_seeds} and {req.validate_seeds}'
         )
+    if req.validate_points < 0:
+        raise StudyInputError(f'validation points must be >= 0, got {req.validate_points}')
     if not 0.0 <= req.percentile <= 100.0:
         raise StudyInputError(f'percentile must be in [0, 100], got {req.percentile}')
     target = limits.DESIGN_TARGET_RADIUS if req.target_radius is None else req.target_radius
@@ -314,6 +381,15 @@ def run_design(req: DesignRequest, out: Path, ray_target: str = '', log=print) -
         raise StudyInputError(
             f'duration must exceed the steady-state window start ({limits.STEADY_STATE_START_S} s)'
         )
+    return target
+
+
+def run_design(req: DesignRequest, out: Path, ray_target: str = '', log=print) -> dict:
+    """Run the whole command.
+
+    check input, search, compare in sample, validate out of sample, write gains YAML and report.
+    """
+    target = _check(req, out)
     fixed = tuple(parse_setting(text, req.controller) for text in req.settings)
     corners = corner_table(req.corners, req.controller)
     searched = {name for name, _, _ in SEARCH_SPACE}
@@ -333,40 +409,49 @@ def run_design(req: DesignRequest, out: Path, ray_target: str = '', log=print) -
         address, _ = distributed.parse_ray_target(ray_target)
         if address != 'local':
             distributed.check_reachable(address)
+    origin = provenance({'design': req.seed, 'cases': 'SeedSequence([seed, tag, i])'})  # at start
     ray = distributed.start_ray(ray_target) if ray_target else None
     start = time.perf_counter()
     try:
-        evaluator = Evaluator(base, corners, ray, distributed.ray_workers(ray) if ray else 1)
+        workers = distributed.ray_workers(ray) if ray else 1
+        evaluator = Evaluator(base, corners, ray, workers, req.seed, req.noise_seeds, SEARCH_TAG)
         best, records = search(evaluator, req, target, log)
-        paper = paper_values()
-        sets = {'paper (Table 4)': paper, **({'designed': best} if best else {})}
+        sets = {'paper (Table 4)': paper_values(), **({'designed': best} if best else {})}
         comparison = compare(evaluator, sets, req.percentile)
+        validation = validate(base, corners, sets, req, ray, workers)
     finally:
         if ray is not None:
             ray.shutdown()
     out.mkdir(parents=True)
     report = {
         'request': dataclasses.asdict(req),
+        'provenance': origin,
         'target_radius': target,
-        'delays': list(DELAYS),
+        'delays': sorted(DELAYS),
         'envelope_times_s': list(ENVELOPE_TIMES_S),
         'corners': {k: v.tolist() for k, v in corners.items()},
+        'cases': evaluator.n_cases,
+        'distinct_plants': len(evaluator.plants),
+        'margin_plants': len(evaluator.margin_plants),
         'search_space': [list(s) for s in SEARCH_SPACE],
         'trials': records,
-        'comparison': comparison,
+        'comparison': comparison,  # in sample: the cases the search scored
+        'in_sample': comparison,
+        'validation': validation,
         'wall_s': time.perf_counter() - start,
         'gains_yaml': None,
     }
     if best:
         gains, eso = split_gains(best)
         c = comparison['designed']
+        held = validation['held_out_seeds']['designed']
         header = (
             f'PP-NFTSMC-ESO gains by design_gains '
             f'(Optuna TPE, seed {req.seed}, {req.trials} trials):\n'
-            f'radius <= {target} at 0/1/2 samples of command delay '
+            f'radius <= {target} at 0/1/2 samples of command delay over the drift vertices '
             f'({", ".join(f"{x:.4f}" for x in c["radius_by_delay"].values())}); '
-            f'worst max ss error {c["worst_error_rad"]:.3e} rad over {c["corners"]} corners; '
-            f'max saturated fraction {c["max_saturated_fraction"]:.3f}.\n'
+            f'held-out worst max ss error {held["worst_error_rad"]:.3e} rad over '
+            f'{held["cases"]} cases (in sample {c["worst_error_rad"]:.3e}).\n'
             'Load with the scenario file: --params-file <scenario>.yaml --params-file this.yaml'
         )
         report['gains_yaml'] = str(

@@ -4,40 +4,64 @@
 """Where a study's chunks run: in this process, or as Ray tasks on a local instance or a cluster.
 
 Both executors yield (chunk, columns) as chunks finish, so the caller writes each chunk at
-once (and a rerun with --resume skips it). A chunk is one task: the vectorised batch is the
-unit of work, and a chunk's result does not depend on where it ran (same code, same
-per-run seeds), so a Ray run equals a local run row for row.
+once (and a rerun with --resume skips it). A chunk is one task; a chunk's result does not
+depend on where it ran (same code, same per-run seeds), so a Ray run equals a local run row
+for row.
 
-Failures: a chunk whose attempt raises, or whose worker process dies, is run again, up to
-``MAX_RETRIES`` more times (Ray: ``max_retries`` with ``retry_exceptions``; locally: a
-loop). A chunk that still fails is reported and the study ends with an error: a chunk is
-never silently missing (``results.join_chunks`` refuses to join an incomplete study).
+Shipping the code: every Ray job gets a ``runtime_env`` whose ``py_modules`` are the project's
+ROS-free packages (``SHIPPED_PACKAGES``, taken from this process's imports), so a worker node
+needs only Python with Ray and the pinned dependencies, not this workspace on its path.
+
+Failures: an exception raised by a chunk is deterministic (same inputs, same code) and is not
+retried: the study ends at once with that error in full (type, message, the remote traceback).
+A chunk whose worker process or node is lost is run again, up to ``MAX_RETRIES`` more times
+(``max_retries`` with ``retry_exceptions`` off). A failed chunk is never silently missing
+(``results.join_chunks`` refuses to join an incomplete study).
+
+Backpressure: at most ``IN_FLIGHT_PER_CPU`` tasks per cluster CPU are submitted at a time,
+and ``ray.wait`` runs over those only, so the driver's work per finished chunk does not grow
+with the study. Every task declares the memory it needs (``task_memory_bytes``).
 
 ``--ray local:N`` starts a private local instance with N CPUs (``address='local'``, so it
-never attaches to someone else's cluster); ``--ray HOST:PORT`` (or ``ray://HOST:PORT``)
-connects to a running cluster, checked with a short TCP connect first so an unreachable
-address fails in seconds. The cluster's workers must have this workspace installed (the
-local instance inherits this process's environment).
+never attaches to someone else's cluster), bound to 127.0.0.1; ``--ray HOST:PORT`` connects to
+a running cluster, checked with a short TCP connect first so an unreachable address fails in
+seconds.
 """
 
 from __future__ import annotations
 
+import importlib
 import os
+import re
 import socket
+import traceback
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable, Iterator
+from typing import Callable, Iterable, Iterator
 
-from actuator_studies.runner import SweepSpec, run_chunk
+from actuator_studies.runner import SweepSpec, run_chunk, task_memory_bytes
 from actuator_studies.space import StudyInputError
 
-#: Further attempts after a chunk's first one fails (exception or lost worker).
+#: Further attempts of a chunk whose worker was lost (exceptions are never retried).
 MAX_RETRIES = 3
 #: Seconds to wait for a TCP connection to a Ray address before calling it unreachable.
 CONNECT_TIMEOUT_S = 3.0
 #: Object store of a local instance [bytes]:
 #: chunks are small, keep the shared machine's memory free.
 LOCAL_OBJECT_STORE_BYTES = 200 * 1024 * 1024
+#: Tasks in flight per cluster CPU (one running, one queued so a CPU never waits on the driver).
+IN_FLIGHT_PER_CPU = 2
+#: The project's packages a task imports (all ROS-free), shipped to workers as py_modules.
+SHIPPED_PACKAGES = (
+    'actuator_core',
+    'actuator_plant',
+    'actuator_eso',
+    'actuator_controller',
+    'actuator_sim',
+    'actuator_studies',
+)
+#: Loopback address every Ray process of a local instance binds and advertises.
+LOOPBACK = '127.0.0.1'
 
 
 @dataclass(frozen=True)
@@ -49,44 +73,44 @@ class InjectedFailure:
 
     chunk: int
     marker: str  # file created by the failing attempt; later attempts find it and run
-    mode: str = 'raise'  # raise | exit (first attempt only) | always (every attempt raises)
+    mode: str = 'raise'  # raise (every attempt, logged to marker) | exit (first attempt dies)
 
 
 def attempt_chunk(spec: SweepSpec, chunk: int, inject: InjectedFailure | None = None) -> dict:
-    """Run one chunk (the injected failure, if any, strikes the first attempt only)."""
-    if inject is not None and inject.chunk == chunk and inject.mode == 'always':
-        raise RuntimeError(f'injected failure of chunk {chunk} (every attempt)')
-    if inject is not None and inject.chunk == chunk and not os.path.exists(inject.marker):
-        Path(inject.marker).write_text(
-            f'chunk {chunk} failed on purpose in process {os.getpid()}\n'
-        )
-        if inject.mode == 'exit':
+    """Run one chunk (an injected exit strikes the first attempt only)."""
+    if inject is not None and inject.chunk == chunk:
+        if inject.mode == 'raise':
+            with open(inject.marker, 'a') as attempts:  # one line per attempt
+                attempts.write(f'chunk {chunk} raised in process {os.getpid()}\n')
+            raise RuntimeError(f'injected failure of chunk {chunk}')
+        if not os.path.exists(inject.marker):
+            Path(inject.marker).write_text(
+                f'chunk {chunk} lost its process {os.getpid()} on purpose\n'
+            )
             os._exit(17)
-        raise RuntimeError(f'injected failure of chunk {chunk}')
     return run_chunk(spec, chunk)
 
 
 class ChunkFailed(RuntimeError):
-    """A chunk failed on every attempt."""
+    """A chunk raised, or lost its worker on every attempt; the message holds the cause in full."""
 
 
 def run_local(
     spec: SweepSpec, chunks: Iterable[int], inject: InjectedFailure | None = None
 ) -> Iterator[tuple]:
-    """Run chunks one after another in this process, retrying a failed one.
+    """Run chunks one after another in this process; yield (chunk, columns).
 
-    Yield (chunk, columns).
+    A chunk that raises ends the study with ChunkFailed and its traceback (no retry: the same
+    inputs fail the same way).
     """
     for chunk in chunks:
-        for attempt in range(MAX_RETRIES + 1):
-            try:
-                yield chunk, attempt_chunk(spec, chunk, inject)
-                break
-            except Exception as exc:  # noqa: BLE001 - any failure of an attempt is retried
-                if attempt == MAX_RETRIES:
-                    raise ChunkFailed(
-                        f'chunk {chunk} failed {MAX_RETRIES + 1} times: {exc}'
-                    ) from exc
+        try:
+            columns = attempt_chunk(spec, chunk, inject)
+        except Exception as exc:  # noqa: BLE001 - reported in full, never retried
+            raise ChunkFailed(
+                f'chunk {chunk} failed:\n{"".join(traceback.format_exception(exc)).rstrip()}'
+            ) from exc
+        yield chunk, columns
 
 
 def parse_ray_target(text: str) -> tuple[str, int | None]:
@@ -117,8 +141,21 @@ def check_reachable(address: str) -> None:
         ) from None
 
 
+def shipped_modules() -> list[str]:
+    """Directories of SHIPPED_PACKAGES as this process imports them (symlinks resolved)."""
+    return [
+        str(Path(importlib.import_module(name).__file__).resolve().parent)
+        for name in SHIPPED_PACKAGES
+    ]
+
+
+def runtime_env() -> dict:
+    """Runtime environment of every study job: the project's packages as py_modules."""
+    return {'py_modules': shipped_modules(), 'excludes': ['__pycache__', '*.pyc']}
+
+
 def start_ray(target: str):
-    """Start (local:N) or join (address) Ray.
+    """Start (local:N) or join (address) Ray, shipping the project's packages.
 
     Return the ray module. StudyInputError when it cannot.
     """
@@ -129,6 +166,7 @@ def start_ray(target: str):
 
     try:
         if cpus is not None:
+            _loopback_only(ray)
             ray.init(
                 address='local',
                 num_cpus=cpus,
@@ -136,9 +174,19 @@ def start_ray(target: str):
                 log_to_driver=False,
                 object_store_memory=LOCAL_OBJECT_STORE_BYTES,
                 configure_logging=False,
+                _node_ip_address=LOOPBACK,
+                runtime_env=runtime_env(),
             )
         else:
-            ray.init(address=address, log_to_driver=False, configure_logging=False)
+            host = address.split('://', 1)[-1].rpartition(':')[0]
+            if host in (LOOPBACK, 'localhost'):
+                _loopback_only(ray)  # a head on loopback: this driver stays on loopback too
+            ray.init(
+                address=address,
+                log_to_driver=False,
+                configure_logging=False,
+                runtime_env=runtime_env(),
+            )
     except (ConnectionError, RuntimeError, ValueError) as exc:
         raise StudyInputError(
             f'cannot start or join Ray at {target}: {str(exc).splitlines()[0]}'
@@ -146,31 +194,88 @@ def start_ray(target: str):
     return ray
 
 
+def _loopback_only(ray) -> None:
+    """Make a local instance bind and advertise 127.0.0.1 (Ray 2.60 swaps it otherwise).
+
+    Ray replaces a node address of 127.0.0.1 by the machine's interface address unless its
+    single-machine mode is on (``RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER=0``); the variable is read
+    at import, so it is set for the instance's processes and in the imported constants.
+    """
+    import ray._private.ray_constants as ray_constants
+
+    os.environ[ray_constants.ENABLE_RAY_CLUSTERS_ENV_VAR] = '0'
+    ray_constants.ENABLE_RAY_CLUSTER = False
+
+
 def ray_workers(ray) -> int:
     """CPUs of the Ray cluster (one single-CPU task per CPU at a time)."""
     return int(ray.cluster_resources().get('CPU', 0))
 
 
+def failure_text(exc: BaseException) -> str:
+    """Return what a failed Ray task says in full: the remote traceback, or the lost worker."""
+    import ray.exceptions as rex
+
+    if isinstance(exc, rex.RayTaskError):
+        text = str(exc)  # the task's own exception, with its traceback on the worker
+    else:
+        text = f'{type(exc).__name__}: {exc}'
+    return re.sub(r'\x1b\[[0-9;]*m', '', text).rstrip()
+
+
+def stream_tasks(
+    ray,
+    remote_fn,
+    calls: Iterable[tuple],
+    label: Callable[[tuple], str] = str,
+    in_flight: int | None = None,
+    memory_bytes: int | None = None,
+) -> Iterator[tuple]:
+    """Run ``remote_fn(*args)`` for every args tuple as Ray tasks; yield (args, result).
+
+    At most ``in_flight`` tasks (default IN_FLIGHT_PER_CPU per cluster CPU) are submitted at a
+    time, and ``ray.wait`` looks at those only. A task that raises, or loses its worker more
+    than MAX_RETRIES times, ends the stream with ChunkFailed (the other tasks are cancelled).
+    """
+    limit = in_flight or max(1, IN_FLIGHT_PER_CPU * ray_workers(ray))
+    options = {'num_cpus': 1, 'max_retries': MAX_RETRIES, 'retry_exceptions': False}
+    if memory_bytes:
+        options['memory'] = int(memory_bytes)
+    task = remote_fn.options(**options)
+    todo = iter(calls)
+    running: dict = {}
+
+    def submit() -> None:
+        for args in todo:
+            running[task.remote(*args)] = args
+            if len(running) >= limit:
+                return
+
+    submit()
+    while running:
+        done, _ = ray.wait(list(running), num_returns=1)
+        args = running.pop(done[0])
+        try:
+            result = ray.get(done[0])
+        except Exception as exc:  # noqa: BLE001 - Ray wraps the task's own error
+            for ref in running:
+                ray.cancel(ref, force=True)
+            raise ChunkFailed(f'{label(args)} failed on Ray:\n{failure_text(exc)}') from exc
+        submit()
+        yield args, result
+
+
 def run_ray(
     ray, spec: SweepSpec, chunks: Iterable[int], inject: InjectedFailure | None = None
 ) -> Iterator[tuple]:
-    """Submit every chunk as a Ray task (retried on failure).
-
-    Yield (chunk, columns) as each finishes.
-    """
-    task = ray.remote(num_cpus=1, max_retries=MAX_RETRIES, retry_exceptions=True)(attempt_chunk)
+    """Run chunks as Ray tasks with backpressure; yield (chunk, columns) as each finishes."""
     spec_ref = ray.put(spec)
-    pending = {task.remote(spec_ref, chunk, inject): chunk for chunk in chunks}
-    while pending:
-        done, _ = ray.wait(list(pending), num_returns=1)
-        ref = done[0]
-        chunk = pending.pop(ref)
-        try:
-            columns = ray.get(ref)
-        except Exception as exc:  # noqa: BLE001 - Ray wraps the task's own error
-            for other in pending:
-                ray.cancel(other)
-            raise ChunkFailed(
-                f'chunk {chunk} failed {MAX_RETRIES + 1} times on Ray: {str(exc).splitlines()[0]}'
-            ) from exc
-        yield chunk, columns
+    remote = ray.remote(attempt_chunk)
+    for args, columns in stream_tasks(
+        ray,
+        remote,
+        ((spec_ref, chunk, inject) for chunk in chunks),
+        label=lambda args: f'chunk {args[1]}',
+        memory_bytes=task_memory_bytes(spec),
+    ):
+        yield args[1], columns

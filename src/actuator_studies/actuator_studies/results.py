@@ -4,7 +4,7 @@
 """A study's folder.
 
 Its definition, one Parquet file per finished chunk, the joined table and summary. Layout of
-``out/``: ``study.json`` (the request, to check a resumed run asks the same),
+``out/``: ``study.json`` (the request, to check a resumed run asks the same, and its provenance),
 ``chunks/chunk_NNNNN.parquet`` (written to a temporary name and renamed, so a chunk file is either
 complete or absent), ``runs.parquet`` (every row, by run index), ``summary.json`` and ``figures/``.
 A rerun with ``--resume`` keeps the finished chunks and runs only the others.
@@ -22,6 +22,9 @@ import pyarrow.parquet as pq
 
 from actuator_core.limits import SATURATED_FRACTION_LIMIT
 from actuator_studies.space import StudyInputError
+
+#: Max ss error [rad] above which a run counts as failed (a diverged run always does).
+FAILED_ERROR_RAD = 1.0e-2
 
 
 def chunk_path(out: Path, chunk: int) -> Path:
@@ -41,7 +44,9 @@ def prepare_folder(out: Path, request: dict, resume: bool) -> None:
         )
     if resume and definition.exists():
         before = json.loads(definition.read_text())
-        if before != json.loads(json.dumps(request)):
+        before.pop('provenance', None)  # who ran it may differ; what it asks may not
+        asked = {k: v for k, v in request.items() if k != 'provenance'}
+        if before != json.loads(json.dumps(asked)):
             raise StudyInputError(
                 f'--resume: {out} holds a different study ({definition} differs from this request)'
             )
@@ -59,7 +64,11 @@ def write_chunk(out: Path, chunk: int, columns: dict[str, list]) -> None:
     """Write one chunk's rows atomically (temporary file, then rename)."""
     path = chunk_path(out, chunk)
     tmp = path.with_suffix('.tmp')
-    pq.write_table(pa.table(columns), tmp)
+    arrays = {
+        k: pa.array(v, type=pa.uint64()) if k == 'seed' else pa.array(v)
+        for k, v in columns.items()
+    }
+    pq.write_table(pa.table(arrays), tmp)
     os.replace(tmp, path)
 
 
@@ -114,6 +123,8 @@ def summarise(table: pa.Table, varied: list[str], extra: dict) -> dict:
         'saturated_runs': int((col['saturated_fraction'] > SATURATED_FRACTION_LIMIT).sum()),
         'saturated_fraction_limit': SATURATED_FRACTION_LIMIT,
         'envelope_violated_runs': int((col['paper_envelope_violations'] > 0).sum()),
+        'failed_runs': int((diverged | ~(err <= FAILED_ERROR_RAD)).sum()),
+        'failed_error_rad': FAILED_ERROR_RAD,
         'max_steady_error_rad': _stats(err),
         'rms_error_rad': _stats(col['rms_error_rad']),
         'saturated_fraction': _stats(col['saturated_fraction']),
@@ -156,3 +167,64 @@ def tables_identical(a: pa.Table, b: pa.Table) -> bool:
         if not same:
             return False
     return True
+
+
+def group_table(out: Path, by: str) -> list[dict]:
+    """Per value of ``by`` (comma-separated names): runs, failed, diverged, errors, saturation.
+
+    The figures the README's tables quote, from a study's runs.parquet.
+    """
+    table = pq.read_table(out / 'runs.parquet')
+    names = [n for n in by.split(',') if n]
+    missing = [n for n in names if n not in table.column_names]
+    if missing or not names:
+        raise StudyInputError(f'{",".join(missing) or by!r} is not a column of {out}/runs.parquet')
+    col = {n: np.asarray(table.column(n).to_pylist(), dtype=float) for n in
+           (*names, 'max_steady_error_rad', 'saturated_fraction', 'diverged',
+            'paper_envelope_violation_fraction')}  # fmt: skip
+    keys = np.stack([col[n] for n in names], axis=1)
+    rows = []
+    for value in np.unique(keys, axis=0):
+        m = np.all(keys == value, axis=1)
+        err = col['max_steady_error_rad'][m]
+        finite = err[np.isfinite(err)]
+        rows.append(
+            {
+                **{n: float(v) for n, v in zip(names, value)},
+                'failed': int(
+                    np.sum(col['diverged'][m].astype(bool) | ~(err <= FAILED_ERROR_RAD))
+                ),
+                'runs': int(m.sum()),
+                'diverged': int(col['diverged'][m].sum()),
+                'min_max_ss_error_rad': float(finite.min()) if finite.size else None,
+                'max_max_ss_error_rad': float(finite.max()) if finite.size else None,
+                'max_saturated_fraction': float(col['saturated_fraction'][m].max()),
+                'max_envelope_violation_fraction': float(
+                    col['paper_envelope_violation_fraction'][m].max()
+                ),
+            }
+        )
+    return rows
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m actuator_studies.results STUDY --by NAME``: the per-value table of a study."""
+    import argparse
+
+    from tabulate import tabulate
+
+    p = argparse.ArgumentParser(prog='python -m actuator_studies.results')
+    p.add_argument('study', type=Path)
+    p.add_argument('--by', required=True, help='the column to group by')
+    a = p.parse_args(argv)
+    try:
+        rows = group_table(a.study, a.by)
+    except (StudyInputError, OSError) as exc:
+        print(f'results: error: {exc}', file=__import__('sys').stderr)
+        return 2
+    print(tabulate(rows, headers='keys', tablefmt='github', floatfmt='.3g'))
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

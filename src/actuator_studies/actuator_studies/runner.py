@@ -29,21 +29,14 @@ from actuator_controller.ppf import PrescribedPerformance
 from actuator_core.status import Status
 from actuator_sim.loop import ClosedLoop
 from actuator_sim.offline import trace_metrics
+from actuator_studies.streaming import StreamingMetrics
 from actuator_studies.space import BaseScenario, build_scenario, quantities, run_seeds
 
-#: Per-sample fields a run's metrics need (trace_metrics).
-RECORDED = (
-    'error_rad',
-    'current_a',
-    'lower_bound_rad',
-    'upper_bound_rad',
-    'saturated',
-    'x2_hat_rad_s',
-    'true_velocity_rad_s',
-    'x3_hat_rad_s2',
-    'true_disturbance_rad_s2',
-    'status',
-)
+#: Memory of a task's worker before its batch [bytes] (Python, numpy and the project's modules).
+TASK_BASE_MEMORY_BYTES = 300 * 1024 * 1024
+#: Memory per run of a vectorised batch [bytes]: loop state and running sums (about 2.3 KiB
+#: measured at 8192 runs), with headroom.
+TASK_MEMORY_PER_RUN_BYTES = 16 * 1024
 #: Metric columns of a row, in order (steady_window_s becomes two columns).
 METRIC_COLUMNS = tuple(
     f.name for f in dataclasses.fields(RunMetrics) if f.name != 'steady_window_s'
@@ -66,8 +59,14 @@ class SweepSpec:
 
     base: BaseScenario
     table: dict
-    batch: int
+    batch: int  # runs per vectorised ClosedLoop
     seed: int
+    chunk_runs: int = 0  # runs per chunk (one task, one file); 0: one batch
+
+    @property
+    def chunk_size(self) -> int:
+        """Runs per chunk."""
+        return self.chunk_runs or self.batch
 
     @property
     def runs(self) -> int:
@@ -77,58 +76,50 @@ class SweepSpec:
     @property
     def chunks(self) -> int:
         """Number of chunks of ``batch`` runs."""
-        return -(-self.runs // self.batch)
+        return -(-self.runs // self.chunk_size)
 
     def chunk_indices(self, chunk: int) -> np.ndarray:
         """Run indices of chunk ``chunk``."""
-        return np.arange(chunk * self.batch, min((chunk + 1) * self.batch, self.runs))
+        size = self.chunk_size
+        return np.arange(chunk * size, min((chunk + 1) * size, self.runs))
 
 
 def run_batch(
     base: BaseScenario, values: dict[str, np.ndarray], seeds: np.ndarray
-) -> list[tuple[RunMetrics, int]]:
-    """(metrics, paper-envelope violations) of n runs at once.
+) -> dict[str, np.ndarray]:
+    """Metric columns (METRIC_COLUMNS) of n runs at once, computed while they run.
 
-    ``values`` holds n values per varied quantity.
+    ``values`` holds n values per varied quantity. A run is cut after the first sample whose
+    measured angle is not finite, whose error exceeds DIVERGENCE_ERROR_RAD or whose controller
+    latched (as ``ClosedLoop.run`` cuts a single run); the batch stops when every run is cut.
     """
     n = len(seeds)
     scenario = build_scenario(base, values, seeds=seeds, name='batch')
     loop = ClosedLoop(scenario, batch=n)
     samples = scenario.samples
-    t = np.empty(samples)
-    traces = {k: np.empty((samples, n)) for k in RECORDED}
+    ppf = getattr(scenario.gains, 'ppf', None) or PrescribedPerformance()
+    stream = StreamingMetrics(n, ppf)
     measured_bad = np.zeros(n, dtype=bool)
-    cut = np.full(n, samples)
     with np.errstate(all='ignore'):
-        for k in range(samples):
+        for _ in range(samples):
             row = loop.step()
-            t[k] = row['t_s']
-            for name in RECORDED:
-                traces[name][k] = row[name]
+            stream.add(row)
             bad = (
                 ~np.isfinite(row['measured_position_rad'])
                 | (np.abs(row['error_rad']) > DIVERGENCE_ERROR_RAD)
                 | (np.asarray(row['status']) == Status.LATCHED)
             )
-            newly = bad & ~measured_bad
-            cut[newly] = k + 1
-            measured_bad |= bad
-            if measured_bad.all():
-                break
-        out = []
-        for i in range(n):
-            m = int(cut[i])
-            trace = {'t_s': t[:m], **{name: traces[name][:m, i] for name in RECORDED}}
-            metrics = trace_metrics(trace)
-            if m < samples:
-                metrics = dataclasses.replace(metrics, diverged=True)
-            out.append(
-                (
-                    metrics,
-                    paper_envelope_violations(trace['t_s'], trace['error_rad'], scenario.gains),
-                )
-            )
-    return out
+            if (bad & ~measured_bad).any():
+                stream.freeze(bad)
+                measured_bad |= bad
+                if measured_bad.all():
+                    break
+        return stream.columns(samples)
+
+
+def task_memory_bytes(spec: 'SweepSpec') -> int:
+    """Memory a chunk task declares to Ray [bytes]: interpreter and numpy, plus per-run state."""
+    return TASK_BASE_MEMORY_BYTES + TASK_MEMORY_PER_RUN_BYTES * min(spec.batch, spec.chunk_size)
 
 
 def paper_envelope_violations(t_s: np.ndarray, error_rad: np.ndarray, gains) -> int:
@@ -169,18 +160,27 @@ def _groups(spec: SweepSpec, indices: np.ndarray) -> list[np.ndarray]:
 
 
 def run_chunk(spec: SweepSpec, chunk: int) -> dict[str, list]:
-    """Columns (name -> list, one entry per run) of chunk ``chunk`` of the study."""
+    """Columns (name -> list, one entry per run) of chunk ``chunk`` of the study.
+
+    The chunk's runs go through ClosedLoop batches of at most ``spec.batch`` runs, one group
+    of equal non-vector quantities at a time (another batching may move the last bits: numpy's
+    SIMD loops can round an element by its position).
+    """
     indices = spec.chunk_indices(chunk)
     seeds = run_seeds(spec.seed, indices)
     table = quantities(spec.base.controller)
-    rows: list[dict] = [dict() for _ in indices]
+    metrics = {key: [None] * len(indices) for key in METRIC_COLUMNS}
     for group in _groups(spec, indices):
-        values = {}
-        for name, column in spec.table.items():
-            part = column[indices[group]]
-            values[name] = float(part[0]) if not table[name].vector else part
-        for pos, (metrics, paper) in zip(group, run_batch(spec.base, values, seeds[group])):
-            rows[pos] = metrics_row(metrics, paper)
+        for start in range(0, len(group), spec.batch):
+            part = group[start : start + spec.batch]
+            values = {}
+            for name, column in spec.table.items():
+                v = column[indices[part]]
+                values[name] = float(v[0]) if not table[name].vector else v
+            cols = run_batch(spec.base, values, seeds[part])
+            for key in METRIC_COLUMNS:
+                for pos, x in zip(part, cols[key].tolist()):
+                    metrics[key][pos] = x
     columns: dict[str, list] = {
         'run': [int(i) for i in indices],
         'chunk': [chunk] * len(indices),
@@ -188,8 +188,7 @@ def run_chunk(spec: SweepSpec, chunk: int) -> dict[str, list]:
     }
     for name, column in spec.table.items():
         columns[name] = [float(v) for v in column[indices]]
-    for key in METRIC_COLUMNS:
-        columns[key] = [r[key] for r in rows]
+    columns.update(metrics)
     return columns
 
 

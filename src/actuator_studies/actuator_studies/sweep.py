@@ -22,7 +22,18 @@ from actuator_core.metrics import STEADY_STATE_START_S
 from actuator_studies import distributed, plots, results
 from actuator_studies.gains_yaml import read_gains_yaml
 from actuator_studies.runner import SweepSpec
-from actuator_studies.space import BaseScenario, StudyInputError, parse_axis, parse_setting, sample
+from actuator_studies.provenance import provenance
+from actuator_studies.space import (
+    BaseScenario,
+    StudyInputError,
+    check_batchable,
+    parse_axis,
+    parse_setting,
+    sample,
+)
+
+#: Runs per vectorised ClosedLoop by default (the per-sample cost is shared by the batch).
+DEFAULT_BATCH = 8192
 
 
 @dataclass
@@ -34,7 +45,9 @@ class SweepRequest:
     method: str = 'grid'
     samples: int = 0
     seed: int = 0
-    batch: int = 64
+    batch: int = DEFAULT_BATCH
+    chunk: int = 0  # runs per chunk (task, file); 0: one batch
+    repeat: int = 1  # runs per design point, each with its own seed
     controller: str = 'pp_nftsmc_eso'
     reference: str = 'fast'
     condition: str = 'deep_sea'
@@ -50,8 +63,10 @@ class SweepRequest:
 
 def build_spec(req: SweepRequest) -> tuple[SweepSpec, list[str]]:
     """Return the SweepSpec of a request and the varied names; StudyInputError on any bad input."""
-    if req.batch < 1:
-        raise StudyInputError(f'batch size must be >= 1, got {req.batch}')
+    if req.batch < 1 or req.chunk < 0:
+        raise StudyInputError(
+            f'batch size must be >= 1 and chunk size >= 0, got {req.batch} and {req.chunk}'
+        )
     if not req.duration_s > STEADY_STATE_START_S:
         raise StudyInputError(
             f'duration must exceed the steady-state window start ({STEADY_STATE_START_S:g} s)'
@@ -65,7 +80,12 @@ def build_spec(req: SweepRequest) -> tuple[SweepSpec, list[str]]:
         raise StudyInputError(
             f'sample count must be >= 1 for --method {req.method}, got {req.samples}'
         )
-    table = sample(axes, req.method, req.samples, req.seed)
+    if req.repeat < 1:
+        raise StudyInputError(f'repeat count must be >= 1, got {req.repeat}')
+    table = {
+        k: np.repeat(v, req.repeat)
+        for k, v in sample(axes, req.method, req.samples, req.seed).items()
+    }
     base = BaseScenario(
         controller=controller,
         reference=req.reference,
@@ -77,7 +97,9 @@ def build_spec(req: SweepRequest) -> tuple[SweepSpec, list[str]]:
     )
     names = [a.name for a in axes]
     base.values_with({n: 0.0 for n in names})  # refuses a name both varied and set
-    return SweepSpec(base=base, table=table, batch=req.batch, seed=req.seed), names
+    check_batchable(base, axes)
+    spec = SweepSpec(base=base, table=table, batch=req.batch, seed=req.seed, chunk_runs=req.chunk)
+    return spec, names
 
 
 def execute(
@@ -152,7 +174,16 @@ def run_sweep(
             raise StudyInputError(f'--plot {axis!r} is not a varied quantity ({", ".join(names)})')
     if ray_target and target != 'local':
         distributed.check_reachable(target)
-    results.prepare_folder(out, req.as_dict(), resume)
+    results.prepare_folder(
+        out,
+        {
+            **req.as_dict(),
+            'provenance': provenance(
+                {'study': req.seed, 'per_run': 'SeedSequence([study, run]), 63 bits'}
+            ),
+        },
+        resume,
+    )
     done = results.finished_chunks(out, spec.chunks)
     pending = [c for c in range(spec.chunks) if c not in done]
     stats = (
@@ -171,6 +202,7 @@ def run_sweep(
             'fixed': dict(spec.base.fixed),
             'seed': req.seed,
             'batch': req.batch,
+            'chunk_runs': spec.chunk_size,
             'chunks': spec.chunks,
             'chunks_resumed': len(done),
             'controller': spec.base.controller,

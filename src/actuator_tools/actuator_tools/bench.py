@@ -22,6 +22,7 @@ import datetime as dt
 import json
 import os
 import platform
+import shutil
 import subprocess
 import sys
 import threading
@@ -53,7 +54,17 @@ from actuator_tools.bench_table import (
 )
 
 DEFAULT_SCENARIO = 'case2_pp_nftsmc_eso'
-RT_VARIANTS = ('normal', 'fifo', 'pinned', 'fifo-pinned', 'fifo-launch')
+RT_VARIANTS = (
+    'normal',
+    'fifo',
+    'pinned',
+    'fifo-pinned',
+    'fifo-launch',
+    'normal-composed',
+    'fifo-composed',
+)
+#: ROS modes: sim time across processes, sim time with the three nodes in one process, real time.
+MODES = ('realtime', 'sim', 'sim-composed')
 DURATION_RANGE_S = (1.0, 3600.0)
 PROGRESS_EVERY_S = 15.0
 
@@ -118,23 +129,26 @@ class Variant:
     rt_priority: int = 0
     pinned: bool = False
     launched: bool = False  # started by ros2 launch instead of the runner
+    composed: bool = False  # joint, ESO and controller in one process (graph.compose)
 
     @property
     def slug(self) -> str:
         """Short name for folders and the CSV."""
         sched = f'fifo{self.rt_priority}' if self.rt_priority else 'normal'
+        composed = '_composed' if self.composed else ''
         return (
-            self.mode
+            f'sim{composed}'
             if self.mode == 'sim'
             else f'realtime_{sched}{"_pinned" if self.pinned else ""}'
-            f'{"_launch" if self.launched else ""}'
+            f'{"_launch" if self.launched else ""}{composed}'
         )
 
     @property
     def title(self) -> str:
         """Heading in the table."""
+        one = ', joint + ESO + controller in one process' if self.composed else ''
         if self.mode == 'sim':
-            return 'sim: deterministic sim time (lockstep), normal scheduling'
+            return f'sim: deterministic sim time (lockstep), normal scheduling{one}'
         sched = (
             f'SCHED_FIFO {self.rt_priority}'
             if self.rt_priority
@@ -143,8 +157,15 @@ class Variant:
         return (
             f'realtime: {sched}'
             f'{", pinned (plant CPU 0; ESO, controller CPU 1)" if self.pinned else ""}'
-            f'{", started by ros2 launch" if self.launched else ""}'
+            f'{", started by ros2 launch" if self.launched else ""}{one}'
         )
+
+
+def missing_tool(variant: Variant) -> Optional[str]:
+    """Say what a variant needs that this machine lacks, or None."""
+    if variant.launched and shutil.which('ros2') is None:
+        return 'ros2 launch is not installed (no ros2 on PATH)'
+    return None
 
 
 def make_variants(
@@ -152,6 +173,8 @@ def make_variants(
 ) -> list[Variant]:
     """Return the variants to run, sim first, in the order given."""
     variants = [Variant('sim')] if 'sim' in modes else []
+    if 'sim-composed' in modes:
+        variants.append(Variant('sim', composed=True))
     if 'realtime' in modes:
         for name in dict.fromkeys(rt_variants):
             variants.append(
@@ -160,6 +183,7 @@ def make_variants(
                     rt_priority if 'fifo' in name else 0,
                     'pinned' in name,
                     'launch' in name,
+                    'composed' in name,
                 )
             )
     return variants
@@ -259,10 +283,14 @@ def run_one(
                     quiet=True,
                     thread_priority=variant.rt_priority,
                     cpus=PINNING if variant.pinned else None,
+                    composed=variant.composed,
                 )
             )
     except SystemExit as exc:
         record.error = str(exc)
+        return record
+    except Exception as exc:  # noqa: BLE001 - one run's failure is its error, not the bench's end
+        record.error = f'run failed: {type(exc).__name__}: {exc}'
         return record
     record.run_dir, record.bag, record.exit_codes = (
         str(result.run_dir),
@@ -292,7 +320,7 @@ def floor_run(args: argparse.Namespace, base: Path, repeat: int, rt_priority: in
     Echo and source as processes for --floor-s seconds.
     """
     from actuator_tools.bringup import wait_for_leader
-    from actuator_tools.floor import hop_figures
+    from actuator_tools.bench_figures import hop_figures
     from actuator_tools.supervisor import ProcessFigures, RosProcess
 
     run_dir = base / 'floor' / f'rep{repeat}'
@@ -340,7 +368,7 @@ def one_line(record: RunRecord) -> str:
         return f'FAILED: {record.error}'
     f = record.figures
     parts = [f'wall {cell(f.get("wall_s"), ".0f")} s']
-    if record.variant == 'sim':
+    if record.variant.startswith('sim'):
         parts.append(f'speed {cell(f.get("speed_x"), ".2f")}x')
     if f.get('latency_p99_us') is not None:
         parts.append(
@@ -421,6 +449,16 @@ def _read_int(path: str) -> Optional[int]:
         return None
 
 
+def save_run(base: Path, records: list[RunRecord], offline: list[Figures]) -> None:
+    """Write the runs finished so far (runs.jsonl, runs.csv) as each ends.
+
+    A later crash or interruption loses none of them.
+    """
+    with (base / 'runs.jsonl').open('a') as f:
+        f.write(json.dumps(dataclasses.asdict(records[-1]), default=str) + '\n')
+    write_csv(base / 'runs.csv', records, offline)
+
+
 def write_csv(path: Path, records: list[RunRecord], offline: list[Figures]) -> None:
     """One line per run (and per offline repeat) with every figure as a column."""
     rows = [
@@ -478,18 +516,20 @@ def build_parser() -> OneLineParser:
     p.add_argument(
         '--modes',
         nargs='+',
-        choices=('realtime', 'sim'),
-        default=['realtime', 'sim'],
-        help='ROS modes to run (default both)',
+        choices=MODES,
+        default=list(MODES),
+        help='ROS modes to run: realtime, sim (separate processes), sim-composed (joint, ESO '
+        'and controller in one process) (default all)',
     )
     p.add_argument(
         '--rt-variants',
         nargs='+',
         choices=RT_VARIANTS,
-        default=['normal', 'fifo'],
+        default=['normal', 'fifo', 'fifo-composed'],
         help='real-time variants: normal scheduling, SCHED_FIFO (--rt-priority), pinned to CPUs '
-        '(bringup --pin layout), both, or SCHED_FIFO started by ros2 launch where it is installed '
-        '(default: normal fifo)',
+        '(bringup --pin layout), both, SCHED_FIFO started by ros2 launch where it is installed, '
+        'or the joint, ESO and controller in one process (-composed) '
+        '(default: normal fifo fifo-composed)',
     )
     p.add_argument(
         '--rt-priority',
@@ -580,7 +620,13 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     from actuator_core.timing import period_ns as to_period_ns
 
     period_ns = to_period_ns(all_scenarios()[args.scenario].common.dt_s)
-    variants = make_variants(args.modes, args.rt_variants, args.rt_priority)
+    variants = []
+    for variant in make_variants(args.modes, args.rt_variants, args.rt_priority):
+        why = missing_tool(variant)
+        if why:
+            print(f'bench: skipping {variant.slug}: {why}', file=sys.stderr)
+        else:
+            variants.append(variant)
     base = args.out / dt.datetime.now(dt.timezone.utc).strftime('%Y%m%dT%H%M%SZ')
     base.mkdir(parents=True, exist_ok=True)
     env_start = environment()
@@ -606,6 +652,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                 )
                 record = run_one(variant, repeat, args, base, period_ns)
                 records.append(record)
+                save_run(base, records, offline)
                 say(f'  done: {one_line(record)}')
         if args.floor_s:
             for repeat in range(1, args.repeats + 1):

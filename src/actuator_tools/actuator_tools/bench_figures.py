@@ -21,7 +21,7 @@ from actuator_core.stats import missed_samples, percentiles
 from actuator_tools.supervisor import process_log
 
 #: The processes whose CPU and memory a run reports.
-NODES = ('plant', 'eso', 'controller', 'recorder')
+NODES = ('plant', 'eso', 'controller', 'recorder', 'loop')  # loop: the composed process
 
 Figures = dict[str, Optional[float]]
 
@@ -208,6 +208,11 @@ def process_figures(cpu_percent: dict, peak_rss_mb: dict) -> Figures:
         if node in peak_rss_mb:
             figures[f'cpu_{node}_pct'] = cpu_percent.get(node)
             figures[f'rss_{node}_mb'] = peak_rss_mb.get(node)
+    loop = [cpu_percent.get(n) for n in ('loop',) if n in cpu_percent] or [
+        cpu_percent.get(n) for n in ('plant', 'eso', 'controller') if n in cpu_percent
+    ]
+    if loop and all(v is not None for v in loop):
+        figures['cpu_joint_loop_pct'] = float(sum(loop))  # joint + ESO + controller, one or three
     return figures
 
 
@@ -222,9 +227,13 @@ def log_figures(run_dir: Path) -> Figures:
         or '\n'.join(line for line in launched.splitlines() if line.startswith(f'[{node}_node-'))
         for node in ('plant', 'eso', 'controller')
     }
+    composed = process_log(run_dir, 'loop')  # one process holds the three nodes
+    fifo = 3 * ('running under SCHED_FIFO' in composed) if composed else None
     return {
-        'fifo_nodes': float(sum('running under SCHED_FIFO' in t for t in texts.values())),
-        'safe_stop': float('safe stop latched' in texts['controller']),
+        'fifo_nodes': float(
+            sum('running under SCHED_FIFO' in t for t in texts.values()) if fifo is None else fifo
+        ),
+        'safe_stop': float('safe stop latched' in (texts['controller'] + composed)),
     }
 
 
@@ -281,3 +290,19 @@ def bag_figures(bag: Path) -> Figures:
         'rms_error_rad': metrics.rms_error_rad,
         'diverged': float(metrics.diverged),
     }
+
+
+def hop_figures(rtt_ns: np.ndarray, sent: int) -> dict[str, float | None]:
+    """One-hop latency (round trip / 2) p50/p99/max [us].
+
+    And the share of messages never echoed [%].
+    """
+    if sent <= 0:
+        return {}
+    out: dict[str, float | None] = {'floor_lost_pct': 100.0 * (sent - rtt_ns.size) / sent}
+    if rtt_ns.size:
+        hop_us = rtt_ns / 2e3
+        out.update(
+            {f'floor_hop_{k.split("_")[-1]}_us': v for k, v in percentiles(hop_us, 'hop').items()}
+        )
+    return out

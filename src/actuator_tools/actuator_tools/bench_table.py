@@ -202,9 +202,18 @@ def error_rows(ratio: Optional[Target]) -> list[Row]:
 
 def node_rows(cpu: Optional[Target], rss: Optional[Target]) -> list[Row]:
     """CPU and peak RSS per node."""
-    return [Row(f'cpu_{n}_pct', f'CPU {n}', '% core', '.1f', cpu) for n in NODES] + [
-        Row(f'rss_{n}_mb', f'peak RSS {n}', 'MB', '.1f', rss) for n in NODES
-    ]
+    loop = Row(
+        'cpu_joint_loop_pct',
+        'CPU joint + ESO + controller',
+        '% core',
+        '.1f',
+        Target('<= 50', high=50.0),
+    )
+    return (
+        [loop]
+        + [Row(f'cpu_{n}_pct', f'CPU {n}', '% core', '.1f', cpu) for n in NODES]
+        + [Row(f'rss_{n}_mb', f'peak RSS {n}', 'MB', '.1f', rss) for n in NODES]
+    )
 
 
 def floor_rows() -> list[Row]:

@@ -27,7 +27,7 @@ from typing import Optional, Sequence
 from ament_index_python.packages import get_package_share_directory
 
 from actuator_sim.params_yaml import all_scenarios
-from actuator_tools.graph import JOINTS, PINNING, closed_loop, ros_arguments
+from actuator_tools.graph import JOINTS, PINNING, closed_loop, compose, ros_arguments
 from actuator_tools.supervisor import ProcessFigures, RosProcess
 
 MODES = ('realtime', 'sim')
@@ -85,13 +85,16 @@ def run_closed_loop(
     cpus: dict | None = None,
     joint: str = 'plant',
     joint_parameters: dict | None = None,
+    composed: bool = False,
+    live_view: bool = False,
+    live_view_parameters: dict | None = None,
 ) -> RunResult:
     """Start the nodes of ``scenario`` in ``mode``, run to the end, stop everything.
 
     Return the result. ``duration_s`` None runs the scenario's own length (10 s for the paper's
     cases), never forever. ``thread_priority`` > 0: SCHED_FIFO for the ESO and controller, one
     level above for the joint (graph.closed_loop). ``cpus`` pins by key ('joint', 'eso',
-    'controller').
+    'controller'). ``composed``: the joint, ESO and controller in one process (graph.compose).
     """
     if duration_s is None:
         duration_s = scenario_duration(scenario)
@@ -116,7 +119,11 @@ def run_closed_loop(
         executor=executor,
         logs=run_dir,
         joint_parameters=joint_parameters,
+        live_view=live_view,
+        live_view_parameters=live_view_parameters,
     )
+    if composed:
+        specs = compose(specs)
     procs: dict[str, RosProcess] = {}
     figures: dict[str, ProcessFigures] = {}
     previous = {s: signal.signal(s, _raise_stopped) for s in (signal.SIGTERM, signal.SIGINT)}
@@ -124,7 +131,7 @@ def run_closed_loop(
     codes: dict = {}
     try:
         for spec in specs:
-            extra = list(extra_params) if spec.key in ('controller', 'eso') else []
+            extra = _extra_arguments(spec, extra_params)
             args = ros_arguments(spec, params)
             procs[spec.key] = RosProcess.installed(
                 spec.package, spec.executable, args + extra, log_dir=run_dir, name=spec.key
@@ -159,6 +166,22 @@ def run_closed_loop(
         {k: f.peak_rss_mb for k, f in figures.items()},
         wall,
     )
+
+
+def _extra_arguments(spec, extra_params: Sequence[str]) -> list[str]:
+    """``extra_params`` (ROS arguments for the ESO and the controller) of one process."""
+    if spec.key in ('controller', 'eso'):
+        return list(extra_params)
+    targets = [m.name for m in spec.members if m.key in ('controller', 'eso')]
+    out, it = [], iter(extra_params)
+    for arg in it:  # in a container each '-p name:=value' is aimed at the ESO and controller
+        if arg in ('-p', '--param'):
+            value = next(it, '')
+            for target in targets:
+                out += [arg, f'{target}:{value}']
+        else:
+            out.append(arg)
+    return out
 
 
 def run_launched(
@@ -238,14 +261,19 @@ def wait_for_leader(
     quiet: bool,
     leader: Optional[str],
 ) -> None:
-    """Poll until the leader exits at the end of the run.
+    """Poll until the leader exits at the end of the run (no leader: for ``duration_s``).
 
-    Mark CPU baselines once it logs 'sampling started'.
+    Mark CPU baselines once it logs 'sampling started'. Without a leader (``--joint none``: the
+    driver runs elsewhere) the run is the nodes' for ``duration_s`` of wall time.
     """
     marked = False
     deadline = time.monotonic() + (max(120.0, 30.0 * duration_s) if duration_s else float('inf'))
     last_note = started = time.monotonic()
-    while leader is None or procs[leader].running:
+    while True:
+        if leader is not None and not procs[leader].running:
+            break
+        if leader is None and duration_s and time.monotonic() - started >= duration_s:
+            break
         for f in figures.values():
             f.sample()
         if not marked and (leader is None or 'sampling started' in procs[leader].output):
@@ -301,15 +329,45 @@ def main(argv: Sequence[str] | None = None) -> int:
         help='SCHED_FIFO priority of the ESO and controller, the joint one above (0 = normal)',
     )
     parser.add_argument(
+        '--composed',
+        action='store_true',
+        help='run the joint, the ESO and the controller in one process on one executor',
+    )
+    parser.add_argument(
         '--pin',
         action='store_true',
         help='pin the joint to CPU 0 and the ESO and controller (which run in sequence) to CPU 1',
+    )
+    parser.add_argument(
+        '--params-file',
+        type=Path,
+        action='append',
+        default=[],
+        metavar='YAML',
+        help='a ROS 2 parameter file for the ESO and the controller, loaded after the '
+        "scenario's (e.g. share/actuator_studies/config/pp_nftsmc_eso_designed.yaml); repeatable",
+    )
+    parser.add_argument(
+        '--live-view',
+        action='store_true',
+        help='also serve the loop to Foxglove (live_view on ws://127.0.0.1:8765; README)',
     )
     args = parser.parse_args(argv)
     if args.duration is not None and not 0.0 < args.duration <= 3600.0:
         parser.error('--duration must be in (0, 3600] s')
     if not 0 <= args.thread_priority <= 99:
         parser.error('--thread-priority must be in [0, 99]')
+    if args.joint in ('cia402_sim', 'cia402') and args.thread_priority == 0:
+        print(
+            '[bringup] warning: the loop through the CiA 402 driver keeps its 1 kHz SYNC grid '
+            'only under SCHED_FIFO (--thread-priority 50); with normal scheduling on 2 cores it '
+            'ran away to the joint soft limit (README "CiA 402 drive")',
+            file=sys.stderr,
+            flush=True,
+        )
+    for path in args.params_file:
+        if not path.is_file():
+            parser.error(f'--params-file {path}: no such file')
     duration = args.duration if args.duration is not None else scenario_duration(args.scenario)
     result = run_closed_loop(
         args.scenario,
@@ -319,8 +377,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         args.bags,
         executor=args.executor,
         thread_priority=args.thread_priority,
+        extra_params=[a for f in args.params_file for a in ('--params-file', str(f.resolve()))],
         cpus=PINNING if args.pin else None,
         joint=args.joint,
+        composed=args.composed,
+        live_view=args.live_view,
     )
     print(
         json.dumps(
@@ -333,7 +394,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             indent=1,
         )
     )
-    return 0 if all(code == 0 for code in result.exit_codes.values()) else 1
+    # A stop by SIGINT/SIGTERM is a clean end (exit 0) when every node then ended cleanly; the
+    # JSON keeps 'bringup': 130 to say the run was cut short.
+    nodes = {k: v for k, v in result.exit_codes.items() if k != 'bringup'}
+    return 0 if all(code == 0 for code in nodes.values()) else 1
 
 
 if __name__ == '__main__':

@@ -28,7 +28,6 @@ from rclpy.node import Node
 from actuator_ros.parameters import declare_number, declare_text
 from actuator_ros.qos import control_qos
 from actuator_ros.runner import run_node
-from actuator_core.stats import percentiles
 from actuator_msgs.msg import CurrentCommand
 
 PING, PONG = 'floor/ping', 'floor/pong'
@@ -125,22 +124,6 @@ class SourceNode(Node):
                 sent=np.int64(self.sent),
             )
         self.get_logger().info(f'sent {self.sent}, echoed {len(self.rtt_ns)}')
-
-
-def hop_figures(rtt_ns: np.ndarray, sent: int) -> dict[str, float | None]:
-    """One-hop latency (round trip / 2) p50/p99/max [us].
-
-    And the share of messages never echoed [%].
-    """
-    if sent <= 0:
-        return {}
-    out: dict[str, float | None] = {'floor_lost_pct': 100.0 * (sent - rtt_ns.size) / sent}
-    if rtt_ns.size:
-        hop_us = rtt_ns / 2e3
-        out.update(
-            {f'floor_hop_{k.split("_")[-1]}_us': v for k, v in percentiles(hop_us, 'hop').items()}
-        )
-    return out
 
 
 def main(argv: list[str] | None = None) -> int:

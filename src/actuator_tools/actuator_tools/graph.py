@@ -11,7 +11,8 @@ the runner has no launch here.
 Real-time settings are node parameters (actuator_ros.realtime), as ros2_control makes them:
 ``thread_priority`` (the ESO and controller at the given SCHED_FIFO priority, the plant or
 driver one level above: it is the sampling hardware, and below them its tick queued behind
-their callbacks: latency p99 1.51 -> 0.94 ms, 3 runs each way), ``cpu_affinity`` and
+their callbacks: latency p99 1.51 -> 0.94 ms, 3 runs each way; the simulated CiA 402 drive one
+above the driver, as hardware keeps its cycle), ``cpu_affinity`` and
 ``executor``. The recorder keeps normal scheduling: under SCHED_FIFO the real-time threads
 exceeded the kernel's RT budget (sched_rt_runtime_us) and were stopped for 27-63 ms.
 """
@@ -22,12 +23,17 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
 
+import yaml
+
 #: What plays the joint: the simulated plant, the CiA 402 driver with its simulated drive on
 #: a virtual CAN bus, the driver on a real bus, or nothing (a driver started elsewhere).
 JOINTS = ('plant', 'cia402_sim', 'cia402', 'none')
 #: ``bringup --pin`` on a 2-core machine: the ESO and the controller work in strict sequence
 #: each sample (command -> estimate -> command), so they share a core; the joint uses the other.
 PINNING = {'joint': '0', 'eso': '1', 'controller': '1'}
+#: Rate of the diagnostic topics (plant/truth) in a real-time run that records nothing [Hz]:
+#: enough for a live plot; a recorded or sim run keeps every sample for the analysis.
+LIVE_DIAGNOSTICS_RATE_HZ = 100.0
 
 
 @dataclass(frozen=True)
@@ -42,6 +48,36 @@ class NodeSpec:
     scenario_file: bool = True  # gets the scenario's parameter file
     leader: bool = False  # the run ends when this process ends
     managed: bool = True  # a lifecycle node
+    members: tuple = ()  # a container (``compose``): the nodes it runs, each a NodeSpec
+    arguments: tuple = ()  # a plain process (no ROS node): its command line, e.g. the sim drive
+
+
+#: The nodes a composed loop runs in one process (the joint first: its real-time settings are
+#: the process's), and the container's executable.
+COMPOSABLE = ('plant', 'eso', 'controller')
+CONTAINER = ('actuator_tools', 'loop_container')
+
+
+def compose(specs: list[NodeSpec]) -> list[NodeSpec]:
+    """Put the joint, the ESO and the controller of ``specs`` into one process.
+
+    The same nodes with the same parameters, on one executor (actuator_tools.container); the
+    recorder and a joint that cannot be composed keep their own processes. Start order: the
+    others, then the container (it holds the joint, which starts sampling when all are there).
+    """
+    inside = {s.key: s for s in specs if s.key in COMPOSABLE}
+    if 'plant' not in inside:
+        raise ValueError('a composed loop needs the simulated plant as its joint (joint:=plant)')
+    members = tuple(inside[k] for k in COMPOSABLE if k in inside)
+    container = NodeSpec(
+        'loop',
+        *CONTAINER,
+        'loop_container',
+        {},
+        leader=any(m.leader for m in members),
+        members=members,
+    )
+    return [s for s in specs if s.key not in inside] + [container]
 
 
 def recorder_parameters(mode: str) -> dict:
@@ -72,13 +108,17 @@ def closed_loop(
     logs: Optional[Path] = None,
     joint_parameters: Optional[dict] = None,
     autostart: bool = True,
+    live_view: bool = False,
+    live_view_parameters: Optional[dict] = None,
 ) -> list[NodeSpec]:
     """Return the processes of one run in start order.
 
     The joint is last: it starts sampling when all are there. ``logs``: folder for the per-node
     timing files the benchmark reads (controller_timing.npz, eso_stats.json, plant_samples.npz).
     ``autostart``: the nodes configure and activate themselves (the runner); the launch file drives
-    the transitions instead.
+    the transitions instead. ``live_view``: also the Foxglove live view (actuator_tools.live_view,
+    ws://127.0.0.1:8765 unless ``live_view_parameters`` say otherwise), started before the joint so
+    the joint waits for its subscription too.
     """
     if joint not in JOINTS:
         raise ValueError(f'joint must be one of {", ".join(JOINTS)}, got {joint!r}')
@@ -104,6 +144,7 @@ def closed_loop(
                 'recorder',
                 {
                     'use_sim_time': sim,
+                    'record_diagnostics': True,
                     **recorder_parameters(mode),
                     **({'output': str(bag)} if bag else {}),
                 },
@@ -141,8 +182,20 @@ def closed_loop(
             },
         )
     )
+    if live_view:
+        specs.append(
+            NodeSpec(
+                'live_view',
+                'actuator_tools',
+                'live_view',
+                'live_view',
+                {'executor': executor, **(live_view_parameters or {})},
+                scenario_file=False,
+                managed=False,
+            )
+        )
     joint_priority = min(thread_priority + 1, 99) if thread_priority else 0
-    subscribers = 3 if record else 2
+    subscribers = 2 + int(record) + int(live_view)
     if joint == 'plant':
         specs.append(
             NodeSpec(
@@ -154,6 +207,8 @@ def closed_loop(
                     'mode': mode,
                     'stop_after_s': float(duration_s),
                     'wait_for_subscribers': subscribers,
+                    # the bag analysis needs every sample; live use needs far fewer
+                    'truth_rate_hz': 0.0 if record or sim else LIVE_DIAGNOSTICS_RATE_HZ,
                     **settings('joint', joint_priority),
                     **logged(('timing_log', 'plant_samples.npz')),
                 },
@@ -167,17 +222,46 @@ def closed_loop(
             DRIVER_EXECUTABLE,
             DRIVER_NODE_NAME,
             DRIVER_PACKAGE,
+            SIM_DRIVE_EXECUTABLE,
+            SIM_DRIVE_PACKAGE,
             driver_parameters,
+            free_port,
+            sim_drive_command,
         )
 
+        simulated = joint == 'cia402_sim'
+        overrides = dict(joint_parameters or {})
+        sim_settings = {k: overrides.pop(k) for k in list(overrides) if k.startswith('sim.')}
+        port = free_port() if simulated else 0
         params = driver_parameters(
-            simulated=joint == 'cia402_sim',
+            simulated=simulated,
+            hub_port=port,
             stop_after_s=float(duration_s),
             wait_for_subscribers=subscribers,
             autostart=autostart,
-            **(joint_parameters or {}),
+            **overrides,
         )
         params.update(logged(('timing_log', 'plant_samples.npz')))
+        if simulated:  # the drive in a process of its own, as hardware: it outlives the driver
+            specs.append(
+                NodeSpec(
+                    'drive',
+                    SIM_DRIVE_PACKAGE,
+                    SIM_DRIVE_EXECUTABLE,
+                    SIM_DRIVE_EXECUTABLE,
+                    scenario_file=False,
+                    managed=False,
+                    arguments=tuple(
+                        sim_drive_command(
+                            port,
+                            sync_period_s=params['sample_time_s'],
+                            # the simulated hardware above the software it serves
+                            thread_priority=min(joint_priority + 1, 99) if joint_priority else 0,
+                            **sim_settings,
+                        )
+                    ),
+                )
+            )
         specs.append(
             NodeSpec(
                 'driver',
@@ -194,12 +278,38 @@ def closed_loop(
 def ros_arguments(spec: NodeSpec, scenario_file: Optional[Path]) -> list[str]:
     """``--ros-args`` of a process started directly (the runner).
 
-    The file, then the node's parameters.
+    The file, then the node's parameters. rcl reads a ``-p`` value as YAML, so a string that
+    YAML would read as something else (cpu_affinity '0' is an integer there) is quoted.
     """
+    if spec.arguments:
+        return list(spec.arguments)
+    if spec.members:
+        args = ['--nodes', *(m.key for m in spec.members), '--ros-args']
+        if scenario_file is not None:
+            args += ['--params-file', str(scenario_file)]
+        for member in spec.members:
+            args += _parameter_arguments(member.parameters, f'{member.name}:')
+        return args
     args = ['--ros-args']
     if spec.scenario_file and scenario_file is not None:
         args += ['--params-file', str(scenario_file)]
-    for name, value in spec.parameters.items():
+    return args + _parameter_arguments(spec.parameters)
+
+
+def _parameter_arguments(parameters: dict, target: str = '') -> list[str]:
+    """``-p [node:]name:=value`` for each parameter (``target`` names one node of a process)."""
+    args = []
+    for name, value in parameters.items():
         text = ('true' if value else 'false') if isinstance(value, bool) else str(value)
-        args += ['-p', f'{name}:={text}']
+        if isinstance(value, str) and _yaml_scalar(value) != value:
+            text = "'" + value.replace("'", "''") + "'"
+        args += ['-p', f'{target}{name}:={text}']
     return args
+
+
+def _yaml_scalar(text: str):
+    """Return what rcl makes of a ``-p`` value (a YAML scalar), or None if it is not one."""
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError:
+        return None

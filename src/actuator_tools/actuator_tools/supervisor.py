@@ -146,6 +146,18 @@ class RosProcess:
     def returncode(self) -> Optional[int]:
         return self.poll()
 
+    def _ask_for_stacks(self) -> None:
+        """Before SIGKILL, send SIGUSR1 to the leader: a hang at stop leaves its place in the log.
+
+        A node of ours writes every thread's stack to its stderr on it (faulthandler, registered
+        by ``run_nodes`` and the recorder); a process without that handler ends by SIGUSR1.
+        """
+        try:
+            os.kill(self.popen.pid, signal.SIGUSR1)
+        except ProcessLookupError:
+            return
+        self._wait(1.0)
+
     def _signal_group(self, sig: int) -> None:
         try:
             os.killpg(self.popen.pid, sig)
@@ -173,6 +185,8 @@ class RosProcess:
                 (signal.SIGTERM, sigterm_timeout),
                 (signal.SIGKILL, 10.0),
             ):
+                if sig is signal.SIGKILL:
+                    self._ask_for_stacks()
                 self._signal_group(sig)
                 if self._wait(timeout):
                     self.stopped_by = sig.name

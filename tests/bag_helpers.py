@@ -1,25 +1,22 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""Helpers shared by the bag tests, plus checks of the helpers.
+"""Helpers shared by the bag tests (not collected; checked by test_bag_helpers.py).
 
-The helpers write synthetic runs without ROS.
+Synthetic run bags with the five system topics, and CurrentCommand payloads, written without ROS.
 """
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
 
 import numpy as np
-import pytest
 
-pytest.importorskip('rosbags')
-pytest.importorskip('mcap')
-
-from actuator_bag.bag_format import BagWriter, QosProfile, topic_spec  # noqa: E402
-from actuator_bag.msgdefs import DefinitionSource, definition_roots  # noqa: E402
+from actuator_bag.bag_format import BagWriter, QosProfile, topic_spec
+from actuator_bag.msgdefs import DefinitionSource, definition_roots
 
 REPO = Path(__file__).resolve().parents[1]
 #: The repository's source folder holds actuator_msgs/msg/*.msg, so definitions resolve without
@@ -34,6 +31,35 @@ TOPICS = {
     'truth': ('/plant/truth', 'actuator_msgs/msg/PlantTruth'),
 }
 T0_NS = 1_700_000_000_000_000_000
+COMMAND_TYPE = TOPICS['command'][1]
+
+
+@functools.cache
+def _command_store():
+    """Return the typestore of CurrentCommand (built once per process)."""
+    return SOURCE.typestore([COMMAND_TYPE])
+
+
+def command_cdr(
+    nanosec: int, current_a: float, safe_stop: bool = False, sec: int = 1, frame_id: str = ''
+) -> bytes:
+    """CDR bytes of one CurrentCommand stamped (sec, nanosec)."""
+    store = _command_store()
+    types = store.types
+    msg = types[COMMAND_TYPE](
+        header=types['std_msgs/msg/Header'](
+            stamp=types['builtin_interfaces/msg/Time'](sec=sec, nanosec=nanosec),
+            frame_id=frame_id,
+        ),
+        current_a=current_a,
+        safe_stop=safe_stop,
+    )
+    return bytes(store.serialize_cdr(msg, COMMAND_TYPE))
+
+
+def add_command_topic(writer: BagWriter, topic: str = '/current_command') -> int:
+    """Add a CurrentCommand topic to an open writer; return its handle."""
+    return writer.add_topic(topic_spec(topic, COMMAND_TYPE, SOURCE))
 
 
 @dataclass
@@ -108,15 +134,8 @@ def synthetic_run(
     )
 
 
-def write_run_bag(
-    path: Path,
-    run: SyntheticRun,
-    controller: str = 'pp_nftsmc_eso',
-    topics: tuple[str, ...] = tuple(TOPICS),
-    chunk_size: int = 1 << 20,
-) -> Path:
-    """Write a synthetic run as a bag with the given subset of the five system topics."""
-    store = SOURCE.typestore([TOPICS[k][1] for k in topics])
+def run_messages(run: SyntheticRun, store, topics=tuple(TOPICS), controller='pp_nftsmc_eso'):
+    """Yield (kind, log time, message) of a synthetic run, sample by sample."""
     types = store.types
     time_t, header_t = types['builtin_interfaces/msg/Time'], types['std_msgs/msg/Header']
 
@@ -127,34 +146,22 @@ def write_run_bag(
         )
 
     nan = float('nan')
-    with BagWriter(path, chunk_size=chunk_size) as writer:
-        handles = {
-            k: writer.add_topic(
-                topic_spec(TOPICS[k][0], TOPICS[k][1], SOURCE, [QosProfile(depth=100)])
+    joint_stamps = set(run.joint_stamps_ns.tolist())
+    for k, ns in enumerate(run.stamps_ns.tolist()):
+        if ns in joint_stamps and 'joint' in topics:
+            yield (
+                'joint',
+                ns + 50_000,
+                types['sensor_msgs/msg/JointState'](
+                    header=header(ns),
+                    name=['joint'],
+                    position=np.array([run.reference[k] + run.error[k]]),
+                    velocity=np.empty(0),
+                    effort=np.empty(0),
+                ),
             )
-            for k in topics
-        }
-        joint_stamps = set(run.joint_stamps_ns.tolist())
-
-        def put(kind: str, log_ns: int, msg) -> None:
-            if kind in handles:
-                data = bytes(store.serialize_cdr(msg, TOPICS[kind][1]))
-                writer.write(handles[kind], log_ns, data)
-
-        for k, ns in enumerate(run.stamps_ns.tolist()):
-            if ns in joint_stamps:
-                put(
-                    'joint',
-                    ns + 50_000,
-                    types['sensor_msgs/msg/JointState'](
-                        header=header(ns),
-                        name=['joint'],
-                        position=np.array([run.reference[k] + run.error[k]]),
-                        velocity=np.empty(0),
-                        effort=np.empty(0),
-                    ),
-                )
-            put(
+        if 'estimate' in topics:
+            yield (
                 'estimate',
                 ns + 60_000,
                 types['actuator_msgs/msg/StateEstimate'](
@@ -171,14 +178,16 @@ def write_run_bag(
                     missing_current_count=0,
                 ),
             )
-            put(
+        if 'command' in topics:
+            yield (
                 'command',
                 ns + int(run.latency_ns[k]),
                 types['actuator_msgs/msg/CurrentCommand'](
                     header=header(ns), current_a=run.current[k], safe_stop=False
                 ),
             )
-            put(
+        if 'state' in topics:
+            yield (
                 'state',
                 ns + int(run.latency_ns[k]) + 1000,
                 types['actuator_msgs/msg/ControllerState'](
@@ -214,7 +223,8 @@ def write_run_bag(
                     missed_samples=0,
                 ),
             )
-            put(
+        if 'truth' in topics:
+            yield (
                 'truth',
                 ns + 40_000,
                 types['actuator_msgs/msg/PlantTruth'](
@@ -240,22 +250,25 @@ def write_run_bag(
                     brake_engaged=False,
                 ),
             )
+
+
+def write_run_bag(
+    path: Path,
+    run: SyntheticRun,
+    controller: str = 'pp_nftsmc_eso',
+    topics: tuple[str, ...] = tuple(TOPICS),
+    chunk_size: int = 1 << 20,
+) -> Path:
+    """Write a synthetic run as a bag with the given subset of the five system topics."""
+    store = SOURCE.typestore([TOPICS[k][1] for k in topics])
+    with BagWriter(path, chunk_size=chunk_size) as writer:
+        handles = {
+            k: writer.add_topic(
+                topic_spec(TOPICS[k][0], TOPICS[k][1], SOURCE, [QosProfile(depth=100)])
+            )
+            for k in topics
+        }
+        for kind, log_ns, msg in run_messages(run, store, topics, controller):
+            writer.write(handles[kind], log_ns, bytes(store.serialize_cdr(msg, TOPICS[kind][1])))
         run.counts = writer.summary().counts
     return path
-
-
-def test_synthetic_bag_counts(tmp_path: Path) -> None:
-    """The helper writes one message per sample and topic.
-
-    Fewer joint_states where samples were dropped.
-    """
-    run = synthetic_run(duration_s=0.5, drop_joint=(10, 11))
-    write_run_bag(tmp_path / 'run', run)
-    n = run.t.size
-    assert run.counts == {
-        '/joint_states': n - 2,
-        '/current_command': n,
-        '/eso/estimate': n,
-        '/controller/state': n,
-        '/plant/truth': n,
-    }

@@ -1,9 +1,12 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""Command delay of the offline loop: the plant applies u(k - D), D samples after it was commanded.
+"""What a drive adds between the command and the joint: command delay and a torque loop.
 
-D = 0 is the paper's loop. D = 1 or 2 models a drive that takes the command one or two
+Composable parts of the simulated joint (``actuator_plant.sim_joint``), each off by default.
+
+Command delay: the joint applies u(k - D), D samples after it was commanded. D = 0 is the
+paper's loop. D = 1 or 2 models a drive that takes the command one or two
 samples late (a bus cycle, a late callback); the observer still integrates the commanded
 current u(k), which is the ``plant_delay`` of ``actuator_sim.stability``. Before the first
 D commands exist the plant applies 0 A. D may be an integer array (one delay per element of
@@ -11,6 +14,8 @@ a batch); each element then picks its own entry of the same history.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -55,3 +60,15 @@ class CommandDelay:
         if self.history:
             self.history = candidates[:-1]
         return out
+
+
+def torque_loop(current_a, target_a, dt_s: float, tau_s: float):
+    """First-order torque loop over one period: (mean current, end current) [A].
+
+    i(t) = i* + (i0 - i*) exp(-t / tau); ``tau_s`` = 0 applies the target at once.
+    """
+    if tau_s <= 0.0:
+        return target_a, target_a
+    decay = math.exp(-dt_s / tau_s)
+    mean = target_a + (current_a - target_a) * (tau_s / dt_s) * (1.0 - decay)
+    return mean, target_a + (current_a - target_a) * decay

@@ -1,0 +1,40 @@
+#!/usr/bin/env bash
+# Mutation score of the ROS-free core (mutmut 3, pinned in requirements/python.lock): set-up,
+# build, then `mutmut run` in build/mutation/ (links to the packages under src/, the tests, the
+# configuration scripts/mutation/pyproject.toml), niced, and the report docs/mutation-report.md.
+#   scripts/mutation.sh                       every mutant of the core (hours on 2 cores)
+#   scripts/mutation.sh 'actuator_core.gate*' the mutants of one module (mutmut's name globs)
+# MUTATION_JOBS (default 2) sets mutmut's --max-children; MUTATION_FRESH=1 starts from scratch
+# (mutmut otherwise keeps the results of mutants whose function did not change).
+# Not in CI: CPU-heavy.
+set -euo pipefail
+
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+"$ROOT/scripts/setup.sh"
+"$ROOT/scripts/build.sh"
+# shellcheck source=scripts/env.sh
+source "$ROOT/scripts/env.sh"
+
+STAGE="$ROOT/build/mutation"
+if [[ ${MUTATION_FRESH:-0} == 1 ]]; then
+    rm -rf "$STAGE"
+fi
+mkdir -p "$STAGE"
+cd "$STAGE"
+for pkg in actuator_core actuator_controller actuator_eso actuator_plant actuator_sim; do
+    ln -sfn "$ROOT/src/$pkg/$pkg" "$pkg"
+done
+ln -sfn "$ROOT/tests" tests
+ln -sfn "$ROOT/pytest.ini" pytest.ini
+cp "$ROOT/scripts/mutation/pyproject.toml" pyproject.toml
+
+# Quick tests first in each mutant's run (scripts/mutation/mutation_order.py).
+export PYTHONPATH="$ROOT/scripts/mutation${PYTHONPATH:+:$PYTHONPATH}"
+export PYTEST_ADDOPTS="-p mutation_order${PYTEST_ADDOPTS:+ $PYTEST_ADDOPTS}"
+echo "[mutation] mutmut run $* in $STAGE (nice 19, ${MUTATION_JOBS:-2} children)"
+rc=0
+nice -n 19 mutmut run --max-children "${MUTATION_JOBS:-2}" "$@" || rc=$?
+# A run of some modules keeps the earlier report's rows for the others (--keep-earlier).
+python "$ROOT/scripts/mutation/report.py" --stage "$STAGE" --out "$ROOT/docs/mutation-report.md" \
+    ${*:+--keep-earlier} --command "make mutation${*:+ ARGS='$*'}"
+exit "$rc"

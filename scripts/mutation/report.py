@@ -1,0 +1,253 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""Write docs/mutation-report.md from mutmut's results in build/mutation (scripts/mutation.sh).
+
+Per module: killed, survived, timeout, no tests, not checked, and the score killed / (killed +
+survived + no tests), timeouts counted as killed (the test run did not pass). Every survivor is
+listed with its diff; those explained in scripts/mutation/equivalent.toml carry the reason and
+are left out of the "score without equivalents".
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import os
+import subprocess
+import sys
+import tomllib
+from collections import Counter
+from importlib.metadata import version
+from pathlib import Path
+
+KILLED = {1: 'killed', 3: 'killed', 36: 'timeout', 24: 'timeout', -24: 'timeout', 152: 'timeout'}
+STATUS = {0: 'survived', 5: 'no tests', 33: 'no tests', None: 'not checked', 34: 'skipped'}
+#: The modules the issue sets a target for, and the target share killed.
+TARGETS = {
+    'actuator_core/pairing.py': 0.95,
+    'actuator_core/assembly.py': 0.95,
+    'actuator_core/timebase.py': 0.95,
+    'actuator_core/gate.py': 0.95,
+}
+CORE_TARGET = 0.85
+EQUIVALENT = Path(__file__).resolve().parent / 'equivalent.toml'
+
+
+def status(code) -> str:
+    """Return mutmut's verdict for one exit code (as mutmut's own table says)."""
+    return KILLED.get(code) or STATUS.get(code) or f'suspicious ({code})'
+
+
+def load_results(stage: Path) -> dict[str, dict[str, str]]:
+    """Return {module path: {mutant name: status}} from the .meta files of a mutmut run."""
+    results = {}
+    for meta in sorted((stage / 'mutants').rglob('*.py.meta')):
+        module = str(meta.relative_to(stage / 'mutants'))[: -len('.meta')]
+        codes = json.loads(meta.read_text())['exit_code_by_key']
+        if codes:
+            results[module] = {name: status(code) for name, code in codes.items()}
+    return results
+
+
+def diff(stage: Path, name: str) -> str:
+    """Return the diff of one mutant (``mutmut show``), without its header line."""
+    out = subprocess.run(
+        [sys.executable, '-m', 'mutmut', 'show', name],
+        cwd=stage,
+        capture_output=True,
+        text=True,
+        check=False,
+    ).stdout
+    return '\n'.join(line for line in out.splitlines()[1:] if not line.startswith(('---', '+++')))
+
+
+def recheck(stage: Path, name: str, tests: list[str]) -> bool:
+    """Run ``tests`` (paths under the repository) on one mutant; True when they kill it.
+
+    As mutmut runs a mutant: in mutants/ (the mutated copy first on sys.path), with
+    MUTANT_UNDER_TEST naming it. For survivors of a run made before those tests existed; mutmut
+    itself records them at its next run of these mutants.
+    """
+    mutants = stage / 'mutants'
+    env = dict(os.environ, MUTANT_UNDER_TEST=name)
+    env['PYTHONPATH'] = os.pathsep.join([str(mutants), env.get('PYTHONPATH', '')])
+    proc = subprocess.run(
+        [sys.executable, '-m', 'pytest', '-x', '-q', '-p', 'no:cacheprovider', *tests],
+        cwd=mutants,
+        env=env,
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    return proc.returncode == 1
+
+
+def score(counts: Counter) -> float:
+    """Return killed (timeouts included) over the mutants a test run judged; NaN if none."""
+    killed = counts['killed'] + counts['timeout']
+    judged = killed + counts['survived'] + counts['no tests']
+    return killed / judged if judged else float('nan')
+
+
+def _pct(x: float) -> str:
+    """Return a share as a percentage, or a dash when nothing was judged."""
+    return '—' if x != x else f'{x:.1%}'
+
+
+def earlier_report(text: str) -> tuple[list[str], dict[str, str], dict[str, list[str]]]:
+    """Split a report of this script: its preamble, table rows and survivor sections by module."""
+    head, _, survivors = text.partition('\n## Surviving mutants')
+    preamble = [x for x in head.split('\n|', 1)[0].splitlines()[2:] if x.strip()]
+    rows = {}
+    for line in head.splitlines():
+        cells = [c.strip() for c in line.strip('|').split('|')]
+        module = cells[0].removesuffix(' (earlier)')  # kept by that report from one before
+        if line.startswith('| ') and module.endswith('.py'):
+            rows[module] = line.replace(f'| {cells[0]} |', f'| {module} |', 1)
+    sections: dict[str, list[str]] = {}
+    for block in survivors.split('\n### ')[1:]:
+        name = block.split('`')[1]
+        module = name.split('.x')[0].replace('.', '/') + '.py'
+        sections.setdefault(module, []).append('### ' + block.rstrip('\n') + '\n')
+    return preamble, rows, sections
+
+
+def _judged(row: str) -> int:
+    """Return how many mutants a report row says were judged (killed, timeout, survived, none)."""
+    cells = [c.strip() for c in row.strip('|').split('|')]
+    return sum(int(c) for c in cells[2:6])
+
+
+def render(
+    stage: Path,
+    command: str,
+    equivalent: dict[str, str],
+    recheck_tests: list[str],
+    earlier: str = '',
+) -> str:
+    """Return the report's Markdown.
+
+    ``earlier``: the previous report; the modules this run did not reach keep its row and
+    survivors, marked as from that run.
+    """
+    results = load_results(stage)
+    preamble, kept_rows, kept_sections = earlier_report(earlier) if earlier else ([], {}, {})
+    kept = {
+        m
+        for m, by_name in results.items()
+        if m in kept_rows
+        and all(v == 'not checked' for v in by_name.values())
+        and _judged(kept_rows[m])  # the earlier run had checked it
+    }
+    names = [Path(t).name for t in recheck_tests]
+    rechecked = {}
+    if recheck_tests:
+        for by_name in results.values():
+            for name, verdict in by_name.items():
+                if verdict == 'survived' and name not in equivalent:
+                    if recheck(stage, name, recheck_tests):
+                        by_name[name] = 'killed'
+                        rechecked[name] = True
+    load = os.getloadavg()
+    lines = [
+        '# Mutation score of the ROS-free core',
+        '',
+        f'Command: `{command}` (scripts/mutation.sh; mutmut {version("mutmut")}, configuration',
+        '`scripts/mutation/pyproject.toml`: what is mutated and which unit tests run). Not in CI.',
+        f'Written {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC on a shared',
+        f'2-core machine (load average at the end {load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f}).',
+        '',
+        'Score = killed / (killed + survived + no tests); a timeout counts as killed. "w/o eq."',
+        'leaves out the survivors explained as equivalent (scripts/mutation/equivalent.toml).',
+        'Not checked: mutants the run did not reach (it was stopped; see the command).',
+        *(
+            [
+                f'{len(rechecked)} survivors of the run are counted killed by tests written after',
+                f'it (rechecked with MUTANT_UNDER_TEST on: {", ".join(names)}):',
+                ', '.join(f'`{n.rsplit(".", 1)[-1]}`' for n in sorted(rechecked)) + '.',
+            ]
+            if rechecked
+            else []
+        ),
+        '',
+        '| module | mutants | killed | timeout | survived | no tests | not checked | score |'
+        ' w/o eq. | target |',
+        '|---|---|---|---|---|---|---|---|---|---|',
+    ]
+    if kept:
+        lines[-2:-2] = [
+            f'Rows marked (earlier) and their survivors are from the earlier report, for the '
+            f'modules this run did not reach ({len(kept)}); it said:',
+            *(f'> {x}' for x in preamble),
+            '',
+        ]
+    survivors = []
+    kept_blocks = []
+    total = Counter()
+    for module, by_name in results.items():
+        if module in kept:
+            cells = [c.strip() for c in kept_rows[module].strip('|').split('|')]
+            lines.append(kept_rows[module].replace(f'| {module} |', f'| {module} (earlier) |', 1))
+            keys = ('mutants', 'killed', 'timeout', 'survived', 'no tests', 'not checked')
+            total += Counter(dict(zip(keys[1:], (int(c) for c in cells[2:7]))))
+            kept_blocks += kept_sections.get(module, [])
+            continue
+        counts = Counter(by_name.values())
+        total += counts
+        eq = sum(1 for n, s in by_name.items() if s == 'survived' and n in equivalent)
+        adjusted = counts.copy()
+        adjusted['survived'] -= eq
+        target = TARGETS.get(module, CORE_TARGET)
+        lines.append(
+            f'| {module} | {len(by_name)} | {counts["killed"]} | {counts["timeout"]} | '
+            f'{counts["survived"]} | {counts["no tests"]} | {counts["not checked"]} | '
+            f'{_pct(score(counts))} | {_pct(score(adjusted))} | {target:.0%} |'
+        )
+        survivors += [(module, n) for n, s in by_name.items() if s in ('survived', 'no tests')]
+    lines.append(
+        f'| **all** | {sum(total.values())} | {total["killed"]} | {total["timeout"]} | '
+        f'{total["survived"]} | {total["no tests"]} | {total["not checked"]} | '
+        f'{_pct(score(total))} | | |'
+    )
+    lines += ['', f'## Surviving mutants ({len(survivors) + len(kept_blocks)})', '']
+    lines += kept_blocks
+    for module, name in survivors:
+        reason = equivalent.get(name)
+        lines.append(f'### `{name}`' + (' (equivalent)' if reason else ''))
+        if reason:
+            lines += ['', reason]
+        lines += ['', '```diff', diff(stage, name), '```', '']
+    return '\n'.join(lines) + '\n'
+
+
+def main() -> int:
+    """Write the report of the mutmut results in --stage to --out."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--stage', type=Path, required=True)
+    parser.add_argument('--out', type=Path, required=True)
+    parser.add_argument('--command', default='make mutation')
+    parser.add_argument(
+        '--recheck',
+        nargs='*',
+        default=[],
+        metavar='TEST',
+        help='test files (repository paths) to run on each survivor (tests newer than the run)',
+    )
+    parser.add_argument(
+        '--keep-earlier',
+        action='store_true',
+        help='keep the rows of --out for the modules this run did not reach (a partial run)',
+    )
+    args = parser.parse_args()
+    equivalent = tomllib.loads(EQUIVALENT.read_text()) if EQUIVALENT.exists() else {}
+    tests = [str(Path(t).resolve()) for t in args.recheck]
+    earlier = args.out.read_text() if args.keep_earlier and args.out.exists() else ''
+    args.out.write_text(render(args.stage, args.command, equivalent, tests, earlier))
+    print(f'[mutation] report: {args.out}')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

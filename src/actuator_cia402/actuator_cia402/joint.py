@@ -1,0 +1,431 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""The CiA 402 drive behind the joint contract (``actuator_core.joint``), ROS-free.
+
+Lifecycle (each step raises JointError with the reason in one line):
+  configure   bus up (socketcan, or the simulated drive's hub), bus health watched, master
+              heartbeat produced, then ``Cia402Master.configure`` (reset communication,
+              identity, a drive left enabled made safe, limits, watchdog, PDOs, CST);
+  activate    ``Cia402Master.enable``: target 0, CST shown, switched on with the brake closed,
+              NMT operational; operation is enabled by the first write without the brake;
+  deactivate  ``Cia402Master.stop``: quick stop, the ramp, the brake closed, disable voltage;
+  acknowledge_fault  the one way to reset a drive fault: a person asks (the node's service).
+Cycle: ``write`` sends RPDO1 (controlword, target torque) at once, for the next SYNC; ``read``
+sends the SYNC (``sync_producer``) or waits for the bus's SYNC, then for TPDO1/TPDO2, and
+returns the angle (32-bit position unwrapped, zero offset applied), the torque actual 0x6077
+at the joint, and ``fault`` for every statusword bit that means the drive does not apply the
+torque it is told (``torque_fault``), for bus-off, error-passive and a vanished adapter.
+The master heartbeat is sent only while the cycle runs (or the joint is not active), so a
+hung, killed or disconnected master stops the drive through its heartbeat consumer.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from typing import Optional
+
+import can
+import canopen
+
+from actuator_core.joint import Joint, JointError, JointSample
+from actuator_cia402 import profile as p
+from actuator_cia402.hub import HubBus, bus_error
+from actuator_cia402.master import Cia402Error, Cia402Master
+
+#: NMT state byte of the master's heartbeat: operational.
+HEARTBEAT_OPERATIONAL = 0x05
+#: How long configure tries to reach the simulated drive's hub [s].
+HUB_CONNECT_TIMEOUT_S = 20.0
+ALLOWED_WHILE_RUNNING = (p.State.SWITCHED_ON, p.State.OPERATION_ENABLED)
+
+
+def torque_fault(statusword: int, enable_settled: bool) -> str:
+    """Why a drive with this statusword does not apply the commanded torque ('' when it does).
+
+    ``enable_settled``: operation enabled was commanded long enough ago to be shown.
+    """
+    state = p.decode_state(statusword)
+    if state in (p.State.FAULT, p.State.FAULT_REACTION_ACTIVE):
+        return f'drive fault ({state.value}, statusword 0x{statusword:04X})'
+    if not statusword & p.SW_REMOTE:
+        return 'remote off: the drive is under local control (statusword bit 9 low)'
+    if state is p.State.QUICK_STOP_ACTIVE:
+        return 'quick stop active: a quick-stop input or the drive stopped by itself'
+    if state not in ALLOWED_WHILE_RUNNING or not statusword & p.SW_VOLTAGE_ENABLED:
+        return (
+            f'operation left without a fault: {state.value if state else "undefined"}, '
+            f'voltage {"on" if statusword & p.SW_VOLTAGE_ENABLED else "off"} (STO, enable '
+            'input or DC link lost?)'
+        )
+    if enable_settled:
+        if state is not p.State.OPERATION_ENABLED:
+            return f'operation not enabled ({state.value}) although commanded (STO?)'
+        if not statusword & p.SW_FOLLOWS_TARGET:
+            return 'the drive ignores the target torque (statusword bit 12 low)'
+    return ''
+
+
+class PositionUnwrap:
+    """Unwraps the INTEGER32 position actual into an unbounded count."""
+
+    def __init__(self) -> None:
+        """No reading yet."""
+        self.last: Optional[int] = None
+        self.total = 0
+        self.wraps = 0
+
+    def update(self, raw: int) -> int:
+        """Add the shortest step from the last reading (mod 2^32); return the unwrapped count."""
+        if self.last is None:
+            self.total = raw
+        else:
+            step = (raw - self.last + 2**31) % 2**32 - 2**31
+            if raw - self.last != step:
+                self.wraps += 1
+            self.total += step
+        self.last = raw
+        return self.total
+
+
+class _BusHealth(can.Listener):
+    """Error frames and receive failures of the adapter, as one message."""
+
+    def __init__(self) -> None:
+        self.fault = ''
+
+    def on_message_received(self, msg: can.Message) -> None:
+        text = bus_error(msg)
+        if text and not self.fault:
+            self.fault = f'{text}: control ended'
+
+    def on_error(self, exc: Exception) -> None:
+        if not self.fault:
+            self.fault = f'CAN adapter lost ({exc}): control ended'
+
+
+class Cia402Joint(Joint):
+    """One CiA 402 drive in CST on a CAN bus; ``cfg`` is a DriverParameters."""
+
+    kind = 'cia402'
+    replays_missed = False
+    supports_sim_time = False
+
+    def __init__(self, cfg, eds_path: Optional[str] = None):
+        """Nothing on the bus yet."""
+        self.cfg = cfg
+        self.scaling = cfg.scaling
+        self.eds = eds_path or cfg.eds_path()
+        self.period_ns = int(round(cfg.sync_period_s * 1e9))
+        self.wait_s = cfg.tpdo_wait_fraction * cfg.sync_period_s
+        self.network: Optional[canopen.Network] = None
+        self.master: Optional[Cia402Master] = None
+        self.health = _BusHealth()
+        self.unwrap = PositionUnwrap()
+        self.active = False
+        self._arrived = threading.Condition()
+        self._tpdo1: Optional[tuple] = None
+        self._tpdo1_seq = 0
+        self._tpdo2 = (0, 0, p.MODE_CST)
+        self._sync_seq = 0
+        self._consumed_sync = 0
+        self._tpdo1_at_sync = 0
+        self._tpdo2_seq = 0
+        self.emcy_fault = ''
+        self.warnings: list[str] = []
+        self._last_read_mono = 0.0
+        self._cycling = False
+        self._enable_since_ns: Optional[int] = None
+        self._not_following_since_ns: Optional[int] = None
+        self._heartbeat_stop = threading.Event()
+        self._heartbeat: Optional[threading.Thread] = None
+        self.missed = 0
+        self._missed_last = False
+        self._missed_in_row = 0
+        self.cycles = 0
+        self.statusword = 0
+        self.position_rad = 0.0
+
+    # --- lifecycle --------------------------------------------------------------------------
+    def _open_bus(self) -> can.BusABC:
+        """Open the adapter: the hub's loopback bus or a python-can interface."""
+        cfg = self.cfg
+        try:
+            if cfg.interface == 'hub':  # the simulated drive's process may still be starting
+                return HubBus(cfg.channel, connect_timeout_s=HUB_CONNECT_TIMEOUT_S)
+            return can.Bus(interface=cfg.interface, channel=cfg.channel)
+        except (OSError, ValueError, can.CanError) as exc:
+            hint = (
+                'is cia402_sim_drive running?'
+                if cfg.interface == 'hub'
+                else f'ip link set {cfg.channel} up type can bitrate {cfg.bitrate}'
+            )
+            raise JointError(
+                f'cannot open {cfg.interface} {cfg.channel!r} ({exc}); {hint}'
+            ) from None
+
+    def configure(self) -> list[str]:
+        """Bus up, heartbeat produced, then the master's configure."""
+        cfg = self.cfg
+        self.health = _BusHealth()
+        self.network = canopen.Network(self._open_bus())
+        self.network.NOTIFIER_CYCLE = 0.1
+        self.network.connect()
+        self.network.notifier.add_listener(self.health)
+        self._heartbeat_stop.clear()
+        self._heartbeat = threading.Thread(
+            target=self._produce_heartbeat, daemon=True, name='cia402-heartbeat'
+        )
+        self._heartbeat.start()
+        try:
+            self.master = Cia402Master(self.network, cfg.node_id, self.eds, self.scaling, cfg)
+            notes = self.master.configure()
+        except (
+            Cia402Error,
+            canopen.SdoAbortedError,
+            canopen.SdoCommunicationError,
+            can.CanError,
+            OSError,
+        ) as exc:
+            self.cleanup()
+            raise JointError(f'configure: {exc}') from None
+        rpdo, t1, t2 = cfg.cob_ids
+        self.network.subscribe(t1, self._on_tpdo1)
+        self.network.subscribe(t2, self._on_tpdo2)
+        self.network.subscribe(0x80, self._on_sync)
+        self.master.node.emcy.add_callback(self._on_emcy)
+        return notes
+
+    def activate(self) -> list[str]:
+        """Target 0, CST shown, switched on (brake closed), NMT operational; no fault reset."""
+        try:
+            self.master.enable()
+        except (Cia402Error, canopen.SdoAbortedError, canopen.SdoCommunicationError) as exc:
+            raise JointError(f'activate: {exc}') from None
+        self.unwrap = PositionUnwrap()
+        self.emcy_fault = ''
+        self.master.node.emcy.reset()
+        self._enable_since_ns = self._not_following_since_ns = None
+        self._missed_in_row = 0
+        self._cycling = False  # the heartbeat watches the cycle from its first read on
+        self.active = True
+        return []
+
+    def deactivate(self) -> list[str]:
+        """Quick stop, the drive's ramp, the brake closed, disable voltage; NMT pre-operational."""
+        self.active = False
+        if self.master is None or self.health.fault:
+            return [f'deactivate: {self.health.fault}'] if self.health.fault else []
+        try:
+            notes = self.master.stop()
+            self.master.node.nmt.state = 'PRE-OPERATIONAL'
+            return notes
+        except (
+            Cia402Error,
+            canopen.SdoAbortedError,
+            canopen.SdoCommunicationError,
+            can.CanError,
+        ) as exc:
+            return [f'deactivate: {exc}']
+
+    def cleanup(self) -> None:
+        """Heartbeat and bus down."""
+        self.active = False
+        self._heartbeat_stop.set()
+        if self._heartbeat is not None:
+            self._heartbeat.join(1.0)
+        if self.master is not None and not self.health.fault:
+            try:  # the drive stops watching a master that leaves on purpose
+                self.master.node.sdo[p.HEARTBEAT_CONSUMER][1].raw = 0
+            except (canopen.SdoAbortedError, canopen.SdoCommunicationError, can.CanError):
+                pass
+        if self.network is not None:
+            try:
+                self.network.disconnect()
+            except Exception:  # noqa: BLE001 - a vanished adapter: nothing left to close
+                pass
+        self.network = self.master = None
+
+    def close(self) -> None:
+        """At exit: stop the drive if it answers, then bus down."""
+        if self.active:
+            self.deactivate()
+        self.cleanup()
+
+    def acknowledge_fault(self) -> str:
+        """Reset a drive fault on a person's request (inactive only); returns what was done."""
+        if self.active or self.master is None:
+            raise JointError('acknowledge_fault: only while configured and inactive')
+        try:
+            return self.master.acknowledge_fault()
+        except (Cia402Error, canopen.SdoAbortedError, canopen.SdoCommunicationError) as exc:
+            raise JointError(f'acknowledge_fault: {exc}') from None
+
+    # --- cycle ------------------------------------------------------------------------------
+    def write(self, current_a: float, brake: bool) -> None:
+        """RPDO1 now: enable operation and the target, or switched on + halt (brake)."""
+        if brake:
+            controlword = p.Command.SWITCH_ON.value | p.CW_HALT
+            self._enable_since_ns, current_a = None, 0.0
+        else:
+            controlword = p.Command.ENABLE_OPERATION.value
+            if self._enable_since_ns is None:
+                self._enable_since_ns = time.monotonic_ns()
+        codec = self.master.codecs[0]
+        self._send(
+            codec.cob_id,
+            codec.pack((controlword, self.scaling.current_to_torque_permille(current_a))),
+        )
+
+    def _send(self, cob_id: int, data: bytes) -> None:
+        """One frame; a failing adapter is a bus fault."""
+        try:
+            self.network.send_message(cob_id, data)
+        except (can.CanError, OSError) as exc:
+            self.health.on_error(exc)
+
+    def read(self, stamp_ns: int) -> Optional[JointSample]:
+        """SYNC (or the bus's), TPDO1 of that SYNC; the sample or the reason control ends."""
+        self._last_read_mono = time.monotonic()
+        self._cycling = True
+        self.cycles += 1
+        if self.cfg.sync_producer:
+            with self._arrived:
+                seq = self._tpdo1_seq
+            self._send(0x80, b'')
+        else:  # the SYNC of this cycle, from the bus's producer (it may have come already)
+            self._wait(lambda: self._sync_seq > self._consumed_sync, self.cfg.sync_period_s)
+            with self._arrived:
+                self._consumed_sync = self._sync_seq
+                seq = self._tpdo1_at_sync
+        # TPDO1 carries no SYNC counter: after a miss the first to come may answer the SYNC
+        # before, so that cycle waits for a second one until the deadline and takes the newest.
+        need = 2 if self._missed_last else 1
+        got = self._wait(lambda: self._tpdo1_seq >= seq + need, self.wait_s)
+        got = got or self._tpdo1_seq > seq
+        self._missed_last = not got
+        if self.health.fault:
+            return JointSample(stamp_ns, self.position_rad, 0.0, self.health.fault)
+        if not got:  # silence counts in cycles the master ran: its own stalls are not the drive's
+            self.missed += 1
+            self._missed_in_row += 1
+            if self._missed_in_row * self.cfg.sync_period_s > self.cfg.feedback_timeout_s:
+                return JointSample(
+                    stamp_ns,
+                    self.position_rad,
+                    0.0,
+                    f'no TPDO from the drive in {self._missed_in_row} cycles '
+                    '(silent bus or drive): control ended',
+                )
+            return None
+        self._missed_in_row = 0
+        statusword, counts, torque_permille = self._tpdo1
+        self.statusword = statusword
+        self.position_rad = (
+            self.unwrap.update(counts) * self.scaling.rad_per_count - self.cfg.zero_offset_rad
+        )
+        effort = self.scaling.torque_permille_to_nm(torque_permille) * self.scaling.gear_ratio
+        return JointSample(stamp_ns, self.position_rad, effort, self._fault(statusword))
+
+    def _fault(self, statusword: int) -> str:
+        """Run the statusword and mode display checks of ``torque_fault``, with the error code.
+
+        'Not enabled although commanded' and 'target ignored' count only once they have lasted
+        ``state_timeout_s`` while enable was commanded: a drive takes a few cycles to enable
+        (its brake opening), and finishes a disable-operation ramp before it takes a new enable.
+        """
+        if not self.active:
+            return ''
+        following = (
+            p.decode_state(statusword) is p.State.OPERATION_ENABLED
+            and statusword & p.SW_FOLLOWS_TARGET
+        )
+        now = time.monotonic_ns()
+        if self._enable_since_ns is None or following:
+            self._not_following_since_ns = None
+        elif self._not_following_since_ns is None:
+            self._not_following_since_ns = now
+        since = self._not_following_since_ns
+        settled = since is not None and now - since > self.cfg.state_timeout_s * 1e9
+        reason = torque_fault(statusword, settled) or self.emcy_fault
+        if reason and not self._tpdo2[1]:  # TPDO2 of this SYNC brings the error code
+            seq = self._tpdo2_seq
+            self._wait(lambda: self._tpdo2_seq > seq, self.wait_s)
+        current, code, mode = self._tpdo2
+        if reason and code:
+            reason += f': error code 0x{code:04X} {p.error_text(code)}'
+        if not reason and mode != p.MODE_CST:
+            reason = f'mode of operation display 0x6061 = {mode}, not CST (10)'
+        return reason
+
+    def _wait(self, condition, timeout_s: float) -> bool:
+        """Wait for ``condition`` (under the arrival lock) at most ``timeout_s``."""
+        deadline = time.monotonic() + timeout_s
+        with self._arrived:
+            while not condition():
+                left = deadline - time.monotonic()
+                if left <= 0.0 or self.health.fault:
+                    return False
+                self._arrived.wait(left)
+            return True
+
+    def _on_tpdo1(self, can_id, data, timestamp) -> None:
+        """TPDO1 (bus thread): statusword, position actual, torque actual."""
+        values = self.master.codecs[1].unpack(bytes(data))
+        with self._arrived:
+            self._tpdo1 = values
+            self._tpdo1_seq += 1
+            self._arrived.notify_all()
+
+    def _on_tpdo2(self, can_id, data, timestamp) -> None:
+        """TPDO2 (bus thread): current actual, error code, mode display."""
+        values = self.master.codecs[2].unpack(bytes(data))
+        with self._arrived:
+            self._tpdo2 = values
+            self._tpdo2_seq += 1
+            self._arrived.notify_all()
+
+    def _on_emcy(self, emcy) -> None:
+        """EMCY (bus thread): with an error register a fault, else a warning."""
+        if emcy.code and emcy.register and not self.emcy_fault:
+            self.emcy_fault = f'drive EMCY 0x{emcy.code:04X} {p.error_text(emcy.code)}'
+        elif emcy.code:
+            self.warnings.append(
+                f'EMCY 0x{emcy.code:04X} ({p.error_text(emcy.code)}) without error register'
+            )
+
+    def _on_sync(self, can_id, data, timestamp) -> None:
+        """Count a SYNC of another producer (bus thread)."""
+        with self._arrived:
+            self._sync_seq += 1
+            self._tpdo1_at_sync = self._tpdo1_seq
+            self._arrived.notify_all()
+
+    def _produce_heartbeat(self) -> None:
+        """Master heartbeat while the cycle runs (or while not active)."""
+        period, stale = self.cfg.heartbeat_period_s, self.cfg.heartbeat_timeout_s / 2
+        while not self._heartbeat_stop.wait(period):
+            if self.active and self._cycling and time.monotonic() - self._last_read_mono > stale:
+                continue  # the cycle hangs: let the drive's consumer stop it
+            if self.network is not None:
+                self._send(0x700 + self.cfg.master_node_id, bytes([HEARTBEAT_OPERATIONAL]))
+
+    def diagnostics(self) -> dict[str, str]:
+        """Drive state, statusword, error code, bus health, TPDO and wrap counts."""
+        state = p.decode_state(self.statusword)
+        current, code, mode = self._tpdo2
+        return {
+            'drive_state': state.value if state else 'unknown',
+            'statusword': f'0x{self.statusword:04X}',
+            'error_code': f'0x{code:04X}',
+            'error_text': p.error_text(code) if code else '',
+            'current_actual_a': f'{self.scaling.permille_to_current(current):.3f}',
+            'bus': self.health.fault or 'ok',
+            'cycles': str(self.cycles),
+            'missed_tpdo': str(self.missed),
+            'position_wraps': str(self.unwrap.wraps),
+            'sync_producer': str(self.cfg.sync_producer),
+            'identity': self.master.identity if self.master else '',
+            'fault_reaction_option': str(self.master.fault_reaction) if self.master else '',
+        }

@@ -1,0 +1,98 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""What the simulated drive (sim_drive.py) can be made to do wrong: the fault plan and its events.
+
+Drive faults (fault reaction, 0x603F, EMCY), an extra EMCY without error register, dropped
+TPDOs, a silent drive (a cut cable), and events: STO (operation left without a fault, voltage
+off), a quick-stop input, remote off (local control), 'target ignored' (statusword bit 12 low),
+bus-off and error-passive (error frames the hub sends; the process main does that).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from actuator_plant.model import PlantParameters, WorkingCondition
+from actuator_cia402 import profile as p
+
+FAULT_CODES = {'over_current': 0x2310, 'following_error': 0x8611}
+#: Injectable events besides the faults (FaultPlan.inject).
+INJECTIONS = (
+    'sto',
+    'quick_stop_input',
+    'remote_off',
+    'target_ignored',
+    'bus_off',
+    'error_passive',
+)
+
+
+@dataclass(frozen=True)
+class FaultPlan:
+    """Faults and events to inject, t [s] after the first SYNC the drive saw (negative: never)."""
+
+    fault_kind: str = 'none'  # 'none', 'over_current' or 'following_error'
+    fault_at_s: float = -1.0
+    emcy_code: int = 0xFF00  # extra EMCY frame (error register 0: a warning, no fault)
+    emcy_at_s: float = -1.0
+    drop_tpdo_fraction: float = 0.0  # share of SYNCs answered without TPDOs
+    silent_at_s: float = -1.0  # from then on the drive is silent (no TPDO, SDO, heartbeat)
+    seed: int = 1
+    inject: tuple = ()  # ((kind, t_s), ...) with kind in INJECTIONS
+
+    def __post_init__(self) -> None:
+        """Refuse an unknown kind or a fraction outside [0, 1]."""
+        if self.fault_kind not in ('none', *FAULT_CODES):
+            raise ValueError(
+                f'fault_kind must be none, {", ".join(FAULT_CODES)}; got {self.fault_kind!r}'
+            )
+        if not 0.0 <= self.drop_tpdo_fraction <= 1.0:
+            raise ValueError(
+                f'drop_tpdo_fraction must be in [0, 1], got {self.drop_tpdo_fraction}'
+            )
+        for kind, _ in self.inject:
+            if kind not in INJECTIONS:
+                raise ValueError(
+                    f'inject kind must be one of {", ".join(INJECTIONS)}, got {kind!r}'
+                )
+
+
+def plant_parameters(working_condition: str) -> PlantParameters:
+    """Return the joint model of the paper in 'deep_sea' (10 MPa, 2 degC) or 'lab'."""
+    conditions = {'deep_sea': WorkingCondition.deep_sea, 'lab': WorkingCondition.lab}
+    if working_condition not in conditions:
+        raise ValueError(f'working_condition must be deep_sea or lab, got {working_condition!r}')
+    return PlantParameters(condition=conditions[working_condition]())
+
+
+def inject_due(drive, t_s: float) -> None:
+    """Apply the faults and events of ``drive.faults`` that are due at drive time ``t_s``."""
+    f = drive.faults
+    if 0.0 <= f.silent_at_s <= t_s and not drive.silent:
+        drive.silent = True
+        drive._event('silent')
+    if f.fault_kind != 'none' and 0.0 <= f.fault_at_s <= t_s and 'fault' not in drive._injected:
+        drive._injected.add('fault')
+        drive._raise_fault(FAULT_CODES[f.fault_kind])
+    if 0.0 <= f.emcy_at_s <= t_s and 'emcy' not in drive._injected:
+        drive._injected.add('emcy')
+        drive._send_emcy(f.emcy_code, 0)
+    for kind, at_s in f.inject:
+        if 0.0 <= at_s <= t_s and kind not in drive._injected:
+            drive._injected.add(kind)
+            drive._event(f'injected: {kind}')
+            if kind == 'sto':
+                drive.sto = True
+                if drive.state is not p.State.FAULT:
+                    drive._stopping, drive.ramp_permille = None, 0.0
+                    drive.state = p.State.SWITCH_ON_DISABLED
+                drive._close_brake()
+            elif kind == 'quick_stop_input' and drive.state is p.State.OPERATION_ENABLED:
+                drive._begin_stop(drive._cfg(p.QUICK_STOP_OPTION), p.State.QUICK_STOP_ACTIVE)
+                drive.state = p.State.QUICK_STOP_ACTIVE
+            elif kind == 'remote_off':
+                drive.remote_off = True
+            elif kind == 'target_ignored':
+                drive.target_ignored = True
+            # bus_off / error_passive: the hub sends the error frame (on_event)

@@ -1,0 +1,201 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""The joint contract: what the one joint node needs of a joint, simulated or real.
+
+In the spirit of ros2_control's hardware components: a joint has a lifecycle and a cycle, and
+never publishes topics itself. The joint node (``actuator_ros.joint_node``) owns the timing,
+the command gate, stamp checks, the one-publisher guard, the brake policy, timeouts and
+diagnostics; a joint only moves the hardware (or the model).
+
+Lifecycle, each call may raise ``JointError`` with a one-line reason:
+  configure   communication up and checked; nothing moves, the brake holds;
+  activate    ready to apply torque; the brake holds until the first valid command;
+  deactivate  0 A and the brake, calmly (a drive's quick-stop ramp included);
+  cleanup     communication down;  close: at exit, from any state.
+Cycle, once per sample k, called by the node in this order:
+  write(current_a, brake)  what to apply from now on (the gate's decision for [t_k, t_k+1));
+  read(t_k+1)              the sample at the next instant: angle, applied torque, health.
+A simulated joint integrates [t_k, t_k+1) with what was written; a drive sends the target
+with the SYNC at t_k+1 and answers with the angle latched at that SYNC (one sample of command
+delay, as any synchronous drive). The first ``read`` after activate only samples.
+
+Everything is SI (REP-103): rad, N m at the joint (output) shaft, A, integer ns stamps.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from typing import NamedTuple, Optional
+
+from actuator_core import limits
+from actuator_core.params import spec, validate
+
+
+class JointError(RuntimeError):
+    """A lifecycle step of a joint failed; the message is the one-line reason."""
+
+
+class JointSample(NamedTuple):
+    """What a joint reports at one sample instant."""
+
+    stamp_ns: int  #: the sample instant t_k on the node's grid
+    position_rad: float  #: joint angle (unwrapped, zero offset applied)
+    effort_nm: float  #: torque applied at the joint shaft over the interval before t_k
+    fault: str = ''  #: '' while the joint applies what it is told; else why not (control ends)
+
+
+class Joint(ABC):
+    """One joint behind the joint node: lifecycle, write, read, diagnostics."""
+
+    #: Short name of the kind ('plant', 'cia402', ...), used in logs and diagnostics.
+    kind: str = 'joint'
+    #: True: a late cycle integrates every missed sample, one by one (a simulation must not
+    #: lose time); False: missed cycles are skipped, as a real bus does (no replay).
+    replays_missed: bool = False
+    #: True: the joint can run in deterministic sim time (lockstep, /clock).
+    supports_sim_time: bool = False
+
+    def configure(self) -> list[str]:
+        """Bring communication up and check it; return warnings (raise JointError)."""
+        return []
+
+    def activate(self) -> list[str]:
+        """Make the joint ready to apply torque; the brake stays engaged (raise JointError)."""
+        return []
+
+    def deactivate(self) -> list[str]:
+        """Return to 0 A with the brake engaged, calmly; return warnings."""
+        return []
+
+    def cleanup(self) -> None:
+        """Bring communication down."""
+
+    def close(self) -> None:
+        """At exit, from any state: leave the joint safe and release every resource."""
+        self.cleanup()
+
+    @abstractmethod
+    def write(self, current_a: float, brake: bool) -> None:
+        """Apply ``current_a`` [A] (0 with ``brake``) from now until the next write."""
+
+    @abstractmethod
+    def read(self, stamp_ns: int) -> Optional[JointSample]:
+        """Return the sample at ``stamp_ns``, or None when this cycle gave none (lost feedback)."""
+
+    def diagnostics(self) -> dict[str, str]:
+        """Key-values of the joint's own health, for /diagnostics."""
+        return {}
+
+
+@dataclass(frozen=True)
+class JointSettings:
+    """What every joint node has, whatever the joint: the loop's common settings (one source)."""
+
+    sample_time_s: float = spec(
+        limits.SAMPLE_TIME_S,
+        'sensor sample period (the SYNC period of a drive)',
+        's',
+        *limits.SAMPLE_TIME_RANGE_S,
+    )
+    current_limit_a: float = spec(
+        limits.CURRENT_LIMIT_A,
+        'commands beyond +-this are refused (0 A applied)',
+        'A',
+        *limits.CURRENT_LIMIT_RANGE_A,
+        low_open=True,
+    )
+    command_timeout_s: float = spec(
+        limits.COMMAND_TIMEOUT_S,
+        'the joint applies 0 A when the newest command is older',
+        's',
+        *limits.TIMEOUT_RANGE_S,
+    )
+    brake_delay_s: float = spec(
+        limits.BRAKE_DELAY_S,
+        'after the command timeout, coast at 0 A this long before the holding brake engages',
+        's',
+        *limits.BRAKE_DELAY_RANGE_S,
+    )
+    joint_name: str = spec('joint', 'name of the joint in joint_states')
+    stop_after_s: float = spec(
+        0.0,
+        'end the run (exit 0) after this much sample time; 0 runs until stopped',
+        's',
+        0.0,
+        1.0e6,
+    )
+    wait_for_subscribers: int = spec(
+        0,
+        'start sampling only once joint_states has this many subscribers (and '
+        'current_command a publisher)',
+        '',
+        0,
+        100,
+    )
+    lockstep_timeout_s: float = spec(
+        2.0, 'sim: wall time to wait for a command before stepping without it', 's', 0.01, 600.0
+    )
+    position_min_rad: float = spec(
+        -limits.POSITION_LIMIT_RAD,
+        'soft limit: below this angle the joint is braked',
+        'rad',
+        -limits.POSITION_LIMIT_RAD,
+        limits.POSITION_LIMIT_RAD,
+    )
+    position_max_rad: float = spec(
+        limits.POSITION_LIMIT_RAD,
+        'soft limit: above this angle the joint is braked',
+        'rad',
+        -limits.POSITION_LIMIT_RAD,
+        limits.POSITION_LIMIT_RAD,
+    )
+    velocity_max_rad_s: float = spec(
+        limits.VELOCITY_LIMIT_RAD_S,
+        'soft limit: beyond this speed (from successive samples) the joint is braked',
+        'rad/s',
+        0.0,
+        limits.VELOCITY_LIMIT_RAD_S,
+        low_open=True,
+    )
+
+    def __post_init__(self) -> None:
+        """Refuse out-of-range values and an empty soft-limit window."""
+        validate(self)
+        if not self.position_min_rad < self.position_max_rad:
+            raise ValueError(
+                f'position_min_rad = {self.position_min_rad} must be below position_max_rad = '
+                f'{self.position_max_rad}'
+            )
+
+
+class SoftLimits:
+    """Position and velocity soft limits of the joint, checked on each sample it produces."""
+
+    def __init__(self, settings: JointSettings):
+        """Limits from ``settings``; the velocity is the difference of successive samples."""
+        self.low, self.high = settings.position_min_rad, settings.position_max_rad
+        self.velocity_max = settings.velocity_max_rad_s
+        self._last: Optional[tuple[int, float]] = None
+
+    def reset(self) -> None:
+        """Forget the previous sample (after a restart of sampling)."""
+        self._last = None
+
+    def check(self, stamp_ns: int, position_rad: float) -> str:
+        """Return '' within the limits, else the reason (the node then brakes the joint)."""
+        last, self._last = self._last, (stamp_ns, position_rad)
+        if not self.low <= position_rad <= self.high:
+            return (
+                f'joint angle {position_rad:.4f} rad outside the soft limits '
+                f'[{self.low:g}, {self.high:g}] rad'
+            )
+        if last is not None and stamp_ns > last[0]:
+            speed = abs(position_rad - last[1]) / ((stamp_ns - last[0]) * 1e-9)
+            if speed > self.velocity_max:
+                return (
+                    f'joint speed {speed:.2f} rad/s beyond the soft limit '
+                    f'{self.velocity_max:g} rad/s'
+                )
+        return ''

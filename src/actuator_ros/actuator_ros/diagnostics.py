@@ -1,0 +1,72 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""``/diagnostics`` (diagnostic_msgs/DiagnosticArray) from a node: one status per report.
+
+The rules live in actuator_core.health (ROS-free); this publishes what they say on a timer of
+the wall (steady) clock, so a sim-time node reports at 2 Hz of wall time whether or not /clock
+moves, which is what lets a stopped lockstep show as STALE. The header stamp is the node's own
+clock (sim time in sim mode), so a bag lines the reports up with the samples. A node creates one
+``NodeDiagnostics`` in its build/configure and destroys it in its drop/cleanup:
+
+    self.diagnostics = NodeDiagnostics(self, HealthMonitor(...), self.health_snapshot)
+    ...
+    self.diagnostics.destroy()
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Callable, Optional
+
+from actuator_core.health import REPORT_PERIOD_S, Health, HealthMonitor, Snapshot
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rclpy.clock import Clock, ClockType
+
+#: The topic of the ROS convention (absolute: a namespaced node still reports there).
+TOPIC = '/diagnostics'
+
+
+def to_status(health: Health) -> DiagnosticStatus:
+    """DiagnosticStatus of one Health report."""
+    return DiagnosticStatus(
+        level=bytes([int(health.level)]),
+        name=health.name,
+        message=health.message,
+        hardware_id=health.hardware_id,
+        values=[KeyValue(key=k, value=v) for k, v in health.values],
+    )
+
+
+class NodeDiagnostics:
+    """Publishes the node's Health on /diagnostics every ``period_s`` of wall time."""
+
+    def __init__(
+        self,
+        node,
+        monitor: HealthMonitor,
+        snapshot: Callable[[], Snapshot],
+        period_s: float = REPORT_PERIOD_S,
+    ) -> None:
+        """Create the publisher and the wall-clock timer (first report after one period)."""
+        self.node, self.monitor, self.snapshot = node, monitor, snapshot
+        self.pub = node.create_publisher(DiagnosticArray, TOPIC, 10)
+        self.timer = node.create_timer(
+            period_s, self.publish, clock=Clock(clock_type=ClockType.STEADY_TIME)
+        )
+        self.last: Optional[Health] = None
+
+    def publish(self) -> Health:
+        """Take a snapshot, judge it, publish it; return the Health."""
+        health = self.monitor.update(time.monotonic_ns(), self.snapshot())
+        msg = DiagnosticArray()
+        msg.header.stamp = self.node.get_clock().now().to_msg()
+        msg.status = [to_status(health)]
+        self.pub.publish(msg)
+        self.last = health
+        return health
+
+    def destroy(self) -> None:
+        """Destroy the timer and the publisher (drop/cleanup)."""
+        self.node.destroy_timer(self.timer)
+        self.node.destroy_publisher(self.pub)

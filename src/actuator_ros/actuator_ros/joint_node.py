@@ -1,0 +1,467 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""The one joint node: the joint side of the loop for any ``actuator_core.joint.Joint``.
+
+The simulated plant (actuator_plant) and the CiA 402 driver (actuator_cia402) are small
+factories of this node; everything their contract has in common lives here once:
+
+  publishes  joint_states (sensor_msgs/JointState: name, position, effort at the joint shaft;
+             stamp = the sample instant t_k on a grid of ``sample_time_s``)
+  publishes  /clock (rosgraph_msgs/Clock), mode 'sim' only (joints that support sim time)
+  subscribes current_command (actuator_msgs/CurrentCommand)
+
+A command passes the command binding (``actuator_core.binding.CommandBinding``: it must answer
+a sample this node produced, the newest or the one before, once; a safe stop any of the last
+100), the one-publisher guard
+and the ``CommandGate`` (finite, within the current limit, safe_stop, timeout, the one brake
+policy) under one lock, since the executor thread offers and the sampling thread holds.
+
+mode 'realtime': a sampling thread sleeps on an absolute grid of the monotonic clock (ages
+and sleeps never see a wall-clock step; stamps are the system time of sample 0 plus k periods)
+and runs one cycle per sample: the gate's hold is written to the joint, then the joint is read.
+A joint that replays missed samples (a simulation) integrates each one after a stall; a real
+joint skips them, as ros2_control's loop does. mode 'sim': the node owns /clock and steps in
+lockstep: it publishes sample k and waits for the command answering it.
+A joint that reports a fault, or a soft limit crossed, ends control at once (0 A, brake); a
+fault takes the node through error processing to unconfigured, with the reason logged.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from typing import Optional
+
+from rclpy.clock import Clock, ClockType
+from rclpy.lifecycle import LifecycleState, TransitionCallbackReturn
+from rosgraph_msgs.msg import Clock as ClockMsg
+from sensor_msgs.msg import JointState
+
+from actuator_core.gate import CommandGate
+from actuator_core.health import HealthMonitor, Level, Snapshot
+from actuator_core.binding import CommandBinding
+from actuator_core.joint import Joint, JointError, JointSettings, SoftLimits
+from actuator_core.sample_log import SampleLog
+from actuator_core.timing import period_ns, stamp_to_ns
+from actuator_msgs.msg import CurrentCommand
+from actuator_ros.conversions import ns_to_stamp
+from actuator_ros.diagnostics import NodeDiagnostics
+from actuator_ros.guard import GraphGuard
+from actuator_ros.node import ManagedNode
+from actuator_ros.parameters import (
+    ParameterError,
+    declare_choice,
+    declare_output_path,
+    declare_spec_parameters,
+)
+from actuator_ros.qos import MODES, control_qos
+
+#: Stamp of sample 0 in sim mode [ns] (the plant's /clock starts here).
+SIM_START_NS = 1_000_000_000
+#: Wall time the graph must have been ready before sampling starts [ns].
+SETTLE_NS = 500_000_000
+
+
+class JointNode(ManagedNode):
+    """Timing, gate, checks and lifecycle of one joint; subclasses say which joint."""
+
+    #: Description of the node for ``--help`` and logs.
+    summary = 'joint'
+
+    def __init__(self, node_name: str, settings=None, **node_kwargs) -> None:
+        """Declare and check every parameter; nothing is built before configure."""
+        self.joint: Optional[Joint] = None
+        super().__init__(node_name, **({'settings': settings} if settings else {}), **node_kwargs)
+
+    # --- what a joint kind implements --------------------------------------------------------
+    def load_joint_parameters(self) -> None:
+        """Declare (or read again) the joint kind's own parameters; raise ParameterError."""
+
+    def make_joint(self) -> Joint:
+        """Build the joint from the parameters (called at configure)."""
+        raise NotImplementedError
+
+    def build_extras(self) -> None:
+        """Create the joint kind's own topics (plant/truth); called at configure."""
+
+    def publish_extras(self, stamp) -> None:
+        """Publish the joint kind's own messages for the sample just published."""
+
+    def drop_extras(self) -> None:
+        """Destroy what ``build_extras`` created."""
+
+    # --- parameters ----------------------------------------------------------------------------
+    def load_parameters(self) -> None:
+        """Declare the common settings (JointSettings), mode, timing log, then the joint's own."""
+        self.mode = declare_choice(
+            self, 'mode', 'realtime', MODES, 'realtime: wall-clock 1 kHz; sim: lockstep /clock'
+        )
+        if self.get_parameter('use_sim_time').value:
+            raise ParameterError(
+                "parameter 'use_sim_time' must be false for a joint: it is the time source "
+                '(system clock in realtime, /clock in sim)'
+            )
+        self.cfg: JointSettings = declare_spec_parameters(self, JointSettings)
+        self.timing_log = declare_output_path(
+            self, 'timing_log', 'per-sample log (.npz) written when sampling stops'
+        )
+        self.load_joint_parameters()
+
+    # --- lifecycle -------------------------------------------------------------------------------
+    def build(self) -> None:
+        """Joint (configured), gate, window, topics and the 10 Hz supervision timer."""
+        cfg = self.cfg
+        self.joint = self.make_joint()
+        if self.mode == 'sim' and not self.joint.supports_sim_time:
+            raise ParameterError(f"mode 'sim' needs a simulated joint; {self.joint.kind} has none")
+        try:
+            for note in self.joint.configure():
+                self.get_logger().warning(note)
+        except JointError as exc:
+            self.joint = None
+            raise ParameterError(f'{self.summary}: {exc}') from None
+        self.period_ns = period_ns(cfg.sample_time_s)
+        self.gate = CommandGate(cfg.current_limit_a, cfg.command_timeout_s, cfg.brake_delay_s)
+        self.gate_lock = threading.Lock()
+        self.binding = CommandBinding(self.period_ns)
+        self.soft_limits = SoftLimits(cfg)
+        qos = control_qos(self.mode)
+        self.state_pub = self.create_lifecycle_publisher(JointState, 'joint_states', qos)
+        self.clock_pub = (
+            self.create_lifecycle_publisher(ClockMsg, '/clock', 10) if self.mode == 'sim' else None
+        )
+        self.guard = GraphGuard(self, self.on_conflict)
+        self.command_sub = self.create_subscription(
+            CurrentCommand,
+            'current_command',
+            self.on_command,
+            qos,
+            event_callbacks=self.guard.callbacks('current_command'),
+        )
+        self.build_extras()
+        self.wall = Clock(clock_type=ClockType.STEADY_TIME)
+        # Per published sample: stamp, wall ns at publication, stamp of the command held over the
+        # preceding interval (-1: none, or 0 A after a timeout). Written to timing_log (.npz).
+        self.samples_log = SampleLog(('stamp_ns', 'published_wall_ns', 'held_command_stamp_ns'))
+        self.joint_state = JointState(name=[cfg.joint_name], position=[0.0], effort=[0.0])
+        self.timer = self.create_timer(0.1, self.on_tick, clock=self.wall)
+        self._reset_run()
+        self.diagnostics = NodeDiagnostics(self, self.health_monitor(), self.health)
+
+    def _reset_run(self) -> None:
+        """Reset the sampling state for a new run (configure, and each activate)."""
+        self.held = self.gate.hold(0)
+        self.sampler: Optional[threading.Thread] = None
+        self.stop_sampling = threading.Event()
+        self.start_ns: Optional[int] = None  # stamp of sample 0 [ns]
+        self.start_mono_ns = 0  # monotonic time of sample 0 [ns] (realtime)
+        self.sample_index = -1  # index of the newest sample read
+        self.published_ns = -1  # stamp of the newest published sample
+        self.waiting_since_ns: Optional[int] = None  # sim: steady time sample k was published
+        self.settle_until_ns: Optional[int] = None
+        self.conflict = bool(self.guard.conflict)  # more than one publisher on current_command
+        self.stopped_reason = ''  # why control ended on the joint side (fault, soft limit)
+        self.fault = ''  # a joint fault: error processing follows
+        self.lockstep_timeouts = 0
+        self.refused = 0
+        self.binding.reset()
+        self.soft_limits.reset()
+
+    def start(self) -> None:
+        """Activate the joint and open the gate; sampling starts once the graph is ready."""
+        self._reset_run()
+        try:
+            for note in self.joint.activate():
+                self.get_logger().warning(note)
+        except JointError as exc:
+            raise ParameterError(f'activate refused: {exc}') from None
+        with self.gate_lock:
+            self.gate.activate()
+
+    def stop(self) -> None:
+        """0 A and the brake from now on; sampling stops; the joint is deactivated calmly."""
+        with self.gate_lock:
+            self.gate.deactivate()
+        self.stop_sampling.set()
+        if self.sampler is not None and self.sampler is not threading.current_thread():
+            self.sampler.join(timeout=1.0)
+        self.joint.write(0.0, True)
+        for note in self.joint.deactivate():
+            self.get_logger().warning(note)
+        self.close_log()
+
+    def drop(self) -> None:
+        """Destroy the topics and the timer; communication with the joint down."""
+        self.destroy_timer(self.timer)
+        self.destroy_subscription(self.command_sub)
+        for pub in (self.state_pub, self.clock_pub):
+            if pub is not None:
+                self.destroy_lifecycle_publisher(pub)
+        self.drop_extras()
+        self.diagnostics.destroy()
+        self.joint.close()
+        self.joint = None
+
+    def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Activate; a joint that refuses (JointError) leaves the node inactive."""
+        try:
+            return super().on_activate(state)
+        except ParameterError as exc:
+            self.active = False
+            self.get_logger().error(str(exc))
+            return TransitionCallbackReturn.FAILURE
+
+    def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Deactivate; ERROR (error processing) when a joint fault ended control."""
+        result = super().on_deactivate(state)
+        return TransitionCallbackReturn.ERROR if self.fault else result
+
+    def on_error(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Error processing after a joint fault: log it, leave the joint safe, unconfigured."""
+        if self.fault:
+            self.get_logger().error(
+                f'{self.summary} fault: {self.fault}; measurements stopped, 0 A, brake engaged'
+            )
+            self._stop()
+            self._drop()
+            return TransitionCallbackReturn.SUCCESS
+        return super().on_error(state)
+
+    # --- supervision (executor thread, 10 Hz) ------------------------------------------------
+    def on_tick(self) -> None:
+        """Start once the graph is ready; publisher guard; sim lockstep watchdog; faults."""
+        if not self.active:
+            return
+        if self.fault:
+            self.trigger_deactivate()
+            return
+        if self.start_ns is None:
+            self._start_when_ready()
+            return
+        if (
+            self.mode == 'sim'
+            and self.waiting_since_ns is not None
+            and self.wall.now().nanoseconds - self.waiting_since_ns
+            > self.cfg.lockstep_timeout_s * 1e9
+        ):
+            self.lockstep_timeouts += 1
+            self.log.warn(
+                'lockstep_timeout',
+                lambda: (
+                    f'sim: no command for sample {self.sample_index} within '
+                    f'{self.cfg.lockstep_timeout_s} s; stepping without one'
+                ),
+            )
+            self._sim_step()
+
+    def on_conflict(self, conflict: str) -> None:
+        """Take a change of matched publishers: more than one on current_command, 0 A, brake."""
+        if bool(conflict) == self.conflict:
+            return
+        self.conflict = bool(conflict)
+        if self.conflict:
+            self.get_logger().error(
+                f'{conflict}: refusing every command (0 A, brake) until one is left'
+            )
+            if self.configured:
+                with self.gate_lock:
+                    self.gate.offer(0.0, self.published_ns, True, self._gate_now_ns())
+        else:
+            self.get_logger().warning('one publisher on current_command again: commands accepted')
+
+    def _start_when_ready(self) -> None:
+        """Start sampling once the expected subscribers and publisher have been there 0.5 s."""
+        n = self.cfg.wait_for_subscribers
+        ready = self.state_pub.get_subscription_count() >= n and (
+            n == 0 or self.count_publishers('current_command') >= 1
+        )
+        now = self.wall.now().nanoseconds
+        if not ready:
+            self.settle_until_ns = None
+        elif self.settle_until_ns is None:
+            self.settle_until_ns = now + SETTLE_NS
+        elif now >= self.settle_until_ns:
+            self._start_sampling()
+
+    def _start_sampling(self) -> None:
+        """Fix the stamp of sample 0 and read it (realtime: start the sampling thread)."""
+        self.get_logger().info('sampling started')
+        if self.mode == 'sim':
+            self.start_ns = SIM_START_NS
+            self._cycle(0, write=False)
+            return
+        self.start_mono_ns = time.monotonic_ns() + self.period_ns
+        self.start_ns = time.time_ns() + self.period_ns
+        self.stop_sampling.clear()
+        self.sampler = threading.Thread(target=self._sampling_loop, name='sampling', daemon=True)
+        self.sampler.start()
+
+    # --- the cycle ---------------------------------------------------------------------------
+    def _gate_now_ns(self) -> int:
+        """Return the gate's clock: monotonic in real time, the newest sample's stamp in sim."""
+        return self.published_ns if self.mode == 'sim' else time.monotonic_ns()
+
+    def _sampling_loop(self) -> None:
+        """Realtime: sleep to the next instant of the monotonic grid, run the due cycles."""
+        try:
+            while not self.finished and not self.stop_sampling.is_set():
+                next_ns = self.start_mono_ns + (self.sample_index + 1) * self.period_ns
+                wait_ns = next_ns - time.monotonic_ns()
+                if wait_ns > 0:
+                    time.sleep(wait_ns * 1e-9)
+                due = (time.monotonic_ns() - self.start_mono_ns) // self.period_ns
+                if self.joint.replays_missed:  # a simulation loses no time: each sample in turn
+                    while self.sample_index < due and self._cycle(self.sample_index + 1):
+                        pass
+                elif due > self.sample_index:  # a real joint: missed cycles are skipped
+                    self._cycle(due)
+        except Exception as exc:  # noqa: BLE001 - reported by run_node, never lost with the thread
+            self.error = f'sampling thread failed: {exc!r}'
+            self.finished = True
+
+    def _cycle(self, k: int, write: bool = True) -> bool:
+        """Write the gate's hold to the joint, read sample k, publish it; False: control ended."""
+        if self.stopped_reason:
+            return False
+        if write:
+            instant = (
+                self.start_mono_ns + self.sample_index * self.period_ns
+                if self.mode == 'realtime' and self.joint.replays_missed
+                else self._gate_now_ns()
+            )
+            with self.gate_lock:
+                self.held = self.gate.hold(instant)
+            if self.held.reason == 'command timeout':
+                self.log.warn('command_timeout', lambda: 'commands stopped: 0 A, then the brake')
+            self.joint.write(self.held.current_a, self.held.brake)
+        stamp_ns = self.start_ns + k * self.period_ns
+        sample = self.joint.read(stamp_ns)
+        self.sample_index = k
+        if sample is None:
+            return True  # lost feedback: the joint kind counts it; nothing to publish
+        problem = sample.fault or self.soft_limits.check(stamp_ns, sample.position_rad)
+        if problem:
+            self._end_control(problem, fault=bool(sample.fault))
+            return False
+        return self._publish(sample)
+
+    def _end_control(self, reason: str, fault: bool) -> None:
+        """0 A and the brake at once, no more samples; a fault goes to error processing."""
+        with self.gate_lock:
+            self.gate.deactivate()
+        self.joint.write(0.0, True)
+        self.stopped_reason = reason
+        if fault:
+            self.fault = reason
+        self.get_logger().error(f'control ended: {reason}; 0 A, brake engaged')
+        if self.cfg.stop_after_s:  # a bounded run cannot reach its end: it failed, and exits
+            self.error = f'the run of {self.cfg.stop_after_s:g} s ended early: {reason}'
+            self.finished = True
+
+    def _publish(self, sample) -> bool:
+        """Publish /clock (sim), the measurement and the joint kind's extras; False when done."""
+        stop_after = self.cfg.stop_after_s
+        if stop_after and sample.stamp_ns - self.start_ns >= stop_after * 1e9:
+            if not self.finished:
+                self.get_logger().info(f'run of {stop_after} s complete')
+            self.finished = True
+            self.waiting_since_ns = None
+            return False
+        stamp = ns_to_stamp(sample.stamp_ns)
+        if self.clock_pub is not None:
+            self.clock_pub.publish(ClockMsg(clock=stamp))
+            self.waiting_since_ns = self.wall.now().nanoseconds
+        self.published_ns = sample.stamp_ns
+        self.binding.produced(sample.stamp_ns)
+        self.joint_state.header.stamp = stamp
+        self.joint_state.position[0] = float(sample.position_rad)
+        self.joint_state.effort[0] = float(sample.effort_nm)
+        self.state_pub.publish(self.joint_state)
+        self.samples_log.append((sample.stamp_ns, time.time_ns(), self.held.command_stamp_ns))
+        self.publish_extras(stamp)
+        return True
+
+    def _sim_step(self) -> None:
+        """sim: integrate one sample with what the gate holds and publish the next."""
+        self.waiting_since_ns = None
+        self._cycle(self.sample_index + 1)
+
+    # --- commands ----------------------------------------------------------------------------
+    def on_command(self, msg: CurrentCommand) -> None:
+        """Window, guard, then the gate; sim: step when the command answers the waiting sample."""
+        if not self.active or self.start_ns is None or self.stopped_reason:
+            return  # not sampling, or control ended (said once, in _end_control)
+        stamp_ns = stamp_to_ns(msg.header.stamp)
+        # Values before stamps: a non-finite or out-of-range current gives 0 A and the brake
+        # (the gate's refusal) whatever sample it claims; only a valid one is bound to a sample.
+        valid = bool(self.gate.valid(msg.current_a))
+        refusal = self.binding.check(stamp_ns, msg.safe_stop) if valid else ''
+        if refusal:
+            self.refused += 1
+            self.log.error('command_stamp', lambda: refusal)
+            return
+        if self.conflict and valid:
+            self.log.error(
+                'conflict', lambda: 'command refused: more than one publisher on current_command'
+            )
+            return
+        with self.gate_lock:
+            refusal = self.gate.offer(msg.current_a, stamp_ns, msg.safe_stop, self._gate_now_ns())
+        if refusal:
+            self.log.error('bad_command', lambda: refusal)
+        if (
+            self.mode == 'sim'
+            and stamp_ns == self.published_ns
+            and self.waiting_since_ns is not None
+        ):
+            self._sim_step()
+
+    def close_log(self) -> None:
+        """Log a one-line summary; write the per-sample log if asked."""
+        if self.timing_log:
+            self.samples_log.save(self.timing_log)
+        self.get_logger().info(
+            f'stopped at sample {self.sample_index}; refused commands {self.gate.refused} by '
+            f'value and {self.refused} by stamp, command timeouts {self.gate.timeouts}, '
+            f'lockstep timeouts {self.lockstep_timeouts}'
+        )
+
+    def health_monitor(self) -> HealthMonitor:
+        """Rules of /diagnostics: STALE without samples; WARN on refusals and timeouts."""
+        return HealthMonitor(
+            self.get_name(),
+            inputs={'samples': 'samples from the joint'},
+            warn_on={
+                'refused_by_stamp': 'commands refused by stamp',
+                'refused_by_value': 'commands refused by value',
+                'command_timeouts': 'command timeouts (0 A, then the brake)',
+                'lockstep_timeouts': 'sim steps without a command',
+            },
+            hardware_id=self.joint.kind,
+        )
+
+    def health(self) -> Snapshot:
+        """Report to /diagnostics: counts, the joint's own key-values, why control ended."""
+        problems = []
+        if self.stopped_reason:
+            problems.append((Level.ERROR, f'control ended: {self.stopped_reason}'))
+        if self.conflict:
+            problems.append((Level.ERROR, 'more than one publisher on current_command'))
+        return Snapshot(
+            'active' if self.active else 'inactive',
+            {
+                'samples': self.sample_index + 1,
+                'refused_by_stamp': self.refused,
+                'refused_by_value': self.gate.refused,
+                'command_timeouts': self.gate.timeouts,
+                'lockstep_timeouts': self.lockstep_timeouts,
+            },
+            {
+                'mode': self.mode,
+                'brake': bool(self.held.brake),
+                'held': self.held.reason or f'{self.held.current_a:.3f} A',
+                **self.joint.diagnostics(),
+            },
+            problems,
+        )

@@ -1,0 +1,124 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""What one sample costs in each node's callbacks, in this process, without the middleware.
+
+    python -m actuator_tools.callback_cost [--samples 5000] [--json FILE]
+
+The joint (plant node, sim mode), the ESO and the controller are built as they run, and
+their publishers are wired to each other's callbacks through a FIFO (the order DDS delivers in
+one process): the deterministic sim lockstep with the middleware taken out. Each callback is
+timed (perf_counter_ns); the figures are medians per sample and per node, and the chain's
+samples per wall second. The run's commands are checked against the offline loop bit for bit,
+so the figures are those of the real path. The difference to a composed run's speed is the
+middleware's share.
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import json
+import time
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+SCENARIO = 'case2_pp_nftsmc_eso'
+
+
+def _wire(nodes: dict, queue: collections.deque) -> None:
+    """Replace each publisher's publish by a hand-over to the subscribers' callbacks."""
+    plant, eso, ctrl = nodes['joint'], nodes['eso'], nodes['controller']
+    routes = {
+        (plant, 'state_pub'): [('eso', eso.on_measurement), ('controller', ctrl.on_measurement)],
+        (eso, 'pub'): [('controller', ctrl.on_estimate)],
+        (ctrl, 'cmd_pub'): [('eso', eso.on_command), ('joint', plant.on_command)],
+    }
+    quiet = [(plant, 'truth_pub'), (plant, 'clock_pub'), (ctrl, 'state_pub')]
+    for (node, attr), targets in routes.items():
+        getattr(node, attr).publish = lambda msg, t=targets: queue.extend(
+            (k, f, msg) for k, f in t
+        )
+    for node, attr in quiet:
+        getattr(node, attr).publish = lambda msg: None
+
+
+def measure(samples: int) -> dict:
+    """Run ``samples`` samples through the wired nodes; return the per-node medians [us]."""
+    import rclpy
+
+    from actuator_controller.controller_node import ControllerNode
+    from actuator_eso.eso_node import EsoNode
+    from actuator_plant.plant_node import PlantNode
+    from actuator_sim.loop import ClosedLoop
+    from actuator_sim.params_yaml import all_scenarios
+    from actuator_tools.bringup import scenario_file
+
+    scenario = all_scenarios()[SCENARIO]
+    args = ['--ros-args', '--log-level', 'warn', '--params-file', str(scenario_file(SCENARIO))]
+    for name in ('actuator_plant', 'actuator_eso', 'actuator_controller'):
+        args += ['-p', f'{name}:mode:=sim']
+    for name in ('actuator_eso', 'actuator_controller'):
+        args += ['-p', f'{name}:use_sim_time:=true']
+    rclpy.init(args=args)
+    try:
+        nodes = {'joint': PlantNode(), 'eso': EsoNode(), 'controller': ControllerNode()}
+        for node in nodes.values():
+            node.trigger_configure()
+            node.trigger_activate()
+        queue: collections.deque = collections.deque()
+        _wire(nodes, queue)
+        per_node = {key: np.zeros(samples + 1, dtype=np.int64) for key in nodes}
+        commands = []
+        ctrl = nodes['controller']
+        publish = ctrl.cmd_pub.publish
+        ctrl.cmd_pub.publish = lambda msg: (commands.append(msg.current_a), publish(msg))
+        plant = nodes['joint']
+        start = time.perf_counter_ns()
+        plant._start_sampling()  # publishes sample 0: the chain runs from the queue
+        while queue and plant.sample_index < samples:
+            key, callback, msg = queue.popleft()
+            t0 = time.perf_counter_ns()
+            callback(msg)
+            per_node[key][plant.sample_index] += time.perf_counter_ns() - t0
+        wall_s = (time.perf_counter_ns() - start) * 1e-9
+        for node in nodes.values():
+            node.halt()
+            node.destroy_node()
+    finally:
+        rclpy.shutdown()
+    scenario.duration_s = samples * scenario.common.dt_s
+    offline = ClosedLoop(scenario).run(stop_on_divergence=False)
+    n = min(len(commands), samples)
+    return {
+        'samples': n,
+        'identical_to_offline': bool(np.array_equal(commands[:n], offline['current_a'][:n])),
+        'median_us': {k: float(np.median(v[1:n])) / 1e3 for k, v in per_node.items()},
+        'samples_per_wall_s': n / wall_s,
+        'real_time_factor': n * scenario.common.dt_s / wall_s,
+    }
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Print the callback costs of one sample per node."""
+    parser = argparse.ArgumentParser(prog='callback_cost', description=__doc__.splitlines()[0])
+    parser.add_argument('--samples', type=int, default=5000)
+    parser.add_argument('--json', type=Path, help='write the figures as JSON')
+    args = parser.parse_args(argv)
+    figures = measure(args.samples)
+    for key, us in figures['median_us'].items():
+        print(f'{key:10s} {us:7.1f} us per sample (median of its callbacks)')
+    print(
+        f'chain      {figures["samples_per_wall_s"]:7.0f} samples/s = '
+        f'{figures["real_time_factor"]:.2f}x real time without the middleware; '
+        f'identical to the offline loop: {figures["identical_to_offline"]}'
+    )
+    if args.json:
+        args.json.write_text(json.dumps(figures, indent=1))
+    return 0 if figures['identical_to_offline'] else 1
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

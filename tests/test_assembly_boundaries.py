@@ -1,0 +1,246 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""The controller's sample assembly at its boundaries: resync length and gap, watchdog, latch.
+
+Each test pins one boundary of ``actuator_core.assembly`` to the sample (49/50 samples of
+resync, a 100/101-sample gap, a timeout reached or passed), so a limit taken as < for <=, or a
+counter not reset, fails here.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from actuator_core.assembly import (
+    PENDING_LIMIT,
+    RESYNC_SAMPLES,
+    ControlSampleAssembly,
+    gap_limit_samples,
+)
+from actuator_core.status import Status
+from actuator_controller.laws import make_controller
+from actuator_controller.reference import make_reference
+
+P = 1_000_000  # 1 ms in ns
+#: Samples without a law sample beyond which the assembly resyncs: the command timeout (10 ms).
+GAP = gap_limit_samples(P)
+
+
+def assembly(controller: str = 'pp_nftsmc_eso', **kwargs) -> ControlSampleAssembly:
+    """Return an assembly of the paper's fast reference with ``controller``."""
+    law = make_controller(controller)
+    return ControlSampleAssembly(law, make_reference('fast'), P, controller != 'pi', **kwargs)
+
+
+def control(a: ControlSampleAssembly, k: int, y: float = 0.0, initial: bool = False):
+    """Feed x_hat(k) then y(k); return the sample controlled."""
+    a.add_estimate(k * P, 0.0, 0.0, initial=initial)
+    return a.add_measurement(k * P, y)
+
+
+def test_the_documented_constants() -> None:
+    """50 samples of resync, a gap of more than the 10 ms command timeout, 64 pending."""
+    assert (RESYNC_SAMPLES, GAP, PENDING_LIMIT) == (50, 10, 64)
+
+
+def test_resync_holds_exactly_resync_samples_then_restarts_from_the_joint() -> None:
+    """Samples 0..49 after the restart: 0 A with RESYNC; sample 50: control (RECOVERING), t = 0."""
+    a = assembly()
+    control(a, 0)
+    base = 1000
+    statuses = [control(a, base + i, 0.2, initial=i == 0).status for i in range(RESYNC_SAMPLES)]
+    assert statuses == [Status.RESYNC] * RESYNC_SAMPLES and a.resyncs == 1
+    s = control(a, base + RESYNC_SAMPLES, 0.2)
+    assert s.status is Status.RECOVERING and s.t_s == 0.0
+    assert s.output.error_rad == pytest.approx(0.0)
+    nxt = control(a, base + RESYNC_SAMPLES + 1, 0.2)
+    assert nxt.t_s == pytest.approx(1e-3) and a.resyncs == 1
+
+
+def test_a_second_restart_during_a_resync_does_not_extend_or_count_it() -> None:
+    """An initial estimate while resyncing is the same restart: one resync, same end.
+
+    One at the first sample after the hold is a new restart, counted.
+    """
+    a = assembly()
+    control(a, 0)
+    held = control(a, 1000, 0.3, initial=True)
+    assert (held.stamp_ns, held.y, held.current_a, held.output) == (1000 * P, 0.3, 0.0, None)
+    control(a, 1010, initial=True)
+    assert a.resyncs == 1 and a.resync_until_ns == (1000 + RESYNC_SAMPLES) * P
+    end = 1000 + RESYNC_SAMPLES
+    assert control(a, end, initial=True).status is Status.RESYNC
+    assert a.resyncs == 2 and a.resync_until_ns == (end + RESYNC_SAMPLES) * P
+
+
+def test_a_measurement_gap_resyncs_at_that_stamp_once_its_estimate_comes() -> None:
+    """Measurements resume after a long gap: the sample waits for its estimate, then resyncs."""
+    a = assembly()
+    control(a, 0)
+    assert a.add_measurement(150 * P, 0.0) is None  # waits for its estimate
+    s = a.add_estimate(150 * P, 0.0, 0.0)
+    assert s is not None and s.status is Status.RESYNC and s.stamp_ns == 150 * P
+    b = assembly()
+    control(b, 0)
+    assert b.add_measurement(P, 0.0) is None  # waits for its estimate ...
+    assert b.add_estimate(5 * P, 0.0, 0.0, initial=True) is None  # ... a restart far ahead
+    assert 'kept aside as a restart' in b.refusal and b.resyncs == 0
+
+
+def test_a_safe_sample_commands_zero_for_the_correction_of_the_next_estimate() -> None:
+    """After a 0 A hold, an estimate that integrated 0 A for that sample is not corrected."""
+    a = assembly()
+    control(a, 0)
+    control(a, 1000, initial=True)
+    corrected = a.corrected
+    a.add_estimate(1001 * P, 1.0, 2.0, input_ns=1000 * P, input_current_gain=0.5)
+    assert a.add_measurement(1001 * P, 0.0).status is Status.RESYNC
+    assert a.corrected == corrected
+    assert a.commanded == (1001 * P, 0.0)
+
+
+@pytest.mark.parametrize('gap, resyncs', [(GAP, 0), (GAP + 1, 1)])
+def test_a_measurement_gap_resyncs_only_beyond_the_gap_limit(gap: int, resyncs: int) -> None:
+    """A measurement GAP samples after the last one is missed samples; GAP + 1 is a resync."""
+    a = assembly('pi')
+    a.add_measurement(0, 0.0)
+    s = a.add_measurement(gap * P, 0.0)
+    assert a.resyncs == resyncs and a.missed == gap - 1
+    assert s.status is (Status.RESYNC if resyncs else Status.OK)
+
+
+@pytest.mark.parametrize('gap, resyncs', [(GAP, 0), (GAP + 1, 1)])
+def test_an_estimate_gap_resyncs_only_beyond_the_gap_limit(gap: int, resyncs: int) -> None:
+    """Measurements go on while estimates stop: the next estimate resyncs after > GAP samples."""
+    a = assembly()
+    control(a, 0)
+    for k in range(1, gap + 1):
+        a.add_measurement(k * P, 0.0)
+    s = a.add_estimate(gap * P, 0.0, 0.0)
+    assert a.resyncs == resyncs and s.status is (Status.RESYNC if resyncs else Status.OK)
+
+
+def test_missed_and_unanswered_are_counted_exactly() -> None:
+    """A jitter of half a period is no missed sample; 3 periods are 2 missed; no estimate: one."""
+    a = assembly()
+    control(a, 0)
+    a.add_measurement(P + P // 2, 0.0)
+    assert a.missed == 0 and a.unanswered == 0
+    a.add_measurement(4 * P + P // 2, 0.0)
+    assert a.missed == 2 and a.unanswered == 1
+
+
+def test_watchdog_boundaries_and_the_estimate_timeout() -> None:
+    """Exactly the timeout old: fine; one ns more: stale. The estimate has its own timeout."""
+    a = assembly()
+    t0 = 10**6  # samples: the clock is far from zero, as in real time
+    control(a, t0)
+    now = t0 * P
+    assert a.watchdog(now + 3 * P, 5 * P, 3 * P) is None
+    assert a.watchdog(now + 3 * P + 1, 5 * P, 3 * P).status is Status.STALE_ESTIMATE
+    assert a.watchdog(now + 5 * P, 5 * P, 10 * P) is None
+    assert a.watchdog(now + 5 * P + 1, 5 * P, 10 * P).status is Status.STALE_MEASUREMENT
+    a.add_measurement(now + 5 * P, 0.0)
+    assert a.watchdog(now + 5 * P, 5 * P, 10 * P) is None
+    pi = assembly('pi')
+    pi.add_measurement(now, 0.0)
+    assert pi.watchdog(now + 4 * P, 5 * P, 1) is None  # PI waits for no estimate
+
+
+def test_latched_assembly_has_no_watchdog_and_reset_clears_the_latch() -> None:
+    """Latched: the watchdog is silent; reset: a new start that controls again."""
+    a = assembly(following_error_limit_rad=0.1)
+    control(a, 0)
+    assert control(a, 1, 0.1 + 1e-9).status is Status.LATCHED
+    assert a.watchdog(10**12, P, P) is None
+    a.reset()
+    assert not a.latched and a.start_ns is None and a.resyncs == 0
+    s = control(a, 2, 0.05)
+    assert s.status is Status.OK and s.t_s == 0.0
+
+
+def test_following_error_limit_is_inclusive() -> None:
+    """|e| equal to the limit keeps control; the latch needs more."""
+    probe = assembly('pi')
+    probe.add_measurement(0, 0.0)
+    error = probe.add_measurement(P, 0.0).output.error_rad
+    assert error != 0.0
+    for limit, status in (
+        (abs(error), Status.OK),
+        (np.nextafter(abs(error), 0.0), Status.LATCHED),
+    ):
+        a = assembly('pi', following_error_limit_rad=limit)
+        a.add_measurement(0, 0.0)
+        assert a.add_measurement(P, 0.0).status is status, limit
+
+
+def test_correction_only_for_the_pair_of_the_last_command() -> None:
+    """The estimate is corrected when it integrated another current for the last command."""
+    a = assembly()
+    a.add_estimate(0, 0.0, 0.0)
+    commanded = a.add_measurement(0, 0.0).current_a
+    a.add_estimate(P, 1.0, 2.0, input_ns=0, input_current_a=commanded, input_current_gain=0.5)
+    assert a.add_measurement(P, 0.0).estimate == (1.0, 2.0) and a.corrected == 0
+    a.add_estimate(
+        2 * P, 1.0, 2.0, input_ns=0, input_current_a=commanded + 1, input_current_gain=0.5
+    )
+    assert a.add_measurement(2 * P, 0.0).estimate == (1.0, 2.0)  # not the last command's pair
+    assert a.corrected == 0
+
+
+def test_estimates_beyond_the_next_sample_are_refused() -> None:
+    """x_hat(k+1) exists before y(k+1); one further ahead answers no measurement seen."""
+    a = assembly()
+    control(a, 0)
+    assert a.add_estimate(P, 0.0, 0.0) is None and a.refusal == ''  # the next sample: kept
+    assert a.add_estimate(2 * P, 0.0, 0.0) is None and a.refusal  # beyond it: refused
+    assert a.refused == 1 and 2 * P not in a.estimates
+    assert a.add_measurement(P, 0.0).status is Status.OK
+
+
+def test_a_batch_latches_element_by_element() -> None:
+    """Arrays: the run with the large error latches alone; the other keeps its command."""
+    a = assembly(following_error_limit_rad=0.1)
+    y = np.array([0.0, 0.0])
+    a.add_estimate(0, np.zeros(2), np.zeros(2))
+    first = a.add_measurement(0, y)
+    assert list(first.status) == [Status.OK, Status.OK]
+    a.add_estimate(P, np.zeros(2), np.zeros(2))
+    s = a.add_measurement(P, np.array([0.0, 0.5]))
+    assert list(s.status) == [int(Status.OK), int(Status.LATCHED)] and s.current_a[1] == 0.0
+    assert np.isfinite(s.current_a[0]) and s.current_a[0] != 0.0
+
+
+def test_reset_keeps_the_configuration() -> None:
+    """Cleanup and configure start over with the same period, law inputs, limit and resync."""
+    law = make_controller('pi')
+    a = ControlSampleAssembly(
+        law, make_reference('fast'), 2 * P, False, following_error_limit_rad=0.01, resync_samples=7
+    )
+    a.add_measurement(0, 0.0)
+    a.reset()
+    assert (a.period_ns, a.needs_estimate, a.following_error_limit_rad, a.resync_samples) == (
+        2 * P,
+        False,
+        0.01,
+        7,
+    )
+    assert a.law is law and a.add_measurement(0, 0.0).status is Status.OK
+
+
+def test_every_corrected_estimate_is_counted() -> None:
+    """Two estimates integrated with a substitute: two corrections."""
+    a = assembly()
+    for k in range(2):
+        a.add_estimate(k * P, 0.0, 0.0, input_ns=(k - 1) * P)
+        commanded = a.add_measurement(k * P, 0.0).current_a
+    before = a.corrected
+    for k in (2, 3):
+        a.add_estimate(
+            k * P, 0.0, 0.0, input_ns=(k - 1) * P, input_current_a=commanded + 1.0,
+            input_current_gain=0.1,
+        )  # fmt: skip
+        commanded = a.add_measurement(k * P, 0.0).current_a
+    assert a.corrected == before + 2

@@ -1,0 +1,59 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""The joint, ESO and controller composed in one process keep every node's contract."""
+
+import pytest
+from ros_helpers import TestNode
+
+pytestmark = pytest.mark.usefixtures('rclpy_context')
+
+
+def test_a_composed_loop_keeps_lifecycle_and_the_publisher_guard(rclpy_context, ros_process):
+    """Each node is driven through its own lifecycle services; a second publisher is refused."""
+    from actuator_msgs.msg import CurrentCommand
+    from actuator_ros.qos import control_qos
+    from actuator_tools.bringup import scenario_file
+    from sensor_msgs.msg import JointState
+
+    loop = ros_process(
+        'actuator_tools',
+        'loop_container',
+        ['--ros-args', '--params-file', str(scenario_file('case2_pp_nftsmc_eso'))],
+    )
+    test = TestNode(rclpy_context, 'composed_test')
+    qos = control_qos('realtime')
+    got = {'joint_states': [], 'command': []}
+    test.node.create_subscription(JointState, 'joint_states', got['joint_states'].append, qos)
+    test.node.create_subscription(CurrentCommand, 'current_command', got['command'].append, qos)
+
+    def wait_for(predicate, what):
+        try:
+            test.wait_for(predicate, what=what)
+        except AssertionError as exc:
+            raise AssertionError(f'{exc}; log:\n{loop.output[-3000:]}') from None
+
+    try:
+        names = ('actuator_controller', 'actuator_eso', 'actuator_plant')  # the joint last
+        for name in names:
+            assert test.lifecycle_state(name) == 'unconfigured'
+        assert got['joint_states'] == []  # nothing samples before the lifecycle says so
+        for label in ('configure', 'activate'):
+            for name in names:
+                assert test.transition(name, label), (name, label)
+        wait_for(
+            lambda: any(not c.safe_stop for c in got['command'][-50:]), 'closed-loop commands'
+        )
+        wait_for(lambda: len(got['joint_states']) > 200, 'samples')
+        rogue = test.node.create_publisher(CurrentCommand, 'current_command', qos)
+        wait_for(
+            lambda: 'refusing every command (0 A, brake) until one is left' in loop.output,
+            'the guard in the joint',
+        )
+        test.node.destroy_publisher(rogue)
+        wait_for(
+            lambda: 'one publisher on current_command again' in loop.output, 'the guard clears'
+        )
+        assert loop.stop() == 0 and 'Traceback' not in loop.output
+    finally:
+        test.close()

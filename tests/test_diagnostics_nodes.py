@@ -1,0 +1,91 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""/diagnostics from the loop's nodes, recorded and read back by the analysis (sim time)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from actuator_bag.analyze import load_run
+from rosbags.highlevel import AnyReader
+
+
+def test_a_sim_run_records_every_nodes_health_and_the_stop_of_its_inputs(ros_process, tmp_path):
+    run = ros_process(
+        'actuator_tools',
+        'bringup',
+        ['--mode', 'sim', '--duration', '2', '--bags', str(tmp_path / 'bags')],
+    )
+    assert run.wait(240) == 0, run.describe()
+    (bag,) = [p for p in (tmp_path / 'bags').iterdir() if p.is_dir()]
+    reports: dict[str, list] = {}
+    with AnyReader([bag]) as reader:
+        conns = [c for c in reader.connections if c.topic == '/diagnostics']
+        assert conns, [c.topic for c in reader.connections]
+        for conn, _, raw in reader.messages(connections=conns):
+            for status in reader.deserialize(raw, conn.msgtype).status:
+                values = {kv.key: kv.value for kv in status.values}
+                reports.setdefault(status.name, []).append((status.level, status.message, values))
+    assert {'actuator_controller', 'actuator_eso', 'recorder'} <= set(reports)
+    controller = reports['actuator_controller']
+    # While the loop ran: OK at about 1 kHz of joint_states; once the plant stopped: STALE.
+    running = [v for level, _, v in controller if level == 0 and 'joint_states rate [Hz]' in v]
+    assert running and max(float(v['joint_states rate [Hz]']) for v in running) > 100
+    stale = [m for level, m, _ in controller if level == 3]
+    assert stale and 'no joint_states for' in stale[-1]
+    assert controller[-1][2]['lifecycle_state'] == 'active'
+    assert int(reports['actuator_eso'][-1][2]['steps']) >= 1900
+    assert all(level != 2 for level, _, _ in reports['recorder'])
+    # The analysis reads them.
+    summary = load_run(Path(bag), quiet=True).diagnostics
+    assert summary['actuator_controller']['worst'] == 'STALE'
+    assert summary['actuator_controller']['levels']['STALE'] == len(stale)
+
+
+def test_the_controller_reports_refusals_by_reason_and_a_latch_as_error(
+    rclpy_context, ros_process
+):
+    """A NaN measurement: WARN naming its reason; a following error: ERROR until cleanup."""
+    from ros_helpers import LATCHING_CONTROLLER_ARGS, Harness, run_off
+    from ros_helpers import now_ns as _now_ns
+
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    harness = Harness(rclpy_context)
+    reports = []
+    harness.node.create_subscription(
+        DiagnosticArray,
+        '/diagnostics',
+        lambda m: reports.extend(s for s in m.status if s.name == 'actuator_controller'),
+        10,
+    )
+    ros_process(
+        'actuator_controller',
+        'controller_node',
+        LATCHING_CONTROLLER_ARGS,
+    )
+    try:
+        harness.wait_for(
+            lambda: harness.node.count_subscribers('joint_states') >= 1, what='the controller'
+        )
+        harness.wait_for(lambda: reports, what='a first report')
+        t = _now_ns(harness)
+        harness.send_sample(t, float('nan'))
+        harness.wait_for(
+            lambda: any('refused inputs (bad_measurement)' in r.message for r in reports),
+            what='a report of the refusal',
+        )
+        assert any(r.level == b'\x01' or r.level == 1 for r in reports)
+        start = t + 5_000_000
+        run_off(harness, start)
+        harness.wait_for(
+            lambda: any('latched' in r.message for r in reports), what='a report of the latch'
+        )
+        latched = [r for r in reports if 'latched' in r.message]
+        assert all(r.level in (b'\x02', 2) for r in latched)
+        values = {kv.key: kv.value for kv in latched[-1].values}
+        assert values['refused bad_measurement'] == '1' and values['status'] == 'LATCHED'
+    finally:
+        harness.executor.shutdown()
+        harness.node.destroy_node()

@@ -1,0 +1,161 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""The one joint node, driven call by call in this process (sim mode: the sample clock is ours)."""
+
+import pytest
+
+from actuator_core.joint import Joint, JointSample
+
+P = 1_000_000
+
+
+def make(node_class, context, **parameters):
+    from rclpy.parameter import Parameter
+
+    overrides = [Parameter('mode', value='sim')] + [
+        Parameter(k, value=v) for k, v in parameters.items()
+    ]
+    node = node_class(context=context, parameter_overrides=overrides)
+    node.trigger_configure()
+    node.trigger_activate()
+    assert node.active
+    node._start_sampling()  # sample 0 published; the node waits for its command
+    return node
+
+
+def command(stamp_ns: int, current_a: float, safe_stop: bool = False):
+    from actuator_msgs.msg import CurrentCommand
+    from builtin_interfaces.msg import Time
+
+    msg = CurrentCommand(current_a=current_a, safe_stop=safe_stop)
+    msg.header.stamp = Time(sec=stamp_ns // 1_000_000_000, nanosec=stamp_ns % 1_000_000_000)
+    return msg
+
+
+def test_the_plant_steps_only_for_a_command_that_answers_its_newest_sample(rclpy_context):
+    from actuator_plant.plant_node import PlantNode
+
+    node = make(PlantNode, rclpy_context)
+    t0 = node.published_ns
+    for stamp in (t0 + P, t0 - P, t0 + 1, 0, -5 * P):  # ahead, before sample 0, off grid, ...
+        node.on_command(command(stamp, 5.0))
+        assert node.sample_index == 0 and node.refused > 0  # refused: no step, nothing held
+    assert node.refused == 5 and node.gate.hold(t0).reason == 'no command yet'
+    node.on_command(command(t0, 5.0))
+    assert node.sample_index == 1 and node.held.current_a == 5.0 and not node.held.brake
+    node.on_command(command(t0, 7.0))  # a second command for sample 0: a duplicate, refused
+    assert node.sample_index == 1 and node.refused == 6
+    assert node.gate.hold(node.published_ns).current_a == 5.0
+    node.on_command(command(t0 + P, 6.0, safe_stop=True))
+    assert node.sample_index == 2 and node.held.brake and node.held.current_a == 0.0
+    node.destroy_node()
+
+
+def test_a_bad_current_brakes_the_joint_whatever_sample_it_claims(rclpy_context):
+    """Values before stamps (README "Safety"): NaN for a sample already applied still gives 0 A."""
+    from actuator_plant.plant_node import PlantNode
+
+    node = make(PlantNode, rclpy_context)
+    t0 = node.published_ns
+    node.on_command(command(t0, 5.0))
+    assert node.gate.hold(node.published_ns).current_a == 5.0
+    for bad in (float('nan'), 1.0e6):
+        node.on_command(command(t0, 5.0))  # the same sample again: refused by its stamp
+        assert node.gate.hold(node.published_ns).current_a == 5.0
+        node.on_command(command(t0, bad))  # the same stamp with a bad value: the safe state
+        held = node.gate.hold(node.published_ns)
+        assert (held.current_a, held.brake) == (0.0, True), bad
+        node.on_command(command(node.published_ns, 5.0))  # the next genuine sample
+        assert node.gate.hold(node.published_ns).current_a == 5.0
+        t0 = node.published_ns - P
+    node.destroy_node()
+
+
+def test_a_soft_limit_crossed_ends_control_with_the_brake(rclpy_context):
+    from actuator_plant.plant_node import PlantNode
+
+    node = make(
+        PlantNode,
+        rclpy_context,
+        position_max_rad=0.3,
+        initial_position_rad=0.299,
+        brake_delay_s=0.0,
+    )
+    k = 0
+    while not node.stopped_reason and k < 200:  # drive it up at +10 A, one sample at a time
+        node.on_command(command(node.published_ns, 10.0))
+        k += 1
+    assert 'outside the soft limits [-100, 0.3] rad' in node.stopped_reason
+    assert node.joint.command == (0.0, True) and not node.gate.active and node.fault == ''
+    index = node.sample_index
+    node.on_command(command(node.published_ns, 10.0))
+    assert node.sample_index == index  # nothing moves any more
+    node.destroy_node()
+
+
+class FaultyJoint(Joint):
+    """A joint that stops applying torque at sample 3 (as a drive's STO would)."""
+
+    kind = 'faulty'
+    supports_sim_time = True
+
+    def __init__(self):
+        self.reads, self.written = 0, []
+
+    def write(self, current_a, brake):
+        self.written.append((current_a, brake))
+
+    def read(self, stamp_ns):
+        self.reads += 1
+        return JointSample(stamp_ns, 0.0, 0.0, 'safe torque off' if self.reads > 3 else '')
+
+
+def test_a_joint_fault_ends_control_and_goes_through_error_processing(rclpy_context):
+    from actuator_ros.joint_node import JointNode
+
+    class FaultyNode(JointNode):
+        summary = 'faulty joint'
+
+        def __init__(self, **kwargs):
+            super().__init__('faulty_joint', **kwargs)
+
+        def make_joint(self):
+            return FaultyJoint()
+
+    node = make(FaultyNode, rclpy_context)
+    joint = node.joint
+    for _ in range(5):
+        node.on_command(command(node.published_ns, 2.0))
+    assert node.fault == 'safe torque off' and joint.written[-1] == (0.0, True)
+    node.on_tick()  # supervision: deactivate -> error processing -> unconfigured
+    assert node._state_machine.current_state[1] == 'unconfigured'
+    assert not node.configured and node.joint is None
+    node.destroy_node()
+
+
+@pytest.mark.parametrize('name, value', [('current_limit_a', 0.0), ('brake_delay_s', -1.0)])
+def test_joint_settings_out_of_range_are_refused_in_one_line(rclpy_context, name, value):
+    from rclpy.parameter import Parameter
+
+    from actuator_plant.plant_node import PlantNode
+    from actuator_ros.parameters import ParameterError
+
+    with pytest.raises(ParameterError, match=name):
+        PlantNode(context=rclpy_context, parameter_overrides=[Parameter(name, value=value)])
+
+
+def test_the_joint_reports_its_health_on_diagnostics(rclpy_context):
+    from actuator_core.health import Level
+    from actuator_plant.plant_node import PlantNode
+
+    node = make(PlantNode, rclpy_context)
+    first = node.diagnostics.publish()
+    assert first.level == Level.OK and first.value('samples') == '1'
+    assert first.hardware_id == 'plant' and first.value('mode') == 'sim'
+    node.on_command(command(node.published_ns + P, 1.0))  # ahead: refused by stamp
+    node.on_command(command(node.published_ns, 1.0))
+    second = node.diagnostics.publish()
+    assert second.level == Level.WARN and '1 commands refused by stamp' in second.message
+    assert second.value('samples') == '2' and second.value('refused_by_stamp') == '1'
+    node.destroy_node()

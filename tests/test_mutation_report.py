@@ -1,0 +1,82 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""scripts/mutation/report.py: a partial run keeps the earlier report's rows of the rest."""
+
+import importlib.util
+import json
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _report_module():
+    spec = importlib.util.spec_from_file_location(
+        'mutation_report', ROOT / 'scripts' / 'mutation' / 'report.py'
+    )
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _stage(tmp_path: Path, codes: dict[str, dict[str, object]]) -> Path:
+    """Write a mutmut stage: one .meta file per module, {module path: {mutant: exit code}}."""
+    for module, by_name in codes.items():
+        meta = tmp_path / 'mutants' / f'{module}.meta'
+        meta.parent.mkdir(parents=True, exist_ok=True)
+        meta.write_text(json.dumps({'exit_code_by_key': by_name}))
+    return tmp_path
+
+
+EARLIER = """# Mutation score of the ROS-free core
+
+Command: `make mutation ARGS='actuator_core.gate*'` (scripts/mutation.sh)
+Written 2026-12-01 22:07 UTC.
+
+| module | mutants | killed | timeout | survived | no tests | not checked | score | eq. | target |
+|---|---|---|---|---|---|---|---|---|---|
+| actuator_controller/laws.py | 2 | 0 | 0 | 0 | 0 | 2 | — | — | 85% |
+| actuator_core/gate.py | 3 | 2 | 0 | 1 | 0 | 0 | 66.7% | 66.7% | 95% |
+| **all** | 5 | 2 | 0 | 1 | 0 | 2 | 66.7% | | |
+
+## Surviving mutants (1)
+
+### `actuator_core.gate.xǁCommandGateǁoffer__mutmut_3`
+
+```diff
+-a
++b
+```
+"""
+
+
+def test_a_partial_run_keeps_the_rows_and_survivors_of_the_modules_it_did_not_reach(tmp_path):
+    report = _report_module()
+    stage = _stage(
+        tmp_path,
+        {
+            'actuator_controller/laws.py': {'laws.x_a__mutmut_1': 1, 'laws.x_a__mutmut_2': 1},
+            'actuator_core/gate.py': {f'actuator_core.gate.x__mutmut_{i}': None for i in range(3)},
+        },
+    )
+    text = report.render(stage, "make mutation ARGS='laws'", {}, [], EARLIER)
+    rows = {
+        line.split('|')[1].strip(): line for line in text.splitlines() if line.startswith('| ')
+    }
+    assert rows['actuator_controller/laws.py'].startswith(
+        '| actuator_controller/laws.py | 2 | 2 |'
+    )
+    assert '100.0%' in rows['actuator_controller/laws.py']
+    # gate was not reached by this run: the earlier figures, marked, and its survivor section
+    assert rows['actuator_core/gate.py (earlier)'].endswith('| 66.7% | 66.7% | 95% |')
+    assert rows['**all**'].startswith('| **all** | 5 | 4 | 0 | 1 | 0 | 0 |')
+    assert '## Surviving mutants (1)' in text and 'offer__mutmut_3' in text
+    assert "> Command: `make mutation ARGS='actuator_core.gate*'`" in text
+    # without the earlier report, the unreached module is 'not checked'
+    plain = report.render(stage, 'make mutation', {}, [])
+    assert (
+        '| actuator_core/gate.py | 3 | 0 | 0 | 0 | 0 | 3 |' in plain and '(earlier)' not in plain
+    )
+    # a third run keeps what the second kept from the first
+    third = report.render(stage, 'make mutation', {}, [], text)
+    assert '| actuator_core/gate.py (earlier) | 3 | 2 | 0 | 1 |' in third

@@ -1,0 +1,159 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""The observer's input pairing at its boundaries: patience, pending limits, repair, restart.
+
+Each test pins one boundary of ``actuator_core.pairing`` (the sample a substitute is taken, the
+farthest command kept, what a restart keeps), with the exact estimates the observer gives.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from actuator_core.pairing import (
+    MAX_STEPS_PER_CALL,
+    PENDING_LIMIT,
+    REALTIME_PATIENCE_SAMPLES,
+    SIM_PATIENCE_SAMPLES,
+    ObserverInputPairing,
+)
+from actuator_eso.observer import EsoGains, ExtendedStateObserver, eso_step
+
+P = 1_000_000  # 1 ms in ns
+DT = 1e-3
+
+
+def pairing(patience: int = REALTIME_PATIENCE_SAMPLES):
+    """Return a pairing over a fresh observer of Table 4's gains, and the observer."""
+    eso = ExtendedStateObserver(EsoGains(), DT)
+    return ObserverInputPairing(eso, P, eso.correction, patience), eso
+
+
+def test_the_documented_constants() -> None:
+    """16 steps per message, 256 pending samples, patience 1 sample (real time) or 100 (sim)."""
+    assert (MAX_STEPS_PER_CALL, PENDING_LIMIT) == (16, 256)
+    assert (REALTIME_PATIENCE_SAMPLES, SIM_PATIENCE_SAMPLES) == (1, 100)
+
+
+def test_patience_waits_exactly_its_samples_for_a_missing_command() -> None:
+    """Patience 3: y(1), y(2), y(3) wait for u(1); y(4) steps sample 1 with the last current."""
+    pair, _ = pairing(patience=3)
+    pair.add_measurement(0, 0.0)
+    pair.add_command(0, 1.5)
+    assert pair.add_measurement(P, 0.0) == []
+    assert pair.add_measurement(2 * P, 0.0) == [] and pair.add_measurement(3 * P, 0.0) == []
+    out = pair.add_measurement(4 * P, 0.0)
+    assert [e.sample_ns for e in out] == [2 * P] and out[0].substituted
+    assert out[0].input_current_a == 1.5 and pair.substituted == 1 and pair.steps == 2
+
+
+def test_a_missing_measurement_is_replaced_by_the_estimate_itself() -> None:
+    """u(1) in, y(1) lost, y(2) in: sample 1 integrates y = x1_hat (no correction) and u(1)."""
+    pair, eso = pairing()
+    pair.add_measurement(0, 0.1)
+    pair.add_command(0, 2.0)
+    x1_before = eso.state[0]
+    pair.add_command(P, 3.0)
+    out = pair.add_measurement(2 * P, 0.1)
+    assert out[0].input_position_rad == x1_before and out[0].input_current_a == 3.0
+    assert not out[0].substituted
+
+
+def test_late_command_repairs_each_substituted_sample_exactly() -> None:
+    """u(1) arrives two samples late: the state equals the run where it came in time."""
+    pair, eso = pairing()
+    pair.add_measurement(0, 0.0)
+    pair.add_command(0, 1.0)
+    pair.add_measurement(P, 0.01)
+    pair.add_measurement(2 * P, 0.02)  # sample 1 stepped with u = 1.0
+    pair.add_command(2 * P, 0.5)
+    pair.add_measurement(3 * P, 0.03)  # sample 2 stepped with its own u
+    pair.add_command(P, 4.0)  # late u(1): two steps since
+    assert pair.repaired == 1 and pair.last_current == 0.5
+    x = (0.0, 0.0, 0.0)
+    for y, u in ((0.0, 1.0), (0.01, 4.0), (0.02, 0.5)):
+        x = eso_step(*x, y, u, DT, EsoGains())
+    assert eso.state == pytest.approx(x, rel=1e-12, abs=1e-12)
+    pair.add_command(P, 9.0)  # a second copy of it repairs nothing
+    assert pair.repaired == 1
+
+
+def test_a_repair_of_the_last_sample_also_corrects_the_next_substitute() -> None:
+    """u(1) late by one sample: repaired at once, and u(1) is the current a later gap uses."""
+    pair, _ = pairing()
+    pair.add_measurement(0, 0.0)
+    pair.add_command(0, 1.0)
+    pair.add_measurement(P, 0.0)
+    pair.add_measurement(2 * P, 0.0)  # sample 1 stepped with the substitute 1.0
+    pair.add_command(P, 5.0)
+    assert (pair.repaired, pair.last_current) == (1, 5.0)
+    out = pair.add_measurement(3 * P, 0.0)  # u(2) never came: substituted with u(1)
+    assert out[0].substituted and out[0].input_current_a == 5.0
+    pair.add_command(2 * P, 6.0)
+    assert pair.repaired == 2
+
+
+def test_a_command_for_an_unsubstituted_past_sample_changes_nothing() -> None:
+    """A duplicate of a command already integrated is dropped without touching the state."""
+    pair, eso = pairing()
+    pair.add_measurement(0, 0.0)
+    pair.add_command(0, 1.0)
+    before = eso.state
+    assert pair.add_command(0, 7.0) == [] and eso.state == before and pair.repaired == 0
+
+
+def test_commands_beyond_the_next_sample_are_refused_and_a_duplicate_is_ignored() -> None:
+    """A command for the next sample is kept; one sample beyond it is refused with the reason."""
+    pair, _ = pairing()
+    pair.add_measurement(0, 0.0)
+    pair.add_command(2 * P, 1.0)
+    assert pair.refused == 1 and 2 * P not in pair.currents
+    assert pair.refusal.endswith('2 ms ahead of the newest measurement received')
+    pair.add_command(P // 2, 1.0)
+    assert pair.refused == 2 and pair.refusal.endswith('off the sample grid')
+    pair.add_measurement(P, 0.0)
+    pair.add_command(2 * P, 1.0)  # the next sample: kept
+    assert pair.refused == 2 and pair.currents.get(2 * P) == 1.0
+    pair.add_command(2 * P, 1.0)  # the same command again
+    assert pair.ignored == 1 and pair.currents[2 * P] == 1.0
+
+
+def test_commands_before_the_first_measurement_keep_only_the_newest() -> None:
+    """More than PENDING_LIMIT early commands: the oldest go; a restart keeps those not older."""
+    pair, _ = pairing()
+    for k in range(PENDING_LIMIT + 5):
+        pair.add_command(k * P, float(k))
+    assert len(pair.currents) == PENDING_LIMIT and min(pair.currents) == 5 * P
+    out = pair.add_measurement(10 * P, 0.0)
+    assert out[0].initial and out[1].input_current_a == 10.0
+    assert min(pair.currents) > 10 * P
+
+
+def test_restart_counts_only_restarts_and_forgets_the_old_samples() -> None:
+    """The first start is no restart; a restart drops measurements and substitutes before it."""
+    pair, eso = pairing(patience=1000)
+    pair.add_measurement(0, 0.0)
+    assert pair.restarts == 0
+    pair.add_measurement(5 * P, 0.3)
+    pair.add_command(3 * P, 1.0)
+    out = pair.restart(100 * P, 0.5)
+    assert pair.restarts == 1 and eso.state == (0.5, 0.0, 0.0) and pair.last_current == 0.0
+    assert out == [out[0]] and out[0].initial and out[0].input_ns == 0
+    assert list(pair.measurements) == [100 * P] and not pair.substitutes
+    assert 3 * P not in pair.currents and pair.newest_measurement_ns == 100 * P
+
+
+def test_each_message_steps_at_most_the_bound_and_the_rest_follow() -> None:
+    """40 pairs freed at once: 16, then 16, then 8 steps over the following messages."""
+    pair, _ = pairing(patience=1000)
+    pair.add_measurement(0, 0.0)
+    for k in range(1, 41):
+        pair.add_measurement(k * P, 0.0)
+        pair.add_command(k * P, 0.0)
+    first = pair.add_command(0, 0.0)
+    assert len(first) == MAX_STEPS_PER_CALL
+    second = pair.add_measurement(41 * P, 0.0)
+    third = pair.add_measurement(42 * P, 0.0)
+    assert len(second) == MAX_STEPS_PER_CALL and len(third) == 41 - 2 * MAX_STEPS_PER_CALL
+    assert third[-1].sample_ns == 41 * P
