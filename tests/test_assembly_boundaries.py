@@ -122,6 +122,25 @@ def test_an_estimate_gap_resyncs_only_beyond_the_gap_limit(gap: int, resyncs: in
     assert a.resyncs == resyncs and s.status is (Status.RESYNC if resyncs else Status.OK)
 
 
+@pytest.mark.parametrize('silent_ns, resyncs', [(GAP * P, 0), (GAP * P + 1, 1)])
+def test_a_node_silent_beyond_the_command_timeout_resyncs(silent_ns: int, resyncs: int) -> None:
+    """No gap in the stamps, but no command sent for longer than the drive's timeout: resync."""
+    a = assembly()
+    control(a, 0)
+    a.command_gap(P, silent_ns)
+    s = control(a, 1)
+    assert (a.resyncs, a.gap_resyncs) == (resyncs, resyncs)
+    assert s.status is (Status.RESYNC if resyncs else Status.OK)
+    assert s.safe_stop is bool(resyncs)
+
+
+def test_silence_before_the_first_law_sample_is_no_gap() -> None:
+    """A node that never controlled (or is resyncing already) has nothing to resync."""
+    a = assembly()
+    a.command_gap(0, 10 * GAP * P)
+    assert control(a, 0).status is not Status.RESYNC and a.resyncs == 0
+
+
 def test_missed_and_unanswered_are_counted_exactly() -> None:
     """A jitter of half a period is no missed sample; 3 periods are 2 missed; no estimate: one."""
     a = assembly()

@@ -296,6 +296,7 @@ class ControllerNode(ManagedNode):
         self.envelope_restarts = 0
         self.received_ns = 0
         self.received_mono_ns = None
+        self.command_done_ns: int | None = None  # perf_counter of the newest command published
         self.cmd = CurrentCommand()
         self.state = ControllerState(controller_name=self.name)
         self.timing = SampleLog(('received_wall_ns', 'stamp_ns', 'latency_ns', 'compute_ns'))
@@ -406,7 +407,13 @@ class ControllerNode(ManagedNode):
     def _take_measurement(self, stamp: int, y: float) -> None:
         """Hand y(k) to the assembly; log a resync it started."""
         started = time.perf_counter_ns()
+        self._after_silence(stamp, started)
         self._control(self.assembly.add_measurement(stamp, y, self.received_mono_ns), started)
+
+    def _after_silence(self, stamp: int, now_ns: int) -> None:
+        """Real time: tell the assembly how long this node sent no command (a stall of its own)."""
+        if self.mode == 'realtime' and self.command_done_ns is not None:
+            self.assembly.command_gap(stamp, now_ns - self.command_done_ns)
 
     def on_estimate(self, msg: StateEstimate) -> None:
         """x_hat(k): every field checked against its physical range, then the assembly."""
@@ -465,6 +472,7 @@ class ControllerNode(ManagedNode):
         if verdict is Verdict.OLD and not msg.initial:
             return
         started = time.perf_counter_ns()
+        self._after_silence(stamp, started)
         sample = self.assembly.add_estimate(
             stamp, x2, x3, stamp_to_ns(msg.input_stamp), u, gain, msg.initial, self._received()
         )
@@ -494,6 +502,9 @@ class ControllerNode(ManagedNode):
         now = (
             self.clock.now_ns() if self.mode == 'realtime' else self.get_clock().now().nanoseconds
         )
+        newest = self.assembly.newest_measurement_ns
+        if newest is not None:  # a stall of this node ends here first when the timer runs first
+            self._after_silence(newest, time.perf_counter_ns())
         sample = self.assembly.watchdog(now, self.measurement_timeout_ns, self.estimate_timeout_ns)
         if sample is None:
             return

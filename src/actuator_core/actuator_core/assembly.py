@@ -27,12 +27,14 @@ Recovery policy (README "Safety"), every gap alike: a stale input is answered in
 ``watchdog``: up to its timeout nothing (the drive holds the last command), then 0 A without
 the brake, and 0 A with the brake once the input is ``brake_after`` old. When the law is to
 run again after more than ``gap_limit_samples`` (the drive's command timeout: the joint was
-braked by its gate or by this watchdog) without a law sample, the resync path runs instead: no
-chase of the error the reference accumulated meanwhile. After a resync, and after a shorter
-gap the watchdog answered, the law's samples say RECOVERING for ``RECOVERY_SAMPLES``, and
-always while |e| is outside the prescribed envelope: a state never says OK there. Ages are
-measured on the receiver's monotonic clock (``received_ns`` of each input; the stamp itself in
-sim and offline, where stamps are the clock).
+braked by its gate or by this watchdog) without a law sample, or after the node itself sent
+no command that long (``command_gap``: a stalled node sees no gap in the stamps it then reads),
+the resync path runs instead: no chase of the error the reference accumulated meanwhile.
+After a resync, and after a shorter gap the watchdog answered, the law's samples say
+RECOVERING for ``RECOVERY_SAMPLES``, and always while |e| is outside the prescribed envelope:
+a state never says OK there. Ages are measured on the receiver's monotonic clock
+(``received_ns`` of each input; the stamp itself in sim and offline, where stamps are the
+clock).
 
 Scalars take the node's path; numpy arrays (a batch of offline runs) go through the same
 arithmetic elementwise, the latch included.
@@ -213,6 +215,16 @@ class ControlSampleAssembly:
         if self.pending is not None and self.pending[0] < stamp_ns:
             self.pending = None
         self.controlled_ns = None
+
+    def command_gap(self, stamp_ns: int, silent_ns: int) -> None:
+        """Take note that no command went out for ``silent_ns`` [ns] (a stall of this node).
+
+        Its stamps show no gap then. Beyond the drive's command timeout the joint was braked:
+        sample ``stamp_ns`` takes the resync path instead of chasing the reference.
+        """
+        if silent_ns > self.gap_limit_ns and self.controlled_ns is not None:
+            self.gap_resyncs += 1
+            self.resync(stamp_ns)
 
     def reset(self) -> None:
         """Clear the latch and start over (lifecycle: cleanup and configure)."""
