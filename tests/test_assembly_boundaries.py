@@ -134,6 +134,16 @@ def test_a_node_silent_beyond_the_command_timeout_resyncs(silent_ns: int, resync
     assert s.safe_stop is bool(resyncs)
 
 
+def test_a_silence_the_watchdog_allows_by_design_is_no_stall() -> None:
+    """Long stale timeouts (the joint holds its command): silence within them resyncs nothing."""
+    a = assembly()
+    control(a, 0)
+    a.command_gap(P, 50 * P, quiet_ns=75 * P)
+    assert control(a, 1).status is not Status.RESYNC and a.resyncs == 0
+    a.command_gap(2 * P, 75 * P + 1, quiet_ns=75 * P)
+    assert control(a, 2).status is Status.RESYNC and a.gap_resyncs == 1
+
+
 def test_silence_before_the_first_law_sample_is_no_gap() -> None:
     """A node that never controlled (or is resyncing already) has nothing to resync."""
     a = assembly()

@@ -27,7 +27,8 @@ def test_a_sim_run_records_every_nodes_health_and_the_stop_of_its_inputs(ros_pro
             for status in reader.deserialize(raw, conn.msgtype).status:
                 values = {kv.key: kv.value for kv in status.values}
                 reports.setdefault(status.name, []).append((status.level, status.message, values))
-    assert {'actuator_controller', 'actuator_eso', 'recorder'} <= set(reports)
+    assert {'actuator_plant', 'actuator_controller', 'actuator_eso', 'recorder'} <= set(reports)
+    assert any(level == 0 for level, _, _ in reports['actuator_plant']), reports['actuator_plant']
     controller = reports['actuator_controller']
     # While the loop ran: OK at about 1 kHz of joint_states; once the plant stopped: STALE.
     running = [v for level, _, v in controller if level == 0 and 'joint_states rate [Hz]' in v]

@@ -274,11 +274,12 @@ class ControllerNode(ManagedNode):
         # Real time: timers on the steady clock, so a wall-clock step neither stalls nor races
         # them; sim: on /clock, which the lockstep advances.
         timer_clock = self.get_clock() if self.mode == 'sim' else RosClock(clock_type=STEADY)
+        shortest_timeout_ns = min(self.measurement_timeout_ns, self.estimate_timeout_ns)
         self.watchdog = self.create_timer(
-            min(self.measurement_timeout_ns, self.estimate_timeout_ns) * 0.5e-9,
-            self.on_watchdog,
-            clock=timer_clock,
+            shortest_timeout_ns * 0.5e-9, self.on_watchdog, clock=timer_clock
         )
+        # The longest this node is silent by design: a timeout and one watchdog period.
+        self.quiet_ns = shortest_timeout_ns * 3 // 2
         self.graph_timer = self.create_timer(
             0.1, lambda: self.guard.poll(OUTPUT_TOPICS), clock=timer_clock
         )
@@ -413,7 +414,7 @@ class ControllerNode(ManagedNode):
     def _after_silence(self, stamp: int, now_ns: int) -> None:
         """Real time: tell the assembly how long this node sent no command (a stall of its own)."""
         if self.mode == 'realtime' and self.command_done_ns is not None:
-            self.assembly.command_gap(stamp, now_ns - self.command_done_ns)
+            self.assembly.command_gap(stamp, now_ns - self.command_done_ns, self.quiet_ns)
 
     def on_estimate(self, msg: StateEstimate) -> None:
         """x_hat(k): every field checked against its physical range, then the assembly."""

@@ -216,13 +216,15 @@ class ControlSampleAssembly:
             self.pending = None
         self.controlled_ns = None
 
-    def command_gap(self, stamp_ns: int, silent_ns: int) -> None:
+    def command_gap(self, stamp_ns: int, silent_ns: int, quiet_ns: int = 0) -> None:
         """Take note that no command went out for ``silent_ns`` [ns] (a stall of this node).
 
-        Its stamps show no gap then. Beyond the drive's command timeout the joint was braked:
+        Its stamps show no gap then. ``quiet_ns``: the longest this node is silent by design
+        (its watchdog answers a stale input within its timeout and one period). A silence
+        beyond both that and the drive's command timeout is a stall, and the joint was braked:
         sample ``stamp_ns`` takes the resync path instead of chasing the reference.
         """
-        if silent_ns > self.gap_limit_ns and self.controlled_ns is not None:
+        if silent_ns > max(self.gap_limit_ns, quiet_ns) and self.controlled_ns is not None:
             self.gap_resyncs += 1
             self.resync(stamp_ns)
 
