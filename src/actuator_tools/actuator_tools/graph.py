@@ -53,9 +53,8 @@ class NodeSpec:
 
 
 #: The nodes a composed loop runs in one process (the joint first: its real-time settings are
-#: the process's), and the container's executable. The simulated drive is hardware: never in.
-JOINTS_COMPOSABLE = ('plant', 'driver')
-COMPOSABLE = (*JOINTS_COMPOSABLE, 'eso', 'controller')
+#: the process's), and the container's executable.
+COMPOSABLE = ('plant', 'eso', 'controller')
 CONTAINER = ('actuator_tools', 'loop_container')
 
 
@@ -67,10 +66,8 @@ def compose(specs: list[NodeSpec]) -> list[NodeSpec]:
     others, then the container (it holds the joint, which starts sampling when all are there).
     """
     inside = {s.key: s for s in specs if s.key in COMPOSABLE}
-    if not any(k in inside for k in JOINTS_COMPOSABLE):
-        raise ValueError(
-            'a composed loop needs its joint in the process (joint:=plant, cia402_sim or cia402)'
-        )
+    if 'plant' not in inside:
+        raise ValueError('a composed loop needs the simulated plant as its joint (joint:=plant)')
     members = tuple(inside[k] for k in COMPOSABLE if k in inside)
     container = NodeSpec(
         'loop',
