@@ -322,9 +322,15 @@ def test_silent_or_faulted_drive_gives_the_stale_measurement_stop_of_the_control
     procs = _closed_loop(ros_process, tmp_path, fault, record=False)
     wait_for_output(procs['driver'], driver_says, timeout=40)
     harness.command.clear()
-    harness.wait_for(
-        lambda: any(c.safe_stop for c in harness.command), timeout=20, what='a safe-stop command'
-    )
+    try:
+        harness.wait_for(
+            lambda: any(c.safe_stop for c in harness.command),
+            timeout=20,
+            what='a safe-stop command',
+        )
+    except AssertionError as timed_out:  # what each process said, for the next person
+        said = '\n'.join(procs[key].describe(tail=15) for key in ('driver', 'controller'))
+        raise AssertionError(f'{timed_out}\n{said}') from None
     harness.command.clear()
     harness.spin(0.5)
     assert harness.command, 'the controller keeps commanding while stale'
