@@ -178,6 +178,31 @@ def test_watchdog_boundaries_and_the_estimate_timeout() -> None:
     assert pi.watchdog(now + 4 * P, 5 * P, 1) is None  # PI waits for no estimate
 
 
+def test_a_brake_a_safe_stop_engaged_stays_until_the_law_commands_again() -> None:
+    """A stale answer within brake_after asks no brake after a law sample, but keeps a resync's.
+
+    Seen in the real-time restart test: the watchdog's 'no brake yet' answer, for a sample of a
+    resync episode, released the brake the resync had engaged.
+    """
+    a = assembly()
+    control(a, 0)
+    coast = a.watchdog(6 * P + 1, 10 * P, 5 * P)  # stale, younger than brake_after
+    assert coast.status is Status.STALE_ESTIMATE and coast.safe_stop is False
+    held = control(a, 1000, 0.2, initial=True)  # the observer restarted: resync, brake
+    assert held.status is Status.RESYNC and held.safe_stop is True
+    a.add_measurement(1001 * P, 0.2)
+    still = a.watchdog(1001 * P + 5 * P + 1, 10 * P, 5 * P)
+    assert still.status is Status.STALE_ESTIMATE and still.safe_stop is True
+    refused = a.safe_sample(1002 * P, Status.INVALID_INPUT, 0.2, safe_stop=False)
+    assert refused.safe_stop is True
+    for k in range(1002, 1000 + RESYNC_SAMPLES + 1):
+        last = control(a, k, 0.2)
+    assert last.status is Status.RECOVERING and last.safe_stop is False  # the law released it
+    a.add_measurement((1000 + RESYNC_SAMPLES + 1) * P, 0.2)
+    again = a.watchdog((1000 + RESYNC_SAMPLES + 1) * P + 5 * P + 1, 10 * P, 5 * P)
+    assert again.safe_stop is False  # graded again: 0 A without the brake first
+
+
 def test_latched_assembly_has_no_watchdog_and_reset_clears_the_latch() -> None:
     """Latched: the watchdog is silent; reset: a new start that controls again."""
     a = assembly(following_error_limit_rad=0.1)

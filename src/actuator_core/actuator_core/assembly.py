@@ -25,7 +25,8 @@ sample (a second publisher racing the observer) are both dropped: that sample ge
 
 Recovery policy (README "Safety"), every gap alike: a stale input is answered in grades by
 ``watchdog``: up to its timeout nothing (the drive holds the last command), then 0 A without
-the brake, and 0 A with the brake once the input is ``brake_after`` old. When the law is to
+the brake, and 0 A with the brake once the input is ``brake_after`` old; a brake a safe stop
+engaged (a resync, the watchdog's own) stays until the law commands again. When the law is to
 run again after more than ``gap_limit_samples`` (the drive's command timeout: the joint was
 braked by its gate or by this watchdog) without a law sample, or after the node itself sent
 no command that long (``command_gap``: a stalled node sees no gap in the stamps it then reads),
@@ -119,6 +120,7 @@ class ControlSampleAssembly:
         self.stale_answered = False  # the watchdog answered a sample since the law's last one
         self.recovering_until_ns: Optional[int] = None
         self.latched = False
+        self.braking = False  # the newest command asked for the brake (safe_stop)
         self.resync_until_ns: Optional[int] = None
         self.refusal = ''  # why the last input was refused ('' when it was not)
         self.initial_ahead: Optional[tuple] = None  # an observer restart ahead of y, kept aside
@@ -327,6 +329,7 @@ class ControlSampleAssembly:
             status = Status(int(status))
         self.commanded = (stamp, current)
         latched = self.latched is True  # a node's scalar latch brakes at once
+        self.braking = latched
         return ControlSample(stamp, current, status, t, y, estimate, ref, out, latched)
 
     def _recover_until(self, stamp_ns: int) -> None:
@@ -336,8 +339,14 @@ class ControlSampleAssembly:
     def safe_sample(
         self, stamp_ns: int, status: Status, y=float('nan'), safe_stop: bool = True
     ) -> ControlSample:
-        """0 A with ``status`` for sample ``stamp_ns`` (nothing from the law: no stale values)."""
+        """0 A with ``status`` for sample ``stamp_ns`` (nothing from the law: no stale values).
+
+        Once a command asked for the brake, only the law's next command releases it: a safe
+        sample never does (``safe_stop`` is then True whatever was asked).
+        """
         self.commanded = (stamp_ns, 0.0)
+        safe_stop = safe_stop or self.braking
+        self.braking = safe_stop is True
         return ControlSample(stamp_ns, 0.0, status, None, y, None, None, None, safe_stop)
 
     def stale(
