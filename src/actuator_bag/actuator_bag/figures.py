@@ -34,6 +34,14 @@ def _labels(runs: Sequence[RunData]) -> list[str]:
     return [n if names.count(n) == 1 else f'{n} ({r.name})' for n, r in zip(names, runs)]
 
 
+def _decorate(ax: Any, ylabel: str, title: str, legend: bool = True) -> None:
+    """Label a time axis and give it the small legend and light grid of every figure here."""
+    ax.set(xlabel='time [s]', ylabel=ylabel, title=title)
+    if legend:
+        ax.legend(loc='best', fontsize='small')
+    ax.grid(True, alpha=0.3)
+
+
 def draw_figures(runs: Sequence[RunData], out: Path) -> list[Path]:
     """Write the paper's figures as PNG files into ``out``; return their paths."""
     import matplotlib
@@ -56,9 +64,7 @@ def draw_figures(runs: Sequence[RunData], out: Path) -> list[Path]:
     ax.plot(runs[0].t, runs[0].reference, 'k--', linewidth=1.2, label='reference')
     for run, label in zip(runs, labels):
         ax.plot(run.t, run.measured, linewidth=0.9, label=label)
-    ax.set(xlabel='time [s]', ylabel='joint angle [rad]', title='Position response')
-    ax.legend(loc='best', fontsize='small')
-    ax.grid(True, alpha=0.3)
+    _decorate(ax, 'joint angle [rad]', 'Position response')
     save(fig, 'position.png')
 
     # Two panels, as the paper's Figures 5b and 6b zoom: the whole run with the envelope, and the
@@ -83,22 +89,12 @@ def draw_figures(runs: Sequence[RunData], out: Path) -> list[Path]:
         )
         if steady.any():
             steady_peak = max(steady_peak, float(np.max(np.abs(run.error[steady]))))
-    ax.set(
-        xlabel='time [s]',
-        ylabel='tracking error e [rad]',
-        title='Tracking error and prescribed performance bounds',
-    )
-    ax.legend(loc='best', fontsize='small')
-    ax.grid(True, alpha=0.3)
+    _decorate(ax, 'tracking error e [rad]', 'Tracking error and prescribed performance bounds')
     if steady_peak > 0.0:
         zoom.set_ylim(-1.2 * steady_peak, 1.2 * steady_peak)
-    zoom.set(
-        xlabel='time [s]',
-        ylabel='tracking error e [rad]',
-        title=f'Steady window (t >= {STEADY_STATE_START_S:g} s) at its own scale',
-    )
+    steady_title = f'Steady window (t >= {STEADY_STATE_START_S:g} s) at its own scale'
+    _decorate(zoom, 'tracking error e [rad]', steady_title, legend=False)
     zoom.ticklabel_format(axis='y', style='sci', scilimits=(-2, 2))
-    zoom.grid(True, alpha=0.3)
     save(fig, 'tracking_error.png')
 
     for name, title, unit, est_attr, truth_attr in (
@@ -134,16 +130,12 @@ def draw_figures(runs: Sequence[RunData], out: Path) -> list[Path]:
             ax.plot(
                 run.est_t, getattr(run, est_attr), '--', linewidth=0.9, label=f'estimate ({label})'
             )
-        ax.set(xlabel='time [s]', ylabel=unit, title=title)
-        ax.legend(loc='best', fontsize='small')
-        ax.grid(True, alpha=0.3)
+        _decorate(ax, unit, title)
         save(fig, name)
 
     fig, ax = plt.subplots(figsize=(8, 4.5))
     for run, label in zip(runs, labels):
         ax.plot(run.t, run.current, linewidth=0.8, label=label)
-    ax.set(xlabel='time [s]', ylabel='motor current u [A]', title='Control input')
-    ax.legend(loc='best', fontsize='small')
-    ax.grid(True, alpha=0.3)
+    _decorate(ax, 'motor current u [A]', 'Control input')
     save(fig, 'control_input.png')
     return written
