@@ -190,8 +190,8 @@ def test_realtime_loop_stays_stable_for_the_whole_fast_deep_sea_run(isolated):
     paired = (eso['exact_pairs'] + eso['repaired_pairs']) / eso['steps']
     latency_ns = np.load(result.timing_log)['latency_ns']
     late = float(np.mean(latency_ns > 1_000_000)) if latency_ns.size else 0.0
-    judged = (paired < 0.9, controlled.mean() <= 0.9, max_error >= RHO0_RAD)
-    if any(judged) and late > LATE_SHARE_MAX:
+    outside = (paired < 0.9, controlled.mean() <= 0.9, max_error >= RHO0_RAD)
+    if any(outside) and late > LATE_SHARE_MAX:
         # Each stall of the host past the command timeout is a resync (50 samples of 0 A and
         # brake by the policy), so the controlled share measures the host too.
         # A command later than the next sample reaches the observer after it stepped: such a
@@ -481,8 +481,8 @@ def test_controller_on_a_1_khz_timer_closes_the_loop_with_the_newest_measurement
     assert np.all(np.isin(after, CONTROLLED + stall_answers)), np.unique(after)
     episodes = _episode_lengths(~np.isin(after, CONTROLLED))
     assert episodes.size == 0 or episodes.max() <= STALL_EPISODE_MAX, episodes.max()
-    judged = controlled.mean() <= 0.9 or max_error >= RHO0_RAD
-    if judged and episodes.size > STALL_EPISODES_ON_TIME:
+    outside = controlled.mean() <= 0.9 or max_error >= RHO0_RAD
+    if outside and episodes.size > STALL_EPISODES_ON_TIME:
         pytest.skip(
             f'the host stalled the loop {episodes.size} times in {duration_s:g} s: '
             f'{controlled.mean():.0%} of the samples controlled, the longest stall answer '
