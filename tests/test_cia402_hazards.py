@@ -12,6 +12,7 @@ shared 2-core machine keeps the grid.
 
 from __future__ import annotations
 
+import contextlib
 import re
 import signal
 import sys
@@ -97,6 +98,22 @@ def joint_for(drive, **overrides) -> Cia402Joint:
         **overrides,
     )
     return Cia402Joint(cfg)
+
+
+@contextlib.contextmanager
+def active(*joints: Cia402Joint):
+    """Configure and activate ``joints`` in turn; close them in that same order at the end.
+
+    They are closed whatever happened, after a failed configure or activate too.
+    """
+    try:
+        for joint in joints:
+            joint.configure()
+            joint.activate()
+        yield
+    finally:
+        for joint in joints:
+            joint.close()
 
 
 def wait_until(condition, timeout_s: float, what: str):
@@ -257,17 +274,13 @@ def test_deactivate_waits_for_the_quick_stop_ramp_and_the_brake_before_disable(s
     node.sdo[p.CONTROLWORD].raw = p.Command.DISABLE_VOLTAGE.value
     wait_until(lambda: 'ramp cut' in drive.stdout, 2.0, 'the old sequence was not seen to cut')
     joint = joint_for(drive, torque_slope_permille_s=5000)
-    try:
-        joint.configure()
-        joint.activate()
+    with active(joint):
         result = run_on_grid(joint, 3.0, 0.05, 0.3, PERIOD_S)
         assert result['fault'] == ''
         start = time.monotonic()
         notes = joint.deactivate()
         took_s = time.monotonic() - start
         assert notes == []
-    finally:
-        joint.close()
     tail = drive.stdout.split('NMT reset communication')[-1]
     assert 'ramp cut' not in tail and 'voltage disabled with the brake open' not in tail
     assert 'stopping: ramp from 300 per mille' in tail
@@ -291,12 +304,8 @@ def test_every_reason_not_to_apply_the_torque_ends_control_with_it(sim_drive, ki
     # commanding.
     drive = sim_drive('--inject', f'{kind}@1.0')
     joint = joint_for(drive)
-    try:
-        joint.configure()
-        joint.activate()
+    with active(joint):
         result = run_on_grid(joint, 0.5, 0.1, 5.0, PERIOD_S)
-    finally:
-        joint.close()
     assert words in result['fault'], result['fault']
 
 
@@ -306,9 +315,7 @@ def test_a_vanished_adapter_ends_control_at_once(sim_drive):
     drive = sim_drive()
     joint = joint_for(drive)
     seen = {}
-    try:
-        joint.configure()
-        joint.activate()
+    with active(joint):
 
         def on_sample(k, sample):
             if k >= 100 and 'killed' not in seen:
@@ -318,8 +325,6 @@ def test_a_vanished_adapter_ends_control_at_once(sim_drive):
                 seen['ended'] = time.monotonic()
 
         result = run_on_grid(joint, 0.2, 0.05, 5.0, PERIOD_S, on_sample)
-    finally:
-        joint.close()
     assert 'CAN adapter lost' in result['fault']
     assert seen['ended'] - seen['killed'] < 0.1
 
@@ -329,9 +334,7 @@ def test_a_drive_fault_is_never_reset_by_activate_only_by_acknowledge_fault(sim_
     drive = sim_drive('--fault-kind', 'over_current', '--fault-at', '1.0')
     node = tool(drive.address)
     joint = joint_for(drive)
-    try:
-        joint.configure()
-        joint.activate()
+    with active(joint):
         result = run_on_grid(joint, 0.5, 0.1, 5.0, PERIOD_S)
         assert 'drive fault' in result['fault'] and '0x2310' in result['fault']
         joint.deactivate()
@@ -342,8 +345,6 @@ def test_a_drive_fault_is_never_reset_by_activate_only_by_acknowledge_fault(sim_
         assert state_of(node) is p.State.SWITCH_ON_DISABLED
         joint.activate()
         assert state_of(node) is p.State.SWITCHED_ON
-    finally:
-        joint.close()
 
 
 def test_the_32_bit_position_is_unwrapped_and_the_zero_offset_applied(sim_drive):
@@ -352,12 +353,8 @@ def test_the_32_bit_position_is_unwrapped_and_the_zero_offset_applied(sim_drive)
     drive = sim_drive('--encoder-offset-counts', str(2**31 - 30), '--working-condition', 'lab')
     count_rad = joint_for(drive).scaling.rad_per_count
     joint = joint_for(drive, zero_offset_rad=(2**31 - 30) * count_rad)
-    try:
-        joint.configure()
-        joint.activate()
+    with active(joint):
         result = run_on_grid(joint, 3.0, 0.05, 0.5, PERIOD_S)
-    finally:
-        joint.close()
     q = result['positions']
     assert result['fault'] == ''
     assert abs(q[0]) < 1e-9  # the zero offset
@@ -430,19 +427,13 @@ def test_two_joints_share_one_sync_producer(sim_drive):
         drive, node_id=2, master_node_id=126, sync_producer=False, heartbeat_timeout_s=0.5
     )
     results = {}
-    try:
-        for joint in (a, b):
-            joint.configure()
-            joint.activate()
+    with active(a, b):
         thread = threading.Thread(
             target=lambda: results.update(b=run_on_grid(b, 0.3, 0.05, 1.0, PERIOD_S))
         )
         thread.start()
         results['a'] = run_on_grid(a, 0.3, 0.05, 1.0, PERIOD_S)
         thread.join(10)
-    finally:
-        for joint in (a, b):
-            joint.close()
     drive.stop()
     syncs = [int(n) for n in re.findall(r'drive \d: SYNCs (\d+)', drive.stdout)]
     # one SYNC stream seen by both drives (a drive's bus thread may lag a few frames at exit)
@@ -460,12 +451,8 @@ def test_with_the_polarity_both_sides_agree_on_a_positive_current_turns_positive
     # Old driver: 0x607E was never read; an inverted drive ran the loop with positive feedback.
     drive = sim_drive('--polarity', '128', '--working-condition', 'lab')
     joint = joint_for(drive, polarity=128)
-    try:
-        joint.configure()
-        joint.activate()
+    with active(joint):
         result = run_on_grid(joint, 3.0, 0.05, 0.3, PERIOD_S)
-    finally:
-        joint.close()
     assert result['fault'] == ''
     assert result['positions'][-1] - result['positions'][0] > 0.01
     efforts = result['efforts']  # torque actual, the sign corrected by the drive's polarity
