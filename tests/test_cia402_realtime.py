@@ -1,0 +1,294 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""CiA 402 driver node in real time (ROS-PROCESS TESTS: each starts installed executables).
+
+Closed loops through the driver and the simulated drive at 1 kHz, each process as
+``graph.closed_loop`` starts it (what ``bringup --joint cia402_sim`` starts): a silent or faulted
+drive against the real controller, kill -9 of the driver, the end-to-end run of the paper's fast
+deep-sea case; and a second publisher on current_command against the driver. The driver's other
+tests: tests/test_cia402_nodes.py; the shared pieces in tests/cia402_helpers.py.
+"""
+
+import re
+import signal
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from actuator_core import limits
+
+from cia402_helpers import DRIVER, driver_args, wait_for_output
+from cia402_helpers import harness_fixture, sim_drive_fixture  # noqa: F401 - fixtures by name
+
+#: SCHED_FIFO priority of the ESO and controller in the closed loops through the drive (driver
+#: one above, simulated drive one above that: graph.closed_loop), as in test_adversarial. Under
+#: normal scheduling on a 2-core VM the loop through the drive kept 43-96 % of the 1 kHz grid and
+#: ran away to the 20 rad/s soft limit in 0.2-1.6 s (issue 20); under SCHED_FIFO 99.6-99.9 % of
+#: SYNCs had a command, median lag 1 ms (README "CiA 402 drive").
+CLOSED_LOOP_PRIORITY = 50
+#: Tracking of the 5 s end-to-end run through the drive on [1, 5) s, as measured (README of
+#: actuator_cia402): the larger max |e| and RMS [rad] of the runs without a stall.
+END_TO_END_MAX_RAD, END_TO_END_RMS_RAD = 9.3e-3, 5.6e-4
+
+
+#: Fraction of the commands the driver may refuse as too late (stamp outside its window) for a
+#: run to count as one the machine kept on time: such runs had a command on 99.6-99.9 % of the
+#: SYNCs; on a host about 1.4x slower (2026-12-02) the runs refused 19-25 % and ran away to the
+#: 20 rad/s soft limit, which the driver ended safely.
+LATE_COMMANDS_MAX = 0.02
+
+
+def _late_commands(driver_log: str) -> float | None:
+    """Fraction of samples whose command the driver refused by stamp (its summary line)."""
+    match = re.search(
+        r'stopped at sample (\d+); refused commands \d+ by value and (\d+) by stamp', driver_log
+    )
+    if match is None or int(match.group(1)) == 0:
+        return None
+    return int(match.group(2)) / int(match.group(1))
+
+
+def scenario_file() -> Path:
+    """Return the installed parameter file of the paper's fast deep-sea case with PP-NFTSMC-ESO."""
+    from ament_index_python.packages import get_package_share_directory
+
+    return (
+        Path(get_package_share_directory('actuator_bringup'))
+        / 'config'
+        / 'case2_pp_nftsmc_eso.yaml'
+    )
+
+
+def _closed_loop(ros_process, tmp_path, driver_params, record=True):
+    """Return the run as graph.closed_loop describes it with the driver as the joint.
+
+    What bringup --joint cia402_sim starts.
+    """
+    from actuator_tools.graph import closed_loop, ros_arguments
+
+    params = dict(driver_params)
+    specs = closed_loop(
+        'realtime',
+        float(params.pop('stop_after_s', 0.0)),
+        record=record,
+        bag=tmp_path / 'bag',
+        joint='cia402_sim',
+        thread_priority=CLOSED_LOOP_PRIORITY,
+        joint_parameters=params,
+    )
+    procs = {}
+    for spec in specs:
+        extra = ['-p', f'timing_log:={tmp_path / "samples.npz"}'] if spec.key == 'driver' else []
+        if spec.key == 'drive':  # the simulated drive: listening before the driver configures
+            procs['drive'] = ros_process(spec.package, spec.executable, ros_arguments(spec, None))
+            procs['drive'].wait_for_output(r'^drive 1 ready$', timeout=30)
+            continue
+        procs[spec.key] = ros_process(
+            spec.package, spec.executable, ros_arguments(spec, scenario_file()) + extra
+        )
+    return procs
+
+
+# A closed loop through the drive at 1 kHz: its timing is the machine's (one rerun, as for
+# every realtime-marked test; see conftest).
+@pytest.mark.realtime
+@pytest.mark.parametrize(
+    'fault, driver_says',
+    [
+        # the fault plan's clock starts with the first SYNC: under control by then
+        ({'sim.silent_at_s': 0.5}, r'CiA 402 drive fault: no TPDO from the drive in'),
+        (
+            {'sim.fault_kind': 'following_error', 'sim.fault_at_s': 1.5},
+            r'CiA 402 drive fault: drive fault .*0x8611 following error',
+        ),
+    ],
+)
+def test_silent_or_faulted_drive_gives_the_stale_measurement_stop_of_the_controller(
+    harness, ros_process, tmp_path, fault, driver_says
+):
+    """Silent or faulted drive in closed loop: the controller commands 0 A with safe_stop."""
+    procs = _closed_loop(ros_process, tmp_path, fault, record=False)
+    wait_for_output(procs['driver'], driver_says, timeout=40)
+    harness.command.clear()
+    try:
+        harness.wait_for(
+            lambda: any(c.safe_stop for c in harness.command),
+            timeout=20,
+            what='a safe-stop command',
+        )
+    except AssertionError as timed_out:  # what each process said, for the next person
+        said = '\n'.join(procs[key].describe(tail=15) for key in ('driver', 'controller'))
+        raise AssertionError(f'{timed_out}\n{said}') from None
+    harness.command.clear()
+    harness.spin(0.5)
+    assert harness.command, 'the controller keeps commanding while stale'
+    assert all(c.current_a == 0.0 and c.safe_stop for c in harness.command)
+    assert 'stale measurement' in procs['controller'].output
+    for key, proc in procs.items():
+        code = proc.stop()
+        assert code == 0 and 'Traceback' not in proc.output, (key, proc.output[-1500:])
+
+
+# A closed loop through the drive at 1 kHz: its timing is the machine's (one rerun, as for
+# every realtime-marked test; see conftest).
+@pytest.mark.realtime
+def test_kill_9_of_the_driver_in_closed_loop_leaves_the_drive_to_stop_itself(
+    ros_process, tmp_path
+):
+    """The drive runs on after SIGKILL of its master and quick-stops by its heartbeat consumer.
+
+    Before issue 20 the drive was a thread of the driver (it died with it) and, on a real bus,
+    kept its last torque: no heartbeat consumer, no master heartbeat.
+    """
+    procs = _closed_loop(ros_process, tmp_path, {}, record=False)
+    wait_for_output(procs['drive'], r'operation enabled with 0x6071', timeout=40)
+    time.sleep(1.0)  # under control of the controller
+    procs['driver'].popen.send_signal(signal.SIGKILL)
+    wait_for_output(procs['drive'], r'heartbeat of node 127 lost for 300 ms', timeout=5)
+    time.sleep(0.5)  # the quick-stop ramp and the brake's closing time
+    import canopen
+
+    from actuator_cia402 import profile as p
+    from actuator_cia402.hub import HubBus
+    from actuator_cia402.sim_drive_main import default_eds
+
+    address = re.search(r'bus hub on (\S+)', procs['drive'].stdout).group(1)
+    network = canopen.Network(HubBus(address))
+    network.connect()
+    try:  # a service tool on the bus: the drive stopped itself
+        tool = canopen.RemoteNode(1, default_eds())
+        network.add_node(tool)
+        state = p.decode_state(tool.sdo[p.STATUSWORD].raw)
+        assert state in (p.State.QUICK_STOP_ACTIVE, p.State.SWITCH_ON_DISABLED), state
+        assert tool.sdo[p.CURRENT_ACTUAL].raw == 0
+        assert tool.sdo[p.DIGITAL_INPUTS].raw & (1 << 16)  # brake closed
+    finally:
+        network.disconnect()
+    assert procs['drive'].running
+    for key in ('eso', 'controller', 'drive'):
+        assert procs[key].stop() == 0, procs[key].describe()
+
+
+@pytest.mark.realtime
+def test_end_to_end_fast_deep_sea_case_tracks_within_a_factor_of_the_offline_core(
+    ros_process, tmp_path
+):
+    """Real time, separate processes.
+
+    The drive adds quantisation, a torque loop and one SYNC of delay.
+    """
+    from actuator_bag.analyze import analyze_run, load_run
+    from actuator_sim.loop import ClosedLoop
+    from actuator_sim.params_yaml import all_scenarios
+
+    duration = 5.0
+    procs = _closed_loop(ros_process, tmp_path, {'stop_after_s': duration})
+    code = procs['driver'].wait(60 + 5 * duration)
+    late = _late_commands(procs['driver'].output)
+    if code != 0 and late is not None and late > LATE_COMMANDS_MAX:
+        # The controller could not keep up (a machine short of CPU: 5 processes at 1 kHz);
+        # the driver's safe end is what must hold then, not the tracking.
+        assert 'control ended:' in procs['driver'].output, procs['driver'].describe()
+        pytest.skip(
+            f'the machine did not keep the loop on time: {late:.1%} of the commands came too '
+            'late and were refused; the driver ended control safely: '
+            + re.search(r'control ended: [^\n]*', procs['driver'].output).group(0)
+        )
+    assert code == 0, procs['driver'].describe()
+    for key in ('eso', 'controller', 'recorder'):
+        assert procs[key].stop() == 0, procs[key].describe()
+    # What must hold whatever the machine's load: the driver's own log shows the loop closed on the
+    # SYNC grid, the controller never latched, currents stayed within the limit.
+    samples = np.load(tmp_path / 'samples.npz')  # the driver's log, as the plant's
+    stamps = samples['stamp_ns']
+    assert stamps.size > 0.8 * duration * 1000 and np.all(np.diff(stamps) % 1_000_000 == 0)
+    answered = samples['held_command_stamp_ns'] > 0
+    assert answered.mean() > 0.8  # a command was applied on most SYNCs
+    # the command applied over [t_k-1, t_k) answers a sample a few SYNCs older
+    # (one SYNC of bus delay)
+    lag_ms = (stamps[answered] - samples['held_command_stamp_ns'][answered]) / 1e6
+    assert np.median(lag_ms) <= 3.0, np.median(lag_ms)
+    assert 'safe stop latched' not in procs['controller'].output
+    run = load_run(tmp_path / 'bag', quiet=True)  # the recorder (normal scheduling) may lose some
+    controlled = run.status == 0  # the rest: the stale stop after the run ended
+    assert controlled.sum() > 0.5 * duration * 1000
+    grid_ms = run.t[controlled] * 1e3
+    assert np.allclose(
+        grid_ms, np.round(grid_ms), atol=1e-6
+    )  # measurement stamps on the 1 ms SYNC grid
+    assert np.all(np.isfinite(run.current)) and np.max(np.abs(run.current)) <= 20.0 + 1e-9
+    scenario = all_scenarios()['case2_pp_nftsmc_eso']
+    scenario.duration_s = duration
+    offline = ClosedLoop(scenario).run()
+    window, offline_window = (
+        controlled & (run.t >= 1.0) & (run.t < duration),
+        offline['t_s'] >= 1.0,
+    )
+    max_run, max_offline = (
+        np.max(np.abs(run.error[window])),
+        np.max(np.abs(offline['error_rad'][offline_window])),
+    )
+    rms_run = np.sqrt(np.mean(run.error[window] ** 2))
+    rms_offline = np.sqrt(np.mean(offline['error_rad'][offline_window] ** 2))
+    from actuator_cia402.offline import run as offline_drive, window_errors
+
+    max_model, rms_model = window_errors(offline_drive(duration_s=duration))
+    longest_gap_ms = float(np.max(np.diff(stamps))) / 1e6
+    print(
+        f'end to end, t in [1, {duration:g}) s: max |e| {max_run:.2e} rad (offline core '
+        f'{max_offline:.2e}, '
+        f'offline with the drive model {max_model:.2e}), RMS {rms_run:.2e} rad (offline '
+        f'{rms_offline:.2e}, '
+        f'drive model {rms_model:.2e}); longest gap between samples {longest_gap_ms:.1f} ms'
+    )
+    assert max_run < 0.5  # the following-error limit: no latch
+    stall_ms = limits.MEASUREMENT_TIMEOUT_S * 1e3
+    if not all('running under SCHED_FIFO' in procs[key].output for key in ('driver', 'drive')):
+        pytest.skip('SCHED_FIFO refused: tracking through the drive is claimed only under it')
+    if longest_gap_ms >= stall_ms:
+        # The controller's 5 ms measurement timeout safe-stops and costs a transient (a run with
+        # one 8 ms gap reached 5.7e-2 rad); such a run shows the machine, not the loop.
+        pytest.skip(
+            f'the machine stalled the loop {longest_gap_ms:.0f} ms (>= the {stall_ms:.0f} ms '
+            f'measurement timeout): max |e| {max_run:.2e} rad, not judged'
+        )
+    # Measured under SCHED_FIFO on a 2-core VM (src/actuator_cia402/README.md, 2026-12-02): max
+    # |e| 8.1e-3 and 9.3e-3 rad, RMS 4.8e-4 and 5.6e-4, in the runs without such a gap; the
+    # offline core with the drive model (quantisation, torque loop, one SYNC of command delay)
+    # 1.2e-3 and 3.7e-4. Bounds: 3x the measured figures.
+    assert analyze_run(run).metrics.bounds_kept
+    assert rms_run < 3.0 * END_TO_END_RMS_RAD, rms_run
+    assert max_run < 3.0 * END_TO_END_MAX_RAD, max_run
+
+
+# A closed loop through the drive at 1 kHz: its timing is the machine's (one rerun, as for
+# every realtime-marked test; see conftest).
+@pytest.mark.realtime
+def test_a_second_publisher_on_current_command_keeps_the_drive_braked(
+    harness, ros_process, sim_drive
+):
+    # Old driver: no one-publisher guard and no stamp check; a second publisher at 20 A won
+    # every SYNC. The joint node's guard now holds the drive at 0 A with the brake.
+    from actuator_msgs.msg import CurrentCommand
+    from actuator_ros.qos import control_qos
+
+    drive, address = sim_drive()
+    driver = ros_process(*DRIVER, driver_args(address, autostart=True))
+    qos = control_qos('realtime')
+    rogue = harness.node.create_publisher(CurrentCommand, 'current_command', qos)
+    other = harness.node.create_publisher(CurrentCommand, 'current_command', qos)
+    harness.wait_for(lambda: len(harness.joint) > 100, what='joint_states')
+    wait_for_output(driver, r'2 publishers on current_command \(.*\): refusing every command', 20)
+    for _ in range(300):  # 20 A answering each newest sample, from both publishers
+        stamp = harness.joint[-1].header.stamp
+        for pub in (rogue, other):
+            msg = CurrentCommand(current_a=20.0)
+            msg.header.stamp = stamp
+            pub.publish(msg)
+        harness.spin(0.002)
+    assert 'operation enabled with' not in drive.stdout  # never enabled: braked throughout
+    assert all(m.effort[0] == 0.0 for m in harness.joint[-100:])
+    assert driver.stop() == 0 and 'Traceback' not in driver.output
