@@ -34,6 +34,8 @@ pytestmark = pytest.mark.unit
 
 P = 1_000_000
 QUEUE = 10  # KEEP_LAST depth of the control topics
+TIMEOUT_NS = int(limits.MEASUREMENT_TIMEOUT_S * 1e9)  # the controller's input timeouts
+QUIET_NS = TIMEOUT_NS * 3 // 2  # the controller node's silence by design (controller_node)
 
 
 class RealTimeModel:
@@ -56,6 +58,7 @@ class RealTimeModel:
         self.gain = dt * scenario.eso.theta1n
         self.eso_inbox: deque = deque()
         self.controller_inbox: deque = deque()
+        self.command_done = None  # when the controller last sent a command
         self.k = 0
         self.rows = []  # (k, applied current, brake, status, error)
 
@@ -79,6 +82,8 @@ class RealTimeModel:
         while self.controller_inbox:
             kind, stamp, value = self.controller_inbox.popleft()
             if kind == 'y':
+                if self.command_done is not None:  # the node's own silence (a stall of its own)
+                    self.assembly.command_gap(stamp, now - self.command_done, QUIET_NS)
                 out.append(self.assembly.add_measurement(stamp, value, now))
             else:
                 e = value
@@ -94,8 +99,11 @@ class RealTimeModel:
                         now,
                     )
                 )
-        out.append(self.assembly.watchdog(now + P // 2, 5 * P, 5 * P))
-        return [s for s in out if s is not None]
+        out.append(self.assembly.watchdog(now + P // 2, TIMEOUT_NS, TIMEOUT_NS))
+        out = [s for s in out if s is not None]
+        if out:
+            self.command_done = now
+        return out
 
     @staticmethod
     def _keep_last(box: deque):
@@ -179,3 +187,61 @@ def test_a_stall_ends_in_a_calm_recovery_never_a_chase(node, stall_ms):
         assert Status.RESYNC in statuses and Status.RECOVERING in statuses
     else:  # a short hiccup brakes nothing
         assert not any(r[2] for r in m.rows[2000:])
+
+
+def cascade_run(seed: int, longest_ms: int, at_ms: int = 1000, total_ms: int = 3000):
+    """Both nodes stall at random from ``at_ms`` (a loaded host): 1-``longest_ms`` ms each."""
+    rng = np.random.default_rng(seed)
+    m = stall_run('eso', 0, at_ms=0, after_ms=0)
+    left = {'eso': 0, 'ctl': 0}
+    stalls = 0
+    for k in range(total_ms):
+        for node in left:
+            if k >= at_ms and left[node] == 0 and rng.random() < CASCADE_STALL_RATE:
+                left[node] = int(rng.integers(1, longest_ms + 1))
+                stalls += 1
+        m.step(eso_stalled=left['eso'] > 0, controller_stalled=left['ctl'] > 0)
+        for node in left:
+            left[node] = max(0, left[node] - 1)
+    return m, stalls
+
+
+#: Chance per sample and node that a stall starts in ``cascade_run``: 70-90 stalls in 2 s.
+CASCADE_STALL_RATE = 0.02
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('seed', range(4))
+def test_a_cascade_of_host_hiccups_shorter_than_the_input_timeouts_costs_no_current_spike(seed):
+    """Stalls of 1-6 ms in both nodes, 70-90 in 2 s: the drive holds the last command, no chase.
+
+    Tells the timeouts apart: at 5 ms the watchdog's 0 A answers to these hiccups cost the
+    joint its holding current and the law's catch-up reached the current limit (2-6 samples
+    per run); at limits.MEASUREMENT_TIMEOUT_S (7 ms) none does.
+    """
+    m, stalls = cascade_run(seed, longest_ms=6)
+    rows = m.rows[1000:]
+    assert stalls > 50
+    assert not any(abs(r[1]) >= limits.CURRENT_LIMIT_A - 1e-9 for r in rows)
+    # a brake only where an ESO and a controller stall chained beyond the command timeout
+    assert m.assembly.resyncs <= 1
+    assert sum(r[2] for r in rows) <= m.assembly.resyncs * (RESYNC_SAMPLES + 20)
+    assert np.nanmax(np.abs([r[4] for r in rows])) < 3e-3
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('seed', range(4))
+def test_a_cascade_of_stalls_around_the_command_timeout_never_latches_or_chases_long(seed):
+    """Stalls of 1-12 ms in both nodes: the longer ones end in the resync, none in a chase.
+
+    The resyncs are the node's own silence beyond the drive's timeout (``command_gap``) as
+    well as its inputs' gaps. What is left at the limit (at most 10 samples in 2 s here) is a
+    controller stall right after a resync: the drive holds the law's first command meanwhile.
+    """
+    m, stalls = cascade_run(seed, longest_ms=12)
+    rows = m.rows[1000:]
+    assert stalls > 50
+    assert not any(r[3] is Status.LATCHED for r in rows)
+    assert m.assembly.gap_resyncs > 0
+    assert sum(abs(r[1]) >= limits.CURRENT_LIMIT_A - 1e-9 for r in rows) <= 10
+    assert np.nanmax(np.abs([r[4] for r in rows])) < 2e-2

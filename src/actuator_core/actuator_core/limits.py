@@ -83,9 +83,13 @@ COMMAND_TIMEOUT_S = 0.01
 #: holding brake: a short gap (a stalled controller) is no reason to brake a moving joint.
 BRAKE_DELAY_S = 0.05
 BRAKE_DELAY_RANGE_S = (0.0, 10.0)
-#: The controller safe-stops when its newest measurement or estimate is older than this [s].
-MEASUREMENT_TIMEOUT_S = 0.005
-ESTIMATE_TIMEOUT_S = 0.005
+#: The controller answers 0 A when its newest measurement or estimate is older than this [s].
+#: Until then the drive holds the last command, which its own gate bounds at COMMAND_TIMEOUT_S.
+#: 7 ms, not shorter: a 0 A answer to a host hiccup costs the joint the holding current for the
+#: rest of the gap, and the law's catch-up reaches the current limit (tests/test_recovery.py,
+#: host stalls of 1-6 ms in both nodes: 2-6 samples at the limit per 2 s at 5 ms, none at 7 ms).
+MEASUREMENT_TIMEOUT_S = 0.007
+ESTIMATE_TIMEOUT_S = 0.007
 TIMEOUT_RANGE_S = (1.0e-3, 10.0)
 #: The controller's graded answer to a stale input (README "Safety", recovery policy): up to
 #: the measurement/estimate timeout it sends nothing and the drive holds the last command;
