@@ -203,6 +203,28 @@ def test_a_brake_a_safe_stop_engaged_stays_until_the_law_commands_again() -> Non
     assert again.safe_stop is False  # graded again: 0 A without the brake first
 
 
+@pytest.mark.parametrize('age_ns, resyncs', [(10 * P, 0), (10 * P + 1, 1)])
+def test_a_watchdog_brake_resyncs_even_when_the_next_stamps_show_no_gap(age_ns, resyncs) -> None:
+    """The watchdog braked the joint: its next law sample takes the resync path, not the chase.
+
+    A stalled joint replays its samples and sends them at once: the stamps the law then runs on
+    are contiguous, yet the joint stood braked meanwhile. A 0 A answer without the brake (the
+    input exactly brake_after old) keeps the law going, saying RECOVERING.
+    """
+    a = assembly()
+    control(a, 0)
+    answer = a.watchdog(age_ns, 7 * P, 7 * P)
+    assert answer.safe_stop is bool(resyncs)
+    s = control(a, 1)
+    assert (a.resyncs, a.gap_resyncs) == (resyncs, resyncs)
+    assert s.status is (Status.RESYNC if resyncs else Status.RECOVERING)
+    assert s.safe_stop is bool(resyncs)
+    if resyncs:  # once resynced, the brake answer is spent: no second resync after the hold
+        for k in range(2, 1 + RESYNC_SAMPLES + 2):
+            s = control(a, k)
+        assert s.status is Status.RECOVERING and a.resyncs == 1
+
+
 def test_latched_assembly_has_no_watchdog_and_reset_clears_the_latch() -> None:
     """Latched: the watchdog is silent; reset: a new start that controls again."""
     a = assembly(following_error_limit_rad=0.1)

@@ -568,7 +568,8 @@ class ControllerNode(ManagedNode):
         if a.gap_resyncs != self.gap_resyncs:
             self.gap_resyncs = a.gap_resyncs
             self.get_logger().warning(
-                f'no law sample for more than {a.gap_limit_ns / 1e6:g} ms (the joint was braked): '
+                f'no law sample for more than {a.gap_limit_ns / 1e6:g} ms, or an input that old '
+                '(the joint was braked): '
                 'resync, 0 A and brake while the observer converges, then the reference restarts '
                 "from the joint's angle"
             )

@@ -28,9 +28,11 @@ Recovery policy (README "Safety"), every gap alike: a stale input is answered in
 the brake, and 0 A with the brake once the input is ``brake_after`` old; a brake a safe stop
 engaged (a resync, the watchdog's own) stays until the law commands again. When the law is to
 run again after more than ``gap_limit_samples`` (the drive's command timeout: the joint was
-braked by its gate or by this watchdog) without a law sample, or after the node itself sent
+braked by its gate or by this watchdog) without a law sample, after the node itself sent
 no command that long (``command_gap``: a stalled node sees no gap in the stamps it then reads),
-the resync path runs instead: no chase of the error the reference accumulated meanwhile.
+or after the watchdog braked the joint (an input that old: the stamps the law runs on next may
+show no gap, e.g. a stalled joint replaying its samples), the resync path runs instead: no
+chase of the error the reference accumulated meanwhile.
 After a resync, and after a shorter gap the watchdog answered, the law's samples say
 RECOVERING for ``RECOVERY_SAMPLES``, and always while |e| is outside the prescribed envelope:
 a state never says OK there. Ages are measured on the receiver's monotonic clock
@@ -118,6 +120,7 @@ class ControlSampleAssembly:
         self.estimate_received_ns: Optional[int] = None
         self.controlled_ns: Optional[int] = None  # stamp of the newest sample the law ran for
         self.stale_answered = False  # the watchdog answered a sample since the law's last one
+        self.brake_answered = False  # ... and one of its answers braked the joint
         self.recovering_until_ns: Optional[int] = None
         self.latched = False
         self.braking = False  # the newest command asked for the brake (safe_stop)
@@ -283,12 +286,14 @@ class ControlSampleAssembly:
         """Run the law for sample ``stamp``; latch on a non-finite output or a following error."""
         if self.latched is True:
             return self.safe_sample(stamp, Status.LATCHED, y)
-        if self.controlled_ns is not None and stamp - self.controlled_ns > self.gap_limit_ns:
+        if self.controlled_ns is not None and (
+            stamp - self.controlled_ns > self.gap_limit_ns or self.brake_answered
+        ):
             self.gap_resyncs += 1  # the joint was braked: no chase of what the reference ran on
             self.resync(stamp)
         elif self.stale_answered:
             self._recover_until(stamp)  # a short gap: the law goes on, saying RECOVERING
-        self.stale_answered = False
+        self.stale_answered = self.brake_answered = False
         if self.resync_until_ns is not None:
             if stamp < self.resync_until_ns:
                 return self.safe_sample(stamp, Status.RESYNC, y)
@@ -390,7 +395,9 @@ class ControlSampleAssembly:
             self.pending = None
             self.unanswered += 1
         self.stale_answered = True
-        return self.safe_sample(stamp, status, y, safe_stop=age > self.brake_after_ns)
+        sample = self.safe_sample(stamp, status, y, safe_stop=age > self.brake_after_ns)
+        self.brake_answered = self.brake_answered or sample.safe_stop
+        return sample
 
 
 def _same(a: tuple, b: tuple) -> bool:
