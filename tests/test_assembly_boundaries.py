@@ -15,6 +15,7 @@ import pytest
 
 from actuator_core.assembly import (
     PENDING_LIMIT,
+    first_rest_s,
     RESYNC_SAMPLES,
     ControlSampleAssembly,
     gap_limit_samples,
@@ -57,6 +58,32 @@ def test_resync_holds_exactly_resync_samples_then_restarts_from_the_joint() -> N
     assert s.output.error_rad == pytest.approx(0.0)
     nxt = control(a, base + RESYNC_SAMPLES + 1, 0.2)
     assert nxt.t_s == pytest.approx(1e-3) and a.resyncs == 1
+
+
+@pytest.mark.parametrize('kind', ['fast', 'slow', 'sine'])
+def test_a_restart_samples_the_reference_from_its_first_rest(kind) -> None:
+    """t_0 is the first sample where the planned velocity turns; the restart starts there, at rest.
+
+    The paper's trajectories start moving (fast: -0.35 rad/s); a braked joint restarted at
+    t = 0 would meet a velocity step. A reference at rest at t = 0 (a step) keeps t_0 = 0.
+    """
+    ref = make_reference(kind)
+    t0 = first_rest_s(ref, P)
+    k0 = round(t0 * 1e3)
+    v = [ref.sample(k * 1e-3).velocity_rad_s for k in range(k0 + 2)]
+    assert k0 > 0 and all((x > 0.0) == (v[0] > 0.0) for x in v[: k0 - 1])  # none turned before
+    assert (v[k0 - 1] > 0.0) != (v[k0 + 1] > 0.0)  # it turns around t0 ...
+    assert abs(v[k0]) <= min(abs(v[k0 - 1]), abs(v[k0 + 1]))  # ... and t0 is the nearer rest
+    v_at = v[k0]
+    assert first_rest_s(make_reference('step'), P) == 0.0
+    a = ControlSampleAssembly(make_controller('pp_nftsmc_eso'), ref, P)
+    control(a, 0)
+    control(a, 1000, 0.2, initial=True)
+    for k in range(1001, 1000 + RESYNC_SAMPLES + 1):
+        s = control(a, k, 0.2)
+    assert s.status is Status.RECOVERING and s.t_s == 0.0
+    assert s.reference.position_rad == pytest.approx(0.2)
+    assert s.reference.velocity_rad_s == pytest.approx(v_at)
 
 
 def test_a_second_restart_during_a_resync_does_not_extend_or_count_it() -> None:

@@ -251,20 +251,22 @@ def test_a_cascade_of_host_hiccups_shorter_than_the_input_timeouts_costs_no_curr
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize('seed', range(4))
+@pytest.mark.parametrize('seed', range(8))
 def test_a_cascade_of_stalls_around_the_command_timeout_never_latches_or_chases_long(seed):
     """Stalls of 1-12 ms in the three nodes: the longer ones end in the resync, none in a chase.
 
     The resyncs are the controller's own silence beyond the drive's timeout (``command_gap``),
     its inputs' gaps and the watchdog's brake (a joint replaying its samples shows no gap in
-    the stamps). What is left at the limit (0-5 samples in 2 s here) is a stall of the joint
-    or the controller right after a resync: the drive holds the law's first command, which
-    accelerates the joint onto the restarted reference, meanwhile.
+    the stamps). abs(e) stays under 5e-3 rad throughout: the restart onto the reference's first
+    rest (``first_rest_s``); restarted at t = 0 instead, onto a reference already moving at
+    -0.35 rad/s, 2 of these 8 runs passed it (5.1e-3, 1.2e-2 rad) and 4 more came within 5 %
+    of it (4.8e-3 to 5.0e-3; at most 3.9e-3 with the restart at rest). Samples at the limit (0 in 7
+    runs, 12 in one) are where the drive held a command through chained stalls.
     """
     m, stalls = cascade_run(seed, longest_ms=12)
     rows = m.rows[1000:]
     assert stalls > 80
     assert not any(r[3] is Status.LATCHED for r in rows)
     assert m.assembly.gap_resyncs > 0
-    assert sum(abs(r[1]) >= limits.CURRENT_LIMIT_A - 1e-9 for r in rows) <= 10
-    assert np.nanmax(np.abs([r[4] for r in rows])) < 2e-2
+    assert sum(abs(r[1]) >= limits.CURRENT_LIMIT_A - 1e-9 for r in rows) <= 15
+    assert np.nanmax(np.abs([r[4] for r in rows])) < 5e-3

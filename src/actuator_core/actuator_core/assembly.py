@@ -15,7 +15,9 @@ following-error limit latches 0 A until ``reset``; ``watchdog`` answers stale in
 was silent for more than ``RESYNC_GAP_SAMPLES``) the command
 is 0 A with safe stop (the drive's brake holds the joint) for ``resync_samples``, while the
 observer converges on the new samples, and then the reference and the law restart from the
-joint's angle: y_d(t - t_r) + q(t_r), so the run goes on as it would from a standstill. A
+joint's angle at the reference's first rest t_0 (``first_rest_s``): y_d(t - t_r + t_0) -
+y_d(t_0) + q(t_r), so a braked joint starts onto a reference at rest, not one already moving
+(the paper's trajectory starts at -0.35 rad/s: a step the law answered at the limit). A
 controller (re)started while the joint is away from y_d(0) starts its reference there too.
 
 Bound to what it saw (actuator_core.binding): an estimate counts only for the newest
@@ -65,6 +67,8 @@ RECOVERY_SAMPLES = RESYNC_SAMPLES
 CONFLICTED = ('conflicted',)
 #: An estimate may be stamped up to this many samples after the newest measurement seen.
 ESTIMATE_AHEAD_SAMPLES = 1
+#: How far [s] a restart looks for the reference's first rest (``first_rest_s``).
+REST_HORIZON_S = 1.0
 
 
 def gap_limit_samples(period_ns: int) -> int:
@@ -103,6 +107,7 @@ class ControlSampleAssembly:
         self.law = law
         self.reference = reference
         self.reference_offset_rad = None  # set by a restart after a resync
+        self.reference_shift_s = 0.0  # t_0: a restart samples the reference from its first rest
         self.period_ns = period_ns
         self.needs_estimate = needs_estimate
         self.following_error_limit_rad = following_error_limit_rad
@@ -298,7 +303,10 @@ class ControlSampleAssembly:
             if stamp < self.resync_until_ns:
                 return self.safe_sample(stamp, Status.RESYNC, y)
             self.resync_until_ns = None
-            self.reference_offset_rad = y - self.reference.sample(0.0).position_rad
+            self.reference_shift_s = first_rest_s(self.reference, self.period_ns)
+            self.reference_offset_rad = (
+                y - self.reference.sample(self.reference_shift_s).position_rad
+            )
             self.law.reset()
             self.start_ns = stamp
             self._recover_until(stamp)
@@ -311,7 +319,7 @@ class ControlSampleAssembly:
             ):  # a restarted controller; the paper's runs start at 0 = y_d(0)
                 self.reference_offset_rad = offset
         t = sample_time_s(stamp - self.start_ns)
-        ref = self.reference.sample(t)
+        ref = self.reference.sample(t + self.reference_shift_s)
         if self.reference_offset_rad is not None:
             ref = ref._replace(position_rad=ref.position_rad + self.reference_offset_rad)
         out = self.law.update(t, y, estimate[0], estimate[1], ref)
@@ -398,6 +406,25 @@ class ControlSampleAssembly:
         sample = self.safe_sample(stamp, status, y, safe_stop=age > self.brake_after_ns)
         self.brake_answered = self.brake_answered or sample.safe_stop
         return sample
+
+
+def first_rest_s(reference, period_ns: int, horizon_s: float = REST_HORIZON_S) -> float:
+    """Return t_0 [s]: the sample nearest rest where the reference's velocity first turns.
+
+    0 when it starts at rest, when it does not turn within ``horizon_s`` (a ramp: restart it
+    as it is) or for a batch (velocities an array): a restart there keeps y_d(t - t_r).
+    """
+    v0 = reference.sample(0.0).velocity_rad_s
+    if not _scalar(v0) or v0 == 0.0:
+        return 0.0
+    dt = period_ns * 1e-9
+    before = v0
+    for k in range(1, int(round(horizon_s / dt)) + 1):
+        v = reference.sample(k * dt).velocity_rad_s
+        if v == 0.0 or (v > 0.0) != (v0 > 0.0):  # turned: the sample of the two nearer rest
+            return k * dt if abs(v) <= abs(before) else (k - 1) * dt
+        before = v
+    return 0.0
 
 
 def _same(a: tuple, b: tuple) -> bool:
