@@ -154,27 +154,50 @@ def test_a_node_silent_beyond_the_command_timeout_resyncs(silent_ns: int, resync
     """No gap in the stamps, but no command sent for longer than the drive's timeout: resync."""
     a = assembly()
     control(a, 0)
-    a.command_gap(P, silent_ns)
+    a.command_gap(silent_ns)
     s = control(a, 1)
     assert (a.resyncs, a.gap_resyncs) == (resyncs, resyncs)
     assert s.status is (Status.RESYNC if resyncs else Status.OK)
     assert s.safe_stop is bool(resyncs)
 
 
+def test_a_stall_the_watchdog_notices_first_holds_the_whole_resync() -> None:
+    """The resync of a stall starts at the next law sample, not at the stamp from before it.
+
+    The controller's watchdog timer may run first when the node wakes: the newest stamp it has
+    is from before the stall, and a hold counted from there (seen on the running loop: a 60 ms
+    stall) was over at once, so the law restarted 1 ms later with no hold and no brake.
+    """
+    a = assembly()
+    for k in range(6):
+        control(a, k)
+    a.command_gap(60 * P)  # woke after 60 ms: no measurement of after the stall yet
+
+    def measured_then_estimated(k):
+        a.add_measurement(k * P, 0.0)
+        return a.add_estimate(k * P, 0.0, 0.0)
+
+    held = [measured_then_estimated(60 + i) for i in range(RESYNC_SAMPLES)]
+    assert all(s.status is Status.RESYNC and s.safe_stop for s in held)
+    restart = measured_then_estimated(60 + RESYNC_SAMPLES)
+    assert restart.status is Status.RECOVERING and restart.t_s == 0.0
+    assert (a.resyncs, a.gap_resyncs) == (1, 1)
+
+
 def test_a_silence_the_watchdog_allows_by_design_is_no_stall() -> None:
     """Long stale timeouts (the joint holds its command): silence within them resyncs nothing."""
     a = assembly()
     control(a, 0)
-    a.command_gap(P, 50 * P, quiet_ns=75 * P)
+    a.command_gap(50 * P, quiet_ns=75 * P)
     assert control(a, 1).status is not Status.RESYNC and a.resyncs == 0
-    a.command_gap(2 * P, 75 * P + 1, quiet_ns=75 * P)
+    a.command_gap(75 * P + 1, quiet_ns=75 * P)
     assert control(a, 2).status is Status.RESYNC and a.gap_resyncs == 1
 
 
 def test_silence_before_the_first_law_sample_is_no_gap() -> None:
     """A node that never controlled (or is resyncing already) has nothing to resync."""
     a = assembly()
-    a.command_gap(0, 10 * GAP * P)
+    a.command_gap(10 * GAP * P)
     assert control(a, 0).status is not Status.RESYNC and a.resyncs == 0
 
 

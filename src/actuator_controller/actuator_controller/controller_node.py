@@ -291,7 +291,7 @@ class ControllerNode(ManagedNode):
         self.newest: tuple | None = None  # timer trigger: (stamp, y) of the newest measurement
         self.conflict = ''
         self.status = Status.WAITING
-        self.late = self.refused = self.stale_events = self.gap_resyncs = 0
+        self.late = self.refused = self.stale_events = self.gap_resyncs = self.resyncs = 0
         self.refusals: dict[str, int] = {}  # by reason, for /diagnostics
         self.measurements_in = self.estimates_in = 0
         self.envelope_restarts = 0
@@ -408,13 +408,13 @@ class ControllerNode(ManagedNode):
     def _take_measurement(self, stamp: int, y: float) -> None:
         """Hand y(k) to the assembly; log a resync it started."""
         started = time.perf_counter_ns()
-        self._after_silence(stamp, started)
+        self._after_silence(started)
         self._control(self.assembly.add_measurement(stamp, y, self.received_mono_ns), started)
 
-    def _after_silence(self, stamp: int, now_ns: int) -> None:
+    def _after_silence(self, now_ns: int) -> None:
         """Real time: tell the assembly how long this node sent no command (a stall of its own)."""
         if self.mode == 'realtime' and self.command_done_ns is not None:
-            self.assembly.command_gap(stamp, now_ns - self.command_done_ns, self.quiet_ns)
+            self.assembly.command_gap(now_ns - self.command_done_ns, self.quiet_ns)
 
     def on_estimate(self, msg: StateEstimate) -> None:
         """x_hat(k): every field checked against its physical range, then the assembly."""
@@ -473,7 +473,7 @@ class ControllerNode(ManagedNode):
         if verdict is Verdict.OLD and not msg.initial:
             return
         started = time.perf_counter_ns()
-        self._after_silence(stamp, started)
+        self._after_silence(started)
         sample = self.assembly.add_estimate(
             stamp, x2, x3, stamp_to_ns(msg.input_stamp), u, gain, msg.initial, self._received()
         )
@@ -503,9 +503,8 @@ class ControllerNode(ManagedNode):
         now = (
             self.clock.now_ns() if self.mode == 'realtime' else self.get_clock().now().nanoseconds
         )
-        newest = self.assembly.newest_measurement_ns
-        if newest is not None:  # a stall of this node ends here first when the timer runs first
-            self._after_silence(newest, time.perf_counter_ns())
+        if self.assembly.newest_measurement_ns is not None:  # a stall of this node may end here
+            self._after_silence(time.perf_counter_ns())
         sample = self.assembly.watchdog(now, self.measurement_timeout_ns, self.estimate_timeout_ns)
         if sample is None:
             return
@@ -565,6 +564,8 @@ class ControllerNode(ManagedNode):
     def _log_recovery(self, sample: ControlSample) -> None:
         """Say when a resync starts, when RECOVERING starts and when it ends."""
         a = self.assembly
+        started = a.resyncs != self.resyncs  # one line per resync episode the assembly began
+        self.resyncs = a.resyncs
         if a.gap_resyncs != self.gap_resyncs:
             self.gap_resyncs = a.gap_resyncs
             self.get_logger().warning(
@@ -573,7 +574,7 @@ class ControllerNode(ManagedNode):
                 'resync, 0 A and brake while the observer converges, then the reference restarts '
                 "from the joint's angle"
             )
-        elif sample.status is Status.RESYNC and self.status is not Status.RESYNC:
+        elif started:
             self.get_logger().warning(
                 'the observer restarted or the time base jumped: resync, 0 A and brake while '
                 "the observer converges, then the reference restarts from the joint's angle"

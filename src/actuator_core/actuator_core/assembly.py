@@ -126,6 +126,7 @@ class ControlSampleAssembly:
         self.controlled_ns: Optional[int] = None  # stamp of the newest sample the law ran for
         self.stale_answered = False  # the watchdog answered a sample since the law's last one
         self.brake_answered = False  # ... and one of its answers braked the joint
+        self.stalled = False  # the node itself sent nothing beyond the drive's timeout
         self.recovering_until_ns: Optional[int] = None
         self.latched = False
         self.braking = False  # the newest command asked for the brake (safe_stop)
@@ -226,17 +227,19 @@ class ControlSampleAssembly:
             self.pending = None
         self.controlled_ns = None
 
-    def command_gap(self, stamp_ns: int, silent_ns: int, quiet_ns: int = 0) -> None:
+    def command_gap(self, silent_ns: int, quiet_ns: int = 0) -> None:
         """Take note that no command went out for ``silent_ns`` [ns] (a stall of this node).
 
         Its stamps show no gap then. ``quiet_ns``: the longest this node is silent by design
         (its watchdog answers a stale input within its timeout and one period). A silence
         beyond both that and the drive's command timeout is a stall, and the joint was braked:
-        sample ``stamp_ns`` takes the resync path instead of chasing the reference.
+        the next sample the law is to run for takes the resync path instead of chasing the
+        reference (that sample, not the newest seen: the watchdog's timer may notice the stall
+        first, when the newest stamp is from before it, and a hold counted from there would
+        be over before it began).
         """
         if silent_ns > max(self.gap_limit_ns, quiet_ns) and self.controlled_ns is not None:
-            self.gap_resyncs += 1
-            self.resync(stamp_ns)
+            self.stalled = True  # the resync starts at the sample the law is to run for next
 
     def reset(self) -> None:
         """Clear the latch and start over (lifecycle: cleanup and configure)."""
@@ -292,13 +295,13 @@ class ControlSampleAssembly:
         if self.latched is True:
             return self.safe_sample(stamp, Status.LATCHED, y)
         if self.controlled_ns is not None and (
-            stamp - self.controlled_ns > self.gap_limit_ns or self.brake_answered
+            stamp - self.controlled_ns > self.gap_limit_ns or self.brake_answered or self.stalled
         ):
             self.gap_resyncs += 1  # the joint was braked: no chase of what the reference ran on
             self.resync(stamp)
         elif self.stale_answered:
             self._recover_until(stamp)  # a short gap: the law goes on, saying RECOVERING
-        self.stale_answered = self.brake_answered = False
+        self.stale_answered = self.brake_answered = self.stalled = False
         if self.resync_until_ns is not None:
             if stamp < self.resync_until_ns:
                 return self.safe_sample(stamp, Status.RESYNC, y)
