@@ -101,3 +101,18 @@ def test_the_float32_references_of_these_tests_do_round(values):
     """The RMS of each float32 input taken in float32 is off its double value by > rel 1e-12."""
     single = float(np.sqrt(np.mean(np.square(values))))
     assert single != pytest.approx(_rms(values), rel=1e-12, abs=0.0)
+
+
+def test_an_infinite_current_is_reported_not_dropped():
+    """A sample that commanded +-inf A shows in max |u| and RMS; only NaN (no command) is left out.
+
+    Before, every non-finite current was dropped, so a run that sent inf A looked normal.
+    """
+    t = np.array([0.0, 1e-3, 2e-3, 3e-3])
+    error = np.zeros(4)
+    current = np.array([1.0, -np.inf, np.nan, 2.0])
+    m = compute_run_metrics(t, error, current)
+    assert m.max_abs_current_a == np.inf and m.rms_current_a == np.inf
+    calm = compute_run_metrics(t, error, np.array([1.0, -2.0, np.nan, 2.0]))
+    assert calm.max_abs_current_a == 2.0
+    assert calm.rms_current_a == pytest.approx(np.sqrt((1.0 + 4.0 + 4.0) / 3.0), rel=1e-12)

@@ -79,7 +79,8 @@ def compute_run_metrics(
         violations = int(np.count_nonzero(~inside))
     else:
         violations = 0
-    finite_current = current[np.isfinite(current)]
+    # NaN: no command in that sample (the law did not run); an infinite one is a figure, kept
+    commanded = current[~np.isnan(current)]
     return RunMetrics(
         duration_s=float(t[-1] - t[0]),
         samples=int(t.size),
@@ -90,8 +91,8 @@ def compute_run_metrics(
         else float(np.max(np.abs(error[steady]))),
         rms_steady_error_rad=nan if diverged else _rms(error[steady]),
         rms_error_rad=nan if diverged else _rms(error),
-        max_abs_current_a=float(np.max(np.abs(finite_current))) if finite_current.size else nan,
-        rms_current_a=_rms(finite_current),
+        max_abs_current_a=float(np.max(np.abs(commanded))) if commanded.size else nan,
+        rms_current_a=_rms(commanded),
         saturated_fraction=float(np.mean(saturated)) if saturated is not None else 0.0,
         bounds_kept=(not diverged) and violations == 0,
         bounds_violations=violations,
