@@ -21,11 +21,41 @@ def test_soft_limits_refuse_an_angle_outside_and_a_speed_beyond():
         JointSettings(position_min_rad=-1.0, position_max_rad=2.0, velocity_max_rad_s=5.0)
     )
     assert s.check(0, 0.0) == '' and s.check(P, 0.004) == ''  # 4 rad/s
-    assert 'speed 6.00 rad/s beyond the soft limit 5' in s.check(2 * P, 0.010)
+    assert s.check(2 * P, 0.010) == ''  # 6 rad/s in this sample, 5 over the window so far
+    assert 'speed 5.33 rad/s over 3 ms beyond the soft limit 5' in s.check(3 * P, 0.016)
     s.reset()
     assert s.check(10 * P, 1.0) == ''  # after a reset the first sample has no speed
     assert 'outside the soft limits [-1, 2] rad' in s.check(11 * P, 2.0001)
     assert 'outside the soft limits' in s.check(12 * P, -1.5)
+
+
+def test_the_soft_speed_limit_judges_a_window_not_a_lagging_sample():
+    """Feedback that lags 28 samples and catches up in one is no overspeed; 25 rad/s is.
+
+    At 5 rad/s the catch-up sample alone implies 145 rad/s (what ended control of the CiA 402
+    loop on a loaded host); over the 20 ms window it is the true speed plus the lag's share.
+    """
+    assert limits.SOFT_VELOCITY_WINDOW_S == 0.02
+    windowed, one_sample = SoftLimits(JointSettings()), SoftLimits(JointSettings(), 0.0)
+    tripped = []
+    for k in range(100):
+        y = 5.0 * (39 if 40 <= k < 68 else k) * 1e-3  # the position of sample 39 until 68
+        assert windowed.check(k * P, y) == '', k
+        if one_sample.check(k * P, y):
+            tripped.append(k)
+    assert tripped[:1] == [68]  # judged sample by sample, the catch-up is 145 rad/s
+    fast = SoftLimits(JointSettings())
+    verdicts = [fast.check(k * P, 25.0 * k * 1e-3) for k in range(30)]
+    assert verdicts[0] == '' and 'speed 25.00 rad/s over 1 ms' in verdicts[1]
+    rising = SoftLimits(JointSettings())  # a runaway from 10 rad/s at 1000 rad/s^2
+    y, speed, tripped = 0.0, 10.0, None
+    for k in range(200):
+        y += speed * 1e-3
+        speed += 1000.0 * 1e-3
+        if rising.check(k * P, y):
+            tripped = speed
+            break
+    assert tripped is not None and tripped <= 20.0 + 1000.0 * limits.SOFT_VELOCITY_WINDOW_S
 
 
 def test_joint_settings_refuse_an_empty_window_and_a_zero_current_limit():

@@ -26,6 +26,7 @@ Everything is SI (REP-103): rad, N m at the joint (output) shaft, A, integer ns 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections import deque
 from dataclasses import dataclass
 from typing import NamedTuple, Optional
 
@@ -153,7 +154,7 @@ class JointSettings:
     )
     velocity_max_rad_s: float = spec(
         limits.VELOCITY_LIMIT_RAD_S,
-        'soft limit: beyond this speed (from successive samples) the joint is braked',
+        'soft limit: beyond this speed (over the last 20 ms of samples) the joint is braked',
         'rad/s',
         0.0,
         limits.VELOCITY_LIMIT_RAD_S,
@@ -173,29 +174,40 @@ class JointSettings:
 class SoftLimits:
     """Position and velocity soft limits of the joint, checked on each sample it produces."""
 
-    def __init__(self, settings: JointSettings):
-        """Limits from ``settings``; the velocity is the difference of successive samples."""
+    def __init__(self, settings: JointSettings, window_s: float = limits.SOFT_VELOCITY_WINDOW_S):
+        """Limits from ``settings``; the speed is the angle's change over ``window_s`` [s]."""
         self.low, self.high = settings.position_min_rad, settings.position_max_rad
         self.velocity_max = settings.velocity_max_rad_s
-        self._last: Optional[tuple[int, float]] = None
+        self.window_ns = int(round(window_s * 1e9))
+        self._history: deque[tuple[int, float]] = deque()
 
     def reset(self) -> None:
-        """Forget the previous sample (after a restart of sampling)."""
-        self._last = None
+        """Forget the previous samples (after a restart of sampling)."""
+        self._history.clear()
 
     def check(self, stamp_ns: int, position_rad: float) -> str:
-        """Return '' within the limits, else the reason (the node then brakes the joint)."""
-        last, self._last = self._last, (stamp_ns, position_rad)
+        """Return '' within the limits, else the reason (the node then brakes the joint).
+
+        The speed: from the newest sample at least the window old (the oldest kept before
+        that) to this one.
+        """
         if not self.low <= position_rad <= self.high:
+            self._history.append((stamp_ns, position_rad))
             return (
                 f'joint angle {position_rad:.4f} rad outside the soft limits '
                 f'[{self.low:g}, {self.high:g}] rad'
             )
-        if last is not None and stamp_ns > last[0]:
-            speed = abs(position_rad - last[1]) / ((stamp_ns - last[0]) * 1e-9)
+        history = self._history
+        while len(history) > 1 and history[1][0] <= stamp_ns - self.window_ns:
+            history.popleft()
+        base = history[0] if history else None
+        history.append((stamp_ns, position_rad))
+        if base is not None and stamp_ns > base[0]:
+            speed = abs(position_rad - base[1]) / ((stamp_ns - base[0]) * 1e-9)
             if speed > self.velocity_max:
+                span_ms = (stamp_ns - base[0]) / 1e6
                 return (
-                    f'joint speed {speed:.2f} rad/s beyond the soft limit '
+                    f'joint speed {speed:.2f} rad/s over {span_ms:g} ms beyond the soft limit '
                     f'{self.velocity_max:g} rad/s'
                 )
         return ''

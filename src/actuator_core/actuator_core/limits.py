@@ -50,6 +50,12 @@ POSITION_LIMIT_RAD = 100.0
 #: last accepted one implies more is refused, and so is an estimate's x2_hat beyond it, before
 #: and after the correction of a substituted current.
 VELOCITY_LIMIT_RAD_S = 20.0
+#: The joint's soft speed limit judges the angle's change over this window [s], not over one
+#: sample: feedback that lags for some samples and then catches up in one (a drive's TPDOs
+#: delayed on a loaded bus: 10-30 samples seen through the simulated drive's hub) implies
+#: (lag + 1) times the true speed in that sample, 66-143 rad/s at 5 rad/s, and ended control
+#: of a joint that never exceeded 9 rad/s. A real overspeed is judged at most one window late.
+SOFT_VELOCITY_WINDOW_S = 0.02
 #: theta_1n * I_max: the acceleration the current limit can command [rad/s^2] (629).
 CURRENT_ACCELERATION_RAD_S2 = THETA1N * CURRENT_LIMIT_A
 #: |x3_hat| beyond this [rad/s^2] is refused: 4 times what the current limit can compensate
