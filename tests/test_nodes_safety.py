@@ -15,6 +15,16 @@ pytestmark = pytest.mark.usefixtures('rclpy_context')
 #: Managed nodes configure and activate themselves,
 #: as `ros2 run ... --ros-args -p autostart:=true` does.
 AUTOSTART = ['--ros-args', '-p', 'autostart:=true']
+#: The NFTSMC-ESO controller with 5 s input timeouts: its watchdog sends nothing during a test.
+NFTSMC_QUIET_WATCHDOG = [
+    '--ros-args',
+    '-p',
+    'controller:=nftsmc_eso',
+    '-p',
+    'measurement_timeout_s:=5.0',
+    '-p',
+    'estimate_timeout_s:=5.0',
+]
 
 
 from ros_helpers import LATCHING_CONTROLLER_ARGS, Harness, run_off  # noqa: E402
@@ -105,20 +115,8 @@ def test_controller_corrects_an_estimate_integrated_with_a_substituted_current(
 
     x2_hat gains 1 A * gain.
     """
-    ctrl = ros_process(
-        'actuator_controller',
-        'controller_node',  # long timeouts: no watchdog command between
-        [
-            '--ros-args',
-            '-p',
-            'autostart:=true',
-            '-p',
-            'controller:=nftsmc_eso',
-            '-p',
-            'measurement_timeout_s:=5.0',
-            '-p',
-            'estimate_timeout_s:=5.0',
-        ],
+    ctrl = ros_process(  # long timeouts: no watchdog command between
+        'actuator_controller', 'controller_node', NFTSMC_QUIET_WATCHDOG + ['-p', 'autostart:=true']
     )
     harness.wait_for(
         lambda: harness.node.count_subscribers('joint_states') >= 1, what='controller subscription'
@@ -420,19 +418,7 @@ def test_lifecycle_transitions_and_parameters_read_at_configure(harness, ros_pro
     from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
     from rcl_interfaces.srv import SetParameters
 
-    ctrl = ros_process(
-        'actuator_controller',
-        'controller_node',
-        [
-            '--ros-args',
-            '-p',
-            'controller:=nftsmc_eso',
-            '-p',
-            'measurement_timeout_s:=5.0',
-            '-p',
-            'estimate_timeout_s:=5.0',
-        ],
-    )
+    ctrl = ros_process('actuator_controller', 'controller_node', NFTSMC_QUIET_WATCHDOG)
     parameters = harness.node.create_client(SetParameters, '/actuator_controller/set_parameters')
 
     def state():
