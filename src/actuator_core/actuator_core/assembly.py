@@ -107,7 +107,8 @@ class ControlSampleAssembly:
         self.law = law
         self.reference = reference
         self.reference_offset_rad = None  # set by a restart after a resync
-        self.reference_shift_s = 0.0  # t_0: a restart samples the reference from its first rest
+        self.reference_shift_s = 0.0  # t_0 once a resync restarted the reference
+        self.rest_s = first_rest_s(reference, period_ns)  # the reference's first rest t_0
         self.period_ns = period_ns
         self.needs_estimate = needs_estimate
         self.following_error_limit_rad = following_error_limit_rad
@@ -306,7 +307,7 @@ class ControlSampleAssembly:
             if stamp < self.resync_until_ns:
                 return self.safe_sample(stamp, Status.RESYNC, y)
             self.resync_until_ns = None
-            self.reference_shift_s = first_rest_s(self.reference, self.period_ns)
+            self.reference_shift_s = self.rest_s
             self.reference_offset_rad = (
                 y - self.reference.sample(self.reference_shift_s).position_rad
             )
