@@ -224,10 +224,13 @@ def test_plant_refuses_bad_commands_and_drops_to_zero_when_commands_stop(harness
     def sample_ns():  # a command answers a sample the plant published
         return sample_ns_of(harness.got['truth'][-1])
 
+    flowing = len(harness.got['truth'])
     for _ in range(20):
         harness.send_command(sample_ns(), 2.0)
         harness.spin(0.002)
-    assert held_current() == 2.0
+    # applied while the commands came (read after them, a host stall beyond the 10 ms timeout
+    # made it 0 A on one CI run)
+    assert 2.0 in [t.current_a for t in harness.got['truth'][flowing:]]
     harness.spin(0.1)  # commands stopped: 0 A after the timeout
     assert held_current() == 0.0
     for bad in (float('nan'), float('inf'), 1.0e6):
