@@ -164,6 +164,8 @@ class JointNode(ManagedNode):
         self.stopped_reason = ''  # why control ended on the joint side (fault, soft limit)
         self.fault = ''  # a joint fault: error processing follows
         self.lockstep_timeouts = 0
+        self.skipped_cycles = 0  # realtime, a real joint: cycles the host was too late to run
+        self.lost_feedback = 0  # cycles the joint read no sample (a missed TPDO)
         self.refused = 0
         self.binding.reset()
         self.soft_limits.reset()
@@ -315,6 +317,7 @@ class JointNode(ManagedNode):
                     while self.sample_index < due and self._cycle(self.sample_index + 1):
                         pass
                 elif due > self.sample_index:  # a real joint: missed cycles are skipped
+                    self.skipped_cycles += due - self.sample_index - 1
                     self._cycle(due)
         except Exception as exc:  # noqa: BLE001 - reported by run_node, never lost with the thread
             self.error = f'sampling thread failed: {exc!r}'
@@ -339,7 +342,8 @@ class JointNode(ManagedNode):
         sample = self.joint.read(stamp_ns)
         self.sample_index = k
         if sample is None:
-            return True  # lost feedback: the joint kind counts it; nothing to publish
+            self.lost_feedback += 1
+            return True  # lost feedback: the joint kind says why; nothing to publish
         problem = sample.fault or self.soft_limits.check(stamp_ns, sample.position_rad)
         if problem:
             self._end_control(problem, fault=bool(sample.fault))
@@ -424,7 +428,8 @@ class JointNode(ManagedNode):
         self.get_logger().info(
             f'stopped at sample {self.sample_index}; refused commands {self.gate.refused} by '
             f'value and {self.refused} by stamp, command timeouts {self.gate.timeouts}, '
-            f'lockstep timeouts {self.lockstep_timeouts}'
+            f'lockstep timeouts {self.lockstep_timeouts}; cycles skipped by host stalls '
+            f'{self.skipped_cycles}, cycles without feedback {self.lost_feedback}'
         )
 
     def health_monitor(self) -> HealthMonitor:
