@@ -102,7 +102,10 @@ def _run_loop(ros_process, seconds: float):
     return ros_process(
         'actuator_tools',
         'bringup',
-        ['--mode', 'realtime', '--duration', str(seconds), '--no-record'],
+        # sim (lockstep): every sample is controlled whatever the host's load, so what is judged
+        # is the view; in real time a loaded 2-core host can keep the loop in RESYNC/STALE most of
+        # a run (one run here: 4 of 360 states OK).
+        ['--mode', 'sim', '--duration', str(seconds), '--no-record'],
     )
 
 
@@ -162,7 +165,9 @@ def test_a_foxglove_client_sees_the_loop_decimated_stop_and_restart(ros_env, ros
     assert seconds > 2.5 and 0.6 * RATE_HZ <= (n - 1) / seconds <= 1.05 * RATE_HZ, spans
     assert all((n - 1) / s <= 1.05 * RATE_HZ for n, s in spans), spans
     full = _bursts(got.times('/joint_states'), gap_s=2.0)
-    assert all(len(f) > 8 * len(b) for f, b in zip(full, bursts))  # full rate on request
+    # full rate on request: every sample the lockstep made (sim runs at 0.3-0.5x real time
+    # here: 3330-3921 of 4000 forwarded, 6-9x the decimated count)
+    assert len(full) == 2 and all(len(f) > 4 * len(b) for f, b in zip(full, bursts)), spans
 
     states = [m for _, m in got.messages['/controller/state']]
     ok = [m for m in states if m.status == 0]  # decoded: controlled samples, in their bounds

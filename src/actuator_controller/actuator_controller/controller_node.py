@@ -44,22 +44,16 @@ from actuator_core.stats import percentiles
 from actuator_core.status import Status
 from actuator_core.timebase import StampCheck, Verdict
 from actuator_core.timing import period_ns, stamp_to_ns
-from actuator_controller.laws import CONTROLLER_NAMES, GAINS_BY_NAME, CommonConfig, make_controller
+from actuator_controller.controller_parameters import declare_controller_parameters
+from actuator_controller.controller_state import fill_controller_state
+from actuator_controller.laws import make_controller
 from actuator_controller.reference import make_reference
 from actuator_msgs.msg import ControllerState, CurrentCommand, StateEstimate
 from actuator_ros.conversions import joint_position, ns_to_stamp
 from actuator_ros.diagnostics import NodeDiagnostics
 from actuator_ros.guard import GraphGuard
 from actuator_ros.node import ManagedNode
-from actuator_ros.parameters import (
-    ParameterError,
-    declare_choice,
-    declare_number,
-    declare_output_path,
-    declare_spec_parameters,
-    declare_text,
-)
-from actuator_ros.qos import MODES, control_qos
+from actuator_ros.qos import control_qos
 from actuator_ros.runner import run_node
 from rclpy.clock import Clock as RosClock
 from rclpy.clock import ClockType
@@ -67,54 +61,11 @@ from sensor_msgs.msg import JointState
 
 NODE_NAME = 'actuator_controller'
 STEADY = ClockType.STEADY_TIME
-#: What clocks the control update (README "Nodes and topic contract").
-TRIGGERS = ('measurement', 'timer')
 #: Inputs (matched events), and the output: another publisher on current_command drives the
 #: joint beside this node (polled: this node does not subscribe it).
 INPUT_TOPICS = ('joint_states', 'eso/estimate')
 OUTPUT_TOPICS = ('current_command',)
 WATCHED_TOPICS = INPUT_TOPICS + OUTPUT_TOPICS
-NAN = float('nan')
-#: ControllerState fields only a control update computes: NaN on a safe-stop sample.
-LAW_FIELDS = (
-    'reference_position_rad',
-    'reference_velocity_rad_s',
-    'reference_acceleration_rad_s2',
-    'estimated_velocity_rad_s',
-    'estimated_disturbance_rad_s2',
-    'error_rad',
-    'rho_rad',
-    'lower_bound_rad',
-    'upper_bound_rad',
-    'z1',
-    'z2_rad_s',
-    'alpha_rad_s',
-    'alpha_dot_rad_s2',
-    'sigma_rad_s',
-    'u_eq_rad_s2',
-    'u_sw_rad_s2',
-    'u_b_rad_s2',
-    'proportional_a',
-    'integral_a',
-    'current_unlimited_a',
-)
-OUTPUT_FIELDS = (
-    'error_rad',
-    'rho_rad',
-    'lower_bound_rad',
-    'upper_bound_rad',
-    'z1',
-    'z2_rad_s',
-    'alpha_rad_s',
-    'alpha_dot_rad_s2',
-    'sigma_rad_s',
-    'u_eq_rad_s2',
-    'u_sw_rad_s2',
-    'u_b_rad_s2',
-    'proportional_a',
-    'integral_a',
-    'current_unlimited_a',
-)
 
 
 class ControllerNode(ManagedNode):
@@ -126,138 +77,30 @@ class ControllerNode(ManagedNode):
 
     def load_parameters(self) -> None:
         """Declare (or read again at configure) and check every parameter."""
-        self.mode = declare_choice(
-            self, 'mode', 'realtime', MODES, 'realtime: wall clock; sim: /clock lockstep'
-        )
-        self.name = declare_choice(
-            self, 'controller', 'pp_nftsmc_eso', CONTROLLER_NAMES, 'control law'
-        )
-        self.gains = declare_spec_parameters(
-            self, GAINS_BY_NAME[self.name], prefix=f'{self.name}.'
-        )
-        dt_s = declare_number(
-            self,
-            'sample_time_s',
-            limits.SAMPLE_TIME_S,
-            *limits.SAMPLE_TIME_RANGE_S,
-            's',
-            'sample period of the sensor and of the control law',
-        )
-        limit = declare_number(
-            self,
-            'current_limit_a',
-            limits.CURRENT_LIMIT_A,
-            *limits.CURRENT_LIMIT_RANGE_A,
-            'A',
-            'the commanded current is limited to +-this value',
-        )
-        self.common = declare_spec_parameters(
-            self,
-            CommonConfig,
-            prefix='common.',
-            exclude=('dt_s', 'current_limit_a'),
-            dt_s=dt_s,
-            current_limit_a=limit,
-        )
-        self.kind = declare_choice(
-            self, 'reference', 'fast', ('slow', 'fast', 'step', 'sine'), 'reference trajectory'
-        )
-        self.amplitude = declare_number(
-            self, 'reference_amplitude_rad', 0.1, -10.0, 10.0, 'rad', 'step/sine amplitude'
-        )
-        self.frequency = declare_number(
-            self,
-            'reference_frequency_rad_s',
-            2.0 * math.pi,
-            0.0,
-            1.0e3,
-            'rad/s',
-            'sine angular frequency',
-        )
-        self.measurement_timeout_ns = int(
-            1e9
-            * declare_number(
-                self,
-                'measurement_timeout_s',
-                limits.MEASUREMENT_TIMEOUT_S,
-                *limits.TIMEOUT_RANGE_S,
-                's',
-                'older measurement: safe stop (0 A)',
-            )
-        )
-        self.estimate_timeout_ns = int(
-            1e9
-            * declare_number(
-                self,
-                'estimate_timeout_s',
-                limits.ESTIMATE_TIMEOUT_S,
-                *limits.TIMEOUT_RANGE_S,
-                's',
-                'older estimate: safe stop (0 A)',
-            )
-        )
-        self.following_error_limit_rad = declare_number(
-            self,
-            'following_error_limit_rad',
-            limits.FOLLOWING_ERROR_LIMIT_RAD,
-            1.0e-4,
-            100.0,
-            'rad',
-            '|e| beyond latches a safe stop',
-        )
-        self.trigger = declare_choice(
-            self,
-            'trigger',
-            'measurement',
-            TRIGGERS,
-            'measurement: control each sample as soon as its measurement and estimate are in; '
-            'timer: control on a timer of sample_time_s with the newest measurement (a drive '
-            "whose cycle differs from the loop's); realtime only",
-        )
-        if self.trigger == 'timer' and self.mode == 'sim':
-            raise ParameterError(
-                "parameter 'trigger' = 'timer' refused in sim mode: the lockstep advances "
-                'only when a command answers its sample'
-            )
-        self.future_tolerance_s = declare_number(
-            self,
-            'future_stamp_tolerance_s',
-            limits.FUTURE_STAMP_TOLERANCE_S,
-            *limits.FUTURE_STAMP_TOLERANCE_RANGE_S,
-            's',
-            'realtime: inputs stamped later than now plus this are refused (clock offset '
-            'between hosts)',
-        )
-        self.joint_name = declare_text(
-            self, 'joint_name', 'joint', 'name of the joint in joint_states'
-        )
-        self.timing_log = declare_output_path(
-            self, 'timing_log', 'per-update timing (.npz) written at shutdown'
-        )
-        self.refuse_sim_time_in_realtime(self.mode)
-        if self.mode == 'sim' and not self.get_parameter('use_sim_time').value:
-            raise ParameterError(
-                "parameter 'use_sim_time' must be true in sim mode (the plant owns /clock)"
-            )
+        self.params = declare_controller_parameters(self)
 
     # --- lifecycle -------------------------------------------------------------------------------
     def build(self) -> None:
         """Law, reference, assembly, stamp checks, topics and the watchdog."""
-        self.period_ns = period_ns(self.common.dt_s)
-        law = make_controller(self.name, self.gains, self.common)
-        reference = make_reference(self.kind, self.amplitude, self.frequency)
+        self.period_ns = period_ns(self.params.common.dt_s)
+        law = make_controller(self.params.name, self.params.gains, self.params.common)
+        reference = make_reference(self.params.kind, self.params.amplitude, self.params.frequency)
         self.assembly = ControlSampleAssembly(
-            law, reference, self.period_ns, self.name != 'pi', self.following_error_limit_rad
+            law,
+            reference,
+            self.period_ns,
+            self.params.name != 'pi',
+            self.params.following_error_limit_rad,
         )
-        tolerance = int(self.future_tolerance_s * 1e9)
-        self.measurement_check = StampCheck(self.period_ns, self.mode == 'sim', tolerance)
+        tolerance = int(self.params.future_tolerance_s * 1e9)
+        self.measurement_check = StampCheck(self.period_ns, self.params.mode == 'sim', tolerance)
         self.estimate_check = StampCheck(
-            self.period_ns, self.mode == 'sim', tolerance + self.period_ns
+            self.period_ns, self.params.mode == 'sim', tolerance + self.period_ns
         )
         self.clock = Clock()
         self.plausibility = MeasurementPlausibility()
         self.guard = GraphGuard(self, self.on_conflict)
-        qos = control_qos(self.mode)
+        qos = control_qos(self.params.mode)
         self.cmd_pub = self.create_lifecycle_publisher(CurrentCommand, 'current_command', qos)
         self.state_pub = self.create_lifecycle_publisher(ControllerState, 'controller/state', qos)
         self.subs = [
@@ -273,8 +116,12 @@ class ControllerNode(ManagedNode):
         # add a Python callback to every sample for nothing.
         # Real time: timers on the steady clock, so a wall-clock step neither stalls nor races
         # them; sim: on /clock, which the lockstep advances.
-        timer_clock = self.get_clock() if self.mode == 'sim' else RosClock(clock_type=STEADY)
-        shortest_timeout_ns = min(self.measurement_timeout_ns, self.estimate_timeout_ns)
+        timer_clock = (
+            self.get_clock() if self.params.mode == 'sim' else RosClock(clock_type=STEADY)
+        )
+        shortest_timeout_ns = min(
+            self.params.measurement_timeout_ns, self.params.estimate_timeout_ns
+        )
         self.watchdog = self.create_timer(
             shortest_timeout_ns * 0.5e-9, self.on_watchdog, clock=timer_clock
         )
@@ -284,8 +131,8 @@ class ControllerNode(ManagedNode):
             0.1, lambda: self.guard.poll(OUTPUT_TOPICS), clock=timer_clock
         )
         self.tick_timer = (
-            self.create_timer(self.common.dt_s, self.on_tick, clock=timer_clock)
-            if self.trigger == 'timer'
+            self.create_timer(self.params.common.dt_s, self.on_tick, clock=timer_clock)
+            if self.params.trigger == 'timer'
             else None
         )
         self.newest: tuple | None = None  # timer trigger: (stamp, y) of the newest measurement
@@ -299,12 +146,13 @@ class ControllerNode(ManagedNode):
         self.received_mono_ns = None
         self.command_done_ns: int | None = None  # perf_counter of the newest command published
         self.cmd = CurrentCommand()
-        self.state = ControllerState(controller_name=self.name)
+        self.state = ControllerState(controller_name=self.params.name)
         self.timing = SampleLog(('received_wall_ns', 'stamp_ns', 'latency_ns', 'compute_ns'))
         self.diagnostics = NodeDiagnostics(self, self.health_monitor(), self.health)
+        params = self.params
         self.get_logger().info(
-            f'{self.name} on the {self.kind} reference, {self.mode} mode, current limit '
-            f'{self.common.current_limit_a} A'
+            f'{params.name} on the {params.kind} reference, {params.mode} mode, current limit '
+            f'{params.common.current_limit_a} A'
         )
 
     def stop(self) -> None:
@@ -338,7 +186,7 @@ class ControllerNode(ManagedNode):
 
     def _received(self) -> int:
         """Receipt time for ages: monotonic in real time; None in sim (the stamps are time)."""
-        return self.clock.now_ns() if self.mode == 'realtime' else None
+        return self.clock.now_ns() if self.params.mode == 'realtime' else None
 
     def on_measurement(self, msg: JointState) -> None:
         """y(k): checked, then the assembly; control sample k as soon as x_hat(k) is in."""
@@ -348,13 +196,13 @@ class ControllerNode(ManagedNode):
         self.received_mono_ns = self._received()
         self.measurements_in += 1
         stamp = stamp_to_ns(msg.header.stamp)
-        y = joint_position(msg, self.joint_name)
+        y = joint_position(msg, self.params.joint_name)
         if y is None or not math.isfinite(y) or abs(y) > limits.POSITION_LIMIT_RAD:
             self._refuse(  # before its stamp is taken: a refused value moves nothing
                 'bad_measurement',
                 None,
                 lambda: (
-                    f'measurement refused (joint {self.joint_name!r} missing, '
+                    f'measurement refused (joint {self.params.joint_name!r} missing, '
                     f'non-finite or beyond {limits.POSITION_LIMIT_RAD} rad): '
                     f'{list(msg.position)}'
                 ),
@@ -413,7 +261,7 @@ class ControllerNode(ManagedNode):
 
     def _after_silence(self, now_ns: int) -> None:
         """Real time: tell the assembly how long this node sent no command (a stall of its own)."""
-        if self.mode == 'realtime' and self.command_done_ns is not None:
+        if self.params.mode == 'realtime' and self.command_done_ns is not None:
             self.assembly.command_gap(now_ns - self.command_done_ns, self.quiet_ns)
 
     def on_estimate(self, msg: StateEstimate) -> None:
@@ -429,7 +277,7 @@ class ControllerNode(ManagedNode):
             msg.input_current_gain,
         )
         field, problem = _estimate_problem(
-            x2, x3, u, gain, self.common.current_limit_a, self.common.dt_s
+            x2, x3, u, gain, self.params.common.current_limit_a, self.params.common.dt_s
         )
         if problem:  # rate-limited per field, so each kind of refusal is reported
             self._refuse(
@@ -456,7 +304,9 @@ class ControllerNode(ManagedNode):
             # dropped, since a law run on samples it sees late would chase at the limit).
             if verdict is Verdict.INVALID:
                 kind = 'invalid_estimate'
-            elif self.mode == 'sim' or stamp > now + self.estimate_check.future_tolerance_ns:
+            elif (
+                self.params.mode == 'sim' or stamp > now + self.estimate_check.future_tolerance_ns
+            ):
                 kind = 'future_estimate'
             else:
                 kind = 'estimate_ahead'
@@ -501,11 +351,15 @@ class ControllerNode(ManagedNode):
         if not self.active:
             return
         now = (
-            self.clock.now_ns() if self.mode == 'realtime' else self.get_clock().now().nanoseconds
+            self.clock.now_ns()
+            if self.params.mode == 'realtime'
+            else self.get_clock().now().nanoseconds
         )
         if self.assembly.newest_measurement_ns is not None:  # a stall of this node may end here
             self._after_silence(time.perf_counter_ns())
-        sample = self.assembly.watchdog(now, self.measurement_timeout_ns, self.estimate_timeout_ns)
+        sample = self.assembly.watchdog(
+            now, self.params.measurement_timeout_ns, self.params.estimate_timeout_ns
+        )
         if sample is None:
             return
         status = sample.status
@@ -542,15 +396,17 @@ class ControllerNode(ManagedNode):
         if sample.status is Status.LATCHED and self.status is not Status.LATCHED:
             self.get_logger().error(
                 'control output not finite or |error| beyond following_error_limit_rad '
-                f'{self.following_error_limit_rad}: safe stop latched (0 A) until cleanup'
+                f'{self.params.following_error_limit_rad}: safe stop latched (0 A) until cleanup'
             )
         self._publish(sample, started_ns)
         if sample.output is None:
             return
         # From the measurement's stamp to the command on the wire (as before the state message).
-        latency_ns = self.command_wall_ns - sample.stamp_ns if self.mode == 'realtime' else 0
+        latency_ns = (
+            self.command_wall_ns - sample.stamp_ns if self.params.mode == 'realtime' else 0
+        )
         compute_ns = self.command_done_ns - started_ns
-        if self.mode == 'realtime' and latency_ns > self.period_ns:
+        if self.params.mode == 'realtime' and latency_ns > self.period_ns:
             self.late += 1
             self.log.warn(
                 'late',
@@ -601,33 +457,11 @@ class ControllerNode(ManagedNode):
         self.command_done_ns, self.command_wall_ns = time.perf_counter_ns(), self.clock.stamp_ns()
         if not state:
             return
-        s = self.state
-        s.header.stamp = stamp
-        s.status = int(self.status)
-        s.measured_position_rad = float(sample.y)
-        s.current_a = float(sample.current_a)
-        s.compute_time_s = (
-            0.0 if started_ns is None else (self.command_done_ns - started_ns) * 1e-9
+        compute_s = 0.0 if started_ns is None else (self.command_done_ns - started_ns) * 1e-9
+        fill_controller_state(
+            self.state, sample, stamp, compute_s, self.late, self.assembly.missed
         )
-        s.late_samples, s.missed_samples = self.late, self.assembly.missed
-        out = sample.output
-        if out is None:
-            for name in LAW_FIELDS:
-                setattr(s, name, NAN)
-            s.bounds_kept = s.saturated = False
-        else:
-            ref = sample.reference
-            s.reference_position_rad = float(ref.position_rad)
-            s.reference_velocity_rad_s = float(ref.velocity_rad_s)
-            s.reference_acceleration_rad_s2 = float(ref.acceleration_rad_s2)
-            s.estimated_velocity_rad_s, s.estimated_disturbance_rad_s2 = (
-                float(v) for v in sample.estimate
-            )
-            for name in OUTPUT_FIELDS:
-                setattr(s, name, float(getattr(out, name)))
-            s.bounds_kept = bool(out.bounds_kept)
-            s.saturated = bool(out.saturated)
-        self.state_pub.publish(s)
+        self.state_pub.publish(self.state)
 
     # --- /diagnostics ----------------------------------------------------------------------------
     def health_monitor(self) -> HealthMonitor:
@@ -650,9 +484,13 @@ class ControllerNode(ManagedNode):
         """Report to /diagnostics: counts, status, timing percentiles since the last report."""
         a, rows = self.assembly, self.timing.since(self.reported_rows)
         self.reported_rows += len(rows)
-        values = {'controller': self.name, 'mode': self.mode, 'status': self.status.name}
+        values = {
+            'controller': self.params.name,
+            'mode': self.params.mode,
+            'status': self.status.name,
+        }
         values.update(percentiles(rows[:, 3] / 1e3, 'compute_us'))
-        if self.mode == 'realtime':
+        if self.params.mode == 'realtime':
             values.update(percentiles(rows[:, 2] / 1e3, 'latency_us'))
         problems = [(Level.ERROR, f'{self.conflict}: commanding 0 A')] if self.conflict else []
         if a.latched:
@@ -698,7 +536,7 @@ class ControllerNode(ManagedNode):
         if len(rows) > 2:
             summary.update(percentiles((rows[1:, 0] - rows[:-1, 0]) / 1e3, 'period_us', mean=True))
             summary.update(percentiles(rows[:, 3] / 1e3, 'compute_us'))
-            if self.mode == 'realtime':
+            if self.params.mode == 'realtime':
                 summary.update(percentiles(rows[:, 2] / 1e3, 'latency_us'))
         return summary
 
@@ -711,8 +549,8 @@ class ControllerNode(ManagedNode):
                 f'{k}={v:.1f}' if isinstance(v, float) else f'{k}={v}' for k, v in summary.items()
             )
         )
-        if self.timing_log:
-            self.timing.save(self.timing_log)
+        if self.params.timing_log:
+            self.timing.save(self.params.timing_log)
 
 
 def _estimate_problem(x2, x3, u, gain, current_limit_a: float, dt_s: float) -> tuple[str, str]:

@@ -32,7 +32,8 @@ def percentiles(values, prefix: str, mean: bool = False) -> dict[str, Optional[f
 def missed_samples(stamp_ns, period_ns: int) -> int:
     """Count the samples never answered.
 
-    The sum over gaps between consecutive stamps of (gap / period - 1).
+    The sum over gaps between consecutive stamps of (floor(gap / period) - 1): a gap short of
+    a whole number of periods (jitter) rounds down, so 1.9 periods count as none missed.
     """
     gaps = np.diff(np.asarray(stamp_ns, dtype=np.int64)) // period_ns - 1
     return int(gaps[gaps > 0].sum()) if gaps.size else 0
