@@ -11,29 +11,7 @@ from actuator_msgs.msg import ControllerState
 from builtin_interfaces.msg import Time
 
 NAN = float('nan')
-#: ControllerState fields only a control update computes: NaN on a safe-stop sample.
-LAW_FIELDS = (
-    'reference_position_rad',
-    'reference_velocity_rad_s',
-    'reference_acceleration_rad_s2',
-    'estimated_velocity_rad_s',
-    'estimated_disturbance_rad_s2',
-    'error_rad',
-    'rho_rad',
-    'lower_bound_rad',
-    'upper_bound_rad',
-    'z1',
-    'z2_rad_s',
-    'alpha_rad_s',
-    'alpha_dot_rad_s2',
-    'sigma_rad_s',
-    'u_eq_rad_s2',
-    'u_sw_rad_s2',
-    'u_b_rad_s2',
-    'proportional_a',
-    'integral_a',
-    'current_unlimited_a',
-)
+#: ControllerState fields copied from the law's output (ControlOutput) of a controlled sample.
 OUTPUT_FIELDS = (
     'error_rad',
     'rho_rad',
@@ -51,6 +29,14 @@ OUTPUT_FIELDS = (
     'integral_a',
     'current_unlimited_a',
 )
+#: ControllerState fields only a control update computes: NaN on a safe-stop sample.
+LAW_FIELDS = (
+    'reference_position_rad',
+    'reference_velocity_rad_s',
+    'reference_acceleration_rad_s2',
+    'estimated_velocity_rad_s',
+    'estimated_disturbance_rad_s2',
+) + OUTPUT_FIELDS
 
 
 def fill_controller_state(
