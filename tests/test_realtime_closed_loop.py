@@ -145,9 +145,7 @@ def test_controller_on_a_1_khz_timer_closes_the_loop_with_the_newest_measurement
     )
     assert all(code == 0 for code in result.exit_codes.values()), result.exit_codes
     log = np.load(result.timing_log)
-    assert log['stamp_ns'].size > 4000 and np.all(
-        np.diff(log['stamp_ns']) > 0
-    )  # one update per sample
+    assert log['stamp_ns'].size > 0 and np.all(np.diff(log['stamp_ns']) > 0)  # one per sample
     age_us = log['latency_ns'] / 1e3  # measurement age when its command went out
     # up to a period on top of the hop: 1.1 ms here
     assert 100.0 < np.percentile(age_us, 50) < 2000.0, _lag_report(result)
@@ -176,3 +174,6 @@ def test_controller_on_a_1_khz_timer_closes_the_loop_with_the_newest_measurement
         )
     assert max_error < RHO0_RAD, max_error
     assert controlled.mean() > 0.9, (controlled.mean(), episodes)
+    # the law ran for most of the 6000 samples (a clean-clone CI run that stalled the loop into
+    # resyncs: 3195; such a run ends in the skip above)
+    assert log['stamp_ns'].size > 4000, log['stamp_ns'].size

@@ -11,6 +11,7 @@ from typing import Any
 
 from actuator_core import limits
 from actuator_controller.laws import CONTROLLER_NAMES, GAINS_BY_NAME, CommonConfig
+from actuator_controller.reference import REFERENCE_KINDS
 from actuator_ros.parameters import (
     ParameterError,
     declare_choice,
@@ -23,8 +24,6 @@ from actuator_ros.qos import MODES
 
 #: What clocks the control update (README "Nodes and topic contract").
 TRIGGERS = ('measurement', 'timer')
-#: The reference trajectories (actuator_controller.reference.make_reference).
-REFERENCES = ('slow', 'fast', 'step', 'sine')
 
 
 @dataclass(frozen=True)
@@ -78,7 +77,7 @@ def declare_controller_parameters(node) -> ControllerParameters:
         dt_s=dt_s,
         current_limit_a=limit,
     )
-    kind = declare_choice(node, 'reference', 'fast', REFERENCES, 'reference trajectory')
+    kind = declare_choice(node, 'reference', 'fast', REFERENCE_KINDS, 'reference trajectory')
     amplitude = declare_number(
         node, 'reference_amplitude_rad', 0.1, -10.0, 10.0, 'rad', 'step/sine amplitude'
     )

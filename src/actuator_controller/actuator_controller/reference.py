@@ -97,6 +97,10 @@ class SineReference:
         return ReferenceSample(self.offset_rad + amp * s, amp * w * c, -amp * w * w * s)
 
 
+#: The reference trajectories ``make_reference`` builds, by name.
+REFERENCE_KINDS = ('slow', 'fast', 'step', 'sine')
+
+
 def make_reference(
     kind: str, amplitude_rad: float | None = None, frequency_rad_s: float | None = None
 ) -> Reference:
@@ -116,5 +120,5 @@ def make_reference(
             frequency_rad_s=2.0 * math.pi if frequency_rad_s is None else frequency_rad_s,
         )
     else:
-        raise ValueError(f"reference must be one of 'slow', 'fast', 'step', 'sine', got {kind!r}")
+        raise ValueError(f'reference must be one of {", ".join(REFERENCE_KINDS)}, got {kind!r}')
     return ref

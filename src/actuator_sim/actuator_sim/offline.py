@@ -27,6 +27,7 @@ from actuator_core.metrics import STEADY_STATE_START_S, RunMetrics, compute_run_
 from actuator_sim.scenarios import CONDITIONS, case1, case2, paper_scenario
 from actuator_sim.stability import radius_along_envelope
 from actuator_controller.laws import CONTROLLER_NAMES
+from actuator_controller.reference import REFERENCE_KINDS
 from actuator_controller.ppf import PrescribedPerformance
 
 
@@ -197,9 +198,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument(
         '--controller', choices=CONTROLLER_NAMES, default='pp_nftsmc_eso', help='for "run"'
     )
-    parser.add_argument(
-        '--reference', choices=('slow', 'fast', 'step', 'sine'), default='fast', help='for "run"'
-    )
+    parser.add_argument('--reference', choices=REFERENCE_KINDS, default='fast', help='for "run"')
     parser.add_argument(
         '--condition', choices=tuple(CONDITIONS), default='deep_sea', help='for "run"'
     )

@@ -17,10 +17,9 @@ from pathlib import Path
 from typing import Sequence
 
 from actuator_controller.laws import CONTROLLER_NAMES
+from actuator_controller.reference import REFERENCE_KINDS
 from actuator_sim.scenarios import CONDITIONS
 from actuator_studies.space import METHODS, StudyInputError
-
-REFERENCES = ('slow', 'fast', 'step', 'sine')
 
 
 def _fail(prog: str, message: str) -> int:
@@ -32,7 +31,7 @@ def _fail(prog: str, message: str) -> int:
 def _scenario_arguments(parser: argparse.ArgumentParser) -> None:
     """Options shared by every command: the base scenario."""
     parser.add_argument('--controller', choices=CONTROLLER_NAMES, default='pp_nftsmc_eso')
-    parser.add_argument('--reference', choices=REFERENCES, default='fast')
+    parser.add_argument('--reference', choices=REFERENCE_KINDS, default='fast')
     parser.add_argument(
         '--condition',
         choices=tuple(CONDITIONS),
