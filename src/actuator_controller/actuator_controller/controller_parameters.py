@@ -5,13 +5,12 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any
 
 from actuator_core import limits
 from actuator_controller.laws import CONTROLLER_NAMES, GAINS_BY_NAME, CommonConfig
-from actuator_controller.reference import REFERENCE_KINDS
+from actuator_controller.reference import REFERENCE_KINDS, SineReference, StepReference
 from actuator_ros.parameters import (
     ParameterError,
     declare_choice,
@@ -79,12 +78,18 @@ def declare_controller_parameters(node) -> ControllerParameters:
     )
     kind = declare_choice(node, 'reference', 'fast', REFERENCE_KINDS, 'reference trajectory')
     amplitude = declare_number(
-        node, 'reference_amplitude_rad', 0.1, -10.0, 10.0, 'rad', 'step/sine amplitude'
+        node,
+        'reference_amplitude_rad',
+        StepReference.amplitude_rad,
+        -10.0,
+        10.0,
+        'rad',
+        'step/sine amplitude',
     )
     frequency = declare_number(
         node,
         'reference_frequency_rad_s',
-        2.0 * math.pi,
+        SineReference.frequency_rad_s,
         0.0,
         1.0e3,
         'rad/s',

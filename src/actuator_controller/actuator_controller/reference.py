@@ -106,19 +106,19 @@ def make_reference(
 ) -> Reference:
     """Build a reference by name.
 
-    'slow', 'fast', 'step' or 'sine' (amplitude/frequency override defaults).
+    'slow', 'fast', 'step' or 'sine'; an amplitude or frequency given overrides the dataclass's
+    default (one source: the node's parameters default to them too).
     """
+    amplitude = {} if amplitude_rad is None else {'amplitude_rad': amplitude_rad}
+    frequency = {} if frequency_rad_s is None else {'frequency_rad_s': frequency_rad_s}
     if kind == 'slow':
         ref: Reference = slow_trajectory()
     elif kind == 'fast':
         ref = fast_trajectory()
     elif kind == 'step':
-        ref = StepReference(amplitude_rad=0.1 if amplitude_rad is None else amplitude_rad)
+        ref = StepReference(**amplitude)
     elif kind == 'sine':
-        ref = SineReference(
-            amplitude_rad=0.2 if amplitude_rad is None else amplitude_rad,
-            frequency_rad_s=2.0 * math.pi if frequency_rad_s is None else frequency_rad_s,
-        )
+        ref = SineReference(**amplitude, **frequency)
     else:
         raise ValueError(f'reference must be one of {", ".join(REFERENCE_KINDS)}, got {kind!r}')
     return ref

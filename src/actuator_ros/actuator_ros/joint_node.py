@@ -165,7 +165,7 @@ class JointNode(ManagedNode):
         self.fault = ''  # a joint fault: error processing follows
         self.lockstep_timeouts = 0
         self.skipped_cycles = 0  # realtime, a real joint: cycles the host was too late to run
-        self.lost_feedback = 0  # cycles the joint read no sample (a missed TPDO)
+        self.lost_feedback = 0  # cycles the joint gave no sample for (its read returned None)
         self.refused = 0
         self.binding.reset()
         self.soft_limits.reset()
