@@ -14,6 +14,7 @@ import pytest
 from actuator_core import limits
 from actuator_core.assembly import ControlSampleAssembly
 from actuator_core.binding import (
+    PLAUSIBILITY_MEMORY_S,
     SAFE_STOP_SAMPLES,
     CommandBinding,
     MeasurementPlausibility,
@@ -309,3 +310,117 @@ def test_a_state_never_says_ok_while_the_error_is_outside_the_envelope():
     s = a.add_measurement(T0 + 200 * P, y_d + 0.3)  # rho(0.2 s) < 0.25 rad: outside
     assert not s.output.bounds_kept and s.status is Status.RECOVERING and not s.safe_stop
     assert s.current_a == s.output.current_a  # the law still commands
+
+
+# --- boundaries of the windows and the plausibility limits (mutation survivors) ---------------
+S = 1_000_000_000  # 1 s in ns
+
+
+def test_how_far_ahead_and_how_old_are_said_in_milliseconds():
+    """The reasons give the exact distance: 1000.000 ms ahead, 999 ms old."""
+    seen = SeenSamples(P)
+    seen.add(T0)
+    assert seen.ahead(T0 + S) == (f'stamped 1000.000 ms ahead of the newest sample seen ({T0} ns)')
+    b = CommandBinding(P, late_samples=999, safe_stop_samples=1000)
+    for k in range(1000):
+        b.produced(T0 + k * P)
+    b.late_samples = 998  # the oldest sample kept is now one beyond the window
+    assert b.check(T0, False) == (
+        f'command for sample {T0} ns is 999 ms old (the window is the newest sample and 998 '
+        'before): refused'
+    )
+
+
+def test_the_binding_keeps_the_late_window_and_no_more_when_safe_stops_have_a_shorter_one():
+    """History = max(safe-stop window, late window + 1): k-3 answerable with 3 late samples."""
+    b = CommandBinding(P, late_samples=3, safe_stop_samples=1)
+    for k in range(10):
+        b.produced(T0 + k * P)
+    assert b.check(T0 + 6 * P, False) == ''  # k - 3 of the newest (k = 9)
+    assert 'answers no sample this joint produced' in b.check(T0 + 5 * P, True)  # k - 4: gone
+
+
+def test_a_reset_binding_takes_the_first_command_of_its_new_run():
+    """After reset() nothing was applied: any sample produced since may be answered."""
+    b = CommandBinding(P)
+    b.produced(T0)
+    assert b.check(T0, False) == ''
+    b.reset()
+    b.produced(T0 - 5 * P)  # a new run may start earlier (sim restarts its clock)
+    assert b.check(T0 - 5 * P, False) == ''
+    assert b.applied_ns == T0 - 5 * P
+
+
+def _plausibility(**kw):
+    """Small binary-exact limits, so that every boundary is hit exactly."""
+    return MeasurementPlausibility(**{'confirm_samples': 2, **kw})
+
+
+def test_the_velocity_limit_allows_twice_the_noise_over_the_interval_and_is_inclusive():
+    """|v| <= limit + 2 noise / dt passes; 1 rad/s + 2 * 0.25 rad / 0.5 s = 2 rad/s here."""
+    half = S // 2
+    for y, ok in [(1.0, True), (0.9, True), (1.1, False), (-1.0, True), (-1.1, False)]:
+        m = _plausibility(velocity_limit_rad_s=1.0, noise_rad=0.25)
+        m.accept(T0, 0.0)
+        assert (m.check(T0 + half, y) == '') is ok, y
+
+
+def test_the_acceleration_limit_is_half_the_two_intervals_plus_four_noises_and_inclusive():
+    """|dv| <= a (dt0 + dt) / 2 + 4 noise / dt: 8 * 0.0625 + 4 / 64 / 0.0625 = 1.5 rad/s."""
+    dt = S // 16  # 0.0625 s, within the 0.1 s memory
+    for v, ok in [(1.5, True), (1.6, False), (-1.5, True), (-1.6, False)]:
+        m = _plausibility(
+            velocity_limit_rad_s=1e3, acceleration_limit_rad_s2=8.0, noise_rad=1.0 / 64
+        )
+        m.accept(T0, 0.0)
+        m.accept(T0 + dt, 0.0)  # v0 = 0 over dt0 = 0.0625 s
+        assert (m.check(T0 + 2 * dt, v * 0.0625) == '') is ok, v
+
+
+def test_the_velocity_is_remembered_for_the_memory_interval_inclusive_and_no_longer():
+    """An interval of exactly 0.1 s still judges the change of velocity; a longer one not."""
+    memory_ns = int(PLAUSIBILITY_MEMORY_S * 1e9)
+    assert memory_ns * 1e-9 == PLAUSIBILITY_MEMORY_S
+    for gap_ns, judged in [(memory_ns, True), (memory_ns + P, False)]:
+        m = _plausibility(velocity_limit_rad_s=100.0, acceleration_limit_rad_s2=1.0)
+        m.accept(T0, 0.0)
+        m.accept(T0 + gap_ns, 1.0)  # 10 rad/s over this interval (about)
+        why = m.check(T0 + gap_ns + P, 1.0)  # at rest again
+        assert bool(why) is judged, gap_ns
+        if judged:
+            assert 'changes the implied velocity by' in why
+        m2 = _plausibility(velocity_limit_rad_s=100.0, acceleration_limit_rad_s2=1.0)
+        m2.accept(T0, 0.0)
+        m2.accept(T0 + P, 0.0)
+        assert bool(m2.check(T0 + P + gap_ns, 1.0)) is judged, gap_ns  # the new interval
+
+
+def test_a_repeated_stamp_is_left_to_the_stamp_check_and_moves_nothing():
+    """Checking and accepting the newest stamp again: no division by zero, no new velocity."""
+    m = _plausibility()
+    m.accept(T0, 0.5)
+    assert m.check(T0, 50.0) == ''
+    m.accept(T0, 0.5)
+    assert m.velocity is None and m.last == (T0, 0.5)
+
+
+def test_candidates_of_a_step_must_agree_and_follow_in_time():
+    """A candidate implausible from the previous one, or not after it, starts a new chain."""
+    m = _plausibility(velocity_limit_rad_s=1.0)
+    m.accept(T0, 0.0)
+    assert m.refuse(T0 + P, 5.0) is False
+    assert m.refuse(T0 + 2 * P, -5.0) is False  # disagrees with 5.0: a new chain of one
+    assert m.refuse(T0 + 3 * P, -5.0) is True  # two that agree: a real step
+    m.reset()
+    m.accept(T0, 0.0)
+    assert m.refuse(T0 + 2 * P, 5.0) is False
+    assert m.refuse(T0 + 2 * P, 5.0) is False  # the same stamp again
+    assert m.refuse(T0 + P, 5.0) is False  # an earlier stamp
+    assert m.candidates == [(T0 + P, 5.0)]
+
+
+def test_rebases_are_counted():
+    m = _plausibility()
+    m.rebase(T0, 0.0)
+    m.rebase(T0 + P, 1.0)
+    assert m.rebases == 2 and m.last == (T0 + P, 1.0)

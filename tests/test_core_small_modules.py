@@ -563,3 +563,35 @@ def test_build_fills_dotted_names_and_keeps_the_other_defaults():
     assert params.build(_Inner, {'s.gain': 7.0}, 's.') == _Inner(gain=7.0)
     with pytest.raises(ValueError, match=r'^_Inner\.gain = 0'):
         params.build(_Outer, {'inner.gain': 0.0})
+
+
+@dataclasses.dataclass(frozen=True)
+class _Postponed:
+    """Annotations as text, as in the settings modules (``from __future__ import annotations``).
+
+    And a field whose factory is no dataclass.
+    """
+
+    rate_hz: 'float' = params.spec(100.0, 'a rate', 'Hz', 1.0, 1000.0)
+    tags: 'list' = dataclasses.field(default_factory=list)
+    inner: '_Inner' = dataclasses.field(default_factory=_Inner)
+
+
+def test_iter_specs_and_build_follow_sections_whose_annotations_are_text():
+    """A text annotation: the section is found by its factory; a list factory is no section."""
+    assert isinstance(dataclasses.fields(_Postponed)[2].type, str)
+    assert [name for name, _ in params.iter_specs(_Postponed)] == ['rate_hz', 'inner.gain']
+    built = params.build(_Postponed, {'inner.gain': 5.0})
+    assert built.inner == _Inner(gain=5.0) and built.tags == []
+
+
+def test_check_value_judges_any_number_as_a_float():
+    """A Fraction or a Decimal (numbers numpy keeps as objects) is checked by its value."""
+    from decimal import Decimal
+    from fractions import Fraction
+
+    meta = dict(params.spec(0.5, 'a fraction', '', 0.0, 1.0).metadata)
+    params.check_value('x', Fraction(1, 2), meta)
+    params.check_value('x', Decimal('0.25'), meta)
+    with pytest.raises(ValueError, match='outside its valid range'):
+        params.check_value('x', Fraction(3, 2), meta)

@@ -111,3 +111,40 @@ def test_a_prefix_rule_says_which_counter_moved():
     assert h.level is Level.WARN
     assert h.message == '2 refused inputs (bad_measurement) since the last report'
     assert h.value('refused bad_measurement') == '2'
+
+
+def test_a_report_names_its_node_and_hardware_and_counts_the_reports():
+    """Health carries the monitor's name and hardware id ('' unless given); reports counted."""
+    assert HealthMonitor('plain').update(0, Snapshot('active')).hardware_id == ''
+    m = HealthMonitor('actuator_plant', hardware_id='cia402')
+    assert m.reports == 0
+    h = m.update(0, Snapshot('active'))
+    m.update(S, Snapshot('active'))
+    assert (h.name, h.hardware_id, m.reports) == ('actuator_plant', 'cia402', 2)
+
+
+def test_rates_are_the_increase_over_the_time_between_reports_from_any_start():
+    """10 samples over 0.5 s is 20 Hz, also when the monotonic clock is far from zero."""
+    m = _monitor()
+    m.update(100 * S, Snapshot('active', {'measurements': 5}))
+    h = m.update(100 * S + S // 2, Snapshot('active', {'measurements': 15}))
+    assert h.value('joint_states rate [Hz]') == '20.0'
+
+
+def test_an_input_counter_the_snapshot_leaves_out_has_not_moved():
+    """A missing input counter counts 0 samples: rate 0.0, and STALE once the timeout passes."""
+    m = _monitor(stale_after_s=1.0)
+    m.update(0, Snapshot('active', {}))
+    h = m.update(S // 2, Snapshot('active', {}))
+    assert h.level is Level.OK and h.value('joint_states rate [Hz]') == '0.0'
+    h = m.update(S, Snapshot('active', {}))
+    assert h.level is Level.STALE and 'no joint_states for 1.0 s' in h.message
+
+
+def test_a_single_refusal_under_a_prefix_rule_warns_and_integers_are_shown_as_they_are():
+    m = HealthMonitor('n', warn_on={'refused *': 'refused inputs'})
+    m.update(0, Snapshot('active', {'refused future': 0}))
+    h = m.update(S, Snapshot('active', {'refused future': 1}, {'samples': 42}))
+    assert h.level is Level.WARN
+    assert h.message == '1 refused inputs (future) since the last report'
+    assert h.value('samples') == '42'

@@ -3,15 +3,20 @@
 
 """The joint contract's ROS-free pieces: settings, soft limits, the simulated joint."""
 
+import dataclasses
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from actuator_core import limits
 from actuator_core.joint import JointSettings, SoftLimits
+from actuator_core.params import iter_specs, range_text
 from actuator_plant.encoder import Encoder
 from actuator_plant.model import JointPlant, PlantParameters
 from actuator_plant.sim_joint import SimulatedJoint
 
+ROOT = Path(__file__).resolve().parents[1]
 P = 1_000_000  # 1 ms in ns
 T0 = 5_000 * P  # stamp of sample 0 of a run
 
@@ -102,3 +107,61 @@ def test_the_simulated_joints_drive_effects_delay_smooth_and_quantise():
     coarse = SimulatedJoint(params, dt, position_rad=0.0123, encoder=Encoder(counts_per_rev=1000))
     coarse.activate()
     assert coarse.read(0).position_rad == pytest.approx(2 * np.pi / 1000 * 2)  # counts, not q
+
+
+def _documented_rows(title_start: str) -> dict[str, tuple[str, str]]:
+    """Parameter -> (default cell, description cell) of one node's table in docs/parameters.md."""
+    rows, inside = {}, False
+    for line in (ROOT / 'docs' / 'parameters.md').read_text().splitlines():
+        if line.startswith('## '):
+            inside = line.startswith(title_start)
+        elif inside and line.startswith('| `'):
+            name, default, description = (c.strip() for c in line.strip('|').split(' | '))
+            rows[name.strip('`')] = (default, description)
+    return rows
+
+
+@pytest.mark.parametrize('title', ['## Simulated joint', '## CiA 402 driver'])
+def test_every_joint_setting_is_documented_as_specified(title):
+    """Each node of a joint declares the common settings with their default, unit and range.
+
+    docs/parameters.md is generated from what the nodes declare (tests/test_param_docs.py
+    keeps it current); here each row is held against the specification itself.
+    """
+    rows = _documented_rows(title)
+    settings = list(iter_specs(JointSettings))
+    assert len(settings) == len(dataclasses.fields(JointSettings))  # every one is spec'd
+    for name, f in settings:
+        meta = f.metadata
+        text = meta['description']
+        if not isinstance(f.default, str):
+            text += f' [{meta["unit"] or "-"}], valid {range_text(meta)}'
+        default = f'`{f.default!r}`' if f.default != '' else '`""`'
+        assert rows[name] == (default, text), name
+
+
+def test_the_soft_limits_include_their_ends_and_judge_speed_from_an_angle_outside_too():
+    """The angle limits are inclusive; the sample after one outside is judged against it."""
+    settings = JointSettings(position_min_rad=-1.0, position_max_rad=2.0, velocity_max_rad_s=5.0)
+    assert SoftLimits(settings).check(T0, -1.0) == ''
+    assert SoftLimits(settings).check(T0, 2.0) == ''
+    s = SoftLimits(settings)
+    assert 'outside the soft limits' in s.check(T0, 2.5)
+    assert 'speed 500.00 rad/s over 1 ms' in s.check(T0 + P, 2.0)
+
+
+def test_the_speed_base_is_the_newest_sample_at_least_the_window_old():
+    """Samples at 0, 30 and 50 ms with a 20 ms window: 30 ms is the base (exactly 20 ms old)."""
+    assert SoftLimits(JointSettings(), window_s=1.0).window_ns == 1_000_000_000
+    s = SoftLimits(JointSettings(velocity_max_rad_s=20.0))
+    assert s.check(T0, 0.0) == '' and s.check(T0 + 30 * P, 0.0) == ''
+    # 0.5 rad over 20 ms is 25 rad/s; over the 50 ms since the first sample it would be 10.
+    assert s.check(T0 + 50 * P, 0.5) == (
+        'joint speed 25.00 rad/s over 20 ms beyond the soft limit 20 rad/s'
+    )
+
+
+def test_a_repeated_stamp_has_no_speed():
+    """The same instant twice (a replayed sample) divides by nothing and trips nothing."""
+    s = SoftLimits(JointSettings())
+    assert s.check(T0, 0.1) == '' and s.check(T0, 0.1) == ''

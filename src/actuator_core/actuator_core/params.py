@@ -76,19 +76,25 @@ def validate(obj: Any) -> None:
             check_value(f'{type(obj).__name__}.{f.name}', getattr(obj, f.name), f.metadata)
 
 
+def _section(f: dataclasses.Field) -> Any:
+    """Return the dataclass a field nests (its default factory is one), or None for a value."""
+    factory = f.default_factory
+    return (
+        factory
+        if factory is not dataclasses.MISSING and dataclasses.is_dataclass(factory)
+        else None
+    )
+
+
 def iter_specs(cls: type, prefix: str = '') -> Iterator[tuple[str, dataclasses.Field]]:
     """Yield (dotted name, field) of every spec'd field of ``cls``.
 
-    Nested dataclasses are recursed into.
+    Nested dataclasses (a field whose default factory is one) are recursed into.
     """
     for f in dataclasses.fields(cls):
-        if dataclasses.is_dataclass(f.type) or (
-            isinstance(f.type, str)
-            and f.default_factory is not dataclasses.MISSING
-            and dataclasses.is_dataclass(f.default_factory)
-        ):
-            inner = f.default_factory if f.default_factory is not dataclasses.MISSING else f.type
-            yield from iter_specs(inner, f'{prefix}{f.name}.')
+        section = _section(f)
+        if section is not None:
+            yield from iter_specs(section, f'{prefix}{f.name}.')
         elif 'low' in f.metadata:
             yield f'{prefix}{f.name}', f
 
@@ -97,10 +103,9 @@ def build(cls: type, values: dict[str, Any], prefix: str = '') -> Any:
     """Construct ``cls`` from a flat dict of dotted names (missing names keep their defaults)."""
     kwargs: dict[str, Any] = {}
     for f in dataclasses.fields(cls):
-        if f.default_factory is not dataclasses.MISSING and dataclasses.is_dataclass(
-            f.default_factory
-        ):
-            kwargs[f.name] = build(f.default_factory, values, f'{prefix}{f.name}.')
+        section = _section(f)
+        if section is not None:
+            kwargs[f.name] = build(section, values, f'{prefix}{f.name}.')
         elif f'{prefix}{f.name}' in values:
             kwargs[f.name] = values[f'{prefix}{f.name}']
     return cls(**kwargs)
