@@ -206,6 +206,14 @@ def test_closed_loop_description_is_one_for_runner_and_launch():
         sim['controller'].parameters['use_sim_time'] is True
         and sim['plant'].parameters['wait_for_subscribers'] == 2
     )
+    # Diagnostic topics: every sample when recorded or in sim, decimated for a live real-time run.
+    live = {s.key: s for s in closed_loop('realtime', 2.0, record=False)}
+    for run, every_sample in ((by_key, True), (sim, True), (live, False)):
+        rates = (
+            run['controller'].parameters['state_rate_hz'],
+            run['plant'].parameters['truth_rate_hz'],
+        )
+        assert rates == ((0.0, 0.0) if every_sample else (100.0, 100.0)), rates
     for spec in specs:
         assert os.access(executable_path(spec.package, spec.executable), os.X_OK)
 

@@ -1,7 +1,9 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""Boundaries of the core's small modules: xmath, stats, timing, limits, clock, sample_log, params.
+"""Boundaries of the core's small modules: xmath, stats, timing, limits, clock, sample_log, etc.
+
+The modules: xmath, stats, timing, limits, clock, sample_log, params and decimation.
 
 Each test kills mutants that survived ``make mutation`` (docs/mutation-report.md) or that no
 test of the selection reached: a scalar sent down numpy's path (a numpy scalar where ``math``
@@ -20,6 +22,7 @@ from actuator_core import clock as clock_module
 from actuator_core import params
 from actuator_core import xmath as xm
 from actuator_core.clock import Clock, Schedule, SteppedClock
+from actuator_core.decimation import Decimator
 from actuator_core.limits import input_current_gain_limit
 from actuator_core.sample_log import CHUNK_ROWS, SampleLog
 from actuator_core.stats import missed_samples, percentiles
@@ -595,3 +598,56 @@ def test_check_value_judges_any_number_as_a_float():
     params.check_value('x', Decimal('0.25'), meta)
     with pytest.raises(ValueError, match='outside its valid range'):
         params.check_value('x', Fraction(3, 2), meta)
+
+
+# --- decimation --------------------------------------------------------------------------------
+
+
+def test_decimator_passes_the_rate_on_a_grid_and_restarts_after_a_gap():
+    d = Decimator(100.0)
+    arrivals = np.arange(0, 2_000_000_000, 1_000_000) + 37_000  # 1 kHz for 2 s
+    passed = [t for t in arrivals.tolist() if d.admit(t)]
+    assert len(passed) == 200  # every tenth, none bunched
+    assert set(np.diff(passed).tolist()) == {10_000_000}
+    assert (d.admitted, d.skipped) == (200, 1800)
+    # A gap of 5 s (the loop stopped): the next message passes at once, the grid restarts there.
+    assert d.admit(7_000_037_000) and not d.admit(7_001_037_000)
+    assert not d.admit(7_010_036_999) and d.admit(7_010_037_000)  # the grid point itself passes
+
+
+def test_decimator_on_a_late_grid_point_keeps_the_grid():
+    d = Decimator(100.0)  # 10 ms
+    assert d.admit(0) and d.admit(13_000_000)  # 3 ms late: the next point is still 20 ms
+    assert not d.admit(19_999_999) and d.admit(20_000_000)
+    assert d.admit(40_000_000)  # exactly one period late: restarts at 50 ms, not 30 ms
+    assert not d.admit(49_999_999) and d.admit(50_000_000)
+
+
+def test_a_clock_that_steps_back_restarts_the_grid():
+    d = Decimator(100.0)
+    assert d.admit(5_000_000_000) and not d.admit(5_001_000_000)
+    # The grid's last point is 5.000 s; one before it (a restarted sim clock) restarts there.
+    assert d.admit(4_999_999_999) and not d.admit(5_000_000_000)
+    assert d.admit(5_009_999_999)
+
+
+def test_a_forced_message_passes_off_the_grid_without_moving_it():
+    d = Decimator(100.0)
+    assert d.admit(0)
+    assert d.admit(3_000_000, force=True)  # a status change at 3 ms
+    assert not d.admit(9_000_000)  # the grid is still 0, 10, 20 ms
+    assert d.admit(10_000_000)
+    assert d.admitted == 3 and d.skipped == 1
+    first = Decimator(100.0)  # a forced first message starts the grid as any first one does
+    assert first.admit(5_000_000, force=True) and not first.admit(6_000_000)
+    assert first.admit(15_000_000)
+
+
+def test_decimator_at_rate_0_passes_everything_and_refuses_a_negative_or_nan_rate():
+    d = Decimator(0.0)
+    assert all(d.admit(t) for t in range(0, 1000, 1)) and d.admitted == 1000
+    assert d.skipped == 0
+    assert Decimator(1.0e3).period_ns == 1_000_000 and Decimator(3.0).period_ns == 333_333_333
+    for bad in (-1.0, -1e-9, math.nan):
+        with pytest.raises(ValueError, match='rate_hz must be >= 0'):
+            Decimator(bad)

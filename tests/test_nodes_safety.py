@@ -470,3 +470,59 @@ def test_lifecycle_transitions_and_parameters_read_at_configure(harness, ros_pro
         assert any(f"lifecycle transition '{what}' requested from outside" in w for w in warnings)
     outside = [w for w in warnings if 'parameter change requested from outside' in w]
     assert len(outside) == 2 and all('nftsmc_eso.k1=500.0' in w for w in outside), outside
+
+
+def test_a_decimated_controller_state_keeps_every_command_and_every_change_of_status(
+    harness, ros_process
+):
+    """state_rate_hz: controller/state on a 20 ms grid of stamps, each change of status at once."""
+    from actuator_msgs.msg import ControllerState
+
+    ctrl = ros_process(
+        'actuator_controller',
+        'controller_node',
+        [
+            *AUTOSTART,
+            '-p',
+            'controller:=nftsmc_eso',
+            '-p',
+            'sample_time_s:=0.005',
+            '-p',
+            'state_rate_hz:=50.0',
+            '-p',
+            'measurement_timeout_s:=0.05',
+            '-p',
+            'estimate_timeout_s:=0.05',
+        ],
+    )
+    harness.wait_for(
+        lambda: harness.node.count_subscribers('joint_states') >= 1, what='controller subscription'
+    )
+    harness.spin(0.5)
+    period, samples = 5_000_000, 120
+    t = _now_ns(harness)
+    for k in range(samples):  # valid pairs at 200 Hz, the controller's own rate
+        harness.send_sample(t + k * period, 0.0)
+        harness.spin(0.003)
+    harness.wait_for(
+        lambda: any(
+            s.status == ControllerState.STATUS_STALE_MEASUREMENT for s in harness.got['state']
+        ),
+        what='the stale-measurement status once the samples stop',
+    )
+    commands = {stamp_to_ns(c.header.stamp) for c in harness.got['command']}
+    states = [(stamp_to_ns(s.header.stamp), s.status) for s in harness.got['state']]
+    answered = [s for s in commands if t <= s < t + samples * period]
+    assert len(answered) > 0.8 * samples, f'{len(answered)} of {samples} samples commanded'
+    statuses = [status for _, status in states]
+    assert ControllerState.STATUS_OK in statuses
+    # Decimated: between two states of one status at least one grid period of stamps.
+    for (t0, s0), (t1, s1) in zip(states, states[1:]):
+        if s0 == s1 and t1 > t0:
+            assert t1 - t0 >= 20_000_000, (t1 - t0, s0)
+    law = [stamp for stamp, status in states if t <= stamp < t + samples * period]
+    changes = sum(1 for a, b in zip(statuses, statuses[1:]) if a != b)
+    assert len(law) <= samples // 4 + changes + 1, (len(law), changes)
+    assert len(law) >= samples // 8, f'{len(law)} states for {samples} samples at 1/4'
+    assert 'controller/state at 50 Hz' in ctrl.output
+    assert ctrl.stop() == 0 and 'Traceback' not in ctrl.output

@@ -46,6 +46,7 @@ from actuator_core.timebase import StampCheck, Verdict
 from actuator_core.timing import period_ns, stamp_to_ns
 from actuator_controller.controller_parameters import declare_controller_parameters
 from actuator_controller.controller_state import fill_controller_state
+from actuator_core.decimation import Decimator
 from actuator_controller.laws import make_controller
 from actuator_controller.reference import make_reference
 from actuator_msgs.msg import ControllerState, CurrentCommand, StateEstimate
@@ -147,12 +148,14 @@ class ControllerNode(ManagedNode):
         self.command_done_ns: int | None = None  # perf_counter of the newest command published
         self.cmd = CurrentCommand()
         self.state = ControllerState(controller_name=self.params.name)
+        self.state_decimator = Decimator(self.params.state_rate_hz)
         self.timing = SampleLog(('received_wall_ns', 'stamp_ns', 'latency_ns', 'compute_ns'))
         self.diagnostics = NodeDiagnostics(self, self.health_monitor(), self.health)
         params = self.params
         self.get_logger().info(
             f'{params.name} on the {params.kind} reference, {params.mode} mode, current limit '
-            f'{params.common.current_limit_a} A'
+            f'{params.common.current_limit_a} A; controller/state '
+            + (f'at {params.state_rate_hz:g} Hz' if params.state_rate_hz else 'every sample')
         )
 
     def stop(self) -> None:
@@ -449,13 +452,14 @@ class ControllerNode(ManagedNode):
     def _publish(self, sample: ControlSample, started_ns: int | None, state: bool = True) -> None:
         """current_command and controller/state for one sample (NaN where the law did not run)."""
         stamp = ns_to_stamp(sample.stamp_ns)
+        changed = sample.status != self.status
         self.status = Status(sample.status)
         self.cmd.header.stamp = stamp
         self.cmd.current_a = float(sample.current_a)
         self.cmd.safe_stop = bool(sample.safe_stop)
         self.cmd_pub.publish(self.cmd)
         self.command_done_ns, self.command_wall_ns = time.perf_counter_ns(), self.clock.stamp_ns()
-        if not state:
+        if not (state and self.state_decimator.admit(sample.stamp_ns, force=changed)):
             return
         compute_s = 0.0 if started_ns is None else (self.command_done_ns - started_ns) * 1e-9
         fill_controller_state(

@@ -43,6 +43,7 @@ class ControllerParameters:
     future_tolerance_s: float  #: realtime: inputs stamped later than now plus this are refused
     joint_name: str  #: the joint's name in joint_states
     timing_log: str  #: per-update timing (.npz) path, '' for none
+    state_rate_hz: float  #: rate of controller/state, 0: every sample
 
 
 def declare_controller_parameters(node) -> ControllerParameters:
@@ -153,6 +154,15 @@ def declare_controller_parameters(node) -> ControllerParameters:
     timing_log = declare_output_path(
         node, 'timing_log', 'per-update timing (.npz) written at shutdown'
     )
+    state_rate_hz = declare_number(
+        node,
+        'state_rate_hz',
+        0.0,
+        *limits.DIAGNOSTICS_RATE_RANGE_HZ,
+        'Hz',
+        'rate of controller/state on the sample stamps, and every change of status; 0: every '
+        'sample, as the bag analysis needs',
+    )
     node.refuse_sim_time_in_realtime(mode)
     if mode == 'sim' and not node.get_parameter('use_sim_time').value:
         raise ParameterError(
@@ -173,4 +183,5 @@ def declare_controller_parameters(node) -> ControllerParameters:
         future_tolerance_s=future_tolerance_s,
         joint_name=joint_name,
         timing_log=timing_log,
+        state_rate_hz=state_rate_hz,
     )

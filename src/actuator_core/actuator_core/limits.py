@@ -109,6 +109,8 @@ BRAKE_AFTER_S = COMMAND_TIMEOUT_S
 #: future_stamp_tolerance_s) only for nodes on hosts with offset clocks.
 FUTURE_STAMP_TOLERANCE_S = 2.0e-3
 FUTURE_STAMP_TOLERANCE_RANGE_S = (0.0, 10.0)
+#: Rate of a diagnostic topic (plant/truth, controller/state) [Hz]; 0: every sample.
+DIAGNOSTICS_RATE_RANGE_HZ = (0.0, 1.0e4)
 #: Largest stamp any node accepts [ns]: one hour before builtin_interfaces/Time's int32
 #: seconds overflow (2^31 - 1 s), so a stamp plus the few samples a node adds stays writable.
 STAMP_MAX_NS = (2**31 - 1 - 3600) * 1_000_000_000

@@ -58,8 +58,7 @@ class PlantNode(JointNode):
             self,
             'truth_rate_hz',
             0.0,
-            0.0,
-            1.0e4,
+            *limits.DIAGNOSTICS_RATE_RANGE_HZ,
             'Hz',
             'rate of plant/truth (every n-th sample); 0: every sample, as the bag analysis needs',
         )

@@ -31,8 +31,8 @@ JOINTS = ('plant', 'cia402_sim', 'cia402', 'none')
 #: ``bringup --pin`` on a 2-core machine: the ESO and the controller work in strict sequence
 #: each sample (command -> estimate -> command), so they share a core; the joint uses the other.
 PINNING = {'joint': '0', 'eso': '1', 'controller': '1'}
-#: Rate of the diagnostic topics (plant/truth) in a real-time run that records nothing [Hz]:
-#: enough for a live plot; a recorded or sim run keeps every sample for the analysis.
+#: Rate of the diagnostic topics (plant/truth, controller/state) in a real-time run that records
+#: nothing [Hz]: enough for a live plot; a recorded or sim run keeps every sample for the analysis.
 LIVE_DIAGNOSTICS_RATE_HZ = 100.0
 
 
@@ -164,6 +164,7 @@ def closed_loop(
             'actuator_controller',
             {
                 **loop_params,
+                'state_rate_hz': 0.0 if record or sim else LIVE_DIAGNOSTICS_RATE_HZ,
                 **settings('controller', thread_priority),
                 **logged(('timing_log', 'controller_timing.npz')),
             },

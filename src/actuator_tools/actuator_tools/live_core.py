@@ -1,10 +1,9 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""The live view's logic without ROS: per-topic decimation and the accounting of slow clients.
+"""The live view's logic without ROS: the accounting of slow clients.
 
-``Decimator`` passes at most ``rate_hz`` messages a second of a topic, on a grid (a 1 kHz topic
-at 100 Hz passes every tenth message, not bursts), and every message at rate 0 (full rate).
+Decimation per topic is ``actuator_core.decimation.Decimator``.
 
 Slow clients: the Foxglove SDK keeps one bounded outbox per client (``message_backlog_size``)
 and drops that client's oldest data message when it is full, so a stuck client costs the
@@ -24,32 +23,6 @@ import threading
 SEND_LOSSY_LOGGER = 'foxglove.websocket.connected_client.send_lossy'
 _FULL = re.compile(r'outbox for client (\S+) full')
 _DROPPED = re.compile(r'client (\S+?)[:,]?\s.*?(\d+) dropped since last warning')
-
-
-class Decimator:
-    """At most ``rate_hz`` admitted messages per second on a fixed grid (0: admit all)."""
-
-    def __init__(self, rate_hz: float) -> None:
-        """Period 1/rate_hz; the first message is always admitted."""
-        if rate_hz < 0:
-            raise ValueError(f'rate_hz must be >= 0, not {rate_hz}')
-        self.period_ns = int(round(1e9 / rate_hz)) if rate_hz > 0 else 0
-        self.next_ns: int | None = None
-        self.admitted = self.skipped = 0
-
-    def admit(self, now_ns: int) -> bool:
-        """Tell whether the message received at ``now_ns`` is sent."""
-        if self.period_ns == 0:
-            self.admitted += 1
-            return True
-        if self.next_ns is not None and now_ns < self.next_ns:
-            self.skipped += 1
-            return False
-        # On the grid while messages keep up; after a gap the grid restarts at this message.
-        after = None if self.next_ns is None else self.next_ns + self.period_ns
-        self.next_ns = after if after is not None and after > now_ns else now_ns + self.period_ns
-        self.admitted += 1
-        return True
 
 
 class OutboxWatch(logging.Handler):

@@ -44,7 +44,8 @@ from actuator_ros.parameters import (
     declare_text_list,
 )
 from actuator_ros.runner import run_node
-from actuator_tools.live_core import SEND_LOSSY_LOGGER, Decimator, OutboxWatch
+from actuator_core.decimation import Decimator
+from actuator_tools.live_core import SEND_LOSSY_LOGGER, OutboxWatch
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
