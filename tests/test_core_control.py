@@ -4,6 +4,7 @@
 """Controllers, closed loop and stability: behaviour of the control core without ROS."""
 
 import dataclasses
+import math
 
 import numpy as np
 import pytest
@@ -73,6 +74,58 @@ def test_u_b_is_continuous_through_sigma_zero():
     assert values[1] == 0.0
     assert np.all(np.isfinite(values))
     assert values[4] == pytest.approx(np.tanh(1e-3 / 0.06) ** 2 / 1e-3)
+
+
+#: The terms of ControlOutput each law does not compute: NaN (a float), as the state message says.
+NOT_COMPUTED = {
+    'pi': {
+        'rho_rad', 'lower_bound_rad', 'upper_bound_rad', 'z2_rad_s', 'alpha_rad_s',
+        'alpha_dot_rad_s2', 'sigma_rad_s', 'u_eq_rad_s2', 'u_sw_rad_s2', 'u_b_rad_s2',
+    },
+    'smc_eso': {
+        'rho_rad', 'lower_bound_rad', 'upper_bound_rad', 'u_b_rad_s2', 'proportional_a',
+        'integral_a',
+    },
+    'pp_nftsmc_eso': {'proportional_a', 'integral_a'},
+}  # fmt: skip
+NOT_COMPUTED['nftsmc_eso'] = NOT_COMPUTED['smc_eso']
+
+
+@pytest.mark.parametrize('name', CONTROLLER_NAMES)
+def test_each_law_fills_every_term_with_a_float_and_nan_where_it_computes_none(name):
+    ctrl = make_controller(name)
+    out = ctrl.update(0.01, 0.02, 0.1, 0.5, ReferenceSample(0.01, 0.2, 0.3))
+    flags = {'saturated', 'bounds_kept', 'finite'}
+    for field, value in out._asdict().items():
+        if field in flags:
+            assert isinstance(value, bool), (field, value)
+        else:
+            assert isinstance(value, float), (field, value)
+            assert math.isnan(value) == (field in NOT_COMPUTED[name]), (field, value)
+
+
+@pytest.mark.parametrize('name', CONTROLLER_NAMES)
+def test_reset_returns_a_law_to_a_fresh_one(name):
+    """After reset() the same inputs give what a new controller gives (the integral at 0)."""
+    ref = ReferenceSample(0.01, 0.2, 0.0)  # 1 mrad, 10 mrad/s off: no law with an integral...
+    used, fresh = make_controller(name), make_controller(name)
+    for k in range(50):
+        used.update(k * 1e-3, 0.011, 0.21, 0.0, ref)
+    assert (used.integral != 0.0) == used.has_integral  # ...saturates, so each one has moved
+    used.reset()
+    assert used.integral == 0.0
+    assert used.update(0.0, 0.011, 0.21, 0.0, ref) == fresh.update(0.0, 0.011, 0.21, 0.0, ref)
+
+
+def test_the_smc_law_keeps_no_integral():
+    ctrl = make_controller('smc_eso')
+    for k in range(20):
+        ctrl.update(k * 1e-3, 0.02, 0.1, 0.5, ReferenceSample(0.01, 0.2, 0.3))
+    assert ctrl.integral == 0.0 and not ctrl.has_integral
+
+
+def test_the_paper_trajectories_carry_their_names():
+    assert (slow_trajectory().name, fast_trajectory().name) == ('slow', 'fast')
 
 
 def test_current_limit_and_anti_windup():
@@ -228,6 +281,7 @@ def test_envelope_restarts_when_the_error_leaves_it_and_not_otherwise():
     assert bool(ctrl.update(6.002, 0.3, 0.0, 0.0, ref).bounds_kept) and ctrl.envelope_restarts == 1
     ctrl.reset()
     assert ctrl.envelope_start_s == 0.0 and ctrl.envelope_rho0_rad == 0.25
+    assert ctrl.envelope_restarts == 0  # a new run counts its own restarts
     paper = make_controller(
         'pp_nftsmc_eso', PpNftsmcGains(ppf=PrescribedPerformance(restart_margin=0.0))
     )

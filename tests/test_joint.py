@@ -4,13 +4,14 @@
 """The joint contract's ROS-free pieces: settings, soft limits, the simulated joint."""
 
 import dataclasses
+import math
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from actuator_core import limits
-from actuator_core.joint import JointSettings, SoftLimits
+from actuator_core.joint import CommandFreshness, JointSettings, SoftLimits
 from actuator_core.params import iter_specs, range_text
 from actuator_plant.encoder import Encoder
 from actuator_plant.model import JointPlant, PlantParameters
@@ -134,7 +135,7 @@ def test_every_joint_setting_is_documented_as_specified(title):
     for name, f in settings:
         meta = f.metadata
         text = meta['description']
-        if not isinstance(f.default, str):
+        if not isinstance(f.default, (str, bool)):  # a switch or a name has no range
             text += f' [{meta["unit"] or "-"}], valid {range_text(meta)}'
         default = f'`{f.default!r}`' if f.default != '' else '`""`'
         assert rows[name] == (default, text), name
@@ -165,3 +166,59 @@ def test_a_repeated_stamp_has_no_speed():
     """The same instant twice (a replayed sample) divides by nothing and trips nothing."""
     s = SoftLimits(JointSettings())
     assert s.check(T0, 0.1) == '' and s.check(T0, 0.1) == ''
+
+
+# --- loop health: CommandFreshness -------------------------------------------------------------
+
+
+def test_freshness_degrades_below_the_share_and_recovers_above_it_plus_the_hysteresis():
+    f = CommandFreshness(4, 0.5)  # healthy again at 0.6
+    got = [f.add(fresh) for fresh in (True, True, False)]
+    assert got == ['', '', ''] and f.share is None  # the window is not full yet
+    assert f.add(False) == '' and f.share == 0.5  # at the minimum: not below it
+    assert f.add(False) == 'degraded' and f.share == 0.25 and f.degraded
+    assert [f.add(fresh) for fresh in (False, True, True)] == ['', '', '']  # 0, 0.25, 0.5
+    assert f.degraded and f.share == 0.5  # back at the minimum is not healthy yet
+    assert f.add(True) == 'healthy' and f.share == 0.75 and not f.degraded
+    assert f.add(False) == '' and f.episodes == 1 and f.fresh == 3
+
+
+def test_freshness_counts_from_the_first_fresh_command_and_forgets_at_reset():
+    f = CommandFreshness(3, 0.5)
+    assert all(f.add(False) == '' for _ in range(10))  # no command yet: the loop is not closed
+    assert f.share is None and f.fresh == 0
+    assert [f.add(x) for x in (True, False, False)] == ['', '', 'degraded']
+    assert f.episodes == 1
+    f.reset()
+    assert (f.share, f.fresh, f.degraded, f.episodes) == (None, 0, False, 0)
+    assert f.add(False) == '' and f.share is None
+
+
+def test_freshness_at_0_never_degrades_and_at_1_needs_every_sample():
+    never = CommandFreshness(2, 0.0)
+    assert [never.add(x) for x in (True, False, False, False)] == ['', '', '', '']
+    assert never.share == 0.0 and not never.degraded
+    strict = CommandFreshness(2, 1.0)  # healthy again at 1.0 (capped), not 1.1
+    assert strict.share_healthy == 1.0
+    assert [strict.add(x) for x in (True, True, False, True, True)] == [
+        '',
+        '',
+        'degraded',
+        '',
+        'healthy',
+    ]
+
+
+def test_freshness_refuses_an_empty_window_or_a_share_outside_0_1():
+    for window, share in ((0, 0.5), (1, -0.01), (1, 1.01), (1, math.nan)):
+        with pytest.raises(ValueError, match='window'):
+            CommandFreshness(window, share)
+    assert CommandFreshness(1, 0.0).window == 1
+
+
+def test_freshness_describes_the_share_against_its_minimum():
+    f = CommandFreshness(4, 0.5)
+    assert f.describe() == 'fresh commands not judged yet of the last 4 samples (minimum 50%)'
+    for x in (True, False, False, False):
+        f.add(x)
+    assert f.describe() == 'fresh commands 25% of the last 4 samples (minimum 50%)'

@@ -159,3 +159,54 @@ def test_the_joint_reports_its_health_on_diagnostics(rclpy_context):
     assert second.level == Level.WARN and '1 commands refused by stamp' in second.message
     assert second.value('samples') == '2' and second.value('refused_by_stamp') == '1'
     node.destroy_node()
+
+
+def _fresh_then_stale(node, fresh: int, stale: int) -> None:
+    """Answer ``fresh`` samples in time, then step ``stale`` samples with no new command.
+
+    The first step without a command is still fresh: the held command answered the sample
+    before the newest (one sample late, which the protocol allows).
+    """
+    for _ in range(fresh):
+        node.on_command(command(node.published_ns, 1.0))
+    for _ in range(stale):
+        node._sim_step()  # as a lockstep timeout does: the held command is older each sample
+
+
+def test_a_loop_whose_commands_come_late_makes_the_joint_warn_until_they_are_in_time(
+    rclpy_context,
+):
+    """Loop health: below half the samples of the window with a fresh command, WARN."""
+    from actuator_core.health import Level
+    from actuator_plant.plant_node import PlantNode
+
+    node = make(PlantNode, rclpy_context, fresh_command_window_s=0.05)  # 50 samples
+    _fresh_then_stale(node, 60, 26)  # 25 of the last 50 fresh: at the minimum, not below
+    report = node.diagnostics.publish()  # WARN of the command timeout, not of the loop
+    assert report.value('fresh commands [%]') == '50.0' and 'loop too slow' not in report.message
+    _fresh_then_stale(node, 0, 1)
+    report = node.diagnostics.publish()
+    assert report.level == Level.WARN and node.freshness.degraded
+    assert 'loop too slow: fresh commands 48% of the last 50 samples (minimum 50%)' in (
+        report.message
+    )
+    assert not node.stopped_reason and node.gate.active  # warned only: control goes on
+    # In time again: the stale samples leave the window after the 24 fresh ones before them.
+    _fresh_then_stale(node, 29, 0)  # 29 of 50 (58 %): below the 60 % of healthy again
+    assert node.freshness.degraded and node.freshness.share == 0.58
+    _fresh_then_stale(node, 1, 0)
+    assert not node.freshness.degraded and node.diagnostics.publish().level == Level.OK
+    node.destroy_node()
+
+
+def test_stop_on_stale_loop_ends_control_with_the_brake_and_its_reason(rclpy_context):
+    from actuator_plant.plant_node import PlantNode
+
+    node = make(PlantNode, rclpy_context, fresh_command_window_s=0.05, stop_on_stale_loop=True)
+    _fresh_then_stale(node, 60, 27)
+    assert node.stopped_reason.startswith('loop too slow: fresh commands 48%')
+    assert node.joint.command == (0.0, True) and not node.gate.active and node.fault == ''
+    index = node.sample_index
+    node.on_command(command(node.published_ns, 1.0))
+    assert node.sample_index == index  # nothing moves any more
+    node.destroy_node()

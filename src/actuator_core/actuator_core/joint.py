@@ -160,6 +160,26 @@ class JointSettings:
         limits.VELOCITY_LIMIT_RAD_S,
         low_open=True,
     )
+    fresh_command_window_s: float = spec(
+        limits.FRESH_COMMAND_WINDOW_S,
+        'loop health: the window over which the share of fresh commands is judged',
+        's',
+        0.01,
+        60.0,
+    )
+    fresh_command_share_min: float = spec(
+        limits.FRESH_COMMAND_SHARE_MIN,
+        'loop health: below this share of samples whose applied command answered one of the '
+        'two newest samples, /diagnostics warns; 0 never',
+        '',
+        0.0,
+        1.0,
+    )
+    stop_on_stale_loop: bool = spec(
+        False,
+        'loop health: end control (0 A, brake) when the share falls below '
+        'fresh_command_share_min, instead of only warning',
+    )
 
     def __post_init__(self) -> None:
         """Refuse out-of-range values and an empty soft-limit window."""
@@ -211,3 +231,65 @@ class SoftLimits:
                     f'{self.velocity_max:g} rad/s'
                 )
         return ''
+
+
+class CommandFreshness:
+    """Loop health seen by the joint: the share of recent samples driven by a fresh command.
+
+    Fresh: the command applied over a sample interval answered one of the two newest samples
+    (the window ``CommandBinding`` accepts); a held older command, 0 A after a timeout or no
+    command is not. Counting starts at the first fresh command (before it the loop is not
+    closed). Once ``window`` samples are counted the share is judged: below ``share_min`` the
+    loop is degraded, and healthy again at ``share_min + FRESH_COMMAND_HYSTERESIS`` (capped at
+    1). ``share_min`` 0 never degrades.
+    """
+
+    def __init__(self, window: int, share_min: float) -> None:
+        """Judge the last ``window`` (>= 1) samples against ``share_min`` in [0, 1]."""
+        if window < 1 or not 0.0 <= share_min <= 1.0:
+            raise ValueError(f'window {window} must be >= 1 and share_min {share_min} in [0, 1]')
+        self.window, self.share_min = window, share_min
+        self.share_healthy = min(1.0, share_min + limits.FRESH_COMMAND_HYSTERESIS)
+        self._recent: deque[bool] = deque(maxlen=window)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget every sample (a new run)."""
+        self._recent.clear()
+        self.fresh = 0  # fresh samples in the window
+        self.degraded = False
+        self.episodes = 0  # times the loop became degraded
+
+    @property
+    def share(self) -> Optional[float]:
+        """Share of fresh samples in the full window, None before it is full."""
+        return self.fresh / self.window if len(self._recent) == self.window else None
+
+    def add(self, fresh: bool) -> str:
+        """Count one sample; return 'degraded' or 'healthy' when the verdict changes, else ''."""
+        if not self._recent and not fresh:
+            return ''
+        if len(self._recent) == self.window:
+            self.fresh -= self._recent[0]
+        self._recent.append(bool(fresh))
+        self.fresh += bool(fresh)
+        share = self.share
+        if share is None:
+            return ''
+        if not self.degraded and share < self.share_min:
+            self.degraded = True
+            self.episodes += 1
+            return 'degraded'
+        if self.degraded and share >= self.share_healthy:
+            self.degraded = False
+            return 'healthy'
+        return ''
+
+    def describe(self) -> str:
+        """One line: the share over the window against the minimum."""
+        share = self.share
+        seen = 'not judged yet' if share is None else f'{share:.0%}'
+        return (
+            f'fresh commands {seen} of the last {self.window} samples (minimum '
+            f'{self.share_min:.0%})'
+        )

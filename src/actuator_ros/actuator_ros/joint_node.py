@@ -41,7 +41,13 @@ from sensor_msgs.msg import JointState
 from actuator_core.gate import CommandGate
 from actuator_core.health import HealthMonitor, Level, Snapshot
 from actuator_core.binding import CommandBinding
-from actuator_core.joint import Joint, JointError, JointSettings, SoftLimits
+from actuator_core.joint import (
+    CommandFreshness,
+    Joint,
+    JointError,
+    JointSettings,
+    SoftLimits,
+)
 from actuator_core.sample_log import SampleLog
 from actuator_core.timing import period_ns, stamp_to_ns
 from actuator_msgs.msg import CurrentCommand
@@ -126,6 +132,10 @@ class JointNode(ManagedNode):
         self.gate_lock = threading.Lock()
         self.binding = CommandBinding(self.period_ns)
         self.soft_limits = SoftLimits(cfg)
+        self.freshness = CommandFreshness(
+            max(1, round(cfg.fresh_command_window_s / cfg.sample_time_s)),
+            cfg.fresh_command_share_min,
+        )
         qos = control_qos(self.mode)
         self.state_pub = self.create_lifecycle_publisher(JointState, 'joint_states', qos)
         self.clock_pub = (
@@ -169,6 +179,7 @@ class JointNode(ManagedNode):
         self.refused = 0
         self.binding.reset()
         self.soft_limits.reset()
+        self.freshness.reset()
 
     def start(self) -> None:
         """Activate the joint and open the gate; sampling starts once the graph is ready."""
@@ -338,6 +349,8 @@ class JointNode(ManagedNode):
             if self.held.reason == 'command timeout':
                 self.log.warn('command_timeout', lambda: 'commands stopped: 0 A, then the brake')
             self.joint.write(self.held.current_a, self.held.brake)
+            if self._judge_freshness():
+                return False
         stamp_ns = self.start_ns + k * self.period_ns
         sample = self.joint.read(stamp_ns)
         self.sample_index = k
@@ -349,6 +362,24 @@ class JointNode(ManagedNode):
             self._end_control(problem, fault=bool(sample.fault))
             return False
         return self._publish(sample)
+
+    def _judge_freshness(self) -> bool:
+        """Count whether the command just written answered one of the two newest samples.
+
+        Return True when control ended on it (stop_on_stale_loop).
+        """
+        newest = self.published_ns
+        fresh = newest >= 0 and self.held.command_stamp_ns >= newest - self.period_ns
+        change = self.freshness.add(fresh)
+        if change == 'degraded':
+            reason = f'loop too slow: {self.freshness.describe()}'
+            if self.cfg.stop_on_stale_loop:
+                self._end_control(reason, fault=False)
+                return True
+            self.get_logger().warning(f'{reason}; /diagnostics warns while it lasts')
+        elif change == 'healthy':
+            self.get_logger().info(f'loop healthy again: {self.freshness.describe()}')
+        return False
 
     def _end_control(self, reason: str, fault: bool) -> None:
         """0 A and the brake at once, no more samples; a fault goes to error processing."""
@@ -453,6 +484,9 @@ class JointNode(ManagedNode):
             problems.append((Level.ERROR, f'control ended: {self.stopped_reason}'))
         if self.conflict:
             problems.append((Level.ERROR, 'more than one publisher on current_command'))
+        if self.freshness.degraded and not self.stopped_reason:
+            problems.append((Level.WARN, f'loop too slow: {self.freshness.describe()}'))
+        share = self.freshness.share
         return Snapshot(
             'active' if self.active else 'inactive',
             {
@@ -466,6 +500,7 @@ class JointNode(ManagedNode):
                 'mode': self.mode,
                 'brake': bool(self.held.brake),
                 'held': self.held.reason or f'{self.held.current_a:.3f} A',
+                'fresh commands [%]': 'not judged yet' if share is None else f'{100 * share:.1f}',
                 **self.joint.diagnostics(),
             },
             problems,
