@@ -24,6 +24,8 @@ from actuator_controller.laws import (
     tanh_sq_over,
 )
 from actuator_controller.reference import (
+    REFERENCE_KINDS,
+    PaperTrajectory,
     ReferenceSample,
     fast_trajectory,
     make_reference,
@@ -50,7 +52,14 @@ def test_each_controller_holds_zero_error_with_zero_command_on_ideal_plant_at_re
 
 
 @pytest.mark.parametrize(
-    'reference', [slow_trajectory(), fast_trajectory(), make_reference('sine')]
+    'reference',
+    [
+        slow_trajectory(),
+        fast_trajectory(),
+        make_reference('sine'),
+        # the paper's tau = 1 s hides tau's place in the derivatives: another rise time
+        PaperTrajectory(frequency_rad_s=math.pi, rise_time_constant_s=0.3),
+    ],
 )
 def test_reference_derivatives_are_analytic(reference):
     t = np.linspace(0.0, 3.0, 30001)
@@ -62,8 +71,10 @@ def test_reference_derivatives_are_analytic(reference):
 
 
 def test_unknown_reference_and_controller_are_refused():
-    with pytest.raises(ValueError, match='reference'):
+    with pytest.raises(ValueError) as refused:
         make_reference('zigzag')
+    kinds = ', '.join(REFERENCE_KINDS)
+    assert str(refused.value) == f"reference must be one of {kinds}, got 'zigzag'"
     with pytest.raises(ValueError, match='controller'):
         make_controller('lqr')
 

@@ -648,6 +648,16 @@ def test_decimator_at_rate_0_passes_everything_and_refuses_a_negative_or_nan_rat
     assert all(d.admit(t) for t in range(0, 1000, 1)) and d.admitted == 1000
     assert d.skipped == 0
     assert Decimator(1.0e3).period_ns == 1_000_000 and Decimator(3.0).period_ns == 333_333_333
+    assert Decimator(0.5).period_ns == 2_000_000_000  # below 1 Hz is a rate too
+    assert Decimator(0.0).period_ns == 0 and d.admit(999) and d.admit(999)  # repeats pass too
+
+
+def test_a_repeated_stamp_is_admitted_once():
+    for rate_hz, grid_ns in ((100.0, 10_000_000), (1.0e9, 1)):
+        d = Decimator(rate_hz)
+        assert d.period_ns == grid_ns
+        assert d.admit(0) and not d.admit(0), rate_hz  # the grid point itself, again
+        assert d.admit(grid_ns) and not d.admit(grid_ns)
     for bad in (-1.0, -1e-9, math.nan):
         with pytest.raises(ValueError, match='rate_hz must be >= 0'):
             Decimator(bad)

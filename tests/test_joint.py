@@ -221,4 +221,4 @@ def test_freshness_describes_the_share_against_its_minimum():
     assert f.describe() == 'fresh commands not judged yet of the last 4 samples (minimum 50%)'
     for x in (True, False, False, False):
         f.add(x)
-    assert f.describe() == 'fresh commands 25% of the last 4 samples (minimum 50%)'
+    assert f.describe() == 'fresh commands 25.0% of the last 4 samples (minimum 50%)'

@@ -187,7 +187,7 @@ def test_a_loop_whose_commands_come_late_makes_the_joint_warn_until_they_are_in_
     _fresh_then_stale(node, 0, 1)
     report = node.diagnostics.publish()
     assert report.level == Level.WARN and node.freshness.degraded
-    assert 'loop too slow: fresh commands 48% of the last 50 samples (minimum 50%)' in (
+    assert 'loop too slow: fresh commands 48.0% of the last 50 samples (minimum 50%)' in (
         report.message
     )
     assert not node.stopped_reason and node.gate.active  # warned only: control goes on
@@ -204,7 +204,7 @@ def test_stop_on_stale_loop_ends_control_with_the_brake_and_its_reason(rclpy_con
 
     node = make(PlantNode, rclpy_context, fresh_command_window_s=0.05, stop_on_stale_loop=True)
     _fresh_then_stale(node, 60, 27)
-    assert node.stopped_reason.startswith('loop too slow: fresh commands 48%')
+    assert node.stopped_reason.startswith('loop too slow: fresh commands 48.0%')
     assert node.joint.command == (0.0, True) and not node.gate.active and node.fault == ''
     index = node.sample_index
     node.on_command(command(node.published_ns, 1.0))

@@ -288,7 +288,7 @@ class CommandFreshness:
     def describe(self) -> str:
         """One line: the share over the window against the minimum."""
         share = self.share
-        seen = 'not judged yet' if share is None else f'{share:.0%}'
+        seen = 'not judged yet' if share is None else f'{share:.1%}'
         return (
             f'fresh commands {seen} of the last {self.window} samples (minimum '
             f'{self.share_min:.0%})'
