@@ -181,6 +181,8 @@ def test_freshness_degrades_below_the_share_and_recovers_above_it_plus_the_hyste
     assert f.degraded and f.share == 0.5  # back at the minimum is not healthy yet
     assert f.add(True) == 'healthy' and f.share == 0.75 and not f.degraded
     assert f.add(False) == '' and f.episodes == 1 and f.fresh == 3
+    assert f.degraded is False  # a bool for /diagnostics, not merely falsy
+    assert [f.add(False) for _ in range(2)] == ['', 'degraded'] and f.episodes == 2
 
 
 def test_freshness_counts_from_the_first_fresh_command_and_forgets_at_reset():
