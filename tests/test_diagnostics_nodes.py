@@ -5,22 +5,66 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 
 from actuator_bag.analyze import load_run
 from rosbags.highlevel import AnyReader
 
 
-def test_a_sim_run_records_every_nodes_health_and_the_stop_of_its_inputs(ros_process, tmp_path):
-    run = ros_process(
-        'actuator_tools',
-        'bringup',
-        ['--mode', 'sim', '--duration', '2', '--bags', str(tmp_path / 'bags')],
+#: diagnostic_msgs/DiagnosticStatus.STALE
+STALE = 3
+
+
+def _level(status) -> int:
+    """Return the level of a DiagnosticStatus (rclpy gives the byte constant as bytes)."""
+    return status.level[0] if isinstance(status.level, bytes) else int(status.level)
+
+
+def test_a_sim_run_records_every_nodes_health_and_the_stop_of_its_inputs(
+    rclpy_context, ros_process, tmp_path
+):
+    """Each node's /diagnostics in the bag: OK while the loop runs, STALE once the plant stopped.
+
+    The loop is the one bringup starts (graph.closed_loop, sim); the other nodes are kept until
+    the controller has reported the plant's silence (an event, not a sleep), then stopped, so the
+    bag holds that report whatever the host's speed.
+    """
+    from actuator_tools.bringup import scenario_file
+    from actuator_tools.graph import closed_loop, ros_arguments
+    from diagnostic_msgs.msg import DiagnosticArray
+    from ros_helpers import TestNode
+
+    listener = TestNode(rclpy_context, 'diagnostics_listener')
+    live = []
+    listener.node.create_subscription(
+        DiagnosticArray,
+        '/diagnostics',
+        lambda m: live.extend(s for s in m.status if s.name == 'actuator_controller'),
+        100,
     )
-    assert run.wait(240) == 0, run.describe()
-    (bag,) = [p for p in (tmp_path / 'bags').iterdir() if p.is_dir()]
+    bag_dir = tmp_path / 'bag'
+    procs = {
+        spec.key: ros_process(
+            spec.package,
+            spec.executable,
+            ros_arguments(spec, scenario_file('case2_pp_nftsmc_eso')),
+        )
+        for spec in closed_loop('sim', 2.0, record=True, bag=bag_dir)
+    }
+    try:
+        assert procs['plant'].wait(240) == 0, procs['plant'].describe()
+        listener.spin(0.0)
+        ended = len(live)  # reports from before the plant's end do not count
+        listener.wait_for(
+            lambda: any(_level(s) == STALE for s in live[ended:]),
+            timeout=10.0,
+            what='the controller reporting the stopped plant',
+        )
+    finally:
+        listener.close()
+        codes = {key: proc.stop() for key, proc in reversed(list(procs.items()))}
+    assert all(code == 0 for code in codes.values()), codes
     reports: dict[str, list] = {}
-    with AnyReader([bag]) as reader:
+    with AnyReader([bag_dir]) as reader:
         conns = [c for c in reader.connections if c.topic == '/diagnostics']
         assert conns, [c.topic for c in reader.connections]
         for conn, _, raw in reader.messages(connections=conns):
@@ -39,7 +83,7 @@ def test_a_sim_run_records_every_nodes_health_and_the_stop_of_its_inputs(ros_pro
     assert int(reports['actuator_eso'][-1][2]['steps']) >= 1900
     assert all(level != 2 for level, _, _ in reports['recorder'])
     # The analysis reads them.
-    summary = load_run(Path(bag), quiet=True).diagnostics
+    summary = load_run(bag_dir, quiet=True).diagnostics
     assert summary['actuator_controller']['worst'] == 'STALE'
     assert summary['actuator_controller']['levels']['STALE'] == len(stale)
 
