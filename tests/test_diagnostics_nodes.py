@@ -19,6 +19,20 @@ def _level(status) -> int:
     return status.level[0] if isinstance(status.level, bytes) else int(status.level)
 
 
+def _controller_reports(test_node) -> list:
+    """Collect the controller's DiagnosticStatus entries from /diagnostics into a list."""
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    reports: list = []
+    test_node.node.create_subscription(
+        DiagnosticArray,
+        '/diagnostics',
+        lambda m: reports.extend(s for s in m.status if s.name == 'actuator_controller'),
+        100,
+    )
+    return reports
+
+
 def test_a_sim_run_records_every_nodes_health_and_the_stop_of_its_inputs(
     rclpy_context, ros_process, tmp_path
 ):
@@ -30,17 +44,10 @@ def test_a_sim_run_records_every_nodes_health_and_the_stop_of_its_inputs(
     """
     from actuator_tools.bringup import scenario_file
     from actuator_tools.graph import closed_loop, ros_arguments
-    from diagnostic_msgs.msg import DiagnosticArray
     from ros_helpers import TestNode
 
     listener = TestNode(rclpy_context, 'diagnostics_listener')
-    live = []
-    listener.node.create_subscription(
-        DiagnosticArray,
-        '/diagnostics',
-        lambda m: live.extend(s for s in m.status if s.name == 'actuator_controller'),
-        100,
-    )
+    live = _controller_reports(listener)
     bag_dir = tmp_path / 'bag'
     procs = {
         spec.key: ros_process(
@@ -95,16 +102,8 @@ def test_the_controller_reports_refusals_by_reason_and_a_latch_as_error(
     from ros_helpers import LATCHING_CONTROLLER_ARGS, Harness, run_off
     from ros_helpers import now_ns as _now_ns
 
-    from diagnostic_msgs.msg import DiagnosticArray
-
     harness = Harness(rclpy_context)
-    reports = []
-    harness.node.create_subscription(
-        DiagnosticArray,
-        '/diagnostics',
-        lambda m: reports.extend(s for s in m.status if s.name == 'actuator_controller'),
-        10,
-    )
+    reports = _controller_reports(harness)
     ros_process(
         'actuator_controller',
         'controller_node',
