@@ -12,7 +12,7 @@ of the true pair (after one Euler step only x2_hat depends on u(k-1)).
 Safety (statuses: ``actuator_core.status``): a non-finite output or |e| beyond the
 following-error limit latches 0 A until ``reset``; ``watchdog`` answers stale inputs with
 0 A; after ``resync`` (the sensor's time base jumped, the observer restarted, or an input
-was silent for more than ``RESYNC_GAP_SAMPLES``) the command
+was silent for more than ``gap_limit_samples``, the drive's command timeout) the command
 is 0 A with safe stop (the drive's brake holds the joint) for ``resync_samples``, while the
 observer converges on the new samples, and then the reference and the law restart from the
 joint's angle at the reference's first rest t_0 (``first_rest_s``): y_d(t - t_r + t_0) -
