@@ -336,3 +336,45 @@ def test_repeat_runs_each_point_with_its_own_noise_seed(tmp_path):
     assert summary['runs'] == 6 and list(rows['depth_m']) == [0.0] * 3 + [1000.0] * 3
     assert len(set(rows['seed'])) == 6
     assert len(set(rows['max_steady_error_rad'][:3])) == 3  # the noise differs, so do the runs
+
+
+def test_sweep_compare_tells_identical_studies_from_one_changed_cell(tmp_path, capsys):
+    """``sweep-compare A B``: 0 for identical studies, 1 after one cell changed.
+
+    The cell moves by one ulp (a changed platform or law); a folder without a study is exit 2
+    with one line on stderr naming the file it could not read.
+    """
+    import shutil
+
+    import pyarrow as pa
+
+    from actuator_studies.cli import compare_main
+
+    req = SweepRequest(vary=['depth_m=0,1000'], duration_s=SHORT_S, seed=5)
+    run_sweep(req, tmp_path / 'a', progress=False)
+    shutil.copytree(tmp_path / 'a', tmp_path / 'b')
+    capsys.readouterr()
+    assert compare_main([str(tmp_path / 'a'), str(tmp_path / 'b')]) == 0
+    table = pq.read_table(tmp_path / 'a' / 'runs.parquet')
+    columns = len(table.column_names)
+    assert capsys.readouterr().out == (
+        f'sweep-compare: 2 and 2 rows, {columns} columns: identical\n'
+    )
+    # one cell of the copy, one ulp up: what a changed platform or a changed law would give
+    errors = table.column('max_steady_error_rad').to_numpy().copy()
+    assert np.all(np.isfinite(errors))
+    errors[1] = np.nextafter(errors[1], np.inf)
+    index = table.column_names.index('max_steady_error_rad')
+    changed = table.set_column(index, 'max_steady_error_rad', pa.array(errors))
+    pq.write_table(changed, tmp_path / 'b' / 'runs.parquet')
+    assert compare_main([str(tmp_path / 'a'), str(tmp_path / 'b')]) == 1
+    assert capsys.readouterr().out == (
+        f'sweep-compare: 2 and 2 rows, {columns} columns: DIFFERENT\n'
+    )
+    missing = tmp_path / 'never_run'
+    assert compare_main([str(tmp_path / 'a'), str(missing)]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ''
+    err = captured.err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith('sweep-compare: error:'), err
+    assert str(missing / 'runs.parquet') in err[0], err
