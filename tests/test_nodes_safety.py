@@ -251,8 +251,12 @@ def test_plant_refuses_bad_commands_and_drops_to_zero_when_commands_stop(harness
             t.current_a for t in harness.got['truth'] if window[0] < sample_ns_of(t) <= window[1]
         ]
         assert held and all(c == 0.0 for c in held), (bad, held)
-    assert 'refused' in plant.output
+    # The gate's own refusal (actuator_core.gate), not any line that says 'refused' (the
+    # SCHED_FIFO warning does): the first of the three in its second of the rate-limited log.
+    assert 'command nan A refused (valid: finite, |u| <= 25 A); applying 0 A' in plant.output
     assert plant.stop() == 0 and 'Traceback' not in plant.output
+    # each of the three refused by value, and only those (the summary line at stop)
+    assert 'refused commands 3 by value and ' in plant.output, plant.output[-600:]
 
 
 def test_eso_in_sim_mode_survives_the_largest_stamp(harness, ros_process):
@@ -323,7 +327,12 @@ def test_eso_refuses_non_finite_measurements_and_commands(harness, ros_process):
     )
     assert all(math.isfinite(e.input_current_a) for e in harness.got['estimate'])
     assert any(e.current_substituted for e in harness.got['estimate'])  # the NaN command's sample
-    assert 'refused' in eso.output
+    # the ESO's own refusals of each (eso_node.on_command, on_measurement), word for word
+    assert 'command nan A refused (non-finite or beyond 20.0 A)' in eso.output
+    assert (
+        "measurement refused (joint 'joint' missing, non-finite or beyond 100.0 rad): [nan]"
+        in eso.output
+    )
     assert eso.stop() == 0
 
 
