@@ -194,7 +194,56 @@ def test_controller_latches_safe_stop_beyond_following_error(harness, ros_proces
         (c.current_a, c.safe_stop) for c in after
     ]
     assert 'following_error_limit_rad' in ctrl.output
-    assert ctrl.stop() == 0
+    # The latch holds until cleanup and configure (README "Safety"): deactivate and activate
+    # alone keep it (fresh samples answered LATCHED, 0 A with the brake); deactivate, cleanup,
+    # configure, activate through the lifecycle services release it: fresh samples are
+    # controlled again, commands without safe_stop, no LATCHED state.
+    position = 1.25e-3 * 72  # where the joint was left: the reference restarts there
+
+    def fresh_samples():
+        harness.got['state'].clear()
+        harness.got['command'].clear()
+        fresh = _now_ns(harness)
+        stamps = [fresh + k * 1_000_000 for k in range(10)]
+        for stamp in stamps:
+            harness.send_sample(stamp, position)
+            harness.spin(0.002)
+        return stamps
+
+    for label in ('deactivate', 'activate'):
+        assert harness.transition('actuator_controller', label), label
+    stamps = fresh_samples()
+    harness.wait_for(
+        lambda: any(stamp_to_ns(s.header.stamp) == stamps[-1] for s in harness.got['state']),
+        what='the state of the last fresh sample after deactivate and activate',
+    )
+    answered = [c for c in harness.got['command'] if stamp_to_ns(c.header.stamp) in stamps]
+    assert answered and all(c.current_a == 0.0 and c.safe_stop for c in answered)
+    assert all(
+        s.status == ControllerState.STATUS_LATCHED
+        for s in harness.got['state']
+        if stamp_to_ns(s.header.stamp) in stamps
+    ), [s.status for s in harness.got['state']]
+    for label in ('deactivate', 'cleanup', 'configure', 'activate'):
+        assert harness.transition('actuator_controller', label), label
+    assert harness.lifecycle_state('actuator_controller') == 'active'
+    stamps = fresh_samples()
+    harness.wait_for(
+        lambda: any(
+            stamp_to_ns(c.header.stamp) in stamps and not c.safe_stop
+            for c in harness.got['command']
+        ),
+        what='a command without safe_stop for a fresh sample after cleanup and configure',
+    )
+    after_reset = [s for s in harness.got['state'] if stamp_to_ns(s.header.stamp) in stamps]
+    assert after_reset and not any(
+        s.status == ControllerState.STATUS_LATCHED for s in after_reset
+    ), [s.status for s in after_reset]
+    assert any(
+        s.status in (ControllerState.STATUS_OK, ControllerState.STATUS_RECOVERING)
+        for s in after_reset
+    ), [s.status for s in after_reset]
+    assert ctrl.stop() == 0 and 'Traceback' not in ctrl.output
 
 
 def test_plant_refuses_bad_commands_and_drops_to_zero_when_commands_stop(harness, ros_process):
