@@ -364,6 +364,20 @@ class TestNode:
             self.executor.spin_once(timeout_sec=0.01)
         raise AssertionError(f'timed out waiting for {what}')
 
+    def wait_matched(self, publisher, subscribers: int = 1, timeout: float = 20.0) -> None:
+        """Spin until ``publisher`` has matched ``subscribers`` subscriptions of other nodes.
+
+        An event in place of a discovery sleep: a message published before the match is lost
+        to that subscriber. This node's own subscriptions on the topic match at once and are
+        not counted.
+        """
+        own = sum(s.topic_name == publisher.topic_name for s in self.node.subscriptions)
+        self.wait_for(
+            lambda: publisher.get_subscription_count() >= own + subscribers,
+            timeout,
+            f'{subscribers} subscription(s) of other nodes matched on {publisher.topic_name}',
+        )
+
     def call(self, client, request, timeout: float = 20.0):
         """Call a service and return its response (fail when it is absent or silent)."""
         assert client.wait_for_service(timeout_sec=timeout), f'{client.srv_name} not available'
@@ -460,7 +474,7 @@ class Harness(TestNode):
             self.command = self.node.create_publisher(
                 self.types['CurrentCommand'], 'current_command', self.qos
             )
-            self.spin(0.3)  # discovery before the first command
+            self.wait_matched(self.command)  # the node under test sees the first command
         cmd = self.types['CurrentCommand'](current_a=current)
         cmd.header.stamp = _stamp(stamp_ns)
         self.command.publish(cmd)
