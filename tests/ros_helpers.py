@@ -314,6 +314,29 @@ def wait_until(predicate, timeout: float, interval: float = 0.05) -> bool:
     return bool(predicate())
 
 
+def catches_signal(pid: int, signum: int) -> bool:
+    """Tell whether process ``pid`` has a handler for ``signum`` (SigCgt in /proc/<pid>/status)."""
+    try:
+        status = Path(f'/proc/{pid}/status').read_text()
+    except OSError:
+        return False
+    mask = next((int(x.split()[1], 16) for x in status.splitlines() if x.startswith('SigCgt:')), 0)
+    return bool(mask >> (signum - 1) & 1)
+
+
+def wait_for_signal_handler(proc: RosProcess, signum: int, timeout: float = 20.0) -> None:
+    """Wait until ``proc`` handles ``signum``; fail if it exits or the timeout passes first.
+
+    Python handles SIGINT from its start but not SIGTERM: a SIGTERM handler is the entry
+    point's own (``actuator_ros.early.quiet_until_running``, ``actuator_bag.entry``).
+    """
+    deadline = time.monotonic() + timeout
+    while not catches_signal(proc.pid, signum):
+        assert proc.running, f'{proc.name} exited before it handled signal {signum}'
+        assert time.monotonic() < deadline, f'{proc.name} never handled signal {signum}'
+        time.sleep(0.002)
+
+
 def _stamp(ns: int):
     """builtin_interfaces/Time of ``ns`` (imported here: the unit set runs without ROS)."""
     from actuator_ros.conversions import ns_to_stamp

@@ -107,7 +107,7 @@ import yaml  # noqa: E402
 from rosbags.highlevel import AnyReader  # noqa: E402
 from rosbags.rosbag2 import Reader  # noqa: E402
 
-from ros_helpers import RosProcess  # noqa: E402
+from ros_helpers import RosProcess, wait_for_signal_handler  # noqa: E402
 
 N = 3000
 
@@ -508,16 +508,6 @@ def test_entry_point_quiets_signals_before_rclpy(exe: str) -> None:
     assert probe.returncode == 0 and probe.stdout.strip() == '[]', probe.stdout + probe.stderr
 
 
-def _catches(pid: int, signum: int) -> bool:
-    """Tell whether process ``pid`` has a handler for ``signum`` (SigCgt in /proc/<pid>/status)."""
-    try:
-        status = Path(f'/proc/{pid}/status').read_text()
-    except OSError:
-        return False
-    mask = next((int(x.split()[1], 16) for x in status.splitlines() if x.startswith('SigCgt:')), 0)
-    return bool(mask >> (signum - 1) & 1)
-
-
 @pytest.mark.parametrize('exe', ['recorder', 'player'])
 @pytest.mark.parametrize(
     'delay, signame',
@@ -546,11 +536,7 @@ def test_signal_at_any_moment_exits_0(
         # Delays count from the entry point (it handles SIGTERM from its first line: Python alone
         # does not); the interpreter start and console-script wrapper before it are not this
         # code's.
-        deadline = time.monotonic() + 20
-        while (
-            not _catches(proc.pid, signal.SIGTERM) and proc.running and time.monotonic() < deadline
-        ):
-            time.sleep(0.005)
+        wait_for_signal_handler(proc, signal.SIGTERM)
         time.sleep(delay)
     proc.popen.send_signal(getattr(signal, signame))
     assert proc.wait(20) == 0, proc.describe()
