@@ -10,6 +10,8 @@ counter not reset, fails here.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -356,6 +358,17 @@ def test_reset_keeps_the_configuration() -> None:
     assert a.law is law and a.add_measurement(0, 0.0).status is Status.OK
 
 
+def test_reset_keeps_the_brake_delay() -> None:
+    """brake_after 30 ms (the default is 10 ms) holds after reset: 20 ms stale is 0 A, no brake."""
+    a = assembly('pi', brake_after_s=0.03)
+    a.add_measurement(0, 0.0)
+    a.reset()
+    a.add_measurement(0, 0.0)
+    coast = a.watchdog(20 * P, 5 * P, 5 * P)
+    assert coast.status is Status.STALE_MEASUREMENT and coast.safe_stop is False
+    assert a.watchdog(30 * P + 1, 5 * P, 5 * P).safe_stop is True
+
+
 def test_every_corrected_estimate_is_counted() -> None:
     """Two estimates integrated with a substitute: two corrections."""
     a = assembly()
@@ -370,3 +383,66 @@ def test_every_corrected_estimate_is_counted() -> None:
         )  # fmt: skip
         commanded = a.add_measurement(k * P, 0.0).current_a
     assert a.corrected == before + 2
+
+
+def test_a_resync_keeps_the_estimate_already_in_for_its_own_stamp() -> None:
+    """The node resyncs at y(k)'s stamp (its time base jumped) after x_hat(k) came: k is held.
+
+    x_hat(k) is made before y(k) exists; dropping it with the older ones would leave y(k)
+    waiting for an estimate that never comes again.
+    """
+    a = assembly()
+    control(a, 0)
+    a.add_estimate(P, 0.0, 0.0)
+    a.resync(P)
+    s = a.add_measurement(P, 0.1)
+    assert s is not None and (s.stamp_ns, s.status, s.y, s.safe_stop) == (
+        P,
+        Status.RESYNC,
+        0.1,
+        True,
+    )
+
+
+def test_a_restart_for_the_next_sample_forgets_the_measurement_waiting_before_it() -> None:
+    """y(1) waits for x_hat(1); the observer restarts at sample 2: y(1) is dropped, 2 is held."""
+    a = assembly()
+    control(a, 0)
+    assert a.add_measurement(P, 0.1) is None  # waits for its estimate
+    assert a.add_estimate(2 * P, 0.0, 0.0, initial=True) is None  # resync from sample 2
+    assert a.resyncs == 1 and a.add_estimate(P, 0.0, 0.0) is None  # y(1) is not controlled
+    s = a.add_measurement(2 * P, 0.2)
+    assert (s.stamp_ns, s.status, s.y) == (2 * P, Status.RESYNC, 0.2)
+
+
+def test_the_watchdog_answers_the_waiting_measurement_with_its_angle_and_counts_it() -> None:
+    """A stale estimate: the watchdog answers y(k) waiting for it (its y, counted unanswered).
+
+    With nothing waiting its answer has no angle (NaN). Each answered sample counts one.
+    """
+    a = assembly()
+    control(a, 0)
+    a.add_measurement(P, 0.1)
+    a.add_measurement(2 * P, 0.25)  # y(1) is superseded unanswered
+    assert a.unanswered == 1
+    s = a.watchdog(6 * P + 1, 10 * P, 6 * P)  # x_hat(0) is 6 ms + 1 ns old
+    assert (s.stamp_ns, s.status, s.y, s.current_a) == (2 * P, Status.STALE_ESTIMATE, 0.25, 0.0)
+    assert a.unanswered == 2
+    again = a.watchdog(6 * P + 2, 10 * P, 6 * P)  # the same sample, nothing waits any more
+    assert again.stamp_ns == 2 * P and math.isnan(again.y) and a.unanswered == 2
+    assert a.add_estimate(2 * P, 0.0, 0.0) is None  # answered: its estimate is not used
+
+
+def test_the_same_estimate_twice_is_no_conflict_but_nan_is_never_the_same() -> None:
+    """A repeated estimate (same values) is used; a NaN one repeated is two claims: 0 A."""
+    a = assembly()
+    control(a, 0)
+    a.add_estimate(P, 0.1, 0.2)
+    assert a.add_estimate(P, 0.1, 0.2) is None and a.refusal == '' and a.conflicts == 0
+    s = a.add_measurement(P, 0.0)
+    assert s.estimate == (0.1, 0.2) and s.output is not None
+    a.add_estimate(2 * P, float('nan'), 0.2)
+    a.add_estimate(2 * P, float('nan'), 0.2)
+    assert a.conflicts == 1
+    s = a.add_measurement(2 * P, 0.0)
+    assert (s.status, s.current_a, s.output) == (Status.INVALID_INPUT, 0.0, None)

@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from actuator_sim.loop import ClosedLoop, Scenario
+from actuator_sim.loop import TRACE_FIELDS, ClosedLoop, Scenario
 from actuator_core.metrics import compute_run_metrics
 from actuator_sim.offline import run_scenario
 from actuator_sim.scenarios import case1, paper_scenario
@@ -27,10 +27,14 @@ from actuator_controller.reference import (
     REFERENCE_KINDS,
     PaperTrajectory,
     ReferenceSample,
+    StepReference,
     fast_trajectory,
     make_reference,
     slow_trajectory,
 )
+from actuator_core.limits import DIVERGENCE_ERROR_RAD
+from actuator_core.status import Status
+from actuator_plant.encoder import EncoderParameters
 from actuator_plant.model import PlantParameters
 
 
@@ -87,6 +91,29 @@ def test_u_b_is_continuous_through_sigma_zero():
     assert values[4] == pytest.approx(np.tanh(1e-3 / 0.06) ** 2 / 1e-3)
 
 
+@pytest.mark.parametrize('tau', [0.1, 0.7, 3.0])
+def test_tanh_sq_over_uses_its_series_strictly_below_1e_9_tau(tau):
+    """|sigma| < 1e-9 tau: the series sigma/tau^2 (not tanh^2/sigma, nor sigma itself).
+
+    At the threshold itself the tanh formula; for these tau the two differ in the last bit,
+    so the side the threshold is on shows.
+    """
+    below = np.array([-0.5e-9 * tau, 1e-12 * tau, 0.9e-9 * tau])
+    assert np.array_equal(tanh_sq_over(below, tau), below / (tau * tau))
+    for sigma in below:
+        assert tanh_sq_over(float(sigma), tau) == sigma / (tau * tau)
+    edge = 1e-9 * tau
+    assert tanh_sq_over(edge, tau) == math.tanh(edge / tau) ** 2 / edge
+    assert tanh_sq_over(edge, tau) != edge / (tau * tau)
+
+
+def test_tanh_sq_over_saturates_to_one_over_sigma_for_a_narrow_tau():
+    """Far beyond a narrow tau: tanh^2(sigma/tau) = 1, so 1/sigma (the series gives 1e8)."""
+    tau = 1e-6
+    assert tanh_sq_over(1e-4, tau) == pytest.approx(1e4, rel=1e-12)
+    assert tanh_sq_over(np.array([-1e-4, 1e-4]), tau) == pytest.approx([-1e4, 1e4], rel=1e-12)
+
+
 #: The terms of ControlOutput each law does not compute: NaN (a float), as the state message says.
 NOT_COMPUTED = {
     'pi': {
@@ -133,6 +160,15 @@ def test_the_smc_law_keeps_no_integral():
     for k in range(20):
         ctrl.update(k * 1e-3, 0.02, 0.1, 0.5, ReferenceSample(0.01, 0.2, 0.3))
     assert ctrl.integral == 0.0 and not ctrl.has_integral
+
+
+def test_the_smc_law_keeps_no_integral_also_below_the_current_limit():
+    """1 urad off and at rest the law commands within the limit (nothing frozen): integral 0."""
+    ctrl = make_controller('smc_eso')
+    for k in range(20):
+        out = ctrl.update(k * 1e-3, 1e-6, 0.0, 0.0, ReferenceSample(0.0, 0.0, 0.0))
+        assert not out.saturated and out.finite and out.error_rad == 1e-6
+    assert ctrl.integral == 0.0
 
 
 def test_the_paper_trajectories_carry_their_names():
@@ -300,6 +336,39 @@ def test_envelope_restarts_when_the_error_leaves_it_and_not_otherwise():
     assert not bool(out.bounds_kept) and paper.envelope_restarts == 0 and out.rho_rad < 0.1
 
 
+def test_every_envelope_restart_is_counted_and_a_batch_restarts_only_its_runs_outside():
+    """Two exits: two restarts. Arrays: the run inside keeps its envelope, the other restarts."""
+    ref = ReferenceSample(0.0, 0.0, 0.0)
+    ctrl = make_controller('pp_nftsmc_eso')
+    ctrl.update(6.001, 0.3, 0.0, 0.0, ref)  # beyond rho(6.001): restart with rho0 = 0.6
+    out = ctrl.update(6.002, 5.0, 0.0, 0.0, ref)  # beyond 0.6: a second restart, rho0 = 10
+    assert ctrl.envelope_restarts == 2 and out.rho_rad == pytest.approx(10.0)
+    batch = make_controller('pp_nftsmc_eso')
+    y = np.array([0.01, 0.3])  # inside rho(6) ~ 0.06, and beyond it
+    out = batch.update(6.0, y, np.zeros(2), np.zeros(2), ref)
+    assert list(batch.envelope_start_s) == [0.0, 6.0]
+    assert list(batch.envelope_rho0_rad) == pytest.approx([0.25, 0.6])
+    assert out.rho_rad[0] == pytest.approx(batch.gains.ppf.rho_derivatives(6.0, 0.25)[0])
+    assert list(out.bounds_kept) == [True, False] and batch.envelope_restarts == 1
+    out = batch.update(6.001, np.array([0.4, 0.01]), np.zeros(2), np.zeros(2), ref)
+    assert list(out.bounds_kept) == [False, True]  # now the first leaves; the second is inside
+    assert list(batch.envelope_start_s) == [6.001, 6.0]  # the second keeps its restart ...
+    assert list(batch.envelope_rho0_rad) == pytest.approx([0.8, 0.6])  # ... and its rho0
+
+
+def test_any_positive_restart_margin_restarts_the_envelope():
+    """restart_margin 0.5 restarts too; rho0 is then max(rho0, 0.5 |e|) = the gains' 0.25."""
+    from actuator_controller.laws import PpNftsmcGains
+    from actuator_controller.ppf import PrescribedPerformance
+
+    ctrl = make_controller(
+        'pp_nftsmc_eso', PpNftsmcGains(ppf=PrescribedPerformance(restart_margin=0.5))
+    )
+    out = ctrl.update(6.0, 0.3, 0.0, 0.0, ReferenceSample(0.0, 0.0, 0.0))
+    assert ctrl.envelope_restarts == 1 and ctrl.envelope_start_s == 6.0
+    assert out.rho_rad == pytest.approx(0.25)  # restarted at t: rho(0) = rho0
+
+
 @pytest.mark.parametrize('restart_margin, recovers', [(2.0, True), (0.0, False)])
 def test_loop_recovers_from_a_40_ms_current_dropout_only_with_envelope_restarts(
     restart_margin, recovers
@@ -328,3 +397,122 @@ def test_loop_recovers_from_a_40_ms_current_dropout_only_with_envelope_restarts(
     worst_late = max(errors[7000:])
     assert max(errors[5000:5200]) > 0.05  # the dropout did throw it out
     assert (worst_late < 2e-3) == recovers, worst_late
+
+
+def _ideal(**kwargs) -> Scenario:
+    """Return a 50 ms run of the fast trajectory on the loss-free joint (model (5), d = 0)."""
+    return Scenario(name='ideal', plant=PlantParameters().ideal(), duration_s=0.05, **kwargs)
+
+
+def test_the_loop_joint_has_the_scenario_encoder_delay_and_torque_loop():
+    """Encoder: y on its grid. Delay 2: the first command moves the joint 2 samples later.
+
+    Torque loop tau: the first interval gets the mean of i(t) = i*(1 - exp(-t/tau)), so the
+    loss-free joint, linear and at rest, gains that share of the velocity it gains without.
+    """
+    plain = ClosedLoop(_ideal()).run()
+    v = plain['true_velocity_rad_s']
+    assert v[1] != 0.0
+    delayed = ClosedLoop(_ideal(command_delay_samples=2)).run()['true_velocity_rad_s']
+    assert (delayed[1], delayed[2], delayed[3]) == (0.0, 0.0, v[1])
+    tau, dt = 2e-3, 1e-3
+    lagged = ClosedLoop(_ideal(torque_time_constant_s=tau)).run()['true_velocity_rad_s']
+    share = 1.0 - (tau / dt) * (1.0 - math.exp(-dt / tau))
+    assert lagged[1] == pytest.approx(share * v[1], rel=1e-9)
+    encoder = EncoderParameters(counts_per_rev=4096)
+    y = ClosedLoop(_ideal(encoder=encoder)).run()['measured_position_rad']
+    counts = y / (2.0 * math.pi / 4096)
+    assert np.array_equal(counts, np.round(counts)) and np.any(counts != 0.0)
+    assert not np.array_equal(y, plain['measured_position_rad'])
+
+
+def test_the_loop_law_has_the_scenario_common_config():
+    """A 2 A current limit: the law's commands stay within it and saturate (the paper's: 20 A)."""
+    trace = ClosedLoop(_ideal(common=CommonConfig(current_limit_a=2.0))).run()
+    assert np.max(np.abs(trace['current_a'])) == 2.0 and np.any(trace['saturated'] == 1.0)
+
+
+def test_pi_in_the_loop_runs_on_the_measurement_alone():
+    """PI takes no estimate: an observer gone wild (x2_hat = 1000 rad/s) changes none of its run.
+
+    A law that needs the estimate refuses that one (beyond the velocity limit: 0 A).
+    """
+    plain = ClosedLoop(_ideal(controller='pi')).run()
+    loop = ClosedLoop(_ideal(controller='pi'))
+    update = loop.eso.update
+
+    def wild(y, u):
+        update(y, u)
+        loop.eso.x2_hat = 1000.0
+
+    loop.eso.update = wild
+    trace = loop.run()
+    assert np.array_equal(trace['current_a'], plain['current_a'])
+    assert np.array_equal(trace['status'], plain['status']) and loop.assembly.refused == 0
+
+
+def test_a_lost_command_the_observer_integrated_as_applied_is_corrected_exactly():
+    """The drive missed u(1) and held u(0): an observer fed the held current is corrected.
+
+    By default the observer integrates the command (as the ESO node, fed the controller's
+    topic); fed the held current instead, the next estimate is made exact with dt theta1n
+    (du) and the next command is the same. The raw x2_hat shows the difference.
+    """
+    scenario = _ideal()
+    default, commanded, applied = (ClosedLoop(scenario) for _ in range(3))
+    for loop in (default, commanded, applied):
+        loop.step()
+    default.step(command_lost=True)
+    commanded.step(command_lost=True, eso_integrates_applied=False)
+    applied.step(command_lost=True, eso_integrates_applied=True)
+    d, c, a = default.step(), commanded.step(), applied.step()
+    assert (d['x2_hat_rad_s'], d['current_a']) == (c['x2_hat_rad_s'], c['current_a'])
+    assert (default.assembly.corrected, applied.assembly.corrected) == (0, 1)
+    assert a['x2_hat_rad_s'] != c['x2_hat_rad_s']
+    assert a['current_a'] == pytest.approx(c['current_a'], rel=1e-9)
+
+
+def test_run_takes_the_samples_asked_and_returns_float_arrays():
+    """run(n): n samples, not the scenario's; every field one float64 array (NaN fits in all)."""
+    trace = ClosedLoop(_ideal()).run(7)
+    assert set(trace) == set(TRACE_FIELDS)
+    assert all(trace[f].dtype == np.float64 and trace[f].shape == (7,) for f in TRACE_FIELDS)
+    assert list(trace['t_s']) == [k * 1e-3 for k in range(7)]
+
+
+def test_run_stops_at_the_first_latched_sample_unless_told_not_to():
+    """The controller latched (a 1 urad following-error limit): the trace ends at that sample."""
+    loop = ClosedLoop(_ideal())
+    loop.assembly.following_error_limit_rad = 1e-6
+    trace = loop.run(30)
+    assert len(trace['status']) < 30 and trace['status'][-1] == Status.LATCHED
+    assert not np.any(trace['status'][:-1] == Status.LATCHED)
+    loop = ClosedLoop(_ideal())
+    loop.assembly.following_error_limit_rad = 1e-6
+    assert len(loop.run(30, stop_on_divergence=False)['status']) == 30
+
+
+def test_run_stops_where_the_measurement_stops_being_finite():
+    """The joint's angle turns NaN after 5 samples: the trace ends with that sample."""
+    loop = ClosedLoop(_ideal())
+    loop.run(5)
+    loop.plant.position_rad = float('nan')
+    trace = loop.run(20)
+    assert len(trace['t_s']) == 1 and np.isnan(trace['measured_position_rad'][0])
+    assert len(loop.run(3, stop_on_divergence=False)['t_s']) == 3
+
+
+@pytest.mark.parametrize('beyond, samples', [(0.0, 30), (1e-9, 11)])
+def test_run_stops_only_beyond_the_divergence_error(beyond, samples):
+    """|e| exactly DIVERGENCE_ERROR_RAD goes on; a step of it plus 1 nrad cuts the run there.
+
+    PI on the loss-free joint at rest, latch off: 0 A and e = 0 until the step at 10 ms, where
+    e = 0 - (-amplitude) exactly; PI then drives the joint towards it (|e| falls).
+    """
+    loop = ClosedLoop(_ideal(controller='pi', reference='step'))
+    loop.assembly.reference = StepReference(-(DIVERGENCE_ERROR_RAD + beyond), start_s=0.01)
+    loop.assembly.following_error_limit_rad = math.inf
+    trace = loop.run(30)
+    assert len(trace['error_rad']) == samples
+    assert trace['error_rad'][10] == DIVERGENCE_ERROR_RAD + beyond
+    assert np.all(np.abs(trace['error_rad'][11:]) < DIVERGENCE_ERROR_RAD)

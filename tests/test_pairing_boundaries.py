@@ -9,6 +9,7 @@ farthest command kept, what a restart keeps), with the exact estimates the obser
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from actuator_core.pairing import (
@@ -157,3 +158,19 @@ def test_each_message_steps_at_most_the_bound_and_the_rest_follow() -> None:
     third = pair.add_measurement(42 * P, 0.0)
     assert len(second) == MAX_STEPS_PER_CALL and len(third) == 41 - 2 * MAX_STEPS_PER_CALL
     assert third[-1].sample_ns == 41 * P
+
+
+def test_a_batch_command_repeated_is_ignored_and_one_differing_in_one_run_conflicts() -> None:
+    """Arrays (a batch of runs): the same command twice is one; a difference in any run is two.
+
+    The conflicted sample is left to the substitute, for every run of the batch.
+    """
+    eso = ExtendedStateObserver(EsoGains(), DT, x_hat0=(np.zeros(2),) * 3)
+    pair = ObserverInputPairing(eso, P, eso.correction)
+    pair.add_measurement(0, np.zeros(2))
+    pair.add_command(P, np.array([1.0, 2.0]))  # the next sample: kept
+    assert pair.add_command(P, np.array([1.0, 2.0])) == []
+    assert (pair.ignored, pair.conflicts) == (1, 0) and list(pair.currents[P]) == [1.0, 2.0]
+    pair.add_command(P, np.array([1.0, 3.0]))
+    assert pair.conflicts == 1 and P in pair.conflicted and P not in pair.currents
+    assert pair.refusal.startswith(f'two different commands for sample {P} ns')
