@@ -516,3 +516,19 @@ def test_run_stops_only_beyond_the_divergence_error(beyond, samples):
     assert len(trace['error_rad']) == samples
     assert trace['error_rad'][10] == DIVERGENCE_ERROR_RAD + beyond
     assert np.all(np.abs(trace['error_rad'][11:]) < DIVERGENCE_ERROR_RAD)
+
+
+def test_the_loop_gate_holds_each_command_with_its_sample_stamp():
+    """After sample k the drive holds u(k) stamped t_k; a lost u(k+1) leaves u(k) and t_k held.
+
+    The stamp is what the joint node reports as the applied command's (command_stamp_ns).
+    """
+    loop = ClosedLoop(_ideal())
+    period = loop.period_ns
+    loop.step()
+    sent = loop.step()['current_a']
+    held = loop.gate.hold(period)
+    assert (held.current_a, held.command_stamp_ns, held.brake) == (sent, period, False)
+    loop.step(command_lost=True)
+    held = loop.gate.hold(2 * period)
+    assert (held.current_a, held.command_stamp_ns) == (sent, period)
