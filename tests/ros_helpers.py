@@ -18,6 +18,7 @@ import math
 import os
 import random
 import re
+import threading
 import time
 from pathlib import Path
 from typing import Iterable, Mapping, Optional, Union
@@ -377,6 +378,15 @@ class TestNode:
         end = time.monotonic() + seconds
         while time.monotonic() < end:
             self.executor.spin_once(timeout_sec=0.005)
+
+    def spin_in_background(self) -> threading.Thread:
+        """Run the node's callbacks on a daemon thread until ``close``.
+
+        For arrivals timed as they come while the test waits on something else.
+        """
+        thread = threading.Thread(target=self.executor.spin, daemon=True)
+        thread.start()
+        return thread
 
     def wait_for(self, predicate, timeout: float = 20.0, what: str = '') -> None:
         """Spin until ``predicate()`` holds; fail after ``timeout`` seconds."""

@@ -13,7 +13,6 @@ from __future__ import annotations
 import json
 import os
 import signal
-import threading
 import time
 from pathlib import Path
 
@@ -126,12 +125,11 @@ def test_every_node_answers_sigint_within_the_documented_time(ros_process, rclpy
     0.1 s. Each node then exits 0; the time to exit (teardown of rclpy and the interpreter) is
     measured too and printed.
     """
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.node import Node
     from sensor_msgs.msg import JointState
 
     from actuator_msgs.msg import CurrentCommand, StateEstimate
     from actuator_ros.qos import control_qos
+    from ros_helpers import TestNode
 
     outputs = {
         'controller': (CurrentCommand, 'current_command'),
@@ -140,7 +138,7 @@ def test_every_node_answers_sigint_within_the_documented_time(ros_process, rclpy
     }
     arrivals = {key: [] for key in outputs}
     last_command = []
-    probe = Node('sigint_answer_probe', context=rclpy_context)
+    probe = TestNode(rclpy_context, 'sigint_answer_probe')
     for key, (cls, topic) in outputs.items():
 
         def received(msg, key=key) -> None:
@@ -148,11 +146,8 @@ def test_every_node_answers_sigint_within_the_documented_time(ros_process, rclpy
             if key == 'controller':
                 last_command[:] = [msg.safe_stop]
 
-        probe.create_subscription(cls, topic, received, control_qos('realtime'))
-    executor = SingleThreadedExecutor(context=rclpy_context)
-    executor.add_node(probe)
-    spinner = threading.Thread(target=executor.spin, daemon=True)
-    spinner.start()
+        probe.node.create_subscription(cls, topic, received, control_qos('realtime'))
+    probe.spin_in_background()  # arrivals timed while this thread waits for the exits
     params = scenario_file(SCENARIO)
     procs = {}
     try:
@@ -175,8 +170,7 @@ def test_every_node_answers_sigint_within_the_documented_time(ros_process, rclpy
             answers[key] = arrivals[key][-1] - sent
             assert code == 0, proc.describe()
     finally:
-        executor.shutdown()
-        probe.destroy_node()
+        probe.close()
     print(
         'SIGINT: last output after [s]',
         {k: round(v, 4) for k, v in answers.items()},

@@ -93,10 +93,9 @@ def test_exit_waits_until_reliable_subscribers_have_everything(
     import os
     import signal
 
-    from rclpy.node import Node
-
     from actuator_ros.qos import control_qos
     from actuator_ros.runner import wait_for_acknowledgements
+    from ros_helpers import TestNode
     from sensor_msgs.msg import JointState
 
     recorder = ros_process(
@@ -105,12 +104,10 @@ def test_exit_waits_until_reliable_subscribers_have_everything(
         ['--ros-args', '-p', f'output:={tmp_path / "bag"}', '-p', 'reliability:=reliable'],
     )
     recorder.wait_for_output('recording', timeout=20.0)
-    node = Node('ack_test', context=rclpy_context)
+    probe = TestNode(rclpy_context, 'ack_test')
+    node = probe.node
     reliable = node.create_publisher(JointState, 'joint_states', control_qos('sim'))
-    deadline = time.monotonic() + 20.0
-    while reliable.get_subscription_count() < 1:
-        assert time.monotonic() < deadline, 'the recorder never matched'
-        time.sleep(0.05)
+    probe.wait_matched(reliable)  # the recorder
     msg = JointState(name=['joint'], position=[0.0])
     try:
         for _ in range(20):
@@ -127,7 +124,7 @@ def test_exit_waits_until_reliable_subscribers_have_everything(
             os.kill(recorder.pid, signal.SIGCONT)
         assert wait_for_acknowledgements(node, timeout_s=10.0)  # resent and acknowledged after all
     finally:
-        node.destroy_node()
+        probe.close()
     recorder.stop()
     assert 'Traceback' not in recorder.output
 

@@ -179,8 +179,6 @@ def test_isolated_domains_do_not_see_each_other(rclpy_context, ros_env, tmp_path
     A node in this process hears a publisher process on its own domain and never one on another
     test's domain, though both publish the same topic and type on this host.
     """
-    import rclpy
-    from rclpy.executors import SingleThreadedExecutor
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
     from actuator_msgs.msg import CurrentCommand
@@ -211,31 +209,24 @@ def test_isolated_domains_do_not_see_each_other(rclpy_context, ros_env, tmp_path
             same.wait_for_output('^READY$', timeout=30)
             foreign.wait_for_output('^READY$', timeout=30)
 
-            node = rclpy.create_node('isolation_probe', context=rclpy_context)
+            probe = ros_helpers.TestNode(rclpy_context, 'isolation_probe')
             got = []
             qos = QoSProfile(
                 depth=1,
                 reliability=ReliabilityPolicy.RELIABLE,
                 durability=DurabilityPolicy.TRANSIENT_LOCAL,
             )
-            node.create_subscription(
+            probe.node.create_subscription(
                 CurrentCommand,
                 'exchange/CurrentCommand',
                 lambda m: got.append(ros_helpers.message_leaves(m)),
                 qos,
             )
-            executor = SingleThreadedExecutor(context=rclpy_context)
-            executor.add_node(node)
             try:
-                deadline = time.monotonic() + 20
-                while not got and time.monotonic() < deadline:
-                    executor.spin_once(timeout_sec=0.1)
-                settle = time.monotonic() + 2.0  # time enough for the other domain to show up
-                while time.monotonic() < settle:
-                    executor.spin_once(timeout_sec=0.1)
+                probe.wait_for(lambda: got, 20.0, 'the publisher on the same domain')
+                probe.spin(2.0)  # time enough for the other domain to show up
             finally:
-                executor.shutdown()
-                node.destroy_node()
+                probe.close()
     assert got, 'nothing received from the publisher on the same domain'
     assert all(m == mine for m in got), got
     assert theirs not in got
