@@ -131,6 +131,27 @@ def env_without_workspace(env: Mapping[str, str], workspace: Union[str, Path] = 
 __all__ = ['RosProcess', 'executable_path', 'live_processes', 'stop_all_processes']
 
 
+def start_closed_loop(start, specs, params, extra=None, on_start=None) -> dict:
+    """Start the processes of a closed loop in the description's order; return {key: process}.
+
+    ``specs``: ``actuator_tools.graph.closed_loop``'s NodeSpecs (or some of them). Each process
+    gets the arguments the runner gives it (``graph.ros_arguments`` with the scenario file
+    ``params``, e.g. ``actuator_tools.bringup.scenario_file(name)``) and then ``extra[key]``.
+    ``start``: the ``ros_process`` fixture, or any factory of its signature, called as
+    ``start(package, executable, args, name=key)``. ``on_start(key, process)``, if given, runs
+    after each start and before the next (e.g. a wait until a simulated drive listens).
+    """
+    from actuator_tools.graph import ros_arguments
+
+    procs = {}
+    for spec in specs:
+        args = ros_arguments(spec, params) + list((extra or {}).get(spec.key, ()))
+        procs[spec.key] = start(spec.package, spec.executable, args, name=spec.key)
+        if on_start is not None:
+            on_start(spec.key, procs[spec.key])
+    return procs
+
+
 # -- messages ---------------------------------------------------------------------------------
 _INT_RANGES = {
     'int8': (-(2**7), 2**7 - 1),

@@ -26,9 +26,10 @@ import pytest
 from actuator_core import limits
 from actuator_core.timing import stamp_to_ns
 from actuator_ros.conversions import ns_to_stamp
-from actuator_tools.graph import closed_loop, ros_arguments
+from actuator_tools.bringup import scenario_file
+from actuator_tools.graph import closed_loop
 from actuator_tools.supervisor import RosProcess, process_log
-from ros_helpers import TestNode
+from ros_helpers import TestNode, start_closed_loop
 
 pytestmark = [pytest.mark.realtime, pytest.mark.slow]
 
@@ -51,35 +52,28 @@ class Loop:
     """
 
     def __init__(self, env: dict, tmp: Path):
-        from ament_index_python.packages import get_package_share_directory
-
         self.env, self.tmp = env, tmp
-        self.params = (
-            Path(get_package_share_directory('actuator_bringup')) / 'config' / f'{SCENARIO}.yaml'
-        )
+        self.params = scenario_file(SCENARIO)
         self.bag = tmp / 'bag'
         self.specs = {
             s.key: s
             for s in closed_loop('realtime', 0.0, record=True, bag=self.bag, thread_priority=50)
         }
-        self.procs: dict[str, RosProcess] = {}
         self.starts: dict[str, int] = {}
-        for key in self.specs:
-            self.start(key)
+        self.procs: dict[str, RosProcess] = start_closed_loop(
+            self._process, self.specs.values(), self.params
+        )
+
+    def _process(self, package: str, executable: str, args: list, name: str) -> RosProcess:
+        """Process of key ``name``, numbered by its start: every start's log is kept."""
+        n = self.starts[name] = self.starts.get(name, 0) + 1
+        return RosProcess.installed(
+            package, executable, args, env=self.env, log_dir=self.tmp / 'logs', name=f'{name}{n}'
+        )
 
     def start(self, key: str) -> RosProcess:
-        spec = self.specs[key]
-        n = self.starts[key] = self.starts.get(key, 0) + 1
-        proc = RosProcess.installed(
-            spec.package,
-            spec.executable,
-            ros_arguments(spec, self.params),
-            env=self.env,
-            log_dir=self.tmp / 'logs',
-            name=f'{key}{n}',
-        )
-        self.procs[key] = proc
-        return proc
+        self.procs[key] = start_closed_loop(self._process, [self.specs[key]], self.params)[key]
+        return self.procs[key]
 
     def restart(self, key: str, pause_s: float = 0.5) -> None:
         """SIGINT the process (as Ctrl-C or a crash handler would), wait, start a new one."""

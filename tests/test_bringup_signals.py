@@ -20,7 +20,7 @@ import psutil
 import pytest
 import yaml
 
-from ros_helpers import wait_until
+from ros_helpers import start_closed_loop, wait_until
 from actuator_tools.bringup import scenario_file
 from actuator_tools.graph import PINNING, closed_loop, ros_arguments
 
@@ -148,13 +148,10 @@ def test_every_node_answers_sigint_within_the_documented_time(ros_process, rclpy
 
         probe.node.create_subscription(cls, topic, received, control_qos('realtime'))
     probe.spin_in_background()  # arrivals timed while this thread waits for the exits
-    params = scenario_file(SCENARIO)
-    procs = {}
     try:
-        for spec in closed_loop('realtime', 60.0, record=False):
-            procs[spec.key] = ros_process(
-                spec.package, spec.executable, ros_arguments(spec, params)
-            )
+        procs = start_closed_loop(
+            ros_process, closed_loop('realtime', 60.0, record=False), scenario_file(SCENARIO)
+        )
         assert wait_until(lambda: all(len(v) > 500 for v in arrivals.values()), 60), {
             k: len(v) for k, v in arrivals.items()
         }

@@ -13,7 +13,6 @@ tests: tests/test_cia402_nodes.py; the shared pieces in tests/cia402_helpers.py.
 import re
 import signal
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,6 +20,7 @@ import pytest
 from actuator_core import limits
 
 from cia402_helpers import DRIVER, driver_args, wait_for_output
+from ros_helpers import start_closed_loop
 from cia402_helpers import harness_fixture, sim_drive_fixture  # noqa: F401 - fixtures by name
 
 #: SCHED_FIFO priority of the ESO and controller in the closed loops through the drive (driver
@@ -51,23 +51,13 @@ def _late_commands(driver_log: str) -> float | None:
     return int(match.group(2)) / int(match.group(1))
 
 
-def scenario_file() -> Path:
-    """Return the installed parameter file of the paper's fast deep-sea case with PP-NFTSMC-ESO."""
-    from ament_index_python.packages import get_package_share_directory
-
-    return (
-        Path(get_package_share_directory('actuator_bringup'))
-        / 'config'
-        / 'case2_pp_nftsmc_eso.yaml'
-    )
-
-
 def _closed_loop(ros_process, tmp_path, driver_params, record=True):
     """Return the run as graph.closed_loop describes it with the driver as the joint.
 
     What bringup --joint cia402_sim starts.
     """
-    from actuator_tools.graph import closed_loop, ros_arguments
+    from actuator_tools.bringup import scenario_file
+    from actuator_tools.graph import closed_loop
 
     params = dict(driver_params)
     specs = closed_loop(
@@ -79,17 +69,18 @@ def _closed_loop(ros_process, tmp_path, driver_params, record=True):
         thread_priority=CLOSED_LOOP_PRIORITY,
         joint_parameters=params,
     )
-    procs = {}
-    for spec in specs:
-        extra = ['-p', f'timing_log:={tmp_path / "samples.npz"}'] if spec.key == 'driver' else []
-        if spec.key == 'drive':  # the simulated drive: listening before the driver configures
-            procs['drive'] = ros_process(spec.package, spec.executable, ros_arguments(spec, None))
-            procs['drive'].wait_for_output(r'^drive 1 ready$', timeout=30)
-            continue
-        procs[spec.key] = ros_process(
-            spec.package, spec.executable, ros_arguments(spec, scenario_file()) + extra
-        )
-    return procs
+
+    def drive_ready(key, proc) -> None:
+        if key == 'drive':  # the simulated drive: listening before the driver configures
+            proc.wait_for_output(r'^drive 1 ready$', timeout=30)
+
+    return start_closed_loop(
+        ros_process,
+        specs,
+        scenario_file('case2_pp_nftsmc_eso'),
+        extra={'driver': ['-p', f'timing_log:={tmp_path / "samples.npz"}']},
+        on_start=drive_ready,
+    )
 
 
 # A closed loop through the drive at 1 kHz: its timing is the machine's (one rerun, as for

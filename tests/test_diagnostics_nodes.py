@@ -43,20 +43,17 @@ def test_a_sim_run_records_every_nodes_health_and_the_stop_of_its_inputs(
     bag holds that report whatever the host's speed.
     """
     from actuator_tools.bringup import scenario_file
-    from actuator_tools.graph import closed_loop, ros_arguments
-    from ros_helpers import TestNode
+    from actuator_tools.graph import closed_loop
+    from ros_helpers import TestNode, start_closed_loop
 
     listener = TestNode(rclpy_context, 'diagnostics_listener')
     live = _controller_reports(listener)
     bag_dir = tmp_path / 'bag'
-    procs = {
-        spec.key: ros_process(
-            spec.package,
-            spec.executable,
-            ros_arguments(spec, scenario_file('case2_pp_nftsmc_eso')),
-        )
-        for spec in closed_loop('sim', 2.0, record=True, bag=bag_dir)
-    }
+    procs = start_closed_loop(
+        ros_process,
+        closed_loop('sim', 2.0, record=True, bag=bag_dir),
+        scenario_file('case2_pp_nftsmc_eso'),
+    )
     try:
         assert procs['plant'].wait(240) == 0, procs['plant'].describe()
         listener.spin(0.0)
