@@ -19,8 +19,16 @@ from actuator_tools.supervisor import process_log
 
 #: Share of commands later than one period beyond which the observer's pairing is not judged.
 LATE_SHARE_MAX = 0.05
-#: The paper's initial envelope half-width rho0 [rad] (Table 4), the tracking bound judged here.
+#: The paper's initial envelope half-width rho0 [rad] (Table 4): the error of the whole run,
+#: its start included, stays inside it.
 RHO0_RAD = PrescribedPerformance().rho0_rad
+#: README "What clocks the controller": the real-time fast deep-sea run tracks with a max steady
+#: error of 7.3e-4 rad (6 s, SCHED_FIFO 50, either trigger).
+README_REALTIME_ERROR_RAD = 7.3e-4
+#: Tracking judged from 1 s on (the start's transient over): max |e| within 3x the README's
+#: figure (the offline core's own max over [1, 10) s is 9.7e-4 rad, 1.3x).
+TRACKING_FROM_S = 1.0
+TRACKING_MAX_RAD = 3 * README_REALTIME_ERROR_RAD
 #: A stall answer (stale input, resync) lasts the stall plus the resync policy's 50 samples of
 #: 0 A and brake: longer than this is no calm recovery (the worst seen here: 47 samples).
 STALL_EPISODE_MAX = 120
@@ -49,6 +57,12 @@ def _lag_report(result) -> str:
         figures = (f'{np.median(q):.2f}/{np.percentile(q, 99):.2f}' for q in quarters if q.size)
         lines.append(f'{name} p50/p99 [ms] by quarter: ' + ', '.join(figures))
     return '; '.join(lines)
+
+
+def _max_error_from(run, controlled: np.ndarray, start_s: float) -> float:
+    """Max |e| [rad] of the controlled samples from ``start_s`` on (inf when there are none)."""
+    window = controlled & (run.t >= start_s)
+    return float(np.max(np.abs(run.error[window]))) if window.any() else np.inf
 
 
 def _episode_lengths(flags: np.ndarray) -> np.ndarray:
@@ -105,11 +119,17 @@ def test_realtime_loop_stays_stable_for_the_whole_fast_deep_sea_run(isolated):
     assert controlled.any(), 'no sample controlled'
     max_error = np.max(np.abs(run.error[controlled]))
     assert max_error < limits.FOLLOWING_ERROR_LIMIT_RAD, max_error
+    tracking = _max_error_from(run, controlled, TRACKING_FROM_S)
     eso = json.loads((result.run_dir / 'eso_stats.json').read_text())
     paired = (eso['exact_pairs'] + eso['repaired_pairs']) / eso['steps']
     latency_ns = np.load(result.timing_log)['latency_ns']
     late = float(np.mean(latency_ns > 1_000_000)) if latency_ns.size else 0.0
-    outside = (paired < 0.9, controlled.mean() <= 0.9, max_error >= RHO0_RAD)
+    outside = (
+        paired < 0.9,
+        controlled.mean() <= 0.9,
+        max_error >= RHO0_RAD,
+        tracking >= TRACKING_MAX_RAD,
+    )
     if any(outside) and late > LATE_SHARE_MAX:
         # Each stall of the host past the command timeout is a resync (50 samples of 0 A and
         # brake by the policy), so the controlled share measures the host too.
@@ -119,9 +139,15 @@ def test_realtime_loop_stays_stable_for_the_whole_fast_deep_sea_run(isolated):
         pytest.skip(
             f'the host kept the loop late: {late:.0%} of the commands after the next sample, '
             f'the observer paired {paired:.0%} on time or by repair, {controlled.mean():.0%} of '
-            f'the samples controlled; max |e| {max_error:.2e} rad, no latch'
+            f'the samples controlled; max |e| {max_error:.2e} rad, from {TRACKING_FROM_S:g} s '
+            f'{tracking:.2e} rad, no latch'
         )
     assert max_error < RHO0_RAD, max_error
+    assert tracking < TRACKING_MAX_RAD, (
+        f'max |e| from {TRACKING_FROM_S:g} s {tracking:.2e} rad '
+        f'(README {README_REALTIME_ERROR_RAD}); {late:.1%} of the commands late, '
+        f'{controlled.mean():.1%} controlled'
+    )
     assert controlled.mean() > 0.9, f'{controlled.mean():.1%} controlled, {late:.1%} late'
     assert paired >= 0.9, (eso, f'{late:.1%} of commands later than one period')
 
@@ -165,14 +191,21 @@ def test_controller_on_a_1_khz_timer_closes_the_loop_with_the_newest_measurement
     assert np.all(np.isin(after, CONTROLLED + stall_answers)), np.unique(after)
     episodes = _episode_lengths(~np.isin(after, CONTROLLED))
     assert episodes.size == 0 or episodes.max() <= STALL_EPISODE_MAX, episodes.max()
-    outside = controlled.mean() <= 0.9 or max_error >= RHO0_RAD
+    tracking = _max_error_from(run, controlled, TRACKING_FROM_S)
+    outside = controlled.mean() <= 0.9 or max_error >= RHO0_RAD or tracking >= TRACKING_MAX_RAD
     if outside and episodes.size > STALL_EPISODES_ON_TIME:
         pytest.skip(
             f'the host stalled the loop {episodes.size} times in {duration_s:g} s: '
             f'{controlled.mean():.0%} of the samples controlled, the longest stall answer '
-            f'{episodes.max()} samples; max |e| {max_error:.2e} rad, no latch'
+            f'{episodes.max()} samples; max |e| {max_error:.2e} rad, from '
+            f'{TRACKING_FROM_S:g} s {tracking:.2e} rad, no latch'
         )
     assert max_error < RHO0_RAD, max_error
+    assert tracking < TRACKING_MAX_RAD, (
+        f'max |e| from {TRACKING_FROM_S:g} s {tracking:.2e} rad '
+        f'(README {README_REALTIME_ERROR_RAD}); {episodes.size} stall episodes, '
+        f'{controlled.mean():.1%} controlled'
+    )
     assert controlled.mean() > 0.9, (controlled.mean(), episodes)
     # the law ran for most of the 6000 samples (a clean-clone CI run that stalled the loop into
     # resyncs: 3195; such a run ends in the skip above)
