@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import faulthandler
 import gc
+import os
 import signal
 import sys
 import threading
@@ -33,6 +34,14 @@ from actuator_ros.realtime import RealtimeSettings, pre_init_settings
 #: sample the transport dropped is resent only when the reader answers the writer's heartbeat
 #: (Fast DDS: every 3 s by default).
 ACK_TIMEOUT_S = 5.0
+
+#: Fast DDS's publication mode for every process this runner starts, unless the environment sets
+#: it (``RMW_FASTRTPS_PUBLICATION_MODE``; other middlewares ignore it). SYNCHRONOUS sends each
+#: sample in the publishing thread; the Jazzy wheels' rmw_fastrtps default, ASYNCHRONOUS, hands
+#: it to a sending thread, a wake-up and a thread switch per sample at 1 kHz (README
+#: "Performance": CPU and sim speed measured both ways). A KEEP_LAST writer never blocks on
+#: its history, so the sampling thread is not held by a slow subscriber.
+PUBLICATION_MODE = ('RMW_FASTRTPS_PUBLICATION_MODE', 'SYNCHRONOUS')
 
 
 def make_executor(kind: str):
@@ -122,6 +131,7 @@ def run_nodes(
         signal.signal(signum, request_stop)
     faulthandler.register(signal.SIGUSR1, all_threads=True)  # kill -USR1: every thread's stack
     refused = settings.apply()  # before rclpy.init: the middleware's threads inherit it
+    os.environ.setdefault(*PUBLICATION_MODE)  # read by rmw_fastrtps when rclpy.init creates it
     try:
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     except Exception as exc:  # rcl's RCLError: an unparsable parameter file, a bad --ros-args
