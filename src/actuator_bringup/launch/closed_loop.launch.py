@@ -39,7 +39,13 @@ from launch_ros.event_handlers import OnStateTransition
 from launch_ros.events.lifecycle import ChangeState
 from lifecycle_msgs.msg import Transition
 
-from actuator_tools.graph import JOINTS, closed_loop, compose, ros_arguments
+from actuator_tools.graph import (
+    JOINTS,
+    LIVE_DIAGNOSTICS_RATE_HZ,
+    closed_loop,
+    compose,
+    ros_arguments,
+)
 
 
 def _flag(context, name):
@@ -100,6 +106,7 @@ def _processes(context):
     bag = LaunchConfiguration('bag').perform(context)
     logs = LaunchConfiguration('logs').perform(context)
     composed = _flag(context, 'composed')
+    rate = LaunchConfiguration('diagnostics_rate_hz').perform(context)
     specs = closed_loop(
         mode,
         duration,
@@ -110,6 +117,7 @@ def _processes(context):
         logs=Path(logs) if logs else None,
         autostart=composed,  # launch drives the lifecycle of a node that has a process alone
         live_view=_flag(context, 'live_view'),
+        diagnostics_rate_hz=float(rate) if rate else None,
     )
     if composed:
         specs = compose(specs)
@@ -215,6 +223,13 @@ def generate_launch_description():
                 'composed',
                 default_value='false',
                 description='true: the joint, ESO and controller in one process on one executor',
+            ),
+            DeclareLaunchArgument(
+                'diagnostics_rate_hz',
+                default_value='',
+                description='rate of controller/state and plant/truth [Hz] (0: every sample; '
+                f'empty: every sample when recording or in sim, {LIVE_DIAGNOSTICS_RATE_HZ:g} Hz '
+                'otherwise)',
             ),
             DeclareLaunchArgument(
                 'thread_priority',

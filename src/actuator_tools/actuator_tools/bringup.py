@@ -26,8 +26,16 @@ from typing import Optional, Sequence
 
 from ament_index_python.packages import get_package_share_directory
 
+from actuator_core import limits
 from actuator_sim.params_yaml import all_scenarios
-from actuator_tools.graph import JOINTS, PINNING, closed_loop, compose, ros_arguments
+from actuator_tools.graph import (
+    JOINTS,
+    LIVE_DIAGNOSTICS_RATE_HZ,
+    PINNING,
+    closed_loop,
+    compose,
+    ros_arguments,
+)
 from actuator_tools.supervisor import ProcessFigures, RosProcess
 
 MODES = ('realtime', 'sim')
@@ -88,6 +96,7 @@ def run_closed_loop(
     composed: bool = False,
     live_view: bool = False,
     live_view_parameters: dict | None = None,
+    diagnostics_rate_hz: float | None = None,
 ) -> RunResult:
     """Start the nodes of ``scenario`` in ``mode``, run to the end, stop everything.
 
@@ -95,6 +104,7 @@ def run_closed_loop(
     cases), never forever. ``thread_priority`` > 0: SCHED_FIFO for the ESO and controller, one
     level above for the joint (graph.closed_loop). ``cpus`` pins by key ('joint', 'eso',
     'controller'). ``composed``: the joint, ESO and controller in one process (graph.compose).
+    ``diagnostics_rate_hz``: controller/state and plant/truth (graph.closed_loop).
     """
     if duration_s is None:
         duration_s = scenario_duration(scenario)
@@ -121,6 +131,7 @@ def run_closed_loop(
         joint_parameters=joint_parameters,
         live_view=live_view,
         live_view_parameters=live_view_parameters,
+        diagnostics_rate_hz=diagnostics_rate_hz,
     )
     if composed:
         specs = compose(specs)
@@ -352,7 +363,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         action='store_true',
         help='also serve the loop to Foxglove (live_view on ws://127.0.0.1:8765; README)',
     )
+    parser.add_argument(
+        '--diagnostics-rate',
+        type=float,
+        default=None,
+        metavar='HZ',
+        help='rate of controller/state and plant/truth (0: every sample; default: every sample '
+        f'when recording or in sim, {LIVE_DIAGNOSTICS_RATE_HZ:g} Hz otherwise)',
+    )
     args = parser.parse_args(argv)
+    low, high = limits.DIAGNOSTICS_RATE_RANGE_HZ
+    if args.diagnostics_rate is not None and not low <= args.diagnostics_rate <= high:
+        parser.error(f'--diagnostics-rate must be in [{low:g}, {high:g}] Hz')
     if args.duration is not None and not 0.0 < args.duration <= 3600.0:
         parser.error('--duration must be in (0, 3600] s')
     if not 0 <= args.thread_priority <= 99:
@@ -382,6 +404,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         joint=args.joint,
         composed=args.composed,
         live_view=args.live_view,
+        diagnostics_rate_hz=args.diagnostics_rate,
     )
     print(
         json.dumps(

@@ -110,6 +110,7 @@ def closed_loop(
     autostart: bool = True,
     live_view: bool = False,
     live_view_parameters: Optional[dict] = None,
+    diagnostics_rate_hz: Optional[float] = None,
 ) -> list[NodeSpec]:
     """Return the processes of one run in start order.
 
@@ -118,7 +119,9 @@ def closed_loop(
     ``autostart``: the nodes configure and activate themselves (the runner); the launch file drives
     the transitions instead. ``live_view``: also the Foxglove live view (actuator_tools.live_view,
     ws://127.0.0.1:8765 unless ``live_view_parameters`` say otherwise), started before the joint so
-    the joint waits for its subscription too.
+    the joint waits for its subscription too. ``diagnostics_rate_hz``: the rate of
+    controller/state and plant/truth (0: every sample); None: every sample when recording or in
+    sim (the bag analysis needs them), ``LIVE_DIAGNOSTICS_RATE_HZ`` otherwise.
     """
     if joint not in JOINTS:
         raise ValueError(f'joint must be one of {", ".join(JOINTS)}, got {joint!r}')
@@ -134,6 +137,8 @@ def closed_loop(
         return out
 
     loop_params = {'mode': mode, 'use_sim_time': sim}
+    if diagnostics_rate_hz is None:
+        diagnostics_rate_hz = 0.0 if record or sim else LIVE_DIAGNOSTICS_RATE_HZ
     specs = []
     if record:
         specs.append(
@@ -164,7 +169,7 @@ def closed_loop(
             'actuator_controller',
             {
                 **loop_params,
-                'state_rate_hz': 0.0 if record or sim else LIVE_DIAGNOSTICS_RATE_HZ,
+                'state_rate_hz': float(diagnostics_rate_hz),
                 **settings('controller', thread_priority),
                 **logged(('timing_log', 'controller_timing.npz')),
             },
@@ -208,8 +213,7 @@ def closed_loop(
                     'mode': mode,
                     'stop_after_s': float(duration_s),
                     'wait_for_subscribers': subscribers,
-                    # the bag analysis needs every sample; live use needs far fewer
-                    'truth_rate_hz': 0.0 if record or sim else LIVE_DIAGNOSTICS_RATE_HZ,
+                    'truth_rate_hz': float(diagnostics_rate_hz),
                     **settings('joint', joint_priority),
                     **logged(('timing_log', 'plant_samples.npz')),
                 },
