@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import subprocess
 import sys
 
@@ -180,6 +181,40 @@ def test_variants():
     assert 'SCHED_FIFO 50' in variants[2].title
 
 
+def test_variants_per_diagnostics_rate_and_publication_mode():
+    """Each real-time variant once more per rate; every variant once per publication mode."""
+    variants = bench.make_variants(
+        ['realtime', 'sim'], ['fifo', 'fifo-composed'], 50, [100.0, 0.0], ['SYNCHRONOUS']
+    )
+    assert [v.slug for v in variants] == [
+        'sim_synchronous',
+        'realtime_fifo50_synchronous',
+        'realtime_fifo50_diag100hz_synchronous',
+        'realtime_fifo50_diag0hz_synchronous',
+        'realtime_fifo50_composed_synchronous',
+        'realtime_fifo50_composed_diag100hz_synchronous',
+        'realtime_fifo50_composed_diag0hz_synchronous',
+    ]
+    assert 'controller/state and plant/truth at 100 Hz' in variants[2].title
+    assert 'at 1 kHz' in variants[3].title and 'synchronous publication' in variants[3].title
+    modes = bench.make_variants(['sim'], [], 50, [100.0], ['SYNCHRONOUS', 'ASYNCHRONOUS'])
+    assert [v.slug for v in modes] == ['sim_synchronous', 'sim_asynchronous']  # no rate in sim
+
+
+def test_a_publication_mode_reaches_the_processes_and_is_restored(monkeypatch):
+    """The variant's mode is in os.environ only while its run starts processes."""
+    name = 'RMW_FASTRTPS_PUBLICATION_MODE'
+    monkeypatch.setenv(name, 'SYNCHRONOUS')
+    with bench._environment(bench.publication_mode_environment('ASYNCHRONOUS')):
+        assert os.environ[name] == 'ASYNCHRONOUS'
+    assert os.environ[name] == 'SYNCHRONOUS'
+    monkeypatch.delenv(name)
+    with bench._environment(bench.publication_mode_environment('ASYNCHRONOUS')):
+        assert os.environ[name] == 'ASYNCHRONOUS'
+    assert name not in os.environ
+    assert bench.publication_mode_environment('') == {}  # the runner's own mode
+
+
 def test_offline_speed_is_positive():
     assert math.isfinite(bench.offline_speed('case2_pp_nftsmc_eso', None, 0.02))
     assert bench.offline_speed('case2_pp_nftsmc_eso', 10, 0.02) > 0
@@ -194,6 +229,8 @@ def test_offline_speed_is_positive():
         ['--repeats', '0'],
         ['--rt-priority', '100'],
         ['--floor-s', '0.5'],
+        ['--diagnostics-rates', '-1'],
+        ['--diagnostics-rates', '100', '20000'],
     ],
 )
 def test_bad_input_is_one_line_and_exit_2(argv, capsys, tmp_path):

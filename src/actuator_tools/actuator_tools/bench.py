@@ -35,6 +35,7 @@ from typing import Iterator, Optional, Sequence
 import numpy as np
 import psutil
 
+from actuator_core import limits
 from actuator_tools.bench_figures import (
     Figures,
     bag_figures,
@@ -63,6 +64,8 @@ RT_VARIANTS = (
     'normal-composed',
     'fifo-composed',
 )
+#: Fast DDS publication modes a run can be given (RMW_FASTRTPS_PUBLICATION_MODE).
+PUBLICATION_MODES = ('SYNCHRONOUS', 'ASYNCHRONOUS')
 #: ROS modes: sim time across processes, sim time with the three nodes in one process, real time.
 MODES = ('realtime', 'sim', 'sim-composed')
 DURATION_RANGE_S = (1.0, 3600.0)
@@ -130,23 +133,33 @@ class Variant:
     pinned: bool = False
     launched: bool = False  # started by ros2 launch instead of the runner
     composed: bool = False  # joint, ESO and controller in one process (graph.compose)
+    diagnostics_rate_hz: Optional[float] = None  # controller/state, plant/truth (None: default)
+    publication_mode: str = ''  # RMW_FASTRTPS_PUBLICATION_MODE ('': the runner's)
 
     @property
     def slug(self) -> str:
         """Short name for folders and the CSV."""
         sched = f'fifo{self.rt_priority}' if self.rt_priority else 'normal'
         composed = '_composed' if self.composed else ''
-        return (
+        base = (
             f'sim{composed}'
             if self.mode == 'sim'
             else f'realtime_{sched}{"_pinned" if self.pinned else ""}'
             f'{"_launch" if self.launched else ""}{composed}'
         )
+        if self.diagnostics_rate_hz is not None:
+            base += f'_diag{self.diagnostics_rate_hz:g}hz'
+        return base + (f'_{self.publication_mode.lower()}' if self.publication_mode else '')
 
     @property
     def title(self) -> str:
         """Heading in the table."""
         one = ', joint + ESO + controller in one process' if self.composed else ''
+        if self.diagnostics_rate_hz is not None:
+            rate = self.diagnostics_rate_hz
+            one += f', controller/state and plant/truth at {f"{rate:g} Hz" if rate else "1 kHz"}'
+        if self.publication_mode:
+            one += f', Fast DDS {self.publication_mode.lower()} publication'
         if self.mode == 'sim':
             return f'sim: deterministic sim time (lockstep), normal scheduling{one}'
         sched = (
@@ -169,23 +182,40 @@ def missing_tool(variant: Variant) -> Optional[str]:
 
 
 def make_variants(
-    modes: Sequence[str], rt_variants: Sequence[str], rt_priority: int
+    modes: Sequence[str],
+    rt_variants: Sequence[str],
+    rt_priority: int,
+    diagnostics_rates: Sequence[float] = (),
+    publication_modes: Sequence[str] = (),
 ) -> list[Variant]:
-    """Return the variants to run, sim first, in the order given."""
+    """Return the variants to run, sim first, in the order given.
+
+    Each real-time variant runs once more per rate of ``diagnostics_rates``; every variant runs
+    once per mode of ``publication_modes`` (none: the runner's own mode).
+    """
     variants = [Variant('sim')] if 'sim' in modes else []
     if 'sim-composed' in modes:
         variants.append(Variant('sim', composed=True))
     if 'realtime' in modes:
         for name in dict.fromkeys(rt_variants):
-            variants.append(
-                Variant(
-                    'realtime',
-                    rt_priority if 'fifo' in name else 0,
-                    'pinned' in name,
-                    'launch' in name,
-                    'composed' in name,
-                )
+            variant = Variant(
+                'realtime',
+                rt_priority if 'fifo' in name else 0,
+                'pinned' in name,
+                'launch' in name,
+                'composed' in name,
             )
+            variants.append(variant)
+            variants += [
+                dataclasses.replace(variant, diagnostics_rate_hz=float(rate))
+                for rate in dict.fromkeys(diagnostics_rates)
+            ]
+    if publication_modes:
+        variants = [
+            dataclasses.replace(v, publication_mode=mode)
+            for v in variants
+            for mode in dict.fromkeys(publication_modes)
+        ]
     return variants
 
 
@@ -250,6 +280,28 @@ def steal_percent(before: tuple[float, float], after: tuple[float, float]) -> Op
     return 100.0 * (after[0] - before[0]) / total if total > 0 else None
 
 
+def publication_mode_environment(mode: str) -> dict:
+    """Environment that gives the nodes Fast DDS's publication ``mode`` ('': the runner's)."""
+    from actuator_ros.runner import PUBLICATION_MODE
+
+    return {PUBLICATION_MODE[0]: mode} if mode else {}
+
+
+@contextmanager
+def _environment(values: dict):
+    """Set ``values`` in os.environ for the processes started inside; restore them after."""
+    saved = {k: os.environ.get(k) for k in values}
+    os.environ.update(values)
+    try:
+        yield
+    finally:
+        for key, value in saved.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
+
+
 def run_one(
     variant: Variant, repeat: int, args: argparse.Namespace, base: Path, period_ns: int
 ) -> RunRecord:
@@ -262,7 +314,10 @@ def run_one(
     label = f'{variant.slug} repeat {repeat}/{args.repeats}'
     times_before = cpu_times()
     try:
-        with progress(label, expected_wall_s(variant, args.duration), args.quiet):
+        with (
+            progress(label, expected_wall_s(variant, args.duration), args.quiet),
+            _environment(publication_mode_environment(variant.publication_mode)),
+        ):
             result = (
                 run_launched(
                     args.scenario,
@@ -271,6 +326,7 @@ def run_one(
                     bag_root=base / 'bags' / where,
                     results_root=base / 'runs' / where,
                     thread_priority=variant.rt_priority,
+                    diagnostics_rate_hz=variant.diagnostics_rate_hz,
                 )
                 if variant.launched
                 else run_closed_loop(
@@ -284,6 +340,7 @@ def run_one(
                     thread_priority=variant.rt_priority,
                     cpus=PINNING if variant.pinned else None,
                     composed=variant.composed,
+                    diagnostics_rate_hz=variant.diagnostics_rate_hz,
                 )
             )
     except SystemExit as exc:
@@ -532,6 +589,23 @@ def build_parser() -> OneLineParser:
         '(default: normal fifo fifo-composed)',
     )
     p.add_argument(
+        '--diagnostics-rates',
+        type=float,
+        nargs='+',
+        default=[],
+        metavar='HZ',
+        help='also run each real-time variant with controller/state and plant/truth at each '
+        'rate (0: every sample; default: none, every sample as a recorded run has them)',
+    )
+    p.add_argument(
+        '--publication-modes',
+        nargs='+',
+        choices=PUBLICATION_MODES,
+        default=[],
+        help="run every variant under each of Fast DDS's publication modes (default: the "
+        "runner's, SYNCHRONOUS; ASYNCHRONOUS is the Jazzy wheels' own default)",
+    )
+    p.add_argument(
         '--rt-priority',
         type=int,
         default=50,
@@ -587,6 +661,9 @@ def check_args(args: argparse.Namespace) -> Optional[str]:
         return f'--repeats {args.repeats} out of range [1, 100]'
     if not 1 <= args.rt_priority <= 99:
         return f'--rt-priority {args.rt_priority} out of range [1, 99]'
+    low_hz, high_hz = limits.DIAGNOSTICS_RATE_RANGE_HZ
+    if any(not low_hz <= r <= high_hz for r in args.diagnostics_rates):
+        return f'--diagnostics-rates must be in [{low_hz:g}, {high_hz:g}] Hz'
     if any(not 1 <= n <= 100_000 for n in args.batches):
         return '--batches must be in [1, 100000]'
     if not (args.floor_s == 0.0 or 1.0 <= args.floor_s <= 600.0):
@@ -621,7 +698,13 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 
     period_ns = to_period_ns(all_scenarios()[args.scenario].common.dt_s)
     variants = []
-    for variant in make_variants(args.modes, args.rt_variants, args.rt_priority):
+    for variant in make_variants(
+        args.modes,
+        args.rt_variants,
+        args.rt_priority,
+        args.diagnostics_rates,
+        args.publication_modes,
+    ):
         why = missing_tool(variant)
         if why:
             print(f'bench: skipping {variant.slug}: {why}', file=sys.stderr)

@@ -202,6 +202,7 @@ def run_launched(
     bag_root: Path,
     results_root: Path,
     thread_priority: int = 0,
+    diagnostics_rate_hz: float | None = None,
 ) -> RunResult:
     """Make the same run through ``ros2 launch`` (closed_loop.launch.py), where it is installed.
 
@@ -226,6 +227,8 @@ def run_launched(
         f'bag:={bag}',
         f'logs:={run_dir}',
     ]
+    if diagnostics_rate_hz is not None:
+        cmd.append(f'diagnostics_rate_hz:={diagnostics_rate_hz}')
     start = time.monotonic()
     launch = RosProcess(cmd, log_dir=run_dir, name='launch')
     figures: dict[str, ProcessFigures] = {}
