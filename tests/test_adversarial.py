@@ -305,13 +305,18 @@ def test_nan_and_absurd_values_in_each_field_are_refused(loop):
 
 
 @pytest.mark.parametrize(
-    'topic, guards',
+    'topic, watchers, guards',
+    # watchers: the nodes that subscribe to the topic and name both publishers; guards: those
+    # that see the second one when it matches (the controller polls its output at 10 Hz)
     [
-        ('current_command', ('eso',)),  # the controller polls its output at 10 Hz
-        ('joint_states', ('eso', 'controller')),
+        ('current_command', ('eso', 'controller'), ('eso',)),
+        ('joint_states', ('eso', 'controller'), ('eso', 'controller')),
+        ('eso/estimate', ('controller',), ('controller',)),
     ],
 )
-def test_a_second_publisher_is_seen_when_it_matches_and_control_stops_safely(loop, topic, guards):
+def test_a_second_publisher_is_seen_when_it_matches_and_control_stops_safely(
+    loop, topic, watchers, guards
+):
     running, attacker = loop
     rogue = attacker.publisher(topic)  # matched everywhere before its first message
     sent = []
@@ -320,6 +325,8 @@ def test_a_second_publisher_is_seen_when_it_matches_and_control_stops_safely(loo
         m = attacker.types[topic]()
         if topic == 'current_command':
             m.current_a = 5.0
+        elif topic == 'eso/estimate':  # an estimate that would drive the joint hard
+            m.velocity_rad_s, m.disturbance_rad_s2, m.input_current_gain = 5.0, 1000.0, 0.03
         else:
             m.name, m.position = ['joint'], [1.0]
         m.header.stamp = ns_to_stamp(attacker.newest_stamp_ns())
@@ -331,7 +338,7 @@ def test_a_second_publisher_is_seen_when_it_matches_and_control_stops_safely(loo
     attacker.node.destroy_publisher(rogue)
     _assert_recovered(running, attacker)
     text = f'2 publishers on {topic} ('
-    for guard in ('eso', 'controller'):
+    for guard in watchers:
         log = running.log(guard)
         # The log names both publishers by GID (and by node once discovery knows the name:
         # at match time the attacker's is often still _NODE_NAME_UNKNOWN_).
@@ -339,6 +346,8 @@ def test_a_second_publisher_is_seen_when_it_matches_and_control_stops_safely(loo
         assert line.count(' gid ') == 2 and '/actuator_' in line, line
         if guard in guards:  # seen when it matched: before its second message was sent
             assert _log_time_s(log, text) < sent[1], (_log_time_s(log, text) - sent[0], guard)
+    if topic == 'eso/estimate':  # none of the rogue's estimates reached the law
+        assert not any(s.estimated_velocity_rad_s == 5.0 for s in attacker.states)
     if conflict:  # the brake holds over the conflict (from 20 ms after it was seen)
         first, last = (stamp_to_ns(s.header.stamp) for s in (conflict[0], conflict[-1]))
         window = [
