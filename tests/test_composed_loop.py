@@ -57,3 +57,41 @@ def test_a_composed_loop_keeps_lifecycle_and_the_publisher_guard(rclpy_context, 
         assert loop.stop() == 0 and 'Traceback' not in loop.output
     finally:
         test.close()
+
+
+def test_sim_time_nodes_of_one_process_follow_clock_through_one_subscription(rclpy_context):
+    """share_clock_subscription: one /clock subscription, every sim-time node's clock follows."""
+    from rclpy.node import Node
+    from rclpy.parameter import Parameter
+    from rosgraph_msgs.msg import Clock
+
+    from actuator_ros.conversions import ns_to_stamp
+    from actuator_ros.runner import share_clock_subscription
+
+    sim = Parameter('use_sim_time', value=True)
+    members = [
+        Node(name, context=rclpy_context, parameter_overrides=[sim]) for name in ('first', 'other')
+    ]
+    wall = Node('wall_time', context=rclpy_context)  # not on sim time: untouched
+    source = TestNode(rclpy_context, 'clock_source')
+    try:
+        assert share_clock_subscription([*members, wall]) == 1
+        clock_subs = [
+            n for n in (*members, wall) if any(s.topic_name == '/clock' for s in n.subscriptions)
+        ]
+        assert clock_subs == [members[0]]
+        for node in (*members, wall):
+            source.executor.add_node(node)
+        pub = source.node.create_publisher(Clock, '/clock', 10)
+        source.wait_for(lambda: pub.get_subscription_count() == 1, what='the one subscription')
+        pub.publish(Clock(clock=ns_to_stamp(42_000_000_000)))
+        source.wait_for(
+            lambda: members[1].get_clock().now().nanoseconds == 42_000_000_000,
+            what="the follower's clock at the published time",
+        )
+        assert members[0].get_clock().now().nanoseconds == 42_000_000_000
+        assert wall.get_clock().now().nanoseconds > 10**18  # still the system clock
+    finally:
+        source.close()
+        for node in (*members, wall):
+            node.destroy_node()

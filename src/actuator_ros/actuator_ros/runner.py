@@ -152,6 +152,7 @@ def run_nodes(
             first.get_logger().info(
                 f'running under SCHED_FIFO priority {settings.thread_priority} (all threads)'
             )
+        share_clock_subscription(nodes)
         executor = make_executor(settings.executor)
         for node in nodes:
             executor.add_node(node)
@@ -198,6 +199,22 @@ def run_nodes(
                 node.destroy_node()
         if rclpy.ok():
             rclpy.shutdown()
+
+
+def share_clock_subscription(nodes: Sequence[Node]) -> int:
+    """Let the sim-time nodes of one process follow /clock through one subscription.
+
+    rclpy gives every node with ``use_sim_time`` a /clock subscription of its own; in a
+    composed lockstep each of them costs a take and a Python callback per sample. The first
+    such node's time source keeps its subscription and drives the others' clocks; theirs are
+    dropped (a follower set to ``use_sim_time`` false reads the system clock, as rclpy does).
+    Returns how many subscriptions were dropped.
+    """
+    sim = [n for n in nodes if n.get_parameter('use_sim_time').value]
+    for node in sim[1:]:
+        node._time_source.detach_node()  # rclpy 7.1: the node's own TimeSource (private)
+        sim[0]._time_source.attach_clock(node.get_clock())
+    return max(0, len(sim) - 1)
 
 
 def wait_for_acknowledgements(node: Node, timeout_s: float = ACK_TIMEOUT_S) -> bool:
