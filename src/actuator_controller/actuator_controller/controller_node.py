@@ -459,7 +459,11 @@ class ControllerNode(ManagedNode):
         self.cmd.safe_stop = bool(sample.safe_stop)
         self.cmd_pub.publish(self.cmd)
         self.command_done_ns, self.command_wall_ns = time.perf_counter_ns(), self.clock.stamp_ns()
-        if not (state and self.state_decimator.admit(sample.stamp_ns, force=changed)):
+        if not (
+            state
+            and self.state_pub.get_subscription_count()  # nobody listens: neither filled nor sent
+            and self.state_decimator.admit(sample.stamp_ns, force=changed)
+        ):
             return
         compute_s = 0.0 if started_ns is None else (self.command_done_ns - started_ns) * 1e-9
         fill_controller_state(
