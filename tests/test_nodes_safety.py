@@ -514,6 +514,11 @@ def test_lifecycle_transitions_and_parameters_read_at_configure(harness, ros_pro
     harness.wait_for(
         lambda: any(not c.safe_stop for c in harness.got['command']), what='commands while active'
     )
+    last = t + 59_000_000  # every sample answered before the deactivation is judged
+    harness.wait_for(
+        lambda: any(stamp_to_ns(c.header.stamp) >= last for c in harness.got['command']),
+        what='the command answering the last active sample',
+    )
     harness.got['command'].clear()
     assert change('deactivate') and state() == 'inactive'
     harness.wait_for(lambda: harness.got['command'], what='the safe-stop command of deactivate')
