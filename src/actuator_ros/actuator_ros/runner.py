@@ -36,12 +36,14 @@ from actuator_ros.realtime import RealtimeSettings, pre_init_settings
 ACK_TIMEOUT_S = 5.0
 
 #: Fast DDS's publication mode for every process this runner starts, unless the environment sets
-#: it (``RMW_FASTRTPS_PUBLICATION_MODE``; other middlewares ignore it). SYNCHRONOUS sends each
-#: sample in the publishing thread; the Jazzy wheels' rmw_fastrtps default, ASYNCHRONOUS, hands
-#: it to a sending thread, a wake-up and a thread switch per sample at 1 kHz (README
-#: "Performance": CPU and sim speed measured both ways). A KEEP_LAST writer never blocks on
-#: its history, so the sampling thread is not held by a slow subscriber.
-PUBLICATION_MODE = ('RMW_FASTRTPS_PUBLICATION_MODE', 'SYNCHRONOUS')
+#: it: ASYNCHRONOUS (a sending thread per writer), whatever rmw_fastrtps's own default (later
+#: releases default to SYNCHRONOUS); the benchmark compares both (bench --publication-modes).
+#: Not SYNCHRONOUS: there a publish sends in the caller's thread and waits on a subscriber that
+#: does not read. Measured here with the subscriber process stopped (SIGSTOP), 5000 publishes
+#: of controller/state at 1 kHz: synchronous mean 564 us, worst 63 ms (best effort; reliable:
+#: 523 us, 80 ms); asynchronous mean 72 us, worst 7.4 ms (reliable: 123 us, 4.8 ms). A stopped
+#: recorder or `ros2 topic echo` would hold the joint's sampling thread.
+PUBLICATION_MODE = ('RMW_FASTRTPS_PUBLICATION_MODE', 'ASYNCHRONOUS')
 
 
 def make_executor(kind: str):

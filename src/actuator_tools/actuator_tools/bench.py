@@ -603,7 +603,7 @@ def build_parser() -> OneLineParser:
         choices=PUBLICATION_MODES,
         default=[],
         help="run every variant under each of Fast DDS's publication modes (default: the "
-        "runner's, SYNCHRONOUS; ASYNCHRONOUS is the Jazzy wheels' own default)",
+        "runner's, ASYNCHRONOUS; see actuator_ros.runner.PUBLICATION_MODE)",
     )
     p.add_argument(
         '--rt-priority',
