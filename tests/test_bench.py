@@ -201,6 +201,18 @@ def test_variants_per_diagnostics_rate_and_publication_mode():
     assert [v.slug for v in modes] == ['sim_synchronous', 'sim_asynchronous']  # no rate in sim
 
 
+def test_each_variant_once_more_without_the_recorder():
+    """--without-recorder: each variant followed by its unrecorded twin, named and titled so."""
+    variants = bench.make_variants(['sim-composed', 'realtime'], ['fifo'], 50, (), (), True)
+    assert [(v.slug, v.recorded) for v in variants] == [
+        ('sim_composed', True),
+        ('sim_composed_unrecorded', False),
+        ('realtime_fifo50', True),
+        ('realtime_fifo50_unrecorded', False),
+    ]
+    assert variants[3].title.endswith(', no recorder')
+
+
 def test_a_publication_mode_reaches_the_processes_and_is_restored(monkeypatch):
     """The variant's mode is in os.environ only while its run starts processes."""
     name = 'RMW_FASTRTPS_PUBLICATION_MODE'
@@ -274,6 +286,7 @@ def test_short_sim_run_end_to_end(ros_env, tmp_path):
             'sim',
             '--floor-s',
             '2',
+            '--without-recorder',
             '--out',
             str(out),
         ],
@@ -284,13 +297,18 @@ def test_short_sim_run_end_to_end(ros_env, tmp_path):
     )
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert 'speed: sim s / wall s' in proc.stdout and '>= 3' in proc.stdout
-    assert '[bench] run 1/1' in proc.stdout
+    assert '[bench] run 1/2' in proc.stdout
     (base,) = out.iterdir()
     summary = json.loads((base / 'summary.json').read_text())
-    (run,) = summary['runs']
-    assert run['error'] is None
+    run, unrecorded = summary['runs']
+    assert run['error'] is None and unrecorded['error'] is None
     assert run['figures']['speed_x'] > 0
     assert run['figures']['eso_steps'] == 2000
+    # Without the recorder: timing and the nodes' own counts, no bag and so no tracking figure.
+    assert unrecorded['variant'] == 'sim_unrecorded' and unrecorded['figures']['speed_x'] > 0
+    assert unrecorded['figures']['eso_steps'] == 2000
+    assert 'max_steady_error_rad' in run['figures']
+    assert 'max_steady_error_rad' not in unrecorded['figures']
     assert summary['sections']['sim']['figures']['speed_x']['n'] == 1
     assert (base / 'runs.csv').read_text().startswith('variant,')
     assert (base / 'table.txt').is_file()

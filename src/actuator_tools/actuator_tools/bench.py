@@ -135,6 +135,7 @@ class Variant:
     composed: bool = False  # joint, ESO and controller in one process (graph.compose)
     diagnostics_rate_hz: Optional[float] = None  # controller/state, plant/truth (None: default)
     publication_mode: str = ''  # RMW_FASTRTPS_PUBLICATION_MODE ('': the runner's)
+    recorded: bool = True  # the recorder runs (its bag gives the tracking figures)
 
     @property
     def slug(self) -> str:
@@ -149,7 +150,9 @@ class Variant:
         )
         if self.diagnostics_rate_hz is not None:
             base += f'_diag{self.diagnostics_rate_hz:g}hz'
-        return base + (f'_{self.publication_mode.lower()}' if self.publication_mode else '')
+        if self.publication_mode:
+            base += f'_{self.publication_mode.lower()}'
+        return base if self.recorded else f'{base}_unrecorded'
 
     @property
     def title(self) -> str:
@@ -160,6 +163,8 @@ class Variant:
             one += f', controller/state and plant/truth at {f"{rate:g} Hz" if rate else "1 kHz"}'
         if self.publication_mode:
             one += f', Fast DDS {self.publication_mode.lower()} publication'
+        if not self.recorded:
+            one += ', no recorder'
         if self.mode == 'sim':
             return f'sim: deterministic sim time (lockstep), normal scheduling{one}'
         sched = (
@@ -187,11 +192,13 @@ def make_variants(
     rt_priority: int,
     diagnostics_rates: Sequence[float] = (),
     publication_modes: Sequence[str] = (),
+    without_recorder: bool = False,
 ) -> list[Variant]:
     """Return the variants to run, sim first, in the order given.
 
     Each real-time variant runs once more per rate of ``diagnostics_rates``; every variant runs
-    once per mode of ``publication_modes`` (none: the runner's own mode).
+    once per mode of ``publication_modes`` (none: the runner's own mode), and once more without
+    the recorder if ``without_recorder``.
     """
     variants = [Variant('sim')] if 'sim' in modes else []
     if 'sim-composed' in modes:
@@ -216,6 +223,8 @@ def make_variants(
             for v in variants
             for mode in dict.fromkeys(publication_modes)
         ]
+    if without_recorder:
+        variants = [v for r in variants for v in (r, dataclasses.replace(r, recorded=False))]
     return variants
 
 
@@ -327,13 +336,14 @@ def run_one(
                     results_root=base / 'runs' / where,
                     thread_priority=variant.rt_priority,
                     diagnostics_rate_hz=variant.diagnostics_rate_hz,
+                    record=variant.recorded,
                 )
                 if variant.launched
                 else run_closed_loop(
                     args.scenario,
                     variant.mode,
                     args.duration,
-                    record=True,
+                    record=variant.recorded,
                     bag_root=base / 'bags' / where,
                     results_root=base / 'runs' / where,
                     quiet=True,
@@ -360,6 +370,8 @@ def run_one(
     record.figures.update(process_figures(result.cpu_percent, result.peak_rss_mb))
     record.figures['wall_s'] = result.wall_s
     record.figures['steal_pct'] = steal_percent(times_before, cpu_times())
+    if not variant.recorded:
+        return record
     try:
         record.figures.update(bag_figures(result.bag))
     except (
@@ -450,7 +462,7 @@ def tracking_reference(
     sims = [
         r.figures
         for r in records
-        if r.variant == 'sim' and r.figures.get('max_steady_error_rad') is not None
+        if r.variant.startswith('sim') and r.figures.get('max_steady_error_rad') is not None
     ]
     if sims:
         return (
@@ -606,6 +618,12 @@ def build_parser() -> OneLineParser:
         "runner's, ASYNCHRONOUS; see actuator_ros.runner.PUBLICATION_MODE)",
     )
     p.add_argument(
+        '--without-recorder',
+        action='store_true',
+        help='run every variant once more without the recorder (no bag: no tracking figures; '
+        'its CPU and latency as a run that records nothing)',
+    )
+    p.add_argument(
         '--rt-priority',
         type=int,
         default=50,
@@ -704,6 +722,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         args.rt_priority,
         args.diagnostics_rates,
         args.publication_modes,
+        args.without_recorder,
     ):
         why = missing_tool(variant)
         if why:

@@ -203,6 +203,7 @@ def run_launched(
     results_root: Path,
     thread_priority: int = 0,
     diagnostics_rate_hz: float | None = None,
+    record: bool = True,
 ) -> RunResult:
     """Make the same run through ``ros2 launch`` (closed_loop.launch.py), where it is installed.
 
@@ -226,6 +227,7 @@ def run_launched(
         f'thread_priority:={thread_priority}',
         f'bag:={bag}',
         f'logs:={run_dir}',
+        f'record:={"true" if record else "false"}',
     ]
     if diagnostics_rate_hz is not None:
         cmd.append(f'diagnostics_rate_hz:={diagnostics_rate_hz}')
