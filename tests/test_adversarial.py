@@ -34,15 +34,25 @@ from ros_helpers import TestNode, start_closed_loop
 pytestmark = [pytest.mark.realtime, pytest.mark.slow]
 
 SCENARIO = 'case2_pp_nftsmc_eso'
-#: |e| of the controlled samples in the last second that counts as tracking again [rad]. The
-#: paper's run stays below 1e-3 rad in steady state; after a restart the envelope's transient
-#: (rho0 = 0.25 rad) is still decaying, hence the margin.
-TRACKING_RAD = 0.05
+#: README "Safety", the stall table: after a 20-300 ms stall of the ESO or the controller the
+#: loop tracks again with max |e| 1.2e-3 rad (core model, fast deep-sea case; the real loop's
+#: table beside it: 8.2e-4 to 2.6e-3).
+README_RECOVERED_ERROR_RAD = 1.2e-3
+#: |e| of the controlled samples in the last second that counts as tracking again: within 3x
+#: the README's figure [rad] (was 0.05 rad, which a joint 40x off the documented tracking passed).
+TRACKING_RAD = 3 * README_RECOVERED_ERROR_RAD
 #: Seconds after an attack by which a calm second must have come (see _assert_recovered).
 RECOVERY_DEADLINE_S = 20.0
+#: Share of the commands of that last second later than one period (the controller's
+#: late_samples) above which the host, not the loop, set its figure (as in
+#: tests/test_realtime_closed_loop.py).
+LATE_SHARE_MAX = 0.05
 #: ControllerState statuses whose command is the law's (OK, RECOVERING).
 CONTROLLED = (0, 9)
 STATUS_CONFLICT, STATUS_LATCHED, STATUS_RESYNC = 7, 5, 6
+#: Statuses that answer a stall (stale measurement, stale estimate, resync): in a second the
+#: host kept on time there is none.
+STALL_ANSWERS = (2, 3, STATUS_RESYNC)
 
 
 class Loop:
@@ -163,12 +173,17 @@ def loop(ros_env, rclpy_context, tmp_path):
         assert not any('Traceback' in running.log(key) for key in running.specs)
 
 
-def _assert_recovered(running: Loop, attacker: Attacker) -> None:
-    """No latched stop, and a second of controlled samples tracking within RECOVERY_DEADLINE_S.
+def _assert_recovered(running: Loop, attacker: Attacker) -> str:
+    """No latched stop, control again, and a second tracking within TRACKING_RAD by the deadline.
 
     Judged from 3 s after the attack on; a later stall of this shared machine can cost another
-    resync, so the loop gets until the deadline to show one calm second (a loop that never
-    recovers, or latches, still fails). The failure names the statuses and the logs' ends.
+    resync, so the loop gets until RECOVERY_DEADLINE_S to show one calm second. Safety holds on
+    every run: no latch, and the law commands again (controlled samples in the last second).
+    The tracking figure is the host's when it kept the loop late in that last second (more than
+    LATE_SHARE_MAX of its commands late, or a stall answer among its states): then this returns
+    why it was not judged, with the figures, for the test to skip with once its own safety
+    assertions have passed (``_skip_unjudged``); with the host on time, a loop still outside
+    TRACKING_RAD fails, naming the statuses and the logs' ends. Returns '' when it tracks.
     """
     attacker.spin(3.0)
     end = time.monotonic() + RECOVERY_DEADLINE_S - 3.0
@@ -177,16 +192,34 @@ def _assert_recovered(running: Loop, attacker: Attacker) -> None:
         attacker.spin(0.5)
     assert 'safe stop latched' not in running.log('controller')
     error = tracking_again(attacker)
-    if error >= TRACKING_RAD:
-        recent = attacker.states[-1000:]
-        statuses = collections.Counter(s.status for s in recent)
-        tails = {key: running.log(key).splitlines()[-8:] for key in ('controller', 'eso', 'plant')}
-        raise AssertionError(
-            f'not tracking {RECOVERY_DEADLINE_S:g} s after the attack: max |e| {error} rad, '
-            f'statuses of the last {len(recent)} states {dict(statuses)} (of '
-            f'{len(attacker.states)} received)\n'
-            + '\n'.join(f'--- {key}:\n' + '\n'.join(lines) for key, lines in tails.items())
-        )
+    if error < TRACKING_RAD:
+        print(f'\ntracking again: max |e| {error:.2e} rad of the last second')
+        return ''
+    recent = attacker.states[-1000:]
+    statuses = collections.Counter(s.status for s in recent)
+    first, last = (stamp_to_ns(s.header.stamp) for s in (recent[0], recent[-1]))
+    samples = max(1, round((last - first) / (limits.SAMPLE_TIME_S * 1e9)) + 1)
+    late = (recent[-1].late_samples - recent[0].late_samples) / samples
+    stalls = sum(statuses[s] for s in STALL_ANSWERS)
+    figures = (
+        f'max |e| {error:.2e} rad (bound {TRACKING_RAD:.2e}) {RECOVERY_DEADLINE_S:g} s after the '
+        f'attack; in its last second {late:.1%} of the commands late, statuses '
+        f'{dict(statuses)} of {len(recent)} states received'
+    )
+    tails = {key: running.log(key).splitlines()[-8:] for key in ('controller', 'eso', 'plant')}
+    said = '\n'.join(f'--- {key}:\n' + '\n'.join(lines) for key, lines in tails.items())
+    assert any(s.status in CONTROLLED for s in recent), (
+        f'the law never ran again: {figures}\n{said}'
+    )
+    if late > LATE_SHARE_MAX or stalls:
+        return f'the host kept the loop late (no latch, the law ran again; not judged): {figures}'
+    raise AssertionError(f'not tracking with the host on time: {figures}\n{said}')
+
+
+def _skip_unjudged(unjudged: str) -> None:
+    """End a test whose safety assertions passed: skip if the host set its tracking figure."""
+    if unjudged:
+        pytest.skip(unjudged)
 
 
 #: A resync stamp starts a new episode after this long without one [ns].
@@ -213,6 +246,53 @@ def _brake_in_resync(truth: list, resync: set) -> list:
             if stamp - start >= BRAKE_LAG_NS:
                 held.append(t.brake_engaged)
     return held
+
+
+#: Once at rest under the brake the joint stays where it stopped [rad]: the brake holds 50 N m,
+#: above the external torque's 30 N m peak (README "Holding brake"), so the simulated joint does
+#: not move at all. Before it is at rest it slides: from the fast trajectory's 8.8 rad/s peak,
+#: up to 0.26 rad at the brake's 150 rad/s^2.
+HELD_RAD = 1e-6
+#: A stamp gap longer than this ends a stretch of braked truth samples [ns]: the listener misses
+#: samples, and a release and a new brake are a command timeout (10 ms) apart at least.
+BRAKED_GAP_NS = 5 * 10**6
+#: Braked samples at rest the listener gets after a restart, at least. A stopped ESO or
+#: controller leaves the joint braked for the restart's pause and start-up (over 1 s: 700-4200
+#: received here); a restarted plant is braked only until the controller's resync ends, and
+#: this listener matches the new process late (1-52 received here): one, then.
+BRAKED_AT_REST_MIN = {'plant': 1, 'eso': 100, 'controller': 100}
+
+
+def _braked_stretches(truth: list) -> list:
+    """Return the braked truth samples in stretches, none with a stamp gap over BRAKED_GAP_NS."""
+    stretches, previous = [], None
+    for t in sorted(
+        (t for t in truth if t.brake_engaged), key=lambda t: stamp_to_ns(t.header.stamp)
+    ):
+        stamp = stamp_to_ns(t.header.stamp)
+        if previous is None or stamp - previous > BRAKED_GAP_NS:
+            stretches.append([])
+        stretches[-1].append(t)
+        previous = stamp
+    return stretches
+
+
+def _held_offsets(stretches: list) -> list:
+    """Return (stamp ns, position minus the rest position rad) of the braked samples at rest.
+
+    Each stretch from its first sample at rest (velocity 0) on; one never at rest gives none.
+    """
+    out = []
+    for stretch in stretches:
+        rest = next((t for t in stretch if t.velocity_rad_s == 0.0), None)
+        if rest is not None:
+            start = stamp_to_ns(rest.header.stamp)
+            out += [
+                (stamp_to_ns(t.header.stamp), t.position_rad - rest.position_rad)
+                for t in stretch
+                if stamp_to_ns(t.header.stamp) >= start
+            ]
+    return out
 
 
 def _logged_after(log: str, text: str, after_s: float) -> bool:
@@ -254,7 +334,7 @@ def test_stamp_attacks_are_refused_with_their_reasons_and_tracking_goes_on(loop)
         est.publish(e)
         attacker.spin(0.0005)
     attacker.node.destroy_publisher(est)
-    _assert_recovered(running, attacker)
+    unjudged = _assert_recovered(running, attacker)
     log = running.log('controller')
     # The first refusal line names one of the far-ahead stamps (the rate-limited log keeps the
     # first of each kind; a genuine estimate a lagging controller refused is another kind).
@@ -274,6 +354,7 @@ def test_stamp_attacks_are_refused_with_their_reasons_and_tracking_goes_on(loop)
     # None of the rogue's estimates was used: no state carries its velocity.
     assert not any(s.estimated_velocity_rad_s == 7.77 for s in attacker.states)
     assert '2 publishers on eso/estimate (' in log and '/attacker gid ' in log
+    _skip_unjudged(unjudged)
 
 
 def test_nan_and_absurd_values_in_each_field_are_refused(loop):
@@ -295,13 +376,14 @@ def test_nan_and_absurd_values_in_each_field_are_refused(loop):
         est.publish(e)
         attacker.spin(1.1)  # one report per field and second (rate-limited log)
     attacker.node.destroy_publisher(est)
-    _assert_recovered(running, attacker)
+    unjudged = _assert_recovered(running, attacker)
     log = running.log('controller')
     for field, value, bound in cases:
         assert (
             f'estimate for {stamp} ns refused: {field} = {value} is not finite or beyond '
             f'+-{bound:g}'
         ) in log
+    _skip_unjudged(unjudged)
 
 
 @pytest.mark.parametrize(
@@ -336,7 +418,7 @@ def test_a_second_publisher_is_seen_when_it_matches_and_control_stops_safely(
     conflict = [s for s in attacker.states[-1000:] if s.status == STATUS_CONFLICT]
     assert conflict or topic == 'current_command', 'the controller never reported the conflict'
     attacker.node.destroy_publisher(rogue)
-    _assert_recovered(running, attacker)
+    unjudged = _assert_recovered(running, attacker)
     text = f'2 publishers on {topic} ('
     for guard in watchers:
         log = running.log(guard)
@@ -356,6 +438,7 @@ def test_a_second_publisher_is_seen_when_it_matches_and_control_stops_safely(
             if first + 20 * 10**6 <= stamp_to_ns(t.header.stamp) <= last
         ]
         assert window and all(window)
+    _skip_unjudged(unjudged)
 
 
 @pytest.mark.parametrize(
@@ -379,11 +462,20 @@ def test_a_restarted_node_resumes_control(loop, key, what):
     ):
         attacker.spin(0.2)
     attacker.spin(2.0)
-    _assert_recovered(running, attacker)
+    unjudged = _assert_recovered(running, attacker)
     if what:  # said for this restart, not for the start-up
         assert _logged_after(running.log('controller'), what, restarted), what
     since = [t for t in attacker.truth if stamp_to_ns(t.header.stamp) > restarted * 1e9]
-    assert any(t.brake_engaged for t in since), 'the joint was not braked while control was down'
+    # The joint was braked while control was down and through the resync, and held there: every
+    # braked sample from the one at rest on is where that one was (before it, the joint slides
+    # to a stop against the brake).
+    at_rest = _held_offsets(_braked_stretches(since))
+    assert len(at_rest) >= BRAKED_AT_REST_MIN[key], (
+        f'{len(at_rest)} braked samples at rest after the restart (of {len(since)} received)'
+    )
+    print(f'braked at rest after the restart: {len(at_rest)} samples received')
+    moved = [(stamp, offset) for stamp, offset in at_rest if abs(offset) > HELD_RAD]
+    assert not moved, f'{len(moved)} of {len(at_rest)} braked samples moved: {moved[:10]}'
     resync = {stamp_to_ns(s.header.stamp) for s in attacker.states if s.status == STATUS_RESYNC}
     # every command answering a resync sample is 0 A with the brake (the controller's part)
     answers = [c for c in attacker.commands if stamp_to_ns(c.header.stamp) in resync]
@@ -401,6 +493,7 @@ def test_a_restarted_node_resumes_control(loop, key, what):
         # released it: 85 % held on one run). (The 10-deep best-effort listener of a loaded
         # test process may miss a whole episode.)
         assert not held or np.mean(held) > BRAKE_HELD_MIN, (sorted(resync), held)
+    _skip_unjudged(unjudged)
 
 
 #: Stall lengths [s] (issue 21): each node is stopped (SIGSTOP) this long, in turn.
