@@ -20,12 +20,17 @@ from actuator_eso.observer import (
     input_current_correction,
 )
 from actuator_plant.model import (
+    CONDITION_CHOICES,
+    GRAVITY_M_S2,
+    SEAWATER_DENSITY_KG_M3,
     JointPlant,
     PlantParameters,
     WorkingCondition,
+    braked_step,
     derive_constants,
     disturbance_parts,
     joint_forces,
+    working_condition,
 )
 from actuator_plant.oil import (
     MotorGeometry,
@@ -249,3 +254,137 @@ def test_holding_brake_stops_the_joint_and_holds_it_against_the_external_torque(
     for _ in range(500):
         weak.step(0.0, brake=True)  # 5 N m cannot hold 20-30 N m: it slips
     assert abs(weak.position_rad) > 0.01
+
+
+def test_depth_range_is_the_surface_to_11000_m_both_included():
+    """0 m and 11000 m are depths; a nanometre above or below is refused, with the range."""
+    assert WorkingCondition.at_depth(0.0).pressure_pa == 0.0
+    deepest = WorkingCondition.at_depth(11000.0, temperature_c=1.0)
+    assert deepest == WorkingCondition(SEAWATER_DENSITY_KG_M3 * GRAVITY_M_S2 * 11000.0, 1.0)
+    assert WorkingCondition.at_depth(500.0).temperature_c == 2.0  # the deep sea's by default
+    for depth in (11000.0 + 1e-9, -1e-9):
+        with pytest.raises(ValueError) as refused:
+            WorkingCondition.at_depth(depth)
+        assert str(refused.value) == (
+            f'depth_m = {depth} is outside its valid range [0, 11000] m: water depth'
+        )
+
+
+def test_working_condition_by_name():
+    """The named ones, 'depth' (with the given temperature), 'custom' (the given one)."""
+    given = WorkingCondition(pressure_pa=3.0e6, temperature_c=9.0)
+    assert working_condition('lab', 50.0, given) == WorkingCondition(0.0, 25.0)
+    assert working_condition('deep_sea', 50.0, given) == WorkingCondition(10.0e6, 2.0)
+    assert working_condition('depth', 50.0, given) == WorkingCondition.at_depth(50.0, 9.0)
+    assert working_condition('depth') == WorkingCondition.at_depth(1000.0, 2.0)
+    assert working_condition('custom', 50.0, given) is given
+    assert working_condition('custom') == WorkingCondition()
+    with pytest.raises(ValueError) as refused:
+        working_condition('mars')
+    assert str(refused.value) == (
+        "working_condition must be one of lab, deep_sea, depth, custom: 'mars'"
+    )
+    assert CONDITION_CHOICES == ('lab', 'deep_sea', 'depth', 'custom')
+
+
+def test_sample_time_range_is_1_us_to_1_s_both_included():
+    """dt_s of 1 us and of 1 s build a plant; just outside either is refused, with the range."""
+    assert JointPlant(PlantParameters(), 1e-6).period_ns == 1_000
+    assert JointPlant(PlantParameters(), 1.0).period_ns == 1_000_000_000
+    for dt in (np.nextafter(1e-6, 0.0), np.nextafter(1.0, 2.0)):
+        with pytest.raises(ValueError) as refused:
+            JointPlant(PlantParameters(), dt)
+        assert str(refused.value) == (
+            f'dt_s = {dt} is outside its valid range [1e-06, 1] s: sample time'
+        )
+
+
+#: Drift and external torque on, no seal friction or stirring: a braked joint by hand.
+BRAKED = dataclasses.replace(
+    PlantParameters(substeps=2), with_seal_friction=False, with_stirring=False
+)
+
+
+def _braked_by_hand(t, q, v, u, dt):
+    """Semi-implicit Euler of the brake (README "Safety") with (1), (40), (41) written out.
+
+    Moving: the brake's T_h opposes the motion; a sub-interval whose velocity would change
+    sign ends at rest. At rest: held while the other torques stay within T_h, else T_h
+    opposes their excess.
+    """
+    p = BRAKED
+    n, d, e = p.nominal, p.drift, p.external
+    gear = n.gear_ratio
+    h = dt / p.substeps
+    for i in range(p.substeps):
+        ts = t + i * h
+        inertia = n.inertia_kg_m2 * (
+            1 + d.inertia_amplitude * math.sin(d.inertia_frequency_rad_s * ts)
+        )
+        kt = n.torque_constant_nm_a * (
+            1 + d.torque_constant_amplitude * math.cos(d.torque_constant_frequency_rad_s * ts)
+        )
+        kb = n.viscous_coefficient_nm_s_rad * (
+            1 + d.viscous_amplitude * math.cos(d.viscous_frequency_rad_s * ts)
+        )
+        external = e.mean_nm * (1 + e.relative_amplitude * math.sin(e.frequency_rad_s * ts))
+        free = (kt * u - kb * gear * v - external / gear) / (inertia * gear)
+        hold = p.brake_holding_torque_nm / (inertia * gear * gear)
+        if v != 0.0:
+            new = v + h * (free - math.copysign(hold, v))
+            new = 0.0 if new * v < 0.0 else new
+        elif abs(free) <= hold:
+            new = 0.0
+        else:
+            new = h * (free - math.copysign(hold, free))
+        q, v = q + 0.5 * h * (v + new), new
+    return q, v
+
+
+@pytest.mark.parametrize(
+    'v, u',
+    [
+        (2.0, 0.0),  # moving: slowed by T_h, still moving
+        (-2.0, 3.0),  # the other way, against a current
+        (0.05, 0.0),  # stops within the first sub-interval
+        (0.0, 0.0),  # at rest: held against eq. (40)'s 20-30 N m
+        (0.0, 20.0),  # at rest, driven beyond T_h: slips
+        (0.0, -20.0),
+    ],
+)
+def test_braked_step_by_hand(v, u):
+    """One sample of the brake at t = 0.3 s (drift and external torque on), 2 sub-intervals."""
+    c = derive_constants(BRAKED)
+    q, q_dot = braked_step(0.3, 0.1, v, u, 1e-3, c)
+    want = _braked_by_hand(0.3, 0.1, v, u, 1e-3)
+    assert (q, q_dot) == pytest.approx(want, rel=1e-12, abs=1e-15)
+    if u == 0.0 and v == 0.0:
+        assert (q, q_dot) == (0.1, 0.0)  # held exactly
+
+
+def test_the_brake_holds_a_joint_with_no_torque_on_it():
+    """The loss-free joint at rest at 0 A (no torque at all): held, velocity exactly 0."""
+    c = derive_constants(PlantParameters().ideal())
+    assert braked_step(0.3, 0.1, 0.0, 0.0, 1e-3, c) == (0.1, 0.0)
+    q, v = braked_step(0.3, np.array([0.1, 0.2]), np.zeros(2), np.zeros(2), 1e-3, c)
+    assert list(q) == [0.1, 0.2] and list(v) == [0.0, 0.0]
+
+
+def test_braked_step_and_a_partly_braked_batch_go_element_by_element():
+    """Arrays: each element as its own scalar run; a batch braked in part brakes only those."""
+    c = derive_constants(BRAKED)
+    v = np.array([2.0, -2.0, 0.05, 0.0, 0.0])
+    u = np.array([0.0, 3.0, 0.0, 0.0, 20.0])
+    q, q_dot = braked_step(0.3, np.full(5, 0.1), v, u, 1e-3, c)
+    for i in range(5):
+        assert (q[i], q_dot[i]) == braked_step(0.3, 0.1, v[i], u[i], 1e-3, c)
+    batch = JointPlant(BRAKED, 1e-3, position_rad=np.zeros(2))
+    single = [JointPlant(BRAKED, 1e-3) for _ in range(2)]
+    for k in range(30):
+        brake = np.array([k >= 10, False])
+        batch.step(np.array([8.0, 8.0]), brake)
+        for i in range(2):
+            single[i].step(8.0, bool(brake[i]))
+    assert list(batch.position_rad) == [s.position_rad for s in single]
+    assert list(batch.velocity_rad_s) == [s.velocity_rad_s for s in single]
+    assert single[0].velocity_rad_s != single[1].velocity_rad_s
