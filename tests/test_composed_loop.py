@@ -95,3 +95,16 @@ def test_sim_time_nodes_of_one_process_follow_clock_through_one_subscription(rcl
         source.close()
         for node in (*members, wall):
             node.destroy_node()
+
+
+@pytest.mark.parametrize('listened', [True, False])
+def test_the_callback_cost_tool_runs_the_nodes_path_bit_for_bit(listened, monkeypatch):
+    """actuator_tools.callback_cost: the nodes wired in-process command what the offline loop does.
+
+    With and without a subscriber on the diagnostic topics (the recorded and the quiet path).
+    """
+    from actuator_tools import callback_cost
+
+    figures = callback_cost.measure(300, listened=listened)
+    assert figures['samples'] == 300 and figures['identical_to_offline']
+    assert all(us > 0 for us in figures['median_us'].values()), figures['median_us']

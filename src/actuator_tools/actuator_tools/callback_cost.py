@@ -28,8 +28,12 @@ import numpy as np
 SCENARIO = 'case2_pp_nftsmc_eso'
 
 
-def _wire(nodes: dict, queue: collections.deque) -> None:
-    """Replace each publisher's publish by a hand-over to the subscribers' callbacks."""
+def _wire(nodes: dict, queue: collections.deque, listened: bool = True) -> None:
+    """Replace each publisher's publish by a hand-over to the subscribers' callbacks.
+
+    The diagnostic topics (plant/truth, controller/state) go nowhere; ``listened`` says whether
+    a subscriber is there (a recorder: they are filled each sample) or not (they are skipped).
+    """
     plant, eso, ctrl = nodes['joint'], nodes['eso'], nodes['controller']
     routes = {
         (plant, 'state_pub'): [('eso', eso.on_measurement), ('controller', ctrl.on_measurement)],
@@ -43,10 +47,14 @@ def _wire(nodes: dict, queue: collections.deque) -> None:
         )
     for node, attr in quiet:
         getattr(node, attr).publish = lambda msg: None
+        getattr(node, attr).get_subscription_count = lambda: int(listened)
 
 
-def measure(samples: int) -> dict:
-    """Run ``samples`` samples through the wired nodes; return the per-node medians [us]."""
+def measure(samples: int, listened: bool = True) -> dict:
+    """Run ``samples`` samples through the wired nodes; return the per-node medians [us].
+
+    ``listened``: the diagnostic topics have a subscriber (as in a recorded run).
+    """
     import rclpy
 
     from actuator_controller.controller_node import ControllerNode
@@ -69,7 +77,7 @@ def measure(samples: int) -> dict:
             node.trigger_configure()
             node.trigger_activate()
         queue: collections.deque = collections.deque()
-        _wire(nodes, queue)
+        _wire(nodes, queue, listened)
         per_node = {key: np.zeros(samples + 1, dtype=np.int64) for key in nodes}
         commands = []
         ctrl = nodes['controller']
@@ -106,8 +114,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog='callback_cost', description=__doc__.splitlines()[0])
     parser.add_argument('--samples', type=int, default=5000)
     parser.add_argument('--json', type=Path, help='write the figures as JSON')
+    parser.add_argument(
+        '--unlistened',
+        action='store_true',
+        help='no subscriber on plant/truth and controller/state (a run that records nothing)',
+    )
     args = parser.parse_args(argv)
-    figures = measure(args.samples)
+    figures = measure(args.samples, listened=not args.unlistened)
     for key, us in figures['median_us'].items():
         print(f'{key:10s} {us:7.1f} us per sample (median of its callbacks)')
     print(
