@@ -210,3 +210,17 @@ def test_stop_on_stale_loop_ends_control_with_the_brake_and_its_reason(rclpy_con
     node.on_command(command(node.published_ns, 1.0))
     assert node.sample_index == index  # nothing moves any more
     node.destroy_node()
+
+
+def test_a_report_queued_before_cleanup_reports_nothing_and_raises_nothing(rclpy_context):
+    """A diagnostics timer event that comes after drop (the joint gone) is a no-op, not a crash."""
+    from actuator_plant.plant_node import PlantNode
+
+    node = make(PlantNode, rclpy_context)
+    diagnostics = node.diagnostics
+    assert diagnostics.publish() is not None
+    node.trigger_deactivate()
+    node.trigger_cleanup()
+    assert node.joint is None  # what the snapshot reads is gone
+    assert diagnostics.publish() is None
+    node.destroy_node()

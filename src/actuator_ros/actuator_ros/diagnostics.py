@@ -56,8 +56,14 @@ class NodeDiagnostics:
         )
         self.last: Optional[Health] = None
 
-    def publish(self) -> Health:
-        """Take a snapshot, judge it, publish it; return the Health."""
+    def publish(self) -> Optional[Health]:
+        """Take a snapshot, judge it, publish it; return the Health (None once destroyed).
+
+        A timer event the executor had queued before ``destroy`` may still call this: the node
+        has dropped what its snapshot reads by then (a faulted joint), so nothing is reported.
+        """
+        if self.pub is None:
+            return None
         health = self.monitor.update(time.monotonic_ns(), self.snapshot())
         msg = DiagnosticArray()
         msg.header.stamp = self.node.get_clock().now().to_msg()
@@ -70,3 +76,4 @@ class NodeDiagnostics:
         """Destroy the timer and the publisher (drop/cleanup)."""
         self.node.destroy_timer(self.timer)
         self.node.destroy_publisher(self.pub)
+        self.pub = None
