@@ -362,6 +362,22 @@ def test_player_unknown_topic(ros_process, tmp_path: Path) -> None:
     )
 
 
+@pytest.mark.ros  # the recorder module imports rclpy
+def test_a_system_topic_under_a_namespace_has_its_type() -> None:
+    """Several joints: /joint2/eso/estimate is the StateEstimate topic of joint 2."""
+    from actuator_bag.errors import BagError
+    from actuator_bag.recorder_node import parse_topic
+
+    assert parse_topic('/joint2/eso/estimate') == (
+        '/joint2/eso/estimate',
+        'actuator_msgs/msg/StateEstimate',
+    )
+    assert parse_topic('/joint1/joint_states')[1] == 'sensor_msgs/msg/JointState'
+    for wrong in ('/joint1/estimate', '/joint1/clock', '/joint1/xjoint_states'):
+        with pytest.raises(BagError, match='is not a system topic'):
+            parse_topic(wrong)
+
+
 @pytest.mark.parametrize('exe', ['recorder', 'player', 'bag_repair', 'bag_analyze'])
 def test_help(ros_process, exe: str) -> None:
     """Every executable answers --help with usage and exit code 0."""

@@ -5,10 +5,17 @@
 
 from __future__ import annotations
 
+import re
+
 import pytest
 
 from actuator_tools import bringup
-from actuator_tools.graph import LIVE_DIAGNOSTICS_RATE_HZ, closed_loop
+from actuator_tools.graph import (
+    LIVE_DIAGNOSTICS_RATE_HZ,
+    closed_loop,
+    file_parameters,
+    ros_arguments,
+)
 
 
 def _rates(specs) -> dict:
@@ -51,3 +58,88 @@ def test_bringup_refuses_a_diagnostics_rate_out_of_range_in_one_line(rate, capsy
         bringup.main(['--diagnostics-rate', rate, '--duration', '1'])
     assert stop.value.code == 2
     assert '--diagnostics-rate must be in [0, 10000] Hz' in capsys.readouterr().err
+
+
+def _arguments_of(spec, scenario):
+    """{name: value} of a spec's ``-p`` arguments, and its remaps."""
+    args = ros_arguments(spec, scenario)
+    values = {a.partition(':=')[0]: a.partition(':=')[2] for a in args[2::2] if ':=' in a}
+    return args, values
+
+
+def test_two_joints_on_one_bus_each_loop_under_its_namespace():
+    """joints=2: node ids 1 and 2, one SYNC producer, distinct masters, the bus load of both."""
+    specs = closed_loop('realtime', 5.0, joint='cia402_sim', joints=2, thread_priority=50)
+    by_key = {s.key: s for s in specs}
+    assert set(by_key) == {
+        'recorder',
+        'drive',
+        'controller1',
+        'eso1',
+        'controller2',
+        'eso2',
+        'driver1',
+        'driver2',
+    }
+    assert [s.key for s in specs][-2:] == ['driver2', 'driver1']  # the SYNC producer last
+    for i in (1, 2):
+        for key in ('controller', 'eso', 'driver'):
+            assert by_key[f'{key}{i}'].namespace == f'joint{i}'
+        driver = by_key[f'driver{i}'].parameters
+        assert (
+            driver['node_id'] == i and driver['joints_on_bus'] == 2 and by_key[f'driver{i}'].leader
+        )
+    assert [by_key[f'driver{i}'].parameters['sync_producer'] for i in (1, 2)] == [True, False]
+    masters = {by_key[f'driver{i}'].parameters['master_node_id'] for i in (1, 2)}
+    assert masters == {127, 126}  # two heartbeats, two ids
+    drive = list(by_key['drive'].arguments)
+    ids = [drive[i + 1] for i, a in enumerate(drive) if a == '--node-id']
+    assert ids == ['1', '2']
+    ports = {by_key[f'driver{i}'].parameters['channel'] for i in (1, 2)}
+    assert len(ports) == 1 and ports.pop().endswith(drive[drive.index('--port') + 1])
+    topics = by_key['recorder'].parameters['topics']
+    assert '/joint1/joint_states' in topics and '/joint2/controller/state' in topics
+    assert len(topics) == 8
+
+
+def test_a_namespaced_node_gets_its_file_sections_as_values():
+    """A file's node section applies in the root namespace only: the runner inlines it."""
+    scenario = bringup.scenario_file('case2_pp_nftsmc_eso')
+    specs = {s.key: s for s in closed_loop('realtime', 5.0, joint='cia402_sim', joints=2)}
+    args, values = _arguments_of(specs['controller2'], scenario)
+    assert args[:3] == ['--ros-args', '-r', '__ns:=/joint2'] and '--params-file' not in args
+    assert values['controller'] == 'pp_nftsmc_eso' and values['sample_time_s'] == '0.001'
+    assert values['pp_nftsmc_eso.k0_per_s'] == str(
+        file_parameters(scenario, 'actuator_controller')['pp_nftsmc_eso.k0_per_s']
+    )
+    assert values['state_rate_hz'] == '0.0'  # the spec's own parameters come after the file's
+    args, _ = _arguments_of(
+        {s.key: s for s in closed_loop('realtime', 5.0)}['controller'], scenario
+    )
+    assert '--params-file' in args and '__ns:=' not in ' '.join(args)  # one joint: as before
+
+
+@pytest.mark.parametrize(
+    'kwargs, why',
+    [
+        ({'joint': 'plant', 'joints': 2}, 'several joints share a CAN bus'),
+        ({'joint': 'cia402_sim', 'joints': 5}, 'joints must be in [1, 4]'),
+        ({'joint': 'cia402_sim', 'joints': 0}, 'joints must be in [1, 4]'),
+        ({'joint': 'cia402_sim', 'joints': 2, 'live_view': True}, 'the live view shows one joint'),
+    ],
+)
+def test_several_joints_are_refused_where_they_cannot_be(kwargs, why):
+    with pytest.raises(ValueError, match=re.escape(why)):
+        closed_loop('realtime', 5.0, **kwargs)
+
+
+def test_the_bus_load_of_every_joint_is_checked():
+    """Two joints at 1 kHz fit 1 Mbit/s (with a warning); at 500 kbit/s they are refused."""
+    from actuator_cia402.busload import BusLoadError, check_bus_load, cycle_load
+
+    two = cycle_load(1_000_000, 1e-3, joints=2)
+    assert two.bits_per_cycle == 55 + 2 * (95 + 135 + 105)  # one SYNC, each drive's 3 PDOs
+    assert 'for 2 joints is above 60 %' in check_bus_load(1_000_000, 1e-3, joints=2)
+    assert check_bus_load(1_000_000, 1e-3) is None  # one joint: 39 %
+    with pytest.raises(BusLoadError, match='for 2 joints exceeds the limit of 80 %'):
+        check_bus_load(500_000, 1e-3, joints=2)

@@ -98,7 +98,10 @@ DEFAULT_TOPICS = [
 
 
 def parse_topic(entry: str) -> tuple[str, str]:
-    """``name`` (one of the system topics) or ``name:pkg/msg/Type`` -> (name, type)."""
+    """``name`` (a system topic) or ``name:pkg/msg/Type`` -> (name, type).
+
+    A system topic may stand under a namespace (``/joint1/joint_states``: several joints).
+    """
     name, sep, msgtype = entry.partition(':')
     name = name.strip()
     if not name:
@@ -107,6 +110,9 @@ def parse_topic(entry: str) -> tuple[str, str]:
         return name, normalize_msgtype(msgtype.strip())
     if name in SYSTEM_TOPICS:
         return name, SYSTEM_TOPICS[name]
+    for topic, system_type in SYSTEM_TOPICS.items():
+        if not topic.startswith('/') and name.endswith(f'/{topic}'):
+            return name, system_type
     raise BagError(f'topic {name!r} is not a system topic; give its type as {name}:pkg/msg/Type')
 
 

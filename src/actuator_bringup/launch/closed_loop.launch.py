@@ -42,8 +42,10 @@ from lifecycle_msgs.msg import Transition
 from actuator_tools.graph import (
     JOINTS,
     LIVE_DIAGNOSTICS_RATE_HZ,
+    MAX_JOINTS_ON_BUS,
     closed_loop,
     compose,
+    file_parameters,
     ros_arguments,
 )
 
@@ -107,6 +109,7 @@ def _processes(context):
     logs = LaunchConfiguration('logs').perform(context)
     composed = _flag(context, 'composed')
     rate = LaunchConfiguration('diagnostics_rate_hz').perform(context)
+    joints = int(LaunchConfiguration('joints').perform(context))
     specs = closed_loop(
         mode,
         duration,
@@ -118,6 +121,7 @@ def _processes(context):
         autostart=composed,  # launch drives the lifecycle of a node that has a process alone
         live_view=_flag(context, 'live_view'),
         diagnostics_rate_hz=float(rate) if rate else None,
+        joints=joints,
     )
     if composed:
         specs = compose(specs)
@@ -148,13 +152,19 @@ def _processes(context):
                 RegisterEventHandler(OnProcessExit(target_action=action, on_exit=_on_leader_exit))
             )
             continue
-        parameters = ([params] if spec.scenario_file else []) + [spec.parameters]
+        # rcl applies a file's 'actuator_controller:' section to /actuator_controller only: a
+        # node in a namespace (several joints) gets its sections as values
+        scenario = (
+            [file_parameters(Path(params), spec.name) if spec.namespace else params]
+            if spec.scenario_file
+            else []
+        )
         common = dict(
             package=spec.package,
             executable=spec.executable,
             name=spec.name,
-            namespace='',
-            parameters=parameters,
+            namespace=spec.namespace,
+            parameters=scenario + [spec.parameters],
             output='screen',
         )
         action = LifecycleNode(**common) if spec.managed else Node(**common)
@@ -223,6 +233,13 @@ def generate_launch_description():
                 'composed',
                 default_value='false',
                 description='true: the joint, ESO and controller in one process on one executor',
+            ),
+            DeclareLaunchArgument(
+                'joints',
+                default_value='1',
+                description=f'CiA 402 drives on one bus (1-{MAX_JOINTS_ON_BUS}; joint:=cia402_sim '
+                'or cia402): node ids 1..N, each with its driver, ESO and controller under '
+                '/joint<i>',
             ),
             DeclareLaunchArgument(
                 'diagnostics_rate_hz',

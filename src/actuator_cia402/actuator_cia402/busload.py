@@ -21,6 +21,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Sequence
 
+#: Drives one bus may carry in this driver's layout (each its own node id and PDOs).
+MAX_JOINTS_ON_BUS = 4
 #: Refuse a configuration whose worst-case load exceeds this fraction of the bitrate.
 DEFAULT_LIMIT = 0.8
 #: Warn above this fraction.
@@ -91,20 +93,26 @@ def check_bus_load(
     payloads: Sequence[int] = CYCLE_PAYLOADS,
     limit: float = DEFAULT_LIMIT,
     warn: float = DEFAULT_WARN,
+    joints: int = 1,
 ) -> str | None:
     """Raise BusLoadError (one line with the figure) above ``limit``.
 
-    Return a warning text above ``warn``.
+    Return a warning text above ``warn``. ``joints``: drives sharing the bus and one SYNC.
     """
-    load = cycle_load(bitrate_bit_s, cycle_period_s, payloads)
+    load = cycle_load(bitrate_bit_s, cycle_period_s, payloads, joints)
     if load.fraction > limit:
         raise BusLoadError(
-            f'bus load {load.text()} exceeds the limit of {100 * limit:g} %: '
+            f'bus load {load.text()}{_of(joints)} exceeds the limit of {100 * limit:g} %: '
             f'raise the bitrate or lengthen sync_period_s'
         )
     if load.fraction > warn:
         return (
-            f'bus load {load.text()} is above {100 * warn:g} %: little room left for SDO, '
-            'EMCY or another joint'
+            f'bus load {load.text()}{_of(joints)} is above {100 * warn:g} %: little room left '
+            'for SDO, EMCY or another joint'
         )
     return None
+
+
+def _of(joints: int) -> str:
+    """' for 2 joints' when the load is of several joints, else ''."""
+    return f' for {joints} joints' if joints > 1 else ''

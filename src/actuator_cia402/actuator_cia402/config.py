@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 from actuator_core import limits
 from actuator_core.params import spec, validate
-from actuator_cia402.busload import DEFAULT_LIMIT, check_bus_load
+from actuator_cia402.busload import DEFAULT_LIMIT, MAX_JOINTS_ON_BUS, check_bus_load
 from actuator_cia402.scaling import Scaling
 from actuator_cia402.sim_faults import FAULT_CODES
 
@@ -265,6 +265,13 @@ class DriverParameters:
     tpdo_wait_fraction: float = spec(
         0.5, 'how long a cycle waits for TPDO1 after SYNC, in sync periods', '', 0.05, 0.9
     )
+    joints_on_bus: int = spec(
+        1,
+        'drives whose cycles share this bus and its one SYNC: the bus load is checked for all',
+        '',
+        1,
+        MAX_JOINTS_ON_BUS,
+    )
     bus_load_limit: float = spec(
         DEFAULT_LIMIT,
         'refuse a worst-case bus load above this share of the bitrate',
@@ -304,7 +311,9 @@ class DriverParameters:
                 f'heartbeat_timeout_s = {self.heartbeat_timeout_s} must be at least twice '
                 f'heartbeat_period_s = {self.heartbeat_period_s}'
             )
-        check_bus_load(self.bitrate, self.sync_period_s, limit=self.bus_load_limit)
+        check_bus_load(
+            self.bitrate, self.sync_period_s, limit=self.bus_load_limit, joints=self.joints_on_bus
+        )
 
     @property
     def scaling(self) -> Scaling:

@@ -55,10 +55,12 @@ class Cia402DriverNode(JointNode):
             current_limit_a=self.cfg.current_limit_a,
         )
         cfg = self.drive_cfg
-        note = check_bus_load(cfg.bitrate, cfg.sync_period_s, limit=cfg.bus_load_limit)
+        note = check_bus_load(
+            cfg.bitrate, cfg.sync_period_s, limit=cfg.bus_load_limit, joints=cfg.joints_on_bus
+        )
         if note:
             self.get_logger().warning(note)
-        self.bus_load = cycle_load(cfg.bitrate, cfg.sync_period_s)
+        self.bus_load = cycle_load(cfg.bitrate, cfg.sync_period_s, joints=cfg.joints_on_bus)
 
     def make_joint(self) -> Cia402Joint:
         """Build the drive on its bus (connected at configure); a real bus needs its EDS named."""
@@ -75,7 +77,9 @@ class Cia402DriverNode(JointNode):
             f'node {cfg.node_id} on {cfg.interface}:{cfg.channel} at {cfg.bitrate / 1000:g} '
             f'kbit/s, SYNC {1.0 / cfg.sync_period_s:g} Hz '
             f'({"producer" if cfg.sync_producer else "consumer"}), bus load '
-            f'{self.bus_load.text()}{", simulated drive" if cfg.simulated_drive else ""}'
+            f'{self.bus_load.text()}'
+            f'{f" for {cfg.joints_on_bus} joints" if cfg.joints_on_bus > 1 else ""}'
+            f'{", simulated drive" if cfg.simulated_drive else ""}'
         )
         return Cia402Joint(cfg, self.eds)
 

@@ -419,7 +419,7 @@ def floor_run(args: argparse.Namespace, base: Path, repeat: int, rt_priority: in
                 name=role,
             )
             figures_of[role] = ProcessFigures(procs[role].pid)
-        wait_for_leader(procs, figures_of, args.floor_s, quiet=True, leader='source')
+        wait_for_leader(procs, figures_of, args.floor_s, quiet=True, leaders=['source'])
     finally:
         codes = {role: proc.stop() for role, proc in procs.items()}
     if any(codes.values()) or not output.is_file():

@@ -31,6 +31,7 @@ from actuator_sim.params_yaml import all_scenarios
 from actuator_tools.graph import (
     JOINTS,
     LIVE_DIAGNOSTICS_RATE_HZ,
+    MAX_JOINTS_ON_BUS,
     PINNING,
     closed_loop,
     compose,
@@ -97,6 +98,7 @@ def run_closed_loop(
     live_view: bool = False,
     live_view_parameters: dict | None = None,
     diagnostics_rate_hz: float | None = None,
+    joints: int = 1,
 ) -> RunResult:
     """Start the nodes of ``scenario`` in ``mode``, run to the end, stop everything.
 
@@ -104,7 +106,8 @@ def run_closed_loop(
     cases), never forever. ``thread_priority`` > 0: SCHED_FIFO for the ESO and controller, one
     level above for the joint (graph.closed_loop). ``cpus`` pins by key ('joint', 'eso',
     'controller'). ``composed``: the joint, ESO and controller in one process (graph.compose).
-    ``diagnostics_rate_hz``: controller/state and plant/truth (graph.closed_loop).
+    ``diagnostics_rate_hz``: controller/state and plant/truth; ``joints``: CiA 402 drives on
+    one bus, each loop under its namespace (graph.closed_loop).
     """
     if duration_s is None:
         duration_s = scenario_duration(scenario)
@@ -132,6 +135,7 @@ def run_closed_loop(
         live_view=live_view,
         live_view_parameters=live_view_parameters,
         diagnostics_rate_hz=diagnostics_rate_hz,
+        joints=joints,
     )
     if composed:
         specs = compose(specs)
@@ -154,8 +158,8 @@ def run_closed_loop(
                 f'logs in {run_dir}',
                 flush=True,
             )
-        leader = next(s.key for s in specs if s.leader) if any(s.leader for s in specs) else None
-        wait_for_leader(procs, figures, duration_s, quiet, leader)
+        leaders = [s.key for s in specs if s.leader]
+        wait_for_leader(procs, figures, duration_s, quiet, leaders)
     except _Stopped:
         print('[bringup] stopped by a signal: stopping every node', file=sys.stderr, flush=True)
         codes['bringup'] = 130
@@ -275,29 +279,30 @@ def wait_for_leader(
     figures: dict[str, ProcessFigures],
     duration_s: float | None,
     quiet: bool,
-    leader: Optional[str],
+    leaders: Sequence[str],
 ) -> None:
-    """Poll until the leader exits at the end of the run (no leader: for ``duration_s``).
+    """Poll until a leader (a joint) exits at the end of the run (none: for ``duration_s``).
 
-    Mark CPU baselines once it logs 'sampling started'. Without a leader (``--joint none``: the
-    driver runs elsewhere) the run is the nodes' for ``duration_s`` of wall time.
+    Mark CPU baselines once every leader logged 'sampling started'. Without a leader
+    (``--joint none``: the driver runs elsewhere) the run is the nodes' for ``duration_s`` of
+    wall time. With several joints the run ends when the first of them ends it.
     """
     marked = False
     deadline = time.monotonic() + (max(120.0, 30.0 * duration_s) if duration_s else float('inf'))
     last_note = started = time.monotonic()
     while True:
-        if leader is not None and not procs[leader].running:
+        if any(not procs[key].running for key in leaders):
             break
-        if leader is None and duration_s and time.monotonic() - started >= duration_s:
+        if not leaders and duration_s and time.monotonic() - started >= duration_s:
             break
         for f in figures.values():
             f.sample()
-        if not marked and (leader is None or 'sampling started' in procs[leader].output):
+        if not marked and all('sampling started' in procs[key].output for key in leaders):
             for f in figures.values():
                 f.mark()
             marked = True
         for key, proc in procs.items():
-            if key != leader and not proc.running:
+            if key not in leaders and not proc.running:
                 raise SystemExit(
                     f'bringup: {key} exited early with code {proc.returncode}; see '
                     f'{proc.stderr_path}'
@@ -376,7 +381,21 @@ def main(argv: Sequence[str] | None = None) -> int:
         help='rate of controller/state and plant/truth (0: every sample; default: every sample '
         f'when recording or in sim, {LIVE_DIAGNOSTICS_RATE_HZ:g} Hz otherwise)',
     )
+    parser.add_argument(
+        '--joints',
+        type=int,
+        default=1,
+        metavar='N',
+        help=f'CiA 402 drives on one bus (1-{MAX_JOINTS_ON_BUS}; with --joint cia402_sim or '
+        'cia402): node ids 1..N, each with its driver, ESO and controller under /joint<i>',
+    )
     args = parser.parse_args(argv)
+    if not 1 <= args.joints <= MAX_JOINTS_ON_BUS:
+        parser.error(f'--joints must be in [1, {MAX_JOINTS_ON_BUS}]')
+    if args.joints > 1 and args.joint not in ('cia402_sim', 'cia402'):
+        parser.error('--joints above 1 needs --joint cia402_sim or cia402 (drives on one bus)')
+    if args.joints > 1 and args.composed:
+        parser.error('--composed holds the simulated plant: one joint')
     low, high = limits.DIAGNOSTICS_RATE_RANGE_HZ
     if args.diagnostics_rate is not None and not low <= args.diagnostics_rate <= high:
         parser.error(f'--diagnostics-rate must be in [{low:g}, {high:g}] Hz')
@@ -410,6 +429,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         composed=args.composed,
         live_view=args.live_view,
         diagnostics_rate_hz=args.diagnostics_rate,
+        joints=args.joints,
     )
     print(
         json.dumps(

@@ -34,6 +34,12 @@ PINNING = {'joint': '0', 'eso': '1', 'controller': '1'}
 #: Rate of the diagnostic topics (plant/truth, controller/state) in a real-time run that records
 #: nothing [Hz]: enough for a live plot; a recorded or sim run keeps every sample for the analysis.
 LIVE_DIAGNOSTICS_RATE_HZ = 100.0
+#: Joints one run can put on one CAN bus (each its driver, ESO and controller under a namespace).
+MAX_JOINTS_ON_BUS = 4
+#: Node id of the first joint's master (its heartbeat on 0x700 + id); joint i's is this - i + 1.
+MASTER_NODE_ID = 127
+#: The loop's topics of one joint (relative names: under a joint's namespace when there are more).
+JOINT_TOPICS = ('joint_states', 'current_command', 'eso/estimate', 'controller/state')
 
 
 @dataclass(frozen=True)
@@ -50,6 +56,7 @@ class NodeSpec:
     managed: bool = True  # a lifecycle node
     members: tuple = ()  # a container (``compose``): the nodes it runs, each a NodeSpec
     arguments: tuple = ()  # a plain process (no ROS node): its command line, e.g. the sim drive
+    namespace: str = ''  # the node's namespace (several joints: joint1, joint2, ...)
 
 
 #: The nodes a composed loop runs in one process (the joint first: its real-time settings are
@@ -111,6 +118,7 @@ def closed_loop(
     live_view: bool = False,
     live_view_parameters: Optional[dict] = None,
     diagnostics_rate_hz: Optional[float] = None,
+    joints: int = 1,
 ) -> list[NodeSpec]:
     """Return the processes of one run in start order.
 
@@ -121,12 +129,25 @@ def closed_loop(
     ws://127.0.0.1:8765 unless ``live_view_parameters`` say otherwise), started before the joint so
     the joint waits for its subscription too. ``diagnostics_rate_hz``: the rate of
     controller/state and plant/truth (0: every sample); None: every sample when recording or in
-    sim (the bag analysis needs them), ``LIVE_DIAGNOSTICS_RATE_HZ`` otherwise.
+    sim (the bag analysis needs them), ``LIVE_DIAGNOSTICS_RATE_HZ`` otherwise. ``joints`` > 1
+    (CiA 402 only): that many drives on one bus, node ids 1..n, each with its driver, ESO and
+    controller under the namespace ``joint<i>`` (keys ``driver<i>``, ``eso<i>``,
+    ``controller<i>``); drive 1's driver produces the one SYNC, and every driver checks the bus
+    load of all n.
     """
     if joint not in JOINTS:
         raise ValueError(f'joint must be one of {", ".join(JOINTS)}, got {joint!r}')
+    if not 1 <= joints <= MAX_JOINTS_ON_BUS:
+        raise ValueError(f'joints must be in [1, {MAX_JOINTS_ON_BUS}], got {joints}')
+    if joints > 1 and joint not in ('cia402_sim', 'cia402'):
+        raise ValueError(
+            f'several joints share a CAN bus: joint cia402_sim or cia402, not {joint}'
+        )
+    if joints > 1 and live_view:
+        raise ValueError('the live view shows one joint: run it with joints = 1')
     cpus = cpus or {}
     sim = mode == 'sim'
+    namespaces = [''] if joints == 1 else [f'joint{i}' for i in range(1, joints + 1)]
 
     def settings(key: str, priority: int) -> dict:
         out = {'executor': executor, 'autostart': autostart}
@@ -136,11 +157,27 @@ def closed_loop(
             out['cpu_affinity'] = cpus[key]
         return out
 
+    def logged(name, ns=''):
+        if logs is None:
+            return {}
+        stem, dot, ext = name[1].rpartition('.')
+        return {name[0]: str(logs / (f'{stem}_{ns}.{ext}' if ns else name[1]))}
+
+    def keyed(key, ns):
+        return f'{key}{ns.removeprefix("joint")}'
+
     loop_params = {'mode': mode, 'use_sim_time': sim}
     if diagnostics_rate_hz is None:
         diagnostics_rate_hz = 0.0 if record or sim else LIVE_DIAGNOSTICS_RATE_HZ
     specs = []
     if record:
+        topics = (
+            {}
+            if joints == 1
+            else {
+                'topics': [f'/{ns}/{topic}' for ns in namespaces for topic in JOINT_TOPICS],
+            }
+        )
         specs.append(
             NodeSpec(
                 'recorder',
@@ -152,42 +189,42 @@ def closed_loop(
                     'record_diagnostics': True,
                     **recorder_parameters(mode),
                     **({'output': str(bag)} if bag else {}),
+                    **topics,
                 },
                 scenario_file=False,
                 managed=False,
             )
         )
-
-    def logged(name):
-        return {} if logs is None else {name[0]: str(logs / name[1])}
-
-    specs.append(
-        NodeSpec(
-            'controller',
-            'actuator_controller',
-            'controller_node',
-            'actuator_controller',
-            {
-                **loop_params,
-                'state_rate_hz': float(diagnostics_rate_hz),
-                **settings('controller', thread_priority),
-                **logged(('timing_log', 'controller_timing.npz')),
-            },
+    for ns in namespaces:
+        specs.append(
+            NodeSpec(
+                keyed('controller', ns),
+                'actuator_controller',
+                'controller_node',
+                'actuator_controller',
+                {
+                    **loop_params,
+                    'state_rate_hz': float(diagnostics_rate_hz),
+                    **settings('controller', thread_priority),
+                    **logged(('timing_log', 'controller_timing.npz'), ns),
+                },
+                namespace=ns,
+            )
         )
-    )
-    specs.append(
-        NodeSpec(
-            'eso',
-            'actuator_eso',
-            'eso_node',
-            'actuator_eso',
-            {
-                **loop_params,
-                **settings('eso', thread_priority),
-                **logged(('stats_log', 'eso_stats.json')),
-            },
+        specs.append(
+            NodeSpec(
+                keyed('eso', ns),
+                'actuator_eso',
+                'eso_node',
+                'actuator_eso',
+                {
+                    **loop_params,
+                    **settings('eso', thread_priority),
+                    **logged(('stats_log', 'eso_stats.json'), ns),
+                },
+                namespace=ns,
+            )
         )
-    )
     if live_view:
         specs.append(
             NodeSpec(
@@ -238,15 +275,38 @@ def closed_loop(
         overrides = dict(joint_parameters or {})
         sim_settings = {k: overrides.pop(k) for k in list(overrides) if k.startswith('sim.')}
         port = free_port() if simulated else 0
-        params = driver_parameters(
-            simulated=simulated,
-            hub_port=port,
-            stop_after_s=float(duration_s),
-            wait_for_subscribers=subscribers,
-            autostart=autostart,
-            **overrides,
-        )
-        params.update(logged(('timing_log', 'plant_samples.npz')))
+        drivers = []
+        for node_id, ns in enumerate(namespaces, start=1):
+            params = driver_parameters(
+                simulated=simulated,
+                hub_port=port,
+                node_id=node_id,
+                stop_after_s=float(duration_s),
+                wait_for_subscribers=subscribers,
+                autostart=autostart,
+                **(
+                    {}
+                    if joints == 1
+                    else {
+                        'master_node_id': MASTER_NODE_ID - node_id + 1,
+                        'sync_producer': node_id == 1,
+                        'joints_on_bus': joints,
+                    }
+                ),
+                **overrides,
+            )
+            params.update(logged(('timing_log', 'plant_samples.npz'), ns))
+            drivers.append(
+                NodeSpec(
+                    keyed('driver', ns),
+                    DRIVER_PACKAGE,
+                    DRIVER_EXECUTABLE,
+                    DRIVER_NODE_NAME,
+                    {**params, **settings('joint', joint_priority)},
+                    leader=True,
+                    namespace=ns,
+                )
+            )
         if simulated:  # the drive in a process of its own, as hardware: it outlives the driver
             specs.append(
                 NodeSpec(
@@ -259,7 +319,8 @@ def closed_loop(
                     arguments=tuple(
                         sim_drive_command(
                             port,
-                            sync_period_s=params['sample_time_s'],
+                            node_ids=tuple(range(1, joints + 1)),
+                            sync_period_s=drivers[0].parameters['sample_time_s'],
                             # the simulated hardware above the software it serves
                             thread_priority=min(joint_priority + 1, 99) if joint_priority else 0,
                             **sim_settings,
@@ -267,16 +328,8 @@ def closed_loop(
                     ),
                 )
             )
-        specs.append(
-            NodeSpec(
-                'driver',
-                DRIVER_PACKAGE,
-                DRIVER_EXECUTABLE,
-                DRIVER_NODE_NAME,
-                {**params, **settings('joint', joint_priority)},
-                leader=True,
-            )
-        )
+        # The SYNC producer last: the other drivers wait for its SYNC, not it for them.
+        specs += drivers[1:] + drivers[:1]
     return specs
 
 
@@ -284,7 +337,10 @@ def ros_arguments(spec: NodeSpec, scenario_file: Optional[Path]) -> list[str]:
     """``--ros-args`` of a process started directly (the runner).
 
     The file, then the node's parameters. rcl reads a ``-p`` value as YAML, so a string that
-    YAML would read as something else (cpu_affinity '0' is an integer there) is quoted.
+    YAML would read as something else (cpu_affinity '0' is an integer there) is quoted. A node
+    in a namespace gets ``-r __ns:=`` and the file's sections for it as ``-p`` (rcl applies a
+    file's ``actuator_controller:`` section to /actuator_controller only, not to
+    /joint1/actuator_controller).
     """
     if spec.arguments:
         return list(spec.arguments)
@@ -296,9 +352,38 @@ def ros_arguments(spec: NodeSpec, scenario_file: Optional[Path]) -> list[str]:
             args += _parameter_arguments(member.parameters, f'{member.name}:')
         return args
     args = ['--ros-args']
-    if spec.scenario_file and scenario_file is not None:
+    if spec.namespace:
+        args += ['-r', f'__ns:=/{spec.namespace}']
+        if spec.scenario_file and scenario_file is not None:
+            args += _parameter_arguments(file_parameters(scenario_file, spec.name))
+    elif spec.scenario_file and scenario_file is not None:
         args += ['--params-file', str(scenario_file)]
     return args + _parameter_arguments(spec.parameters)
+
+
+def file_parameters(path: Path, node_name: str) -> dict:
+    """Return what a ROS 2 parameter file gives ``node_name``: '/**', then its own section.
+
+    Nested entries by their dotted names (``pp_nftsmc_eso.k0``), as a node declares them.
+    """
+    with open(path) as f:
+        data = yaml.safe_load(f) or {}
+    out: dict = {}
+    for key in ('/**', node_name, f'/{node_name}'):
+        section = data.get(key) or {}
+        out.update(_flatten(section.get('ros__parameters') or {}))
+    return out
+
+
+def _flatten(tree: dict, prefix: str = '') -> dict:
+    """Return nested sections by dotted names: ``{'a': {'b': 1}}`` -> ``{'a.b': 1}``."""
+    out: dict = {}
+    for name, value in tree.items():
+        if isinstance(value, dict):
+            out.update(_flatten(value, f'{prefix}{name}.'))
+        else:
+            out[f'{prefix}{name}'] = value
+    return out
 
 
 def _parameter_arguments(parameters: dict, target: str = '') -> list[str]:
