@@ -174,3 +174,47 @@ def test_a_batch_command_repeated_is_ignored_and_one_differing_in_one_run_confli
     pair.add_command(P, np.array([1.0, 3.0]))
     assert pair.conflicts == 1 and P in pair.conflicted and P not in pair.currents
     assert pair.refusal.startswith(f'two different commands for sample {P} ns')
+
+
+@pytest.mark.parametrize('gap, restarts', [(4, 0), (5, 1)])
+def test_a_measurement_the_restart_gap_ahead_of_x_hat_restarts_the_observer(gap, restarts):
+    """restart_gap_samples 5: y 5 samples ahead of x_hat restarts there; 4 steps up to it."""
+    eso = ExtendedStateObserver(EsoGains(), DT)
+    pair = ObserverInputPairing(eso, P, eso.correction, restart_gap_samples=5)
+    pair.add_measurement(0, 0.0)
+    pair.add_command(0, 1.0)  # x_hat now at sample 1
+    out = pair.add_measurement((1 + gap) * P, 0.3)
+    assert (pair.gap_restarts, pair.restarts) == (restarts, restarts)
+    if restarts:
+        assert [e.sample_ns for e in out] == [6 * P] and out[0].initial
+        assert eso.state == (0.3, 0.0, 0.0)
+    else:  # samples 1..4 stepped with substitutes: x_hat reaches y(5)
+        assert [e.sample_ns for e in out] == [2 * P, 3 * P, 4 * P, 5 * P]
+        assert all(e.substituted for e in out) and pair.restarts == 0
+    pair.add_command(pair.sample_ns, 0.0)
+    pair.add_measurement(pair.sample_ns + 5 * P, 0.4)  # the next gap: counted again
+    assert pair.gap_restarts == restarts + 1
+
+
+def test_refusal_says_nothing_until_a_command_is_refused_and_clears_on_the_next() -> None:
+    """'' when nothing was refused; the reason (ms ahead, to 6 digits); '' again after."""
+    pair, _ = pairing()
+    assert pair.refusal == ''
+    pair.add_measurement(0, 0.0)
+    pair.add_command(100 * P, 1.0)
+    assert pair.refusal == (
+        f'command stamped {100 * P} ns refused: 100 ms ahead of the newest measurement received'
+    )
+    pair.add_command(0, 1.0)
+    assert pair.refusal == '' and pair.refused == 1
+
+
+def test_every_conflicted_sample_is_counted() -> None:
+    """Two samples each claimed by two different commands (x_hat waits at 0): two conflicts."""
+    pair, _ = pairing(patience=10)
+    pair.add_measurement(0, 0.0)
+    pair.add_measurement(P, 0.0)
+    for stamp in (P, 2 * P):
+        pair.add_command(stamp, 1.0)
+        pair.add_command(stamp, 2.0)
+    assert pair.conflicts == 2 and pair.conflicted == {P, 2 * P}
