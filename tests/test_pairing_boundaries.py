@@ -173,7 +173,10 @@ def test_a_batch_command_repeated_is_ignored_and_one_differing_in_one_run_confli
     assert (pair.ignored, pair.conflicts) == (1, 0) and list(pair.currents[P]) == [1.0, 2.0]
     pair.add_command(P, np.array([1.0, 3.0]))
     assert pair.conflicts == 1 and P in pair.conflicted and P not in pair.currents
-    assert pair.refusal.startswith(f'two different commands for sample {P} ns')
+    assert pair.refusal == (
+        f'two different commands for sample {P} ns (a second publisher?): neither used, the '
+        'sample is integrated with the last current'
+    )
 
 
 @pytest.mark.parametrize('gap, restarts', [(4, 0), (5, 1)])
