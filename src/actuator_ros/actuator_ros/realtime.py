@@ -24,6 +24,17 @@ import yaml
 EXECUTORS = ('events', 'single_threaded')
 
 
+#: Fast DDS's publication mode for every process the runner starts, unless the environment sets
+#: it: ASYNCHRONOUS (a sending thread per writer), whatever rmw_fastrtps's own default (later
+#: releases default to SYNCHRONOUS); the benchmark compares both (bench --publication-modes).
+#: Not SYNCHRONOUS: there a publish sends in the caller's thread and waits on a subscriber that
+#: does not read. Measured here with the subscriber process stopped (SIGSTOP), 5000 publishes
+#: of controller/state at 1 kHz: synchronous mean 564 us, worst 63 ms (best effort; reliable:
+#: 523 us, 80 ms); asynchronous mean 72 us, worst 7.4 ms (reliable: 123 us, 4.8 ms). A stopped
+#: recorder or `ros2 topic echo` would hold the joint's sampling thread.
+PUBLICATION_MODE = ('RMW_FASTRTPS_PUBLICATION_MODE', 'ASYNCHRONOUS')
+
+
 @dataclass(frozen=True)
 class RealtimeSettings:
     """thread_priority (SCHED_FIFO 1-99, 0 = normal), cpu_affinity ('0,1', '' = any), executor."""

@@ -28,22 +28,12 @@ from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
 from actuator_ros.parameters import ParameterError
-from actuator_ros.realtime import RealtimeSettings, pre_init_settings
+from actuator_ros.realtime import PUBLICATION_MODE, RealtimeSettings, pre_init_settings
 
 #: Longest wait at shutdown for RELIABLE subscribers to acknowledge what was published [s]. A
 #: sample the transport dropped is resent only when the reader answers the writer's heartbeat
 #: (Fast DDS: every 3 s by default).
 ACK_TIMEOUT_S = 5.0
-
-#: Fast DDS's publication mode for every process this runner starts, unless the environment sets
-#: it: ASYNCHRONOUS (a sending thread per writer), whatever rmw_fastrtps's own default (later
-#: releases default to SYNCHRONOUS); the benchmark compares both (bench --publication-modes).
-#: Not SYNCHRONOUS: there a publish sends in the caller's thread and waits on a subscriber that
-#: does not read. Measured here with the subscriber process stopped (SIGSTOP), 5000 publishes
-#: of controller/state at 1 kHz: synchronous mean 564 us, worst 63 ms (best effort; reliable:
-#: 523 us, 80 ms); asynchronous mean 72 us, worst 7.4 ms (reliable: 123 us, 4.8 ms). A stopped
-#: recorder or `ros2 topic echo` would hold the joint's sampling thread.
-PUBLICATION_MODE = ('RMW_FASTRTPS_PUBLICATION_MODE', 'ASYNCHRONOUS')
 
 
 def make_executor(kind: str):

@@ -291,7 +291,7 @@ def steal_percent(before: tuple[float, float], after: tuple[float, float]) -> Op
 
 def publication_mode_environment(mode: str) -> dict:
     """Environment that gives the nodes Fast DDS's publication ``mode`` ('': the runner's)."""
-    from actuator_ros.runner import PUBLICATION_MODE
+    from actuator_ros.realtime import PUBLICATION_MODE
 
     return {PUBLICATION_MODE[0]: mode} if mode else {}
 
@@ -615,7 +615,7 @@ def build_parser() -> OneLineParser:
         choices=PUBLICATION_MODES,
         default=[],
         help="run every variant under each of Fast DDS's publication modes (default: the "
-        "runner's, ASYNCHRONOUS; see actuator_ros.runner.PUBLICATION_MODE)",
+        "runner's, ASYNCHRONOUS; see actuator_ros.realtime.PUBLICATION_MODE)",
     )
     p.add_argument(
         '--without-recorder',
