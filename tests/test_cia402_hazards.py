@@ -447,6 +447,50 @@ def test_two_joints_share_one_sync_producer(sim_drive):
     assert max(syncs) <= a.cycles + 5
 
 
+def test_a_sync_consumer_waits_for_a_late_producer_and_stops_on_a_silent_one(sim_drive):
+    """Joint 2 (SYNC consumer) starts before joint 1's driver sends SYNC: no fault meanwhile.
+
+    Old driver: every cycle before the producer's first SYNC counted as a missed TPDO, and the
+    consumer ended control 50 ms after it started ('no TPDO from the drive in 51 cycles'), the
+    first time two joints were run from bringup. Once the producer stops, the consumer ends
+    control after feedback_timeout_s, naming the SYNC; with no producer at all, after
+    first_sync_timeout_s.
+    """
+    drive = sim_drive(ids=(1, 2))
+    a = joint_for(drive, node_id=1, master_node_id=127, heartbeat_timeout_s=0.5)
+    b = joint_for(
+        drive, node_id=2, master_node_id=126, sync_producer=False, heartbeat_timeout_s=0.5
+    )
+    results = {}
+    with active(a, b):
+        consumer = threading.Thread(
+            target=lambda: results.update(b=run_on_grid(b, 0.0, 0.05, 3.0, PERIOD_S))
+        )
+        consumer.start()
+        time.sleep(0.4)  # the producer starts 0.4 s later (400 cycles without SYNC)
+        results['a'] = run_on_grid(a, 0.0, 0.05, 0.5, PERIOD_S)
+        consumer.join(10)  # the producer stopped: the consumer ends control on its own
+    assert results['a']['fault'] == ''
+    assert "no SYNC from the bus's producer in" in results['b']['fault'], results['b']
+    assert 'since activation' not in results['b']['fault']  # it had SYNCs, then none
+    assert results['b']['samples'] > 0.3 * 0.5 / PERIOD_S, results['b']
+    alone = joint_for(
+        drive,
+        node_id=2,
+        master_node_id=126,
+        sync_producer=False,
+        first_sync_timeout_s=0.2,
+    )
+    with active(alone):
+        started = time.monotonic()
+        result = run_on_grid(alone, 0.0, 0.05, 2.0, PERIOD_S)
+        waited = time.monotonic() - started
+    drive.stop()
+    assert result['samples'] == 0
+    assert "no SYNC from the bus's producer in" in result['fault']
+    assert 'since activation' in result['fault'] and 0.2 <= waited < 2.0, (result, waited)
+
+
 def test_with_the_polarity_both_sides_agree_on_a_positive_current_turns_positive(sim_drive):
     # Old driver: 0x607E was never read; an inverted drive ran the loop with positive feedback.
     drive = sim_drive('--polarity', '128', '--working-condition', 'lab')

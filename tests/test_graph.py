@@ -12,6 +12,7 @@ import pytest
 from actuator_tools import bringup
 from actuator_tools.graph import (
     LIVE_DIAGNOSTICS_RATE_HZ,
+    SYNC_PRODUCER_GRACE_S,
     closed_loop,
     file_parameters,
     ros_arguments,
@@ -81,7 +82,7 @@ def test_two_joints_on_one_bus_each_loop_under_its_namespace():
         'driver1',
         'driver2',
     }
-    assert [s.key for s in specs][-2:] == ['driver2', 'driver1']  # the SYNC producer last
+    assert [s.key for s in specs][-2:] == ['driver1', 'driver2']  # the producer stops last
     for i in (1, 2):
         for key in ('controller', 'eso', 'driver'):
             assert by_key[f'{key}{i}'].namespace == f'joint{i}'
@@ -90,6 +91,9 @@ def test_two_joints_on_one_bus_each_loop_under_its_namespace():
             driver['node_id'] == i and driver['joints_on_bus'] == 2 and by_key[f'driver{i}'].leader
         )
     assert [by_key[f'driver{i}'].parameters['sync_producer'] for i in (1, 2)] == [True, False]
+    # the producer outlives the consumer in a bounded run: the consumer keeps its SYNC to the end
+    stops = [by_key[f'driver{i}'].parameters['stop_after_s'] for i in (1, 2)]
+    assert stops == [5.0 + SYNC_PRODUCER_GRACE_S, 5.0]
     masters = {by_key[f'driver{i}'].parameters['master_node_id'] for i in (1, 2)}
     assert masters == {127, 126}  # two heartbeats, two ids
     drive = list(by_key['drive'].arguments)

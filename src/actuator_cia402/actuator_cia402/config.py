@@ -255,6 +255,13 @@ class DriverParameters:
     sdo_timeout_s: float = spec(
         0.3, 'SDO response timeout (configure, activate, deactivate only)', 's', 0.001, 10.0
     )
+    first_sync_timeout_s: float = spec(
+        5.0,
+        "a SYNC consumer (sync_producer false) ends control when the bus's producer has sent "
+        'no SYNC this long after activation (another joint may start later)',
+        's',
+        *limits.TIMEOUT_RANGE_S,
+    )
     feedback_timeout_s: float = spec(
         0.05,
         'control ends after this much time in cycles without a TPDO (the cycles the master '

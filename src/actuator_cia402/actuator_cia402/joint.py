@@ -143,6 +143,8 @@ class Cia402Joint(Joint):
         self.missed = 0
         self._missed_last = False
         self._missed_in_row = 0
+        self._unsynced_in_row = 0  # a SYNC consumer's cycles without the bus's SYNC, in a row
+        self._synced = False  # a SYNC consumer has had its first SYNC since activation
         self.cycles = 0
         self.statusword = 0
         self.position_rad = 0.0
@@ -207,7 +209,8 @@ class Cia402Joint(Joint):
         self.emcy_fault = ''
         self.master.node.emcy.reset()
         self._enable_since_ns = self._not_following_since_ns = None
-        self._missed_in_row = 0
+        self._missed_in_row = self._unsynced_in_row = 0
+        self._synced = False
         self._cycling = False  # the heartbeat watches the cycle from its first read on
         self.active = True
         return []
@@ -295,7 +298,11 @@ class Cia402Joint(Joint):
                 seq = self._tpdo1_seq
             self._send(0x80, b'')
         else:  # the SYNC of this cycle, from the bus's producer (it may have come already)
-            self._wait(lambda: self._sync_seq > self._consumed_sync, self.cfg.sync_period_s)
+            if not self._wait(
+                lambda: self._sync_seq > self._consumed_sync, self.cfg.sync_period_s
+            ):
+                return self._unsynced(stamp_ns)
+            self._synced, self._unsynced_in_row = True, 0
             with self._arrived:
                 self._consumed_sync = self._sync_seq
                 seq = self._tpdo1_at_sync
@@ -327,6 +334,26 @@ class Cia402Joint(Joint):
         )
         effort = self.scaling.torque_permille_to_nm(torque_permille) * self.scaling.gear_ratio
         return JointSample(stamp_ns, self.position_rad, effort, self._fault(statusword))
+
+    def _unsynced(self, stamp_ns: int) -> Optional[JointSample]:
+        """Judge a SYNC consumer's cycle without the bus's SYNC: no TPDO is owed, none missed.
+
+        Before the first SYNC the producer (another joint's driver) may still be starting: the
+        wait is ``first_sync_timeout_s``; after it, a silent producer ends control like a silent
+        drive, after ``feedback_timeout_s``.
+        """
+        self._unsynced_in_row += 1
+        limit_s = self.cfg.feedback_timeout_s if self._synced else self.cfg.first_sync_timeout_s
+        if self._unsynced_in_row * self.cfg.sync_period_s <= limit_s:
+            return None
+        return JointSample(
+            stamp_ns,
+            self.position_rad,
+            0.0,
+            f"no SYNC from the bus's producer in {self._unsynced_in_row} cycles"
+            + ('' if self._synced else ' since activation')
+            + ' (this driver is a SYNC consumer): control ended',
+        )
 
     def _fault(self, statusword: int) -> str:
         """Run the statusword and mode display checks of ``torque_fault``, with the error code.

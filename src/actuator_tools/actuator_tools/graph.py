@@ -36,6 +36,8 @@ PINNING = {'joint': '0', 'eso': '1', 'controller': '1'}
 LIVE_DIAGNOSTICS_RATE_HZ = 100.0
 #: Joints one run can put on one CAN bus (each its driver, ESO and controller under a namespace).
 MAX_JOINTS_ON_BUS = 4
+#: Seconds a bounded run's SYNC producer runs on past the others (see closed_loop).
+SYNC_PRODUCER_GRACE_S = 2.0
 #: Node id of the first joint's master (its heartbeat on 0x700 + id); joint i's is this - i + 1.
 MASTER_NODE_ID = 127
 #: The loop's topics of one joint (relative names: under a joint's namespace when there are more).
@@ -277,11 +279,15 @@ def closed_loop(
         port = free_port() if simulated else 0
         drivers = []
         for node_id, ns in enumerate(namespaces, start=1):
+            producer = node_id == 1
             params = driver_parameters(
                 simulated=simulated,
                 hub_port=port,
                 node_id=node_id,
-                stop_after_s=float(duration_s),
+                # a bounded run: the SYNC producer outlives the consumers, so that none of them
+                # loses its SYNC before its own end (the first to end ends the run)
+                stop_after_s=float(duration_s)
+                + (SYNC_PRODUCER_GRACE_S if joints > 1 and duration_s and producer else 0.0),
                 wait_for_subscribers=subscribers,
                 autostart=autostart,
                 **(
@@ -289,7 +295,7 @@ def closed_loop(
                     if joints == 1
                     else {
                         'master_node_id': MASTER_NODE_ID - node_id + 1,
-                        'sync_producer': node_id == 1,
+                        'sync_producer': producer,
                         'joints_on_bus': joints,
                     }
                 ),
@@ -328,8 +334,9 @@ def closed_loop(
                     ),
                 )
             )
-        # The SYNC producer last: the other drivers wait for its SYNC, not it for them.
-        specs += drivers[1:] + drivers[:1]
+        # The SYNC producer first, so it is stopped last (the runner stops in reverse order):
+        # a consumer that lost its SYNC would end control with an error.
+        specs += drivers
     return specs
 
 
