@@ -17,6 +17,7 @@ from actuator_core.pairing import (
     PENDING_LIMIT,
     REALTIME_PATIENCE_SAMPLES,
     SIM_PATIENCE_SAMPLES,
+    Estimate,
     ObserverInputPairing,
 )
 from actuator_eso.observer import EsoGains, ExtendedStateObserver, eso_step
@@ -221,3 +222,57 @@ def test_every_conflicted_sample_is_counted() -> None:
         pair.add_command(stamp, 1.0)
         pair.add_command(stamp, 2.0)
     assert pair.conflicts == 2 and pair.conflicted == {P, 2 * P}
+
+
+def test_the_start_estimate_is_x_hat_0_and_integrated_nothing() -> None:
+    """x_hat(0) = (y, 0, 0): no input stamp, position or current, initial, not substituted."""
+    pair, _ = pairing()
+    out = pair.add_measurement(7 * P, 0.25)
+    assert out == [Estimate(7 * P, (0.25, 0.0, 0.0), 0, 0.0, 0.0, True, False)]
+
+
+def test_each_step_names_the_pair_it_integrated_and_every_substitute_is_counted() -> None:
+    """Estimate k+1 says it integrated sample k; two samples without a command: two substitutes."""
+    pair, _ = pairing()
+    pair.add_measurement(0, 0.0)
+    (step,) = pair.add_command(0, 1.0)
+    assert (step.sample_ns, step.input_ns, step.input_current_a) == (P, 0, 1.0)
+    pair.add_measurement(P, 0.01)
+    pair.add_measurement(2 * P, 0.02)  # u(1) did not come: substituted
+    out = pair.add_measurement(3 * P, 0.03)  # nor u(2)
+    assert [(e.sample_ns, e.input_ns, e.substituted) for e in out] == [(3 * P, 2 * P, True)]
+    assert pair.substituted == 2
+
+
+def test_every_duplicate_command_and_every_restart_is_counted() -> None:
+    """The same command three times: two ignored. Two restarts after the start: two."""
+    pair, _ = pairing(patience=10)
+    pair.add_measurement(0, 0.0)
+    for _ in range(3):
+        pair.add_command(P, 1.0)
+    assert pair.ignored == 2
+    pair.restart(10 * P, 0.0)
+    pair.restart(20 * P, 0.0)
+    assert pair.restarts == 2
+
+
+def test_measurements_waiting_for_their_commands_keep_the_newest_pending_limit() -> None:
+    """300 measurements and no command (patience unbounded): the newest PENDING_LIMIT stay."""
+    pair, _ = pairing(patience=10**6)
+    for k in range(301):
+        pair.add_measurement(k * P, 0.0)
+    assert len(pair.measurements) == PENDING_LIMIT
+    assert min(pair.measurements) == (301 - PENDING_LIMIT) * P
+
+
+def test_a_conflicted_sample_stays_conflicted_while_x_hat_waits_at_it() -> None:
+    """Two commands for sample 1 while x_hat waits there: a third is ignored, 1 is substituted."""
+    pair, _ = pairing()
+    pair.add_measurement(0, 0.0)
+    pair.add_command(0, 1.0)  # x_hat at sample 1
+    pair.add_command(P, 2.0)
+    pair.add_command(P, 3.0)  # conflict
+    assert pair.add_measurement(P, 0.0) == []  # waits for u(1), which is conflicted
+    assert pair.add_command(P, 4.0) == []  # still conflicted: not used
+    out = pair.add_measurement(2 * P, 0.0)
+    assert [(e.input_ns, e.substituted, e.input_current_a) for e in out] == [(P, True, 1.0)]
