@@ -100,6 +100,18 @@ def joint_for(drive, **overrides) -> Cia402Joint:
     return Cia402Joint(cfg)
 
 
+def producer_and_consumer(drive) -> tuple[Cia402Joint, Cia402Joint]:
+    """Joints 1 (SYNC producer, master 127) and 2 (consumer, master 126) on the drive's bus.
+
+    A stall of this process's threads must not trip the drives' heartbeat consumers: 0.5 s.
+    """
+    a = joint_for(drive, node_id=1, master_node_id=127, heartbeat_timeout_s=0.5)
+    b = joint_for(
+        drive, node_id=2, master_node_id=126, sync_producer=False, heartbeat_timeout_s=0.5
+    )
+    return a, b
+
+
 @contextlib.contextmanager
 def active(*joints: Cia402Joint):
     """Configure and activate ``joints`` in turn; close them in that same order at the end.
@@ -421,11 +433,7 @@ def test_an_eds_of_another_product_is_refused(sim_drive, tmp_path):
 
 def test_two_joints_share_one_sync_producer(sim_drive):
     drive = sim_drive(ids=(1, 2))
-    # a stall of this process's threads must not trip the drives' heartbeat consumers here
-    a = joint_for(drive, node_id=1, master_node_id=127, heartbeat_timeout_s=0.5)
-    b = joint_for(
-        drive, node_id=2, master_node_id=126, sync_producer=False, heartbeat_timeout_s=0.5
-    )
+    a, b = producer_and_consumer(drive)
     results = {}
     with active(a, b):
         thread = threading.Thread(
@@ -457,10 +465,7 @@ def test_a_sync_consumer_waits_for_a_late_producer_and_stops_on_a_silent_one(sim
     first_sync_timeout_s.
     """
     drive = sim_drive(ids=(1, 2))
-    a = joint_for(drive, node_id=1, master_node_id=127, heartbeat_timeout_s=0.5)
-    b = joint_for(
-        drive, node_id=2, master_node_id=126, sync_producer=False, heartbeat_timeout_s=0.5
-    )
+    a, b = producer_and_consumer(drive)
     results = {}
     with active(a, b):
         consumer = threading.Thread(

@@ -9,12 +9,12 @@ import re
 
 import pytest
 
+from actuator_sim.params_yaml import node_parameters
 from actuator_tools import bringup
 from actuator_tools.graph import (
     LIVE_DIAGNOSTICS_RATE_HZ,
     SYNC_PRODUCER_GRACE_S,
     closed_loop,
-    file_parameters,
     ros_arguments,
 )
 
@@ -114,7 +114,7 @@ def test_a_namespaced_node_gets_its_file_sections_as_values():
     assert args[:3] == ['--ros-args', '-r', '__ns:=/joint2'] and '--params-file' not in args
     assert values['controller'] == 'pp_nftsmc_eso' and values['sample_time_s'] == '0.001'
     assert values['pp_nftsmc_eso.k0_per_s'] == str(
-        file_parameters(scenario, 'actuator_controller')['pp_nftsmc_eso.k0_per_s']
+        node_parameters(scenario, 'actuator_controller')['pp_nftsmc_eso.k0_per_s']
     )
     assert values['state_rate_hz'] == '0.0'  # the spec's own parameters come after the file's
     args, _ = _arguments_of(

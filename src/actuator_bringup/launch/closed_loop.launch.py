@@ -39,13 +39,13 @@ from launch_ros.event_handlers import OnStateTransition
 from launch_ros.events.lifecycle import ChangeState
 from lifecycle_msgs.msg import Transition
 
+from actuator_sim.params_yaml import node_parameters
 from actuator_tools.graph import (
     JOINTS,
     LIVE_DIAGNOSTICS_RATE_HZ,
     MAX_JOINTS_ON_BUS,
     closed_loop,
     compose,
-    file_parameters,
     ros_arguments,
 )
 
@@ -155,7 +155,7 @@ def _processes(context):
         # rcl applies a file's 'actuator_controller:' section to /actuator_controller only: a
         # node in a namespace (several joints) gets its sections as values
         scenario = (
-            [file_parameters(Path(params), spec.name) if spec.namespace else params]
+            [node_parameters(Path(params), spec.name) if spec.namespace else params]
             if spec.scenario_file
             else []
         )

@@ -70,6 +70,31 @@ def scenario_parameters(scenario: Scenario) -> dict:
     }
 
 
+def node_parameters(path: Path, node_name: str) -> dict:
+    """Return what a ROS 2 parameter file gives ``node_name``: '/**', then its own section.
+
+    Nested entries by their dotted names (``pp_nftsmc_eso.k0_per_s``), as a node declares them.
+    """
+    with open(path) as f:
+        data = yaml.safe_load(f) or {}
+    out: dict = {}
+    for key in ('/**', node_name, f'/{node_name}'):
+        section = data.get(key) or {}
+        out.update(dotted(section.get('ros__parameters') or {}))
+    return out
+
+
+def dotted(tree: dict, prefix: str = '') -> dict:
+    """Return nested sections by dotted names: ``{'a': {'b': 1}}`` -> ``{'a.b': 1}``."""
+    out: dict = {}
+    for name, value in tree.items():
+        if isinstance(value, dict):
+            out.update(dotted(value, f'{prefix}{name}.'))
+        else:
+            out[f'{prefix}{name}'] = value
+    return out
+
+
 def all_scenarios() -> dict[str, Scenario]:
     """Every paper scenario by name (Case 1's four runs, Case 2's controllers)."""
     return {s.name: s for s, _ in case1() + case2()}

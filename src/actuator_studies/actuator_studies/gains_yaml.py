@@ -20,6 +20,7 @@ import yaml
 from actuator_core.params import build, iter_specs
 from actuator_controller.laws import GAINS_BY_NAME
 from actuator_eso.observer import EsoGains
+from actuator_sim.params_yaml import dotted
 from actuator_studies.space import StudyInputError
 
 
@@ -43,17 +44,6 @@ def write_gains_yaml(path: Path, controller: str, gains, eso: EsoGains, header: 
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(comment + text)
     return path
-
-
-def _flatten(tree: dict, prefix: str = '') -> dict:
-    """Nested dicts as one dict of dotted names."""
-    out = {}
-    for key, value in tree.items():
-        if isinstance(value, dict):
-            out.update(_flatten(value, f'{prefix}{key}.'))
-        else:
-            out[f'{prefix}{key}'] = value
-    return out
 
 
 def _build_checked(cls: type, values: dict, where: str):
@@ -81,7 +71,7 @@ def read_gains_yaml(path: Path) -> tuple[str, object, EsoGains]:
         raise StudyInputError(f'{path}: not a controller parameter file ({exc})') from None
     if name not in GAINS_BY_NAME:
         raise StudyInputError(f'{path}: unknown controller {name!r}')
-    gains = _build_checked(GAINS_BY_NAME[name], _flatten(ctrl.get(name, {})), f'{path}: {name}')
+    gains = _build_checked(GAINS_BY_NAME[name], dotted(ctrl.get(name, {})), f'{path}: {name}')
     eso_params = (doc.get('actuator_eso') or {}).get('ros__parameters') or {}
-    eso = _build_checked(EsoGains, _flatten(eso_params), f'{path}: actuator_eso')
+    eso = _build_checked(EsoGains, dotted(eso_params), f'{path}: actuator_eso')
     return name, gains, eso

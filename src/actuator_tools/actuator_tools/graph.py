@@ -25,6 +25,8 @@ from typing import Optional
 
 import yaml
 
+from actuator_sim.params_yaml import node_parameters
+
 #: What plays the joint: the simulated plant, the CiA 402 driver with its simulated drive on
 #: a virtual CAN bus, the driver on a real bus, or nothing (a driver started elsewhere).
 JOINTS = ('plant', 'cia402_sim', 'cia402', 'none')
@@ -362,35 +364,10 @@ def ros_arguments(spec: NodeSpec, scenario_file: Optional[Path]) -> list[str]:
     if spec.namespace:
         args += ['-r', f'__ns:=/{spec.namespace}']
         if spec.scenario_file and scenario_file is not None:
-            args += _parameter_arguments(file_parameters(scenario_file, spec.name))
+            args += _parameter_arguments(node_parameters(scenario_file, spec.name))
     elif spec.scenario_file and scenario_file is not None:
         args += ['--params-file', str(scenario_file)]
     return args + _parameter_arguments(spec.parameters)
-
-
-def file_parameters(path: Path, node_name: str) -> dict:
-    """Return what a ROS 2 parameter file gives ``node_name``: '/**', then its own section.
-
-    Nested entries by their dotted names (``pp_nftsmc_eso.k0``), as a node declares them.
-    """
-    with open(path) as f:
-        data = yaml.safe_load(f) or {}
-    out: dict = {}
-    for key in ('/**', node_name, f'/{node_name}'):
-        section = data.get(key) or {}
-        out.update(_flatten(section.get('ros__parameters') or {}))
-    return out
-
-
-def _flatten(tree: dict, prefix: str = '') -> dict:
-    """Return nested sections by dotted names: ``{'a': {'b': 1}}`` -> ``{'a.b': 1}``."""
-    out: dict = {}
-    for name, value in tree.items():
-        if isinstance(value, dict):
-            out.update(_flatten(value, f'{prefix}{name}.'))
-        else:
-            out[f'{prefix}{name}'] = value
-    return out
 
 
 def _parameter_arguments(parameters: dict, target: str = '') -> list[str]:
