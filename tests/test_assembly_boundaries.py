@@ -15,6 +15,7 @@ import math
 import numpy as np
 import pytest
 
+from actuator_core import limits
 from actuator_core.assembly import (
     PENDING_LIMIT,
     first_rest_s,
@@ -446,3 +447,92 @@ def test_the_same_estimate_twice_is_no_conflict_but_nan_is_never_the_same() -> N
     assert a.conflicts == 1
     s = a.add_measurement(2 * P, 0.0)
     assert (s.status, s.current_a, s.output) == (Status.INVALID_INPUT, 0.0, None)
+
+
+@pytest.mark.parametrize(
+    'period_ns, samples',
+    [(P, 10), (4 * P, 2), (800_000, 12), (20 * P, 1), (200 * P, 1)],
+)
+def test_the_gap_limit_is_the_command_timeout_in_whole_samples(period_ns, samples) -> None:
+    """10 ms over the period, to the nearest sample (a tie to the even count, as round() does).
+
+    At least one sample: a period longer than the timeout still needs a gap to resync.
+    """
+    assert gap_limit_samples(period_ns) == samples
+
+
+def test_a_brake_delay_of_one_second_counts_to_the_nanosecond() -> None:
+    """brake_after 1 s: an input exactly 1 s old coasts at 0 A; 1 ns older brakes."""
+    a = assembly('pi', brake_after_s=1.0)
+    a.add_measurement(0, 0.0)
+    assert a.watchdog(10**9, P, P).safe_stop is False
+    assert a.watchdog(10**9 + 1, P, P).safe_stop is True
+
+
+def test_a_fresh_assembly_has_refused_nothing_and_corrects_nothing() -> None:
+    """No refusal yet; this node has commanded nothing, so any pair an estimate names is kept."""
+    a = assembly()
+    assert a.refusal == ''
+    a.add_estimate(2, 1.0, 2.0, input_ns=1, input_current_a=3.0, input_current_gain=0.5)
+    s = a.add_measurement(2, 0.0)
+    assert s.estimate == (1.0, 2.0) and a.corrected == 0 and a.refusal == ''
+
+
+def test_a_refused_first_estimate_answers_0_a_without_the_brake() -> None:
+    """x2_hat beyond the velocity limit at the first sample: INVALID_INPUT, 0 A, no brake asked."""
+    a = assembly()
+    a.add_estimate(0, limits.VELOCITY_LIMIT_RAD_S + 1.0, 0.0)
+    s = a.add_measurement(0, 0.0)
+    assert (s.status, s.current_a, s.safe_stop) == (Status.INVALID_INPUT, 0.0, False)
+    assert a.braking is False
+
+
+def test_a_restart_ahead_of_the_measurements_says_both_why_and_that_it_is_kept() -> None:
+    """The refusal (how far ahead) and the note that the restart is kept aside, in one text."""
+    a = assembly()
+    control(a, 0)
+    a.add_measurement(P, 0.0)
+    assert a.add_estimate(5 * P, 0.0, 0.0, initial=True) is None
+    assert a.refusal == (
+        f'estimate stamped {5 * P} ns refused: 4 ms ahead of the newest measurement seen '
+        '(at most 1 sample); kept aside as a restart, used if that measurement comes'
+    )
+
+
+def test_every_conflicted_estimate_sample_is_counted() -> None:
+    """Two samples each claimed by two different estimates: two conflicts, each 0 A."""
+    a = assembly()
+    control(a, 0)
+    for k in (1, 2):
+        a.add_estimate(k * P, 0.1, 0.0)
+        a.add_estimate(k * P, 0.2, 0.0)
+        s = a.add_measurement(k * P, 0.0)
+        assert (s.status, s.current_a) == (Status.INVALID_INPUT, 0.0)
+    assert a.conflicts == 2
+
+
+def test_the_estimate_age_counts_from_the_newest_sample_received_on_the_monotonic_clock() -> None:
+    """Ages use received_ns, not the stamp; a repeat of the newest refreshes it, an older not."""
+    a = assembly()
+    t0 = 10**12  # the receiver's monotonic clock, far from the stamps
+    a.add_estimate(0, 0.0, 0.0, received_ns=t0)
+    a.add_measurement(0, 0.0, received_ns=t0)
+    a.add_measurement(P, 0.0, received_ns=t0 + P)
+    a.add_estimate(P, 0.0, 0.0, received_ns=t0 + P)
+    assert a.watchdog(t0 + 6 * P, 10 * P, 5 * P) is None  # 5 ms old: not stale yet
+    a.add_estimate(P, 0.0, 0.0, received_ns=t0 + 4 * P)  # the newest again: alive
+    assert a.watchdog(t0 + 9 * P, 10 * P, 5 * P) is None
+    a.add_estimate(0, 0.0, 0.0, received_ns=t0 + 8 * P)  # an older sample: no sign of life
+    stale = a.watchdog(t0 + 9 * P + 1, 10 * P, 5 * P)
+    assert stale.status is Status.STALE_ESTIMATE
+
+
+def test_estimates_waiting_for_their_measurements_keep_the_newest_pending_limit() -> None:
+    """y(100) waits; 70 estimates of earlier samples come: the newest PENDING_LIMIT are kept."""
+    a = assembly()
+    a.add_measurement(100 * P, 0.0)
+    for k in range(70):
+        assert a.add_estimate(k * P, 0.0, 0.0) is None
+    assert len(a.estimates) == PENDING_LIMIT and min(a.estimates) == (70 - PENDING_LIMIT) * P
+    assert a.add_estimate(100 * P, 0.0, 0.0).stamp_ns == 100 * P
+    assert not a.estimates  # the older ones go with the sample controlled
