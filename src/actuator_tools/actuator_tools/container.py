@@ -3,7 +3,7 @@
 
 r"""The loop's nodes composed in one process on one executor, as ROS 2 components are.
 
-    ros2 run actuator_tools loop_container --nodes plant eso controller --ros-args \\
+    ros2 run actuator_tools loop_container --nodes plant controller eso --ros-args \\
         --params-file case2_pp_nftsmc_eso.yaml -p actuator_plant:mode:=sim ...
 
 Each node stays the node it is when run alone (its name, parameters, lifecycle, checks and
@@ -47,8 +47,9 @@ def _arguments(parser: argparse.ArgumentParser) -> None:
         '--nodes',
         nargs='+',
         choices=sorted(KINDS),
-        default=['plant', 'eso', 'controller'],
-        help='the nodes to run in this process (default: plant eso controller)',
+        default=['plant', 'controller', 'eso'],
+        help='the nodes to run in this process, built in this order (default: plant controller '
+        'eso; graph.COMPOSABLE says why)',
     )
 
 

@@ -63,9 +63,12 @@ class NodeSpec:
     namespace: str = ''  # the node's namespace (several joints: joint1, joint2, ...)
 
 
-#: The nodes a composed loop runs in one process (the joint first: its real-time settings are
-#: the process's), and the container's executable.
-COMPOSABLE = ('plant', 'eso', 'controller')
+#: The nodes a composed loop runs in one process, in the order they are built (the joint first:
+#: its real-time settings are the process's), and the container's executable. The controller
+#: before the ESO: one executor takes a sample's deliveries in that order, and the controller's
+#: law needs y(k) at once while the ESO needs it only for x_hat(k+1) (measured, composed under
+#: SCHED_FIFO, no recorder, 2 x 8 s each way: latency p50 284 / 277 us against 323 / 330 us).
+COMPOSABLE = ('plant', 'controller', 'eso')
 CONTAINER = ('actuator_tools', 'loop_container')
 
 
