@@ -25,7 +25,7 @@ from actuator_core.assembly import (
 )
 from actuator_core.status import Status
 from actuator_controller.laws import make_controller
-from actuator_controller.reference import make_reference
+from actuator_controller.reference import StepReference, make_reference
 
 P = 1_000_000  # 1 ms in ns
 #: Samples without a law sample beyond which the assembly resyncs: the command timeout (10 ms).
@@ -536,3 +536,107 @@ def test_estimates_waiting_for_their_measurements_keep_the_newest_pending_limit(
     assert len(a.estimates) == PENDING_LIMIT and min(a.estimates) == (70 - PENDING_LIMIT) * P
     assert a.add_estimate(100 * P, 0.0, 0.0).stamp_ns == 100 * P
     assert not a.estimates  # the older ones go with the sample controlled
+
+
+def test_missed_samples_are_whole_samples_between_measurements() -> None:
+    """Early by half a period: none missed (never fewer); 2 periods: 1; 3.5 periods: 2.
+
+    Far from stamp 0 (as in real time) and each gap added to the count before.
+    """
+    a = assembly('pi')
+    t = 1000 * P
+    for gap in (0, P // 2, 2 * P, 3 * P + P // 2, 3 * P // 2):
+        t += gap
+        a.add_measurement(t, 0.0)
+    assert a.missed == 3 and isinstance(a.missed, int)
+
+
+def test_a_kept_aside_restart_keeps_its_receipt_time() -> None:
+    """A restart kept aside until its y came is as old as its receipt at monotonic t_r."""
+    a = assembly()
+    t0 = 10**12
+    a.add_estimate(0, 0.0, 0.0, received_ns=t0)
+    a.add_measurement(0, 0.0, received_ns=t0)
+    a.add_estimate(3 * P, 0.0, 0.0, initial=True, received_ns=t0 + P)  # kept aside
+    s = a.add_measurement(3 * P, 0.0, received_ns=t0 + 3 * P)
+    assert s.status is Status.RESYNC and a.resyncs == 1
+    assert a.watchdog(t0 + 6 * P, 10 * P, 5 * P) is None  # estimate 5 ms old
+    assert a.watchdog(t0 + 6 * P + 1, 10 * P, 5 * P).status is Status.STALE_ESTIMATE
+
+
+def test_pi_runs_with_no_estimate_and_reports_none_used() -> None:
+    """PI takes no estimate: the sample carries (0, 0) as the estimate used."""
+    a = assembly('pi')
+    s = a.add_measurement(0, 0.0)
+    assert s.estimate == (0.0, 0.0) and s.status is Status.OK
+
+
+@pytest.mark.parametrize('x2, refused', [(limits.VELOCITY_LIMIT_RAD_S, 0), (-20.0000001, 1)])
+def test_the_estimate_velocity_limit_is_inclusive(x2, refused) -> None:
+    """x2_hat of exactly the velocity limit is used; beyond it the sample gets 0 A, no brake."""
+    a = assembly()
+    control(a, 0)
+    a.add_estimate(P, x2, 0.5)
+    s = a.add_measurement(P, 0.125)
+    assert a.refused == refused
+    if refused:
+        assert (s.stamp_ns, s.status, s.current_a, s.y) == (P, Status.INVALID_INPUT, 0.0, 0.125)
+        assert s.safe_stop is False and s.output is None
+        assert a.refusal == (
+            f'estimate for {P} ns refused: x2_hat corrected for the current commanded is '
+            '-20 rad/s, beyond +-20'
+        )
+        a.add_estimate(2 * P, x2, 0.5)
+        a.add_measurement(2 * P, 0.125)
+        assert a.refused == 2  # each refusal counted
+    else:
+        assert s.output is not None and s.estimate == (x2, 0.5)
+
+
+def test_a_conflicted_sample_answers_its_own_stamp_and_angle_without_the_brake() -> None:
+    """The 0 A answer to two different estimates names the sample and its y; no brake asked."""
+    a = assembly()
+    control(a, 0)
+    a.add_estimate(P, 0.1, 0.0)
+    a.add_estimate(P, 0.2, 0.0)
+    s = a.add_measurement(P, 0.0625)
+    assert (s.stamp_ns, s.y, s.status) == (P, 0.0625, Status.INVALID_INPUT)
+    assert s.safe_stop is False
+
+
+def test_a_latched_sample_names_its_stamp_and_angle() -> None:
+    """Once latched, every sample is 0 A with the brake, for its own stamp and measured y."""
+    a = assembly(following_error_limit_rad=0.1)
+    control(a, 0)
+    control(a, 1, 0.2)
+    s = control(a, 2, 0.0625)
+    assert (s.stamp_ns, s.status, s.current_a, s.y, s.safe_stop) == (
+        2 * P,
+        Status.LATCHED,
+        0.0,
+        0.0625,
+        True,
+    )
+
+
+def test_every_gap_resync_is_counted() -> None:
+    """Two gaps beyond the limit, each after control resumed: two gap resyncs."""
+    a = assembly('pi')
+    a.add_measurement(0, 0.0)
+    a.add_measurement((GAP + 1) * P, 0.0)
+    k = GAP + 1 + RESYNC_SAMPLES
+    assert a.add_measurement(k * P, 0.0).status is Status.RECOVERING
+    a.add_measurement((k + GAP + 1) * P, 0.0)
+    assert a.gap_resyncs == 2 and a.resyncs == 2
+
+
+@pytest.mark.parametrize('y', [1.5, 0.25])
+def test_a_reference_is_started_from_the_joint_angle_where_it_does_not_start(y) -> None:
+    """A step of 0.5 rad at t = 0 and the joint at y: the first sample's error is 0.
+
+    The reference is shifted by y - y_d(0) (1 rad: beyond the following-error limit otherwise).
+    """
+    a = ControlSampleAssembly(make_controller('pi'), StepReference(0.5), P, False)
+    s = a.add_measurement(0, y)
+    assert s.status is Status.OK and s.output.error_rad == 0.0
+    assert s.reference.position_rad == y
