@@ -68,6 +68,10 @@ def _arguments_of(spec, scenario):
     return args, values
 
 
+#: The nodes of one joint's loop in a run of several joints.
+KEYS = ('controller', 'eso', 'driver')
+
+
 def test_two_joints_on_one_bus_each_loop_under_its_namespace():
     """joints=2: node ids 1 and 2, one SYNC producer, distinct masters, the bus load of both."""
     specs = closed_loop('realtime', 5.0, joint='cia402_sim', joints=2, thread_priority=50)
@@ -84,13 +88,15 @@ def test_two_joints_on_one_bus_each_loop_under_its_namespace():
     }
     assert [s.key for s in specs][-2:] == ['driver1', 'driver2']  # the producer stops last
     for i in (1, 2):
-        for key in ('controller', 'eso', 'driver'):
+        for key in KEYS:
             assert by_key[f'{key}{i}'].namespace == f'joint{i}'
         driver = by_key[f'driver{i}'].parameters
         assert (
             driver['node_id'] == i and driver['joints_on_bus'] == 2 and by_key[f'driver{i}'].leader
         )
     assert [by_key[f'driver{i}'].parameters['sync_producer'] for i in (1, 2)] == [True, False]
+    for i in (1, 2):  # each joint its own name in its joint_states
+        assert {by_key[f'{k}{i}'].parameters['joint_name'] for k in KEYS} == {f'joint{i}'}
     # the producer outlives the consumer in a bounded run: the consumer keeps its SYNC to the end
     stops = [by_key[f'driver{i}'].parameters['stop_after_s'] for i in (1, 2)]
     assert stops == [5.0 + SYNC_PRODUCER_GRACE_S, 5.0]

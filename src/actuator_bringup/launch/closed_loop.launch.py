@@ -33,6 +33,7 @@ from launch.actions import (
 from launch.conditions import evaluate_condition_expression
 from launch.event_handlers import OnProcessExit
 from launch.events import Shutdown, matches_action
+from launch.events.process import ShutdownProcess
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import LifecycleNode, Node
 from launch_ros.event_handlers import OnStateTransition
@@ -80,16 +81,38 @@ def _drive_lifecycle(action):
     return [activate, configure]
 
 
-def _on_leader_exit(event, context):
-    """Report the joint's exit code and end the run (unless launch is ending already: Ctrl-C)."""
-    if context.is_shutdown:
-        return None
-    code = event.returncode
-    text = f'{event.action.name} exited with code {code}: ending the run'
-    return [
-        LogInfo(msg=text if code == 0 else f'ERROR: {text}'),
-        EmitEvent(event=Shutdown(reason=text)),
-    ]
+def _leader_exits(leaders, producer=None, drive=None):
+    """OnProcessExit of the joints: the first to end ends the run, in the runner's stop order.
+
+    Every process but the SYNC producer and the simulated drive gets SIGINT at once; the
+    producer once every other joint has ended (no consumer loses its SYNC), and launch's
+    Shutdown (the drive last, as hardware) once every joint has ended. Nothing on Ctrl-C
+    (launch is ending already).
+    """
+    ended = []
+
+    def on_exit(event, context):
+        if context.is_shutdown:
+            return None
+        ended.append(event.action)
+        actions = []
+        if len(ended) == 1:
+            code = event.returncode
+            text = f'{event.action.name} exited with code {code}: ending the run'
+            held = (producer, drive)
+            actions += [
+                LogInfo(msg=text if code == 0 else f'ERROR: {text}'),
+                EmitEvent(event=ShutdownProcess(process_matcher=lambda a: a not in held)),
+            ]
+        if producer is not None and producer not in ended and len(ended) == len(leaders) - 1:
+            actions.append(
+                EmitEvent(event=ShutdownProcess(process_matcher=matches_action(producer)))
+            )
+        if len(ended) == len(leaders):
+            actions.append(EmitEvent(event=Shutdown(reason='every joint ended: ending the run')))
+        return actions
+
+    return on_exit
 
 
 def _processes(context):
@@ -125,17 +148,16 @@ def _processes(context):
     )
     if composed:
         specs = compose(specs)
-    actions = []
+    actions, leaders, producer, drive = [], [], None, None
     for spec in specs:
         if spec.arguments:  # a plain process (the simulated drive): its own command line
-            actions.append(
-                Node(
-                    package=spec.package,
-                    executable=spec.executable,
-                    arguments=list(spec.arguments),
-                    output='screen',
-                )
+            drive = Node(
+                package=spec.package,
+                executable=spec.executable,
+                arguments=list(spec.arguments),
+                output='screen',
             )
+            actions.append(drive)
             continue
         if spec.members:  # the container: per-node parameters as node:name:=value
             arguments = ros_arguments(spec, Path(params))
@@ -148,13 +170,11 @@ def _processes(context):
                 output='screen',
             )
             actions.append(action)
-            actions.append(
-                RegisterEventHandler(OnProcessExit(target_action=action, on_exit=_on_leader_exit))
-            )
+            leaders.append(action)
             continue
         # rcl applies a file's 'actuator_controller:' section to /actuator_controller only: a
         # node in a namespace (several joints) gets its sections as values
-        scenario = (
+        from_file = (
             [node_parameters(Path(params), spec.name) if spec.namespace else params]
             if spec.scenario_file
             else []
@@ -164,7 +184,7 @@ def _processes(context):
             executable=spec.executable,
             name=spec.name,
             namespace=spec.namespace,
-            parameters=scenario + [spec.parameters],
+            parameters=from_file + [spec.parameters],
             output='screen',
         )
         action = LifecycleNode(**common) if spec.managed else Node(**common)
@@ -172,9 +192,14 @@ def _processes(context):
         if spec.managed:
             actions += _drive_lifecycle(action)
         if spec.leader:
-            actions.append(
-                RegisterEventHandler(OnProcessExit(target_action=action, on_exit=_on_leader_exit))
-            )
+            leaders.append(action)
+            if spec.parameters.get('sync_producer'):
+                producer = action
+    on_exit = _leader_exits(leaders, producer, drive)
+    actions += [
+        RegisterEventHandler(OnProcessExit(target_action=leader, on_exit=on_exit))
+        for leader in leaders
+    ]
     return actions
 
 

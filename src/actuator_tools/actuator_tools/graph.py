@@ -202,6 +202,10 @@ def closed_loop(
                 managed=False,
             )
         )
+
+    def named(ns):  # several joints: each its own name in its joint_states, as in a URDF
+        return {'joint_name': ns} if ns else {}
+
     for ns in namespaces:
         specs.append(
             NodeSpec(
@@ -212,6 +216,7 @@ def closed_loop(
                 {
                     **loop_params,
                     'state_rate_hz': float(diagnostics_rate_hz),
+                    **named(ns),
                     **settings('controller', thread_priority),
                     **logged(('timing_log', 'controller_timing.npz'), ns),
                 },
@@ -226,6 +231,7 @@ def closed_loop(
                 'actuator_eso',
                 {
                     **loop_params,
+                    **named(ns),
                     **settings('eso', thread_priority),
                     **logged(('stats_log', 'eso_stats.json'), ns),
                 },
@@ -300,6 +306,7 @@ def closed_loop(
                     if joints == 1
                     else {
                         'master_node_id': MASTER_NODE_ID - node_id + 1,
+                        **named(ns),
                         'sync_producer': producer,
                         'joints_on_bus': joints,
                     }
