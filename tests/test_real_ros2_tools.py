@@ -204,7 +204,7 @@ HAVE_BAG = HAVE_CLI and (
 
 @pytest.mark.skipif(
     not HAVE_BAG,
-    reason='rosbag2 (ros2 bag) is not installed: 45 min of C++ on 2 cores (real-ros2-tools.md)',
+    reason='rosbag2 (ros2 bag) is not installed: 6-45 min of C++ on 2 cores (real-ros2-tools.md)',
 )
 def test_ros2_bag_info_reads_a_fresh_bag(ros_env, tmp_path):
     from actuator_tools.bringup import run_closed_loop
