@@ -25,7 +25,7 @@ from actuator_core.assembly import (
 )
 from actuator_core.status import Status
 from actuator_controller.laws import make_controller
-from actuator_controller.reference import StepReference, make_reference
+from actuator_controller.reference import ReferenceSample, StepReference, make_reference
 
 P = 1_000_000  # 1 ms in ns
 #: Samples without a law sample beyond which the assembly resyncs: the command timeout (10 ms).
@@ -640,3 +640,57 @@ def test_a_reference_is_started_from_the_joint_angle_where_it_does_not_start(y) 
     s = a.add_measurement(0, y)
     assert s.status is Status.OK and s.output.error_rad == 0.0
     assert s.reference.position_rad == y
+
+
+def test_a_controlled_sample_carries_its_y_and_a_batch_its_statuses_as_ints() -> None:
+    """The law's sample names the y it ran on; a batch's statuses are an int array."""
+    a = assembly()
+    a.add_estimate(0, 0.0, 0.0)
+    assert a.add_measurement(0, 0.0).y == 0.0
+    a.add_estimate(P, 0.0, 0.0)
+    assert a.add_measurement(P, 0.015625).y == 0.015625
+    batch = assembly()
+    batch.add_estimate(0, np.zeros(2), np.zeros(2))
+    s = batch.add_measurement(0, np.zeros(2))
+    assert s.status.dtype.kind == 'i' and list(s.status) == [Status.OK, Status.OK]
+
+
+class _Velocities:
+    """A reference whose velocity at sample k (1 ms) is ``v[k]`` (the last one after them)."""
+
+    def __init__(self, *v):
+        self.v = v
+
+    def sample(self, t):
+        k = min(round(t * 1e3), len(self.v) - 1)
+        return ReferenceSample(0.0, self.v[k], 0.0)
+
+
+@pytest.mark.parametrize(
+    'velocities, horizon_s, rest_s',
+    [
+        ((3.0, 2.0, 1.0, 0.0, -1.0), 1.0, 3e-3),  # at rest at sample 3
+        ((0.5, 0.4, 0.3, 0.2, 0.1, 0.0), 1.0, 5e-3),  # a slow positive start
+        ((1.0, -0.5), 1.0, 1e-3),  # turned at once, sample 1 nearer rest
+        ((1.0, -2.0), 1.0, 0.0),  # turned at once, sample 0 nearer rest
+        ((1.0, -1.0), 1.0, 1e-3),  # a tie: the sample after the turn
+        ((1.0, 0.5, -2.0), 1.0, 1e-3),  # turned at sample 2, sample 1 nearer rest
+        ((0.3,) * 9 + (0.2, -0.1), 0.01, 10e-3),  # turns at the horizon's last sample
+        ((0.3,) * 10 + (0.2, -0.1), 0.01, 0.0),  # one sample beyond it: restart as it is
+    ],
+)
+def test_first_rest_is_the_sample_nearer_rest_where_the_velocity_first_turns(
+    velocities, horizon_s, rest_s
+) -> None:
+    """Sample by sample from t = dt up to the horizon; 0 when it does not turn within it."""
+    assert first_rest_s(_Velocities(*velocities), P, horizon_s) == rest_s
+
+
+def test_first_rest_of_a_batch_is_0() -> None:
+    """Velocities an array (a batch of runs): no common rest; the restart keeps y_d(t - t_r)."""
+
+    class Batch:
+        def sample(self, t):
+            return ReferenceSample(np.zeros(2), np.array([-0.35, 0.2]) * (1.0 - t), np.zeros(2))
+
+    assert first_rest_s(Batch(), P) == 0.0
