@@ -112,6 +112,33 @@ def producer_and_consumer(drive) -> tuple[Cia402Joint, Cia402Joint]:
     return a, b
 
 
+def run_pair(
+    producer: Cia402Joint,
+    consumer: Cia402Joint,
+    current_a: float,
+    producer_s: float,
+    consumer_s: float,
+    producer_delay_s: float = 0.0,
+) -> dict:
+    """Activate both, run the consumer on a thread and the producer here (after a delay).
+
+    Each brakes 50 ms, then holds ``current_a``; returns run_on_grid's results as 'a'
+    (producer) and 'b' (consumer), once the consumer has ended too.
+    """
+    results = {}
+    with active(producer, consumer):
+        thread = threading.Thread(
+            target=lambda: results.update(
+                b=run_on_grid(consumer, current_a, 0.05, consumer_s, PERIOD_S)
+            )
+        )
+        thread.start()
+        time.sleep(producer_delay_s)
+        results['a'] = run_on_grid(producer, current_a, 0.05, producer_s, PERIOD_S)
+        thread.join(10)
+    return results
+
+
 @contextlib.contextmanager
 def active(*joints: Cia402Joint):
     """Configure and activate ``joints`` in turn; close them in that same order at the end.
@@ -434,14 +461,7 @@ def test_an_eds_of_another_product_is_refused(sim_drive, tmp_path):
 def test_two_joints_share_one_sync_producer(sim_drive):
     drive = sim_drive(ids=(1, 2))
     a, b = producer_and_consumer(drive)
-    results = {}
-    with active(a, b):
-        thread = threading.Thread(
-            target=lambda: results.update(b=run_on_grid(b, 0.3, 0.05, 1.0, PERIOD_S))
-        )
-        thread.start()
-        results['a'] = run_on_grid(a, 0.3, 0.05, 1.0, PERIOD_S)
-        thread.join(10)
+    results = run_pair(a, b, 0.3, 1.0, 1.0)
     drive.stop()
     syncs = [int(n) for n in re.findall(r'drive \d: SYNCs (\d+)', drive.stdout)]
     # one SYNC stream seen by both drives (a drive's bus thread may lag a few frames at exit)
@@ -466,15 +486,8 @@ def test_a_sync_consumer_waits_for_a_late_producer_and_stops_on_a_silent_one(sim
     """
     drive = sim_drive(ids=(1, 2))
     a, b = producer_and_consumer(drive)
-    results = {}
-    with active(a, b):
-        consumer = threading.Thread(
-            target=lambda: results.update(b=run_on_grid(b, 0.0, 0.05, 3.0, PERIOD_S))
-        )
-        consumer.start()
-        time.sleep(0.4)  # the producer starts 0.4 s later (400 cycles without SYNC)
-        results['a'] = run_on_grid(a, 0.0, 0.05, 0.5, PERIOD_S)
-        consumer.join(10)  # the producer stopped: the consumer ends control on its own
+    # the producer starts 0.4 s later (400 cycles without SYNC) and stops before the consumer
+    results = run_pair(a, b, 0.0, 0.5, 3.0, producer_delay_s=0.4)
     assert results['a']['fault'] == ''
     assert "no SYNC from the bus's producer in" in results['b']['fault'], results['b']
     assert 'since activation' not in results['b']['fault']  # it had SYNCs, then none
