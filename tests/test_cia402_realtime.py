@@ -326,6 +326,7 @@ def test_two_joints_on_one_bus_close_two_loops_under_namespaces(isolated):
     from rosbags.highlevel import AnyReader
 
     from actuator_tools.bringup import run_closed_loop
+    from actuator_tools.graph import JOINT_TOPICS
     from actuator_tools.supervisor import process_log
 
     result = run_closed_loop(
@@ -350,12 +351,14 @@ def test_two_joints_on_one_bus_close_two_loops_under_namespaces(isolated):
     for i in (1, 2):  # each loop in its own namespace, whatever the host did
         assert 'sampling started' in logs[f'driver{i}'], logs[f'driver{i}'][-2000:]
         assert f'[joint{i}.actuator_controller]: timing updates=' in logs[f'controller{i}']
-        assert {f'/joint{i}/{t}' for t in ('joint_states', 'current_command')} <= topics, topics
+        # the recorder (normal scheduling beside seven SCHED_FIFO processes) may miss a whole
+        # topic on a starved host: each namespace is there, every topic is judged below
+        assert any(t.startswith(f'/joint{i}/') for t in topics), topics
         samples = np.load(result.run_dir / f'plant_samples_joint{i}.npz')
         # the share of its samples over which the driver applied a command answering one of
         # its own samples (a command of the other joint's controller would answer none)
         answered[i] = float(np.isin(samples['held_command_stamp_ns'], samples['stamp_ns']).mean())
-    assert not topics & {'/joint_states', '/current_command'}  # nothing outside the namespaces
+    assert topics <= {'/diagnostics'} | {f'/joint{i}/{t}' for i in (1, 2) for t in JOINT_TOPICS}
     ended = {k: code for k, code in result.exit_codes.items() if code != 0}
     assert set(ended) <= {'driver1', 'driver2'}, result.exit_codes
     for key in ended:  # a safe end, with the host's reason
@@ -366,3 +369,4 @@ def test_two_joints_on_one_bus_close_two_loops_under_namespaces(isolated):
             f'the host did not keep eight 1 kHz processes: ended {ended or "none"}, samples '
             f'commanded by their own controller {answered}'
         )
+    assert topics == {'/diagnostics'} | {f'/joint{i}/{t}' for i in (1, 2) for t in JOINT_TOPICS}
