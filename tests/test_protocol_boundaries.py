@@ -58,10 +58,12 @@ def test_the_first_timeout_of_a_fresh_gate_is_counted() -> None:
         ({'current_limit_a': float('inf')}, 'current_limit_a must be finite and > 0, got inf'),
         ({'timeout_s': 0.0}, 'timeout_s must be finite and > 0, got 0.0'),
         ({'timeout_s': float('nan')}, 'timeout_s must be finite and > 0, got nan'),
+        ({'brake_delay_s': -0.001}, 'brake_delay_s must be finite and >= 0, got -0.001'),
+        ({'brake_delay_s': float('inf')}, 'brake_delay_s must be finite and >= 0, got inf'),
     ],
 )
 def test_gate_refuses_a_bad_configuration_with_its_reason(kwargs: dict, message: str) -> None:
-    """A zero, infinite or NaN limit or timeout raises, naming the value."""
+    """A zero, infinite or NaN limit or timeout, a negative or infinite brake delay: raises."""
     with pytest.raises(ValueError) as err:
         CommandGate(**kwargs)
     assert str(err.value) == message
@@ -135,7 +137,56 @@ def test_a_batch_refuses_element_by_element() -> None:
     assert gate.offer(np.array([0.5, 1.5]), P, False, P) is None and gate.refused == 1
 
 
+def test_a_brake_delay_of_one_second_counts_to_the_nanosecond() -> None:
+    """Timed out (0 A) at once; the brake only once the command is timeout + 1 s + 1 ns old."""
+    gate = active_gate(timeout_s=0.01, brake_delay_s=1.0)
+    gate.offer(1.0, 0, False, 0)
+    held = gate.hold(10 * P + 10**9)
+    assert (held.current_a, held.brake, held.reason) == (0.0, False, 'command timeout')
+    assert gate.hold(10 * P + 10**9 + 1).brake is True
+
+
+def test_a_batch_without_a_safe_stop_releases_the_brake_as_one_value() -> None:
+    """No element stopped: every run gets its command and the brake is off (False, as for one)."""
+    gate = active_gate()
+    gate.offer(np.array([1.0, -1.0]), 0, np.array([False, False]), 0)
+    held = gate.hold(0)
+    np.testing.assert_array_equal(held.current_a, [1.0, -1.0])
+    assert held.brake is False and gate.brake is False and held.reason == ''
+
+
 # -------------------------------------------------------------------------------- StampCheck
+@pytest.mark.parametrize('sim', [False, True])
+def test_stamps_from_0_to_the_largest_a_time_message_holds_are_valid(sim: bool) -> None:
+    """0 and STAMP_MAX_NS are stamps; -1 ns and one beyond are INVALID, each counted."""
+    check = StampCheck(P, sim=sim, future_tolerance_ns=10**19)
+    assert check.check(-1, 0) is Verdict.INVALID and check.check(0, 0) is Verdict.OK
+    fresh = StampCheck(P, sim=sim, future_tolerance_ns=10**19)
+    assert fresh.check(limits.STAMP_MAX_NS + 1, 0) is Verdict.INVALID
+    assert fresh.check(limits.STAMP_MAX_NS, 0) is Verdict.OK
+    assert (check.invalid, fresh.invalid, check.last_ns) == (1, 1, 0)
+    check.check(-5, 0)
+    assert check.invalid == 2 and check.last_ns == 0  # refused: the grid stays
+
+
+@pytest.mark.parametrize('sim', [False, True])
+def test_the_callers_limit_is_inclusive_and_each_refusal_counted(sim: bool) -> None:
+    """limit_ns itself is taken; a nanosecond beyond is FUTURE in either mode, counted each."""
+    check = StampCheck(P, sim=sim, future_tolerance_ns=10**12)
+    check.check(0, 0)
+    assert check.check(2 * P, 0, limit_ns=P) is Verdict.FUTURE
+    assert check.check(P + 1, 0, limit_ns=P) is Verdict.FUTURE
+    assert check.refused_future == 2 and check.last_ns == 0
+    assert check.check(P, 0, limit_ns=P) is Verdict.OK and check.last_ns == P
+
+
+def test_on_a_one_nanosecond_grid_the_next_nanosecond_is_the_next_sample() -> None:
+    """Period 1 ns: one ns ahead is OK (not old), the same stamp again is old."""
+    check = StampCheck(1, sim=False, future_tolerance_ns=10**12)
+    check.check(1000, 0)
+    assert check.check(1001, 0) is Verdict.OK and check.check(1001, 0) is Verdict.OLD
+
+
 def test_future_tolerance_is_inclusive_in_real_time() -> None:
     """A stamp exactly the tolerance ahead of the clock is taken; one nanosecond more is not."""
     check = StampCheck(P, sim=False, future_tolerance_ns=5 * P)
