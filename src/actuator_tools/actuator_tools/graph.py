@@ -167,7 +167,7 @@ def closed_loop(
     def logged(name, ns=''):
         if logs is None:
             return {}
-        stem, dot, ext = name[1].rpartition('.')
+        stem, _, ext = name[1].rpartition('.')
         return {name[0]: str(logs / (f'{stem}_{ns}.{ext}' if ns else name[1]))}
 
     def keyed(key, ns):
