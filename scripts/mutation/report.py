@@ -96,10 +96,44 @@ def _pct(x: float) -> str:
     return '—' if x != x else f'{x:.1%}'
 
 
+#: The preamble lines every report repeats, left out of the list of earlier runs.
+BOILERPLATE = (
+    '`scripts/mutation/pyproject.toml`',
+    'Score = killed',
+    'leaves out the survivors',
+    'Not checked: mutants',
+    'Rows marked (earlier)',
+    'Earlier runs',
+)
+
+
+def earlier_runs(preamble: list[str]) -> list[str]:
+    """Return the runs a report's preamble names (its own first), one Markdown item each.
+
+    Reports kept rows of earlier ones and quoted their preambles, nested; this flattens them:
+    each run's command, time and load, and its note on rechecked survivors, newest first.
+    """
+    runs: list[list[str]] = []
+    for line in preamble:
+        text = line.lstrip('> ').strip()
+        if text.startswith('- '):  # an item of a flat list written by this function
+            runs.append([text[2:]])
+        elif text.startswith('Command:'):
+            runs.append([text.split('(scripts/mutation.sh;')[0].strip()])
+        elif runs and text and not text.startswith(BOILERPLATE):
+            runs[-1].append(text)
+    items = []
+    for run in runs:
+        item = ' '.join(run).replace(' on a shared 2-core machine (', ' (').strip()
+        if item not in items:
+            items.append(item)
+    return [f'- {item}' for item in items]
+
+
 def earlier_report(text: str) -> tuple[list[str], dict[str, str], dict[str, list[str]]]:
-    """Split a report of this script: its preamble, table rows and survivor sections by module."""
+    """Split a report of this script: its runs, table rows and survivor sections by module."""
     head, _, survivors = text.partition('\n## Surviving mutants')
-    preamble = [x for x in head.split('\n|', 1)[0].splitlines()[2:] if x.strip()]
+    preamble = earlier_runs([x for x in head.split('\n|', 1)[0].splitlines()[2:] if x.strip()])
     rows = {}
     for line in head.splitlines():
         cells = [c.strip() for c in line.strip('|').split('|')]
@@ -178,9 +212,10 @@ def render(
     ]
     if kept:
         lines[-2:-2] = [
-            f'Rows marked (earlier) and their survivors are from the earlier report, for the '
-            f'modules this run did not reach ({len(kept)}); it said:',
-            *(f'> {x}' for x in preamble),
+            f'Rows marked (earlier) and their survivors are from earlier runs, for the modules '
+            f'this run did not reach ({len(kept)}). Earlier runs, newest first:',
+            '',
+            *preamble,
             '',
         ]
     survivors = []
