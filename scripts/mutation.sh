@@ -5,7 +5,9 @@
 #   scripts/mutation.sh                       every mutant of the core (hours on 2 cores)
 #   scripts/mutation.sh 'actuator_core.gate*' the mutants of one module (mutmut's name globs)
 # MUTATION_JOBS (default 2) sets mutmut's --max-children; MUTATION_FRESH=1 starts from scratch
-# (mutmut otherwise keeps the results of mutants whose function did not change).
+# (mutmut otherwise keeps the results of mutants whose function did not change);
+# MUTATION_UNCHECKED=1 runs only the mutants of those globs that have no result yet (mutmut
+# reruns every mutant a glob names), e.g. to finish a run that was stopped.
 # Not in CI: CPU-heavy.
 set -euo pipefail
 
@@ -33,9 +35,18 @@ cp "$ROOT/scripts/mutation/pyproject.toml" pyproject.toml
 export PYTHONPATH="$ROOT/scripts/mutation${PYTHONPATH:+:$PYTHONPATH}"
 export PYTEST_ADDOPTS="-p mutation_order${PYTEST_ADDOPTS:+ $PYTEST_ADDOPTS}"
 echo "[mutation] mutmut run $* in $STAGE (nice 19, ${MUTATION_JOBS:-2} children)"
+targets=("$@")
+if [[ ${MUTATION_UNCHECKED:-0} == 1 ]]; then
+    mapfile -t targets < <(python "$ROOT/scripts/mutation/unchecked.py" --stage "$STAGE" "$@")
+    echo "[mutation] ${#targets[@]} mutants without a result"
+    if ((${#targets[@]} == 0)); then
+        exit 0
+    fi
+fi
 rc=0
-nice -n 19 mutmut run --max-children "${MUTATION_JOBS:-2}" "$@" || rc=$?
+nice -n 19 mutmut run --max-children "${MUTATION_JOBS:-2}" "${targets[@]}" || rc=$?
 # A run of some modules keeps the earlier report's rows for the others (--keep-earlier).
 python "$ROOT/scripts/mutation/report.py" --stage "$STAGE" --out "$ROOT/docs/mutation-report.md" \
-    ${*:+--keep-earlier} --command "make mutation${*:+ ARGS='$*'}"
+    ${*:+--keep-earlier} \
+    --command "${MUTATION_UNCHECKED:+MUTATION_UNCHECKED=$MUTATION_UNCHECKED }make mutation${*:+ ARGS='$*'}"
 exit "$rc"
