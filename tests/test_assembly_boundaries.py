@@ -4,8 +4,8 @@
 """The controller's sample assembly at its boundaries: resync length and gap, watchdog, latch.
 
 Each test pins one boundary of ``actuator_core.assembly`` to the sample (49/50 samples of
-resync, a gap of gap_limit_samples or one more, a timeout reached or passed), so a limit taken as < for <=, or a
-counter not reset, fails here.
+resync, a gap of gap_limit_samples or one more, a timeout reached or passed), so a limit taken
+as < for <=, or a counter not reset, fails here.
 """
 
 from __future__ import annotations
