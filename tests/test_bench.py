@@ -17,7 +17,7 @@ import sys
 import numpy as np
 import pytest
 
-from actuator_tools import bench, bench_figures, bench_table
+from actuator_tools import bench, bench_figures, bench_run, bench_table, bench_variants
 
 PERIOD_NS = 1_000_000
 
@@ -176,14 +176,14 @@ def test_table_lines_carry_target_and_verdict():
 
 
 def test_variants():
-    variants = bench.make_variants(['realtime', 'sim'], ['normal', 'fifo'], 50)
+    variants = bench_variants.make_variants(['realtime', 'sim'], ['normal', 'fifo'], 50)
     assert [v.slug for v in variants] == ['sim', 'realtime_normal', 'realtime_fifo50']
     assert 'SCHED_FIFO 50' in variants[2].title
 
 
 def test_variants_per_diagnostics_rate_and_publication_mode():
     """Each real-time variant once more per rate; every variant once per publication mode."""
-    variants = bench.make_variants(
+    variants = bench_variants.make_variants(
         ['realtime', 'sim'], ['fifo', 'fifo-composed'], 50, [100.0, 0.0], ['SYNCHRONOUS']
     )
     assert [v.slug for v in variants] == [
@@ -197,13 +197,15 @@ def test_variants_per_diagnostics_rate_and_publication_mode():
     ]
     assert 'controller/state and plant/truth at 100 Hz' in variants[2].title
     assert 'at 1 kHz' in variants[3].title and 'synchronous publication' in variants[3].title
-    modes = bench.make_variants(['sim'], [], 50, [100.0], ['SYNCHRONOUS', 'ASYNCHRONOUS'])
+    modes = bench_variants.make_variants(['sim'], [], 50, [100.0], ['SYNCHRONOUS', 'ASYNCHRONOUS'])
     assert [v.slug for v in modes] == ['sim_synchronous', 'sim_asynchronous']  # no rate in sim
 
 
 def test_each_variant_once_more_without_the_recorder():
     """--without-recorder: each variant followed by its unrecorded twin, named and titled so."""
-    variants = bench.make_variants(['sim-composed', 'realtime'], ['fifo'], 50, (), (), True)
+    variants = bench_variants.make_variants(
+        ['sim-composed', 'realtime'], ['fifo'], 50, (), (), True
+    )
     assert [(v.slug, v.recorded) for v in variants] == [
         ('sim_composed', True),
         ('sim_composed_unrecorded', False),
@@ -217,19 +219,19 @@ def test_a_publication_mode_reaches_the_processes_and_is_restored(monkeypatch):
     """The variant's mode is in os.environ only while its run starts processes."""
     name = 'RMW_FASTRTPS_PUBLICATION_MODE'
     monkeypatch.setenv(name, 'SYNCHRONOUS')
-    with bench._environment(bench.publication_mode_environment('ASYNCHRONOUS')):
+    with bench_run._environment(bench_run.publication_mode_environment('ASYNCHRONOUS')):
         assert os.environ[name] == 'ASYNCHRONOUS'
     assert os.environ[name] == 'SYNCHRONOUS'
     monkeypatch.delenv(name)
-    with bench._environment(bench.publication_mode_environment('ASYNCHRONOUS')):
+    with bench_run._environment(bench_run.publication_mode_environment('ASYNCHRONOUS')):
         assert os.environ[name] == 'ASYNCHRONOUS'
     assert name not in os.environ
-    assert bench.publication_mode_environment('') == {}  # the runner's own mode
+    assert bench_run.publication_mode_environment('') == {}  # the runner's own mode
 
 
 def test_offline_speed_is_positive():
-    assert math.isfinite(bench.offline_speed('case2_pp_nftsmc_eso', None, 0.02))
-    assert bench.offline_speed('case2_pp_nftsmc_eso', 10, 0.02) > 0
+    assert math.isfinite(bench_run.offline_speed('case2_pp_nftsmc_eso', None, 0.02))
+    assert bench_run.offline_speed('case2_pp_nftsmc_eso', 10, 0.02) > 0
 
 
 @pytest.mark.parametrize(
@@ -264,9 +266,9 @@ def test_hop_figures_halve_the_round_trip_and_count_lost_messages():
 
 
 def test_steal_share_between_two_readings():
-    assert bench.steal_percent((10, 1000), (30, 2000)) == pytest.approx(2.0)
-    assert bench.steal_percent((0, 0), (0, 0)) is None
-    steal, total = bench.cpu_times()
+    assert bench_run.steal_percent((10, 1000), (30, 2000)) == pytest.approx(2.0)
+    assert bench_run.steal_percent((0, 0), (0, 0)) is None
+    steal, total = bench_run.cpu_times()
     assert 0 <= steal <= total
 
 
@@ -333,9 +335,9 @@ def test_missing_tool_skips_its_variant_with_one_line_and_each_run_is_saved_as_i
             assert [json.loads(x)['variant'] for x in saved] == [c.slug for c in calls]
             assert (base / 'runs.csv').read_text().count('\n') == len(calls) + 1
         calls.append(variant)
-        return bench.RunRecord(variant.slug, repeat, error='fake run')
+        return bench_run.RunRecord(variant.slug, repeat, error='fake run')
 
-    monkeypatch.setattr(bench, 'run_one', fake_run)
+    monkeypatch.setattr(bench, 'run_one', fake_run)  # where main looks it up
     argv = [
         '--modes',
         'realtime',
@@ -374,5 +376,7 @@ def test_a_run_that_raises_is_that_runs_error(monkeypatch, tmp_path):
 
     monkeypatch.setattr(bringup, 'run_launched', boom)
     args = bench.build_parser().parse_args(['--duration', '1', '--quiet'])
-    record = bench.run_one(bench.Variant('realtime', 50, False, True), 1, args, tmp_path, 10**6)
+    record = bench_run.run_one(
+        bench_variants.Variant('realtime', 50, False, True), 1, args, tmp_path, 10**6
+    )
     assert record.error.startswith('run failed: FileNotFoundError') and 'ros2' in record.error
