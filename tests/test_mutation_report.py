@@ -71,7 +71,10 @@ def test_a_partial_run_keeps_the_rows_and_survivors_of_the_modules_it_did_not_re
     assert rows['actuator_core/gate.py (earlier)'].endswith('| 66.7% | 66.7% | 95% |')
     assert rows['**all**'].startswith('| **all** | 5 | 4 | 0 | 1 | 0 | 0 |')
     assert '## Surviving mutants (1)' in text and 'offer__mutmut_3' in text
-    assert "> Command: `make mutation ARGS='actuator_core.gate*'`" in text
+    assert (
+        "\n- Command: `make mutation ARGS='actuator_core.gate*'` Written 2026-12-01 22:07 UTC."
+        in text
+    )
     # without the earlier report, the unreached module is 'not checked'
     plain = report.render(stage, 'make mutation', {}, [])
     assert (
@@ -80,3 +83,10 @@ def test_a_partial_run_keeps_the_rows_and_survivors_of_the_modules_it_did_not_re
     # a third run keeps what the second kept from the first
     third = report.render(stage, 'make mutation', {}, [], text)
     assert '| actuator_core/gate.py (earlier) | 3 | 2 | 0 | 1 |' in third
+    # ... and lists both earlier runs flat, newest first, not quoted inside each other
+    runs = [line for line in third.splitlines() if line.startswith('- Command:')]
+    assert [r.split('`')[1] for r in runs] == [
+        "make mutation ARGS='laws'",
+        "make mutation ARGS='actuator_core.gate*'",
+    ]
+    assert not any(line.startswith('>') for line in third.splitlines())

@@ -119,7 +119,7 @@ def earlier_runs(preamble: list[str]) -> list[str]:
         if text.startswith('- '):  # an item of a flat list written by this function
             runs.append([text[2:]])
         elif text.startswith('Command:'):
-            runs.append([text.split('(scripts/mutation.sh;')[0].strip()])
+            runs.append([text.split(' (scripts/mutation.sh')[0].strip()])
         elif runs and text and not text.startswith(BOILERPLATE):
             runs[-1].append(text)
     items = []
