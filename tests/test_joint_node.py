@@ -33,6 +33,15 @@ def command(stamp_ns: int, current_a: float, safe_stop: bool = False):
     return msg
 
 
+def assert_stopped_for_good(node) -> None:
+    """Check a stopped joint: 0 A, brake, gate closed, no fault; a command moves nothing."""
+    assert node.joint.command == (0.0, True) and not node.gate.active and node.fault == ''
+    index = node.sample_index
+    node.on_command(command(node.published_ns, 10.0))
+    assert node.sample_index == index
+    node.destroy_node()
+
+
 def test_the_plant_steps_only_for_a_command_that_answers_its_newest_sample(rclpy_context):
     from actuator_plant.plant_node import PlantNode
 
@@ -87,11 +96,7 @@ def test_a_soft_limit_crossed_ends_control_with_the_brake(rclpy_context):
         node.on_command(command(node.published_ns, 10.0))
         k += 1
     assert 'outside the soft limits [-100, 0.3] rad' in node.stopped_reason
-    assert node.joint.command == (0.0, True) and not node.gate.active and node.fault == ''
-    index = node.sample_index
-    node.on_command(command(node.published_ns, 10.0))
-    assert node.sample_index == index  # nothing moves any more
-    node.destroy_node()
+    assert_stopped_for_good(node)
 
 
 class FaultyJoint(Joint):
@@ -205,11 +210,7 @@ def test_stop_on_stale_loop_ends_control_with_the_brake_and_its_reason(rclpy_con
     node = make(PlantNode, rclpy_context, fresh_command_window_s=0.05, stop_on_stale_loop=True)
     _fresh_then_stale(node, 60, 27)
     assert node.stopped_reason.startswith('loop too slow: fresh commands 48.0%')
-    assert node.joint.command == (0.0, True) and not node.gate.active and node.fault == ''
-    index = node.sample_index
-    node.on_command(command(node.published_ns, 1.0))
-    assert node.sample_index == index  # nothing moves any more
-    node.destroy_node()
+    assert_stopped_for_good(node)
 
 
 def test_a_report_queued_before_cleanup_reports_nothing_and_raises_nothing(rclpy_context):
