@@ -1,10 +1,12 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""Print the mutants of mutmut name globs that have no result yet (MUTATION_UNCHECKED=1).
+"""Print the mutants of mutmut name globs still to judge (MUTATION_UNCHECKED=1).
 
-mutmut reruns every mutant a name glob matches; this lets a stopped run be finished without
-redoing what it judged. Reads the .meta files of build/mutation/mutants; one name per line.
+Those without a result, and the survivors not explained in equivalent.toml (tests written since
+their run may kill them; mutmut keeps a result until the mutated function changes). mutmut
+reruns every mutant a name glob matches; this finishes a stopped run without redoing what it
+judged. Reads the .meta files of build/mutation/mutants; prints one name per line.
 """
 
 from __future__ import annotations
@@ -13,18 +15,25 @@ import argparse
 import fnmatch
 import json
 import sys
+import tomllib
 from pathlib import Path
 
+EQUIVALENT = Path(__file__).resolve().parent / 'equivalent.toml'
 
-def unchecked(stage: Path, globs: list[str]) -> list[str]:
-    """Return the names matching any of ``globs`` (all if none) whose exit code is unset."""
+
+def unchecked(stage: Path, globs: list[str], equivalent: dict[str, str]) -> list[str]:
+    """Return the names matching any of ``globs`` (all if none) that are unjudged or unexplained.
+
+    Unjudged: no exit code. Unexplained: survived (exit code 0) and not in ``equivalent``.
+    """
     names = []
     for meta in sorted((stage / 'mutants').rglob('*.py.meta')):
         codes = json.loads(meta.read_text())['exit_code_by_key']
         names += [
             name
             for name, code in codes.items()
-            if code is None and (not globs or any(fnmatch.fnmatch(name, g) for g in globs))
+            if (code is None or (code == 0 and name not in equivalent))
+            and (not globs or any(fnmatch.fnmatch(name, g) for g in globs))
         ]
     return names
 
@@ -35,7 +44,8 @@ def main() -> int:
     parser.add_argument('--stage', type=Path, required=True)
     parser.add_argument('globs', nargs='*')
     args = parser.parse_args()
-    print('\n'.join(unchecked(args.stage, args.globs)))
+    equivalent = tomllib.loads(EQUIVALENT.read_text()) if EQUIVALENT.exists() else {}
+    print('\n'.join(unchecked(args.stage, args.globs, equivalent)))
     return 0
 
 
