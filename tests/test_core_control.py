@@ -15,6 +15,7 @@ from actuator_sim.offline import run_scenario
 from actuator_sim.scenarios import case1, paper_scenario
 from actuator_sim.stability import radius_along_envelope
 from actuator_controller.laws import (
+    ControlOutput,
     CONTROLLER_NAMES,
     CommonConfig,
     NftsmcGains,
@@ -490,6 +491,25 @@ def test_run_stops_at_the_first_latched_sample_unless_told_not_to():
     loop = ClosedLoop(_ideal())
     loop.assembly.following_error_limit_rad = 1e-6
     assert len(loop.run(30, stop_on_divergence=False)['status']) == 30
+
+
+def test_a_latched_loop_records_0_a_and_nan_terms_and_brakes_the_joint():
+    """After the latch: 0 A (not NaN), every other term of the law NaN, the brake written.
+
+    As the nodes do: the controller asks a safe stop, the drive's gate applies 0 A with the
+    brake at once, and the joint is braked over the next interval; the law no longer runs.
+    """
+    loop = ClosedLoop(_ideal())
+    loop.assembly.following_error_limit_rad = 1e-6
+    record = loop.step()
+    while record['status'] != Status.LATCHED:
+        assert loop.joint.command[1] is False  # released while the law runs
+        record = loop.step()
+    assert loop.joint.command == (0.0, True)
+    record = loop.step()
+    assert record['status'] == Status.LATCHED and record['current_a'] == 0.0
+    assert all(math.isnan(record[f]) for f in ControlOutput._fields if f != 'current_a')
+    assert loop.joint.brake is True
 
 
 def test_run_stops_where_the_measurement_stops_being_finite():
