@@ -191,6 +191,15 @@ def test_current_limit_and_anti_windup():
     assert pi.integral == pytest.approx(-1e-6)
 
 
+@pytest.mark.parametrize('error_sign', [1.0, -1.0])
+def test_a_current_exactly_at_the_limit_is_not_saturated_and_integrates(error_sign):
+    """u_unlimited = +-limit exactly (kp 2 A/rad, e 0.5 rad, limit 1 A): inside, so integrated."""
+    pi = make_controller('pi', PiGains(kp_a_rad=2.0), CommonConfig(current_limit_a=1.0))
+    out = pi.update(0.0, 0.0, 0.0, 0.0, ReferenceSample(0.5 * error_sign, 0.0, 0.0))
+    assert out.current_unlimited_a == out.current_a == error_sign and not out.saturated
+    assert pi.integral == 0.5 * error_sign * pi.common.dt_s
+
+
 def test_non_finite_input_gives_zero_current_and_keeps_the_integral():
     ctrl = make_controller('pp_nftsmc_eso')
     out = ctrl.update(0.1, float('nan'), 0.0, 0.0, ReferenceSample(0.0, 0.0, 0.0))
