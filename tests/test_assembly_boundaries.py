@@ -319,6 +319,15 @@ def test_correction_only_for_the_pair_of_the_last_command() -> None:
     assert a.corrected == 0
 
 
+def test_an_estimate_naming_no_input_is_never_corrected() -> None:
+    """Without its input stamp, x_hat is taken as it is, even after a command at stamp 0."""
+    a = assembly()
+    a.add_estimate(0, 0.0, 0.0)
+    assert a.add_measurement(0, 0.1).current_a != 0.0  # commanded for stamp 0
+    a.add_estimate(P, 1.0, 2.0, input_current_gain=0.5)
+    assert a.add_measurement(P, 0.1).estimate == (1.0, 2.0) and a.corrected == 0
+
+
 def test_estimates_beyond_the_next_sample_are_refused() -> None:
     """x_hat(k+1) exists before y(k+1); one further ahead answers no measurement seen."""
     a = assembly()

@@ -143,13 +143,17 @@ class ControlSampleAssembly:
         stamp_ns: int,
         x2_hat,
         x3_hat,
-        input_ns: int = 0,
+        input_ns: Optional[int] = None,
         input_current_a=0.0,
         input_current_gain=0.0,
         initial: bool = False,
         received_ns: Optional[int] = None,
     ) -> Optional[ControlSample]:
         """x_hat(k), received at monotonic ``received_ns`` (default: its stamp).
+
+        ``input_ns``, ``input_current_a``, ``input_current_gain``: the command the observer
+        integrated into it and that current's gain in x2_hat (None: it names none, and is
+        never corrected).
 
         Refused (None, ``refusal`` says why) when stamped beyond the newest measurement seen
         plus one sample. An ``initial`` one after the start means the observer restarted:
