@@ -80,8 +80,10 @@ def test_unknown_reference_and_controller_are_refused():
         make_reference('zigzag')
     kinds = ', '.join(REFERENCE_KINDS)
     assert str(refused.value) == f"reference must be one of {kinds}, got 'zigzag'"
-    with pytest.raises(ValueError, match='controller'):
+    with pytest.raises(ValueError) as refused:
         make_controller('lqr')
+    names = ', '.join(CONTROLLER_NAMES)
+    assert str(refused.value) == f"controller must be one of {names}, got 'lqr'"
 
 
 def test_u_b_is_continuous_through_sigma_zero():
@@ -198,6 +200,15 @@ def test_a_current_exactly_at_the_limit_is_not_saturated_and_integrates(error_si
     out = pi.update(0.0, 0.0, 0.0, 0.0, ReferenceSample(0.5 * error_sign, 0.0, 0.0))
     assert out.current_unlimited_a == out.current_a == error_sign and not out.saturated
     assert pi.integral == 0.5 * error_sign * pi.common.dt_s
+
+
+def test_an_integral_wound_into_the_low_limit_unwinds_by_any_positive_push():
+    """Saturated low, a small positive integrand (0.25) is integrated: it leads out."""
+    pi = make_controller('pi', PiGains(kp_a_rad=2.0), CommonConfig(current_limit_a=1.0))
+    pi.integral = -10.0  # wound: ki * integral far below -1 A
+    out = pi.update(0.0, -0.25, 0.0, 0.0, ReferenceSample(0.0, 0.0, 0.0))
+    assert out.current_a == -1.0 and out.saturated
+    assert pi.integral == -10.0 + 0.25 * pi.common.dt_s
 
 
 def test_non_finite_input_gives_zero_current_and_keeps_the_integral():
