@@ -545,6 +545,31 @@ def test_validate_checks_every_spec_field_and_names_the_class():
         _Outer(rate_hz=2000.0)
 
 
+@dataclasses.dataclass(frozen=True)
+class _Flags:
+    """A spec'd flag, as the plant model's with_* switches."""
+
+    enabled: bool = params.spec(True, 'a switch')
+
+    def __post_init__(self):
+        """Validate as the project's settings do."""
+        params.validate(self)
+
+
+@pytest.mark.parametrize('value', [None, 'false', 0, 1.0])
+def test_validate_refuses_a_flag_that_is_not_a_bool(value):
+    """None, a string or a number in a flag is refused by name, not taken by its truth value."""
+    with pytest.raises(ValueError) as info:
+        _Flags(enabled=value)
+    assert str(info.value) == f'_Flags.enabled = {value!r} is not true or false: a switch'
+
+
+def test_validate_takes_a_python_or_numpy_bool_as_a_flag():
+    """A flag from YAML or a ROS parameter (bool) or from a numpy table (numpy.bool_)."""
+    assert _Flags(enabled=False).enabled is False
+    assert not _Flags(enabled=np.bool_(False)).enabled
+
+
 def test_iter_specs_recurses_into_nested_sections_with_dotted_names():
     """Spec'd fields in order, a nested section's with its prefix; plain fields left out."""
     names = [name for name, _ in params.iter_specs(_Outer)]

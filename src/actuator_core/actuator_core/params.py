@@ -70,10 +70,19 @@ def check_value(name: str, value: Any, meta: dict) -> None:
 
 
 def validate(obj: Any) -> None:
-    """Check every spec'd field of a dataclass instance; raise ValueError on the first bad one."""
+    """Check every spec'd field of a dataclass instance; raise ValueError on the first bad one.
+
+    A number against its range; a flag (a field whose default is a bool) must be a bool, as a
+    string such as 'false' or None would otherwise pass for one by its truth value.
+    """
     for f in dataclasses.fields(obj):
         if 'low' in f.metadata:
-            check_value(f'{type(obj).__name__}.{f.name}', getattr(obj, f.name), f.metadata)
+            name, value = f'{type(obj).__name__}.{f.name}', getattr(obj, f.name)
+            if isinstance(f.default, bool) and not isinstance(value, (bool, np.bool_)):
+                raise ValueError(
+                    f'{name} = {value!r} is not true or false: {f.metadata["description"]}'
+                )
+            check_value(name, value, f.metadata)
 
 
 def _section(f: dataclasses.Field) -> Any:
