@@ -239,10 +239,12 @@ def test_holding_brake_stops_the_joint_and_holds_it_against_the_external_torque(
     for _ in range(200):
         plant.step(10.0)  # moving at several rad/s
     assert abs(plant.velocity_rad_s) > 1.0
+    moved, v = plant.position_rad, plant.velocity_rad_s
     for _ in range(500):
         plant.step(0.0, brake=True)
     held = plant.position_rad
     assert plant.velocity_rad_s == 0.0
+    assert (held - moved) * v >= 0.0 and abs(held - moved) < 0.5 * abs(v)  # stopped ahead
     for _ in range(3000):  # 3 s of eq. (40)'s torque: the brake holds
         plant.step(0.0, brake=True)
     assert plant.position_rad == held and plant.velocity_rad_s == 0.0
@@ -254,6 +256,21 @@ def test_holding_brake_stops_the_joint_and_holds_it_against_the_external_torque(
     for _ in range(500):
         weak.step(0.0, brake=True)  # 5 N m cannot hold 20-30 N m: it slips
     assert abs(weak.position_rad) > 0.01
+
+
+def test_the_truth_carries_the_torques_its_disturbance_parts_come_from():
+    """Each part of d is its torque of eq. (6), (40), (42) over J (and the gear), per sample."""
+    from actuator_plant.model import JointPlant, PlantParameters
+
+    plant = JointPlant(PlantParameters(), 1.0e-3)
+    for _ in range(50):
+        plant.step(5.0)
+    parts = plant.truth(5.0)
+    f, gear = parts.forces, PlantParameters().nominal.gear_ratio
+    assert parts.stirring_rad_s2 == -f.stirring_torque_nm / (f.inertia_kg_m2 * gear)
+    assert parts.external_rad_s2 == -f.external_torque_nm / (f.inertia_kg_m2 * gear**2)
+    assert parts.seal_rad_s2 == -f.seal_torque_nm / (f.inertia_kg_m2 * gear**2)
+    assert f.stirring_torque_nm != 0.0 and f.external_torque_nm != 0.0
 
 
 def test_depth_range_is_the_surface_to_11000_m_both_included():
