@@ -273,6 +273,29 @@ def test_the_truth_carries_the_torques_its_disturbance_parts_come_from():
     assert f.stirring_torque_nm != 0.0 and f.external_torque_nm != 0.0
 
 
+def test_derived_constants_are_python_floats_for_one_condition_and_arrays_for_a_batch():
+    """One condition: floats (the scalar path's speed); a batch of two: an array per constant.
+
+    The stirring coefficient is k mu of eq. (6)-(7) with the viscosity it reports.
+    """
+    from actuator_plant.model import PlantParameters, WorkingCondition, derive_constants
+    from actuator_plant.oil import dynamic_viscosity_pa_s, stirring_geometry_constant_m3
+
+    params = PlantParameters()
+    one = derive_constants(params)
+    fields = ('stirring_coefficient_nm_s_rad', 'viscosity_pa_s', 'seal_offset_nm')
+    assert all(type(getattr(one, f)) is float for f in fields)
+    mu = dynamic_viscosity_pa_s(2.0, 10.0e6, params.oil)
+    assert one.viscosity_pa_s == mu
+    assert one.stirring_coefficient_nm_s_rad == stirring_geometry_constant_m3(params.geometry) * mu
+    both = WorkingCondition(
+        pressure_pa=np.array([0.0, 10.0e6]), temperature_c=np.array([25.0, 2.0])
+    )
+    batch = derive_constants(dataclasses.replace(params, condition=both))
+    assert all(np.shape(getattr(batch, f)) == (2,) for f in fields)
+    assert batch.viscosity_pa_s[1] == mu
+
+
 def test_depth_range_is_the_surface_to_11000_m_both_included():
     """0 m and 11000 m are depths; a nanometre above or below is refused, with the range."""
     assert WorkingCondition.at_depth(0.0).pressure_pa == 0.0
