@@ -6,8 +6,9 @@
 #   scripts/mutation.sh 'actuator_core.gate*' the mutants of one module (mutmut's name globs)
 # MUTATION_JOBS (default 2) sets mutmut's --max-children; MUTATION_FRESH=1 starts from scratch
 # (mutmut otherwise keeps the results of mutants whose function did not change);
-# MUTATION_UNCHECKED=1 runs only the mutants of those globs that have no result yet (mutmut
-# reruns every mutant a glob names), e.g. to finish a run that was stopped.
+# MUTATION_UNCHECKED=1 runs only the mutants of those globs that have no result yet or survived
+# without an explanation in equivalent.toml (mutmut reruns every mutant a glob names), e.g. to
+# finish a stopped run and judge the survivors again against the tests written since.
 # Not in CI: CPU-heavy.
 set -euo pipefail
 
@@ -38,7 +39,7 @@ echo "[mutation] mutmut run $* in $STAGE (nice 19, ${MUTATION_JOBS:-2} children)
 targets=("$@")
 if [[ ${MUTATION_UNCHECKED:-0} == 1 ]]; then
     mapfile -t targets < <(python "$ROOT/scripts/mutation/unchecked.py" --stage "$STAGE" "$@")
-    echo "[mutation] ${#targets[@]} mutants without a result"
+    echo "[mutation] ${#targets[@]} mutants unjudged or unexplained"
     if ((${#targets[@]} == 0)); then
         exit 0
     fi
