@@ -328,6 +328,15 @@ def test_an_estimate_naming_no_input_is_never_corrected() -> None:
     assert a.add_measurement(P, 0.1).estimate == (1.0, 2.0) and a.corrected == 0
 
 
+def test_an_estimate_naming_its_input_but_no_gain_keeps_its_x2() -> None:
+    """The current's gain in x2_hat defaults to 0: another current integrated moves nothing."""
+    a = assembly()
+    a.add_estimate(0, 0.0, 0.0)
+    commanded = a.add_measurement(0, 0.1).current_a
+    a.add_estimate(P, 1.0, 2.0, input_ns=0, input_current_a=commanded + 1.0)
+    assert a.add_measurement(P, 0.1).estimate == (1.0, 2.0)
+
+
 def test_estimates_beyond_the_next_sample_are_refused() -> None:
     """x_hat(k+1) exists before y(k+1); one further ahead answers no measurement seen."""
     a = assembly()
