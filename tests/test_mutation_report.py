@@ -90,3 +90,15 @@ def test_a_partial_run_keeps_the_rows_and_survivors_of_the_modules_it_did_not_re
         "make mutation ARGS='actuator_core.gate*'",
     ]
     assert not any(line.startswith('>') for line in third.splitlines())
+
+
+def test_a_survivor_of_a_module_whose_name_starts_with_x_is_filed_under_it():
+    """A survivor of actuator_core.xmath is filed under actuator_core/xmath.py."""
+    report = _report_module()
+    earlier = EARLIER.replace(
+        'actuator_core.gate.xǁCommandGateǁoffer__mutmut_3', 'actuator_core.xmath.x_fsum__mutmut_1'
+    )
+    _, _, sections = report.earlier_report(earlier)
+    assert list(sections) == ['actuator_core/xmath.py']
+    _, _, sections = report.earlier_report(EARLIER)
+    assert list(sections) == ['actuator_core/gate.py']

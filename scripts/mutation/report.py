@@ -15,6 +15,7 @@ import argparse
 import datetime
 import json
 import os
+import re
 import subprocess
 import sys
 import tomllib
@@ -143,7 +144,7 @@ def earlier_report(text: str) -> tuple[list[str], dict[str, str], dict[str, list
     sections: dict[str, list[str]] = {}
     for block in survivors.split('\n### ')[1:]:
         name = block.split('`')[1]
-        module = name.split('.x')[0].replace('.', '/') + '.py'
+        module = re.split(r'\.x[_ǁ]', name)[0].replace('.', '/') + '.py'
         sections.setdefault(module, []).append('### ' + block.rstrip('\n') + '\n')
     return preamble, rows, sections
 
