@@ -5,6 +5,7 @@
 
 import importlib.util
 import json
+import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -102,3 +103,34 @@ def test_a_survivor_of_a_module_whose_name_starts_with_x_is_filed_under_it():
     assert list(sections) == ['actuator_core/xmath.py']
     _, _, sections = report.earlier_report(EARLIER)
     assert list(sections) == ['actuator_core/gate.py']
+
+
+def test_unchecked_lists_the_unjudged_and_the_unexplained_survivors_of_the_globs(tmp_path):
+    """No result or survived without an equivalent: listed; killed or explained: not."""
+    spec = importlib.util.spec_from_file_location(
+        'mutation_unchecked', ROOT / 'scripts' / 'mutation' / 'unchecked.py'
+    )
+    module = importlib.util.module_from_spec(spec)
+    sys.path.insert(0, str(ROOT / 'scripts' / 'mutation'))  # it imports report beside it
+    try:
+        spec.loader.exec_module(module)
+    finally:
+        sys.path.remove(str(ROOT / 'scripts' / 'mutation'))
+    stage = _stage(
+        tmp_path,
+        {
+            'actuator_core/gate.py': {
+                'actuator_core.gate.x_a__mutmut_1': None,
+                'actuator_core.gate.x_a__mutmut_2': 0,
+                'actuator_core.gate.x_a__mutmut_3': 0,
+                'actuator_core.gate.x_a__mutmut_4': 1,
+            },
+            'actuator_core/pairing.py': {'actuator_core.pairing.x_b__mutmut_1': None},
+        },
+    )
+    explained = {'actuator_core.gate.x_a__mutmut_3': 'Equivalent: ...'}
+    assert module.unchecked(stage, ['actuator_core.gate*'], explained) == [
+        'actuator_core.gate.x_a__mutmut_1',
+        'actuator_core.gate.x_a__mutmut_2',
+    ]
+    assert len(module.unchecked(stage, [], explained)) == 3

@@ -18,13 +18,13 @@ import sys
 import tomllib
 from pathlib import Path
 
-EQUIVALENT = Path(__file__).resolve().parent / 'equivalent.toml'
+from report import EQUIVALENT, status  # scripts/mutation/report.py, beside this file
 
 
 def unchecked(stage: Path, globs: list[str], equivalent: dict[str, str]) -> list[str]:
     """Return the names matching any of ``globs`` (all if none) that are unjudged or unexplained.
 
-    Unjudged: no exit code. Unexplained: survived (exit code 0) and not in ``equivalent``.
+    Unjudged: no exit code. Unexplained: survived and not in ``equivalent``.
     """
     names = []
     for meta in sorted((stage / 'mutants').rglob('*.py.meta')):
@@ -32,7 +32,7 @@ def unchecked(stage: Path, globs: list[str], equivalent: dict[str, str]) -> list
         names += [
             name
             for name, code in codes.items()
-            if (code is None or (code == 0 and name not in equivalent))
+            if (code is None or (status(code) == 'survived' and name not in equivalent))
             and (not globs or any(fnmatch.fnmatch(name, g) for g in globs))
         ]
     return names
@@ -45,7 +45,8 @@ def main() -> int:
     parser.add_argument('globs', nargs='*')
     args = parser.parse_args()
     equivalent = tomllib.loads(EQUIVALENT.read_text()) if EQUIVALENT.exists() else {}
-    print('\n'.join(unchecked(args.stage, args.globs, equivalent)))
+    for name in unchecked(args.stage, args.globs, equivalent):
+        print(name)  # none at all: no line (the script then runs nothing)
     return 0
 
 
