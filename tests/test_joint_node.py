@@ -116,7 +116,8 @@ class FaultyJoint(Joint):
         return JointSample(stamp_ns, 0.0, 0.0, 'safe torque off' if self.reads > 3 else '')
 
 
-def test_a_joint_fault_ends_control_and_goes_through_error_processing(rclpy_context):
+def faulty_node_class():
+    """Return the joint node class holding a FaultyJoint (rclpy imported on demand)."""
     from actuator_ros.joint_node import JointNode
 
     class FaultyNode(JointNode):
@@ -128,7 +129,11 @@ def test_a_joint_fault_ends_control_and_goes_through_error_processing(rclpy_cont
         def make_joint(self):
             return FaultyJoint()
 
-    node = make(FaultyNode, rclpy_context)
+    return FaultyNode
+
+
+def test_a_joint_fault_ends_control_and_goes_through_error_processing(rclpy_context):
+    node = make(faulty_node_class(), rclpy_context)
     joint = node.joint
     for _ in range(5):
         node.on_command(command(node.published_ns, 2.0))
@@ -136,6 +141,25 @@ def test_a_joint_fault_ends_control_and_goes_through_error_processing(rclpy_cont
     node.on_tick()  # supervision: deactivate -> error processing -> unconfigured
     assert node._state_machine.current_state[1] == 'unconfigured'
     assert not node.configured and node.joint is None
+    node.destroy_node()
+
+
+def test_a_joint_fault_in_real_time_ends_the_sampling_thread(rclpy_context):
+    # Before: the thread kept running after control ended; no cycle advanced the grid, so it
+    # spun without sleeping at the joint's SCHED_FIFO priority until someone deactivated the node
+    # (a driver counted 11 million skipped cycles in 0.13 s of it).
+    from rclpy.parameter import Parameter
+
+    node = faulty_node_class()(
+        context=rclpy_context, parameter_overrides=[Parameter('mode', value='realtime')]
+    )
+    node.trigger_configure()
+    node.trigger_activate()
+    node._start_sampling()
+    node.sampler.join(timeout=2.0)
+    assert not node.sampler.is_alive() and node.stopped_reason == 'safe torque off'
+    assert node.joint.reads == 4 and node.joint.written[-1] == (0.0, True)
+    assert node.skipped_cycles < 100, node.skipped_cycles
     node.destroy_node()
 
 

@@ -316,9 +316,13 @@ class JointNode(ManagedNode):
         return self.published_ns if self.mode == 'sim' else time.monotonic_ns()
 
     def _sampling_loop(self) -> None:
-        """Realtime: sleep to the next instant of the monotonic grid, run the due cycles."""
+        """Realtime: sleep to the next instant of the monotonic grid, run the due cycles.
+
+        Ends with control (a fault, a soft limit, a stale loop): a cycle then reads nothing, so
+        the grid would not advance and this SCHED_FIFO thread would spin until deactivation.
+        """
         try:
-            while not self.finished and not self.stop_sampling.is_set():
+            while not (self.finished or self.stopped_reason or self.stop_sampling.is_set()):
                 next_ns = self.start_mono_ns + (self.sample_index + 1) * self.period_ns
                 wait_ns = next_ns - time.monotonic_ns()
                 if wait_ns > 0:
