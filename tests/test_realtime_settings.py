@@ -182,3 +182,29 @@ def test_unreadable_parameter_file_is_left_to_rcl(tmp_path: Path) -> None:
     for path in (tmp_path / 'missing.yaml', bad):
         args = ['--ros-args', '-p', 'thread_priority:=5', '--params-file', str(path)]
         assert pre_init_settings(args, NODE) == RealtimeSettings(thread_priority=5)
+
+
+@pytest.mark.parametrize(
+    'args, mode',
+    [
+        ([], 'ASYNCHRONOUS'),  # a node run alone: real time
+        (['--ros-args', '-p', 'mode:=realtime'], 'ASYNCHRONOUS'),
+        (['--ros-args', '-p', 'mode:=sim'], 'SYNCHRONOUS'),
+        (['--ros-args', '-p', 'use_sim_time:=true'], 'SYNCHRONOUS'),  # the recorder's way
+        (['--ros-args', '-p', f'{NODE}:mode:=sim'], 'SYNCHRONOUS'),  # a composed process
+        (['--ros-args', '-p', 'actuator_eso:mode:=sim'], 'ASYNCHRONOUS'),  # another node's
+        (['--ros-args', '-p', 'mode:=sim', '-p', 'mode:=realtime'], 'ASYNCHRONOUS'),
+    ],
+)
+def test_sim_time_publishes_synchronously_and_real_time_asynchronously(args, mode) -> None:
+    """A lockstep loses nothing by a publish that waits; a real-time thread must not wait."""
+    assert realtime.publication_mode(args, NODE) == ('RMW_FASTRTPS_PUBLICATION_MODE', mode)
+
+
+def test_the_publication_mode_of_a_parameter_file_section(tmp_path: Path) -> None:
+    """The node's section of a file (as launch_ros writes one) says sim: synchronous."""
+    params = tmp_path / 'p.yaml'
+    params.write_text(f'{NODE}:\n  ros__parameters:\n    mode: sim\n')
+    args = ['--ros-args', '--params-file', str(params)]
+    assert realtime.publication_mode(args, NODE)[1] == 'SYNCHRONOUS'
+    assert realtime.publication_mode(args, 'actuator_eso')[1] == 'ASYNCHRONOUS'

@@ -24,15 +24,20 @@ import yaml
 EXECUTORS = ('events', 'single_threaded')
 
 
+#: The variable rmw_fastrtps reads its publication mode from when rclpy.init creates it.
+PUBLICATION_MODE_VARIABLE = 'RMW_FASTRTPS_PUBLICATION_MODE'
 #: Fast DDS's publication mode for every process the runner starts, unless the environment sets
-#: it: ASYNCHRONOUS (a sending thread per writer), whatever rmw_fastrtps's own default (later
-#: releases default to SYNCHRONOUS); the benchmark compares both (bench --publication-modes).
-#: Not SYNCHRONOUS: there a publish sends in the caller's thread and waits on a subscriber that
-#: does not read. Measured here with the subscriber process stopped (SIGSTOP), 5000 publishes
-#: of controller/state at 1 kHz: synchronous mean 564 us, worst 63 ms (best effort; reliable:
-#: 523 us, 80 ms); asynchronous mean 72 us, worst 7.4 ms (reliable: 123 us, 4.8 ms). A stopped
-#: recorder or `ros2 topic echo` would hold the joint's sampling thread.
-PUBLICATION_MODE = ('RMW_FASTRTPS_PUBLICATION_MODE', 'ASYNCHRONOUS')
+#: it, whatever rmw_fastrtps's own default. Real time: ASYNCHRONOUS (a sending thread per
+#: writer). Not SYNCHRONOUS there: a publish then sends in the caller's thread and waits on a
+#: subscriber that does not read. Measured here with the subscriber process stopped (SIGSTOP),
+#: 5000 publishes of controller/state at 1 kHz: synchronous mean 564 us, worst 63 ms (best
+#: effort; reliable: 523 us, 80 ms); asynchronous mean 72 us, worst 7.4 ms (reliable: 123 us,
+#: 4.8 ms). A stopped recorder or `ros2 topic echo` would hold the joint's sampling thread. Sim
+#: time (lockstep): SYNCHRONOUS, where such a wait costs speed and nothing else (no deadline),
+#: and each hop saves the sending thread's wake-up: 10 s runs here, separate processes 0.99x ->
+#: 1.27x real time, composed without the recorder 2.94x -> 3.39x (README "Performance"). The
+#: benchmark compares both (bench --publication-modes).
+PUBLICATION_MODES = {'realtime': 'ASYNCHRONOUS', 'sim': 'SYNCHRONOUS'}
 
 
 @dataclass(frozen=True)
@@ -107,8 +112,25 @@ def pre_init_settings(args: Sequence[str], node_name: str) -> RealtimeSettings:
 
     Later wins.
     """
+    found = _parameters(args, node_name, ('thread_priority', 'cpu_affinity', 'executor'))
+    return RealtimeSettings(
+        **{k: (str(v) if k == 'cpu_affinity' else v) for k, v in found.items()}
+    )
+
+
+def publication_mode(args: Sequence[str], node_name: str) -> tuple[str, str]:
+    """(variable, value) of Fast DDS's publication mode for ``node_name``'s process.
+
+    PUBLICATION_MODES: sim when its ROS arguments say ``mode`` sim or ``use_sim_time`` true.
+    """
+    found = _parameters(args, node_name, ('mode', 'use_sim_time'))
+    sim = found.get('mode') == 'sim' or found.get('use_sim_time') is True
+    return PUBLICATION_MODE_VARIABLE, PUBLICATION_MODES['sim' if sim else 'realtime']
+
+
+def _parameters(args: Sequence[str], node_name: str, names: Sequence[str]) -> dict:
+    """Return the values of ``names`` for ``node_name`` in ROS arguments (later wins)."""
     found: dict = {}
-    names = ('thread_priority', 'cpu_affinity', 'executor')
     in_ros, it = False, iter(list(args))
     for arg in it:
         if arg == '--ros-args':
@@ -122,9 +144,7 @@ def pre_init_settings(args: Sequence[str], node_name: str) -> RealtimeSettings:
                 found[name] = _value(text)
         elif in_ros and arg == '--params-file':
             found.update(_from_file(next(it, ''), node_name, names))
-    return RealtimeSettings(
-        **{k: (str(v) if k == 'cpu_affinity' else v) for k, v in found.items()}
-    )
+    return found
 
 
 def _from_file(path: str, node_name: str, names: Sequence[str]) -> dict:

@@ -28,7 +28,7 @@ from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
 from actuator_ros.parameters import ParameterError
-from actuator_ros.realtime import PUBLICATION_MODE, RealtimeSettings, pre_init_settings
+from actuator_ros.realtime import RealtimeSettings, pre_init_settings, publication_mode
 
 #: Longest wait at shutdown for RELIABLE subscribers to acknowledge what was published [s]. A
 #: sample the transport dropped is resent only when the reader answers the writer's heartbeat
@@ -123,7 +123,8 @@ def run_nodes(
         signal.signal(signum, request_stop)
     faulthandler.register(signal.SIGUSR1, all_threads=True)  # kill -USR1: every thread's stack
     refused = settings.apply()  # before rclpy.init: the middleware's threads inherit it
-    os.environ.setdefault(*PUBLICATION_MODE)  # read by rmw_fastrtps when rclpy.init creates it
+    # read by rmw_fastrtps when rclpy.init creates it; sim time and real time differ
+    os.environ.setdefault(*publication_mode(args, settings_node))
     try:
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     except Exception as exc:  # rcl's RCLError: an unparsable parameter file, a bad --ros-args

@@ -115,7 +115,8 @@ def build_parser() -> OneLineParser:
         choices=PUBLICATION_MODES,
         default=[],
         help="run every variant under each of Fast DDS's publication modes (default: the "
-        "runner's, ASYNCHRONOUS; see actuator_ros.realtime.PUBLICATION_MODE)",
+        "runner's, SYNCHRONOUS in sim time and ASYNCHRONOUS in real time; see "
+        'actuator_ros.realtime.PUBLICATION_MODES)',
     )
     p.add_argument(
         '--without-recorder',

@@ -138,9 +138,9 @@ def steal_percent(before: tuple[float, float], after: tuple[float, float]) -> Op
 
 def publication_mode_environment(mode: str) -> dict:
     """Environment that gives the nodes Fast DDS's publication ``mode`` ('': the runner's)."""
-    from actuator_ros.realtime import PUBLICATION_MODE
+    from actuator_ros.realtime import PUBLICATION_MODE_VARIABLE
 
-    return {PUBLICATION_MODE[0]: mode} if mode else {}
+    return {PUBLICATION_MODE_VARIABLE: mode} if mode else {}
 
 
 @contextmanager

@@ -16,6 +16,8 @@ import shutil
 from dataclasses import dataclass
 from typing import Optional, Sequence
 
+from actuator_ros import realtime
+
 RT_VARIANTS = (
     'normal',
     'fifo',
@@ -25,8 +27,9 @@ RT_VARIANTS = (
     'normal-composed',
     'fifo-composed',
 )
-#: Fast DDS publication modes a run can be given (RMW_FASTRTPS_PUBLICATION_MODE).
-PUBLICATION_MODES = ('SYNCHRONOUS', 'ASYNCHRONOUS')
+#: Fast DDS publication modes a run can be given (RMW_FASTRTPS_PUBLICATION_MODE): the two the
+#: runner chooses between (actuator_ros.realtime.PUBLICATION_MODES).
+PUBLICATION_MODES = tuple(sorted(set(realtime.PUBLICATION_MODES.values()), reverse=True))
 #: ROS modes: sim time across processes, sim time with the three nodes in one process, real time.
 MODES = ('realtime', 'sim', 'sim-composed')
 
