@@ -22,7 +22,6 @@ import os
 import re
 import signal
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -30,189 +29,23 @@ import pytest
 from actuator_core import limits
 from actuator_core.timing import stamp_to_ns
 from actuator_ros.conversions import ns_to_stamp
-from actuator_tools.bringup import scenario_file
-from actuator_tools.graph import closed_loop
-from actuator_tools.supervisor import RosProcess, process_log
-from ros_helpers import TestNode, start_closed_loop
+from adversarial_loop import (
+    BRAKED_GAP_NS,
+    CONTROLLED,
+    JOINT_KINDS,
+    STATUS_CONFLICT,
+    STATUS_LATCHED,
+    STATUS_RESYNC,
+    Attacker,
+    Loop,
+    assert_recovered,
+    log_time_s,
+    logged_after,
+    logged_between,
+    skip_unjudged,
+)
 
 pytestmark = [pytest.mark.realtime, pytest.mark.slow]
-
-SCENARIO = 'case2_pp_nftsmc_eso'
-#: The joint kinds every attack runs against (graph.closed_loop's ``joint``).
-JOINT_KINDS = ('plant', 'cia402_sim')
-#: README "Safety", the stall table: after a 20-300 ms stall of the ESO or the controller the
-#: loop tracks again with max |e| 1.2e-3 rad (core model, fast deep-sea case; the real loop's
-#: table beside it: 8.2e-4 to 2.6e-3).
-README_RECOVERED_ERROR_RAD = 1.2e-3
-#: |e| of the controlled samples in the last second that counts as tracking again: within 3x
-#: the README's figure [rad] (was 0.05 rad, which a joint 40x off the documented tracking passed).
-TRACKING_RAD = 3 * README_RECOVERED_ERROR_RAD
-#: Seconds after an attack by which a calm second must have come (see _assert_recovered).
-RECOVERY_DEADLINE_S = 20.0
-#: Share of the commands of that last second later than one period (the controller's
-#: late_samples) above which the host, not the loop, set its figure (as in
-#: tests/test_realtime_closed_loop.py).
-LATE_SHARE_MAX = 0.05
-#: ControllerState statuses whose command is the law's (OK, RECOVERING).
-CONTROLLED = (0, 9)
-STATUS_CONFLICT, STATUS_LATCHED, STATUS_RESYNC = 7, 5, 6
-#: Statuses that answer a stall (stale measurement, stale estimate, resync): in a second the
-#: host kept on time there is none.
-STALL_ANSWERS = (2, 3, STATUS_RESYNC)
-
-
-class Loop:
-    """The closed loop as processes, from the one description (graph.closed_loop).
-
-    With restarts.
-    """
-
-    def __init__(self, env: dict, tmp: Path, joint: str):
-        self.env, self.tmp, self.joint = env, tmp, joint
-        #: the key of the joint's process: the plant, or the driver of the simulated drive
-        self.joint_key = 'plant' if joint == 'plant' else 'driver'
-        self.params = scenario_file(SCENARIO)
-        self.bag = tmp / 'bag'
-        self.specs = {
-            s.key: s
-            for s in closed_loop(
-                'realtime', 0.0, record=True, bag=self.bag, joint=joint, thread_priority=50
-            )
-        }
-        self.starts: dict[str, int] = {}
-        self.procs: dict[str, RosProcess] = start_closed_loop(
-            self._process, self.specs.values(), self.params, on_start=_drive_ready
-        )
-
-    def _process(self, package: str, executable: str, args: list, name: str) -> RosProcess:
-        """Process of key ``name``, numbered by its start: every start's log is kept."""
-        n = self.starts[name] = self.starts.get(name, 0) + 1
-        return RosProcess.installed(
-            package, executable, args, env=self.env, log_dir=self.tmp / 'logs', name=f'{name}{n}'
-        )
-
-    def start(self, key: str) -> RosProcess:
-        self.procs[key] = start_closed_loop(self._process, [self.specs[key]], self.params)[key]
-        return self.procs[key]
-
-    def restart(self, key: str, pause_s: float = 0.5) -> None:
-        """SIGINT the process (as Ctrl-C or a crash handler would), wait, start a new one."""
-        assert self.procs[key].stop() == 0
-        time.sleep(pause_s)
-        self.start(key)
-
-    def log(self, key: str) -> str:
-        """Everything every process of ``key`` (the first and any restarted one) wrote."""
-        return ''.join(
-            process_log(self.tmp / 'logs', f'{key}{n}') for n in range(1, self.starts[key] + 1)
-        )
-
-    def stop(self) -> dict:
-        return {k: p.stop() for k, p in reversed(list(self.procs.items()))}
-
-
-def _drive_ready(key: str, proc: RosProcess) -> None:
-    """Wait until the simulated drive listens, before its driver configures (as the runner)."""
-    if key == 'drive':
-        proc.wait_for_output(r'^drive 1 ready$', timeout=30)
-
-
-class Attacker(TestNode):
-    """An rclpy node in the test process: the rogue publisher and the listener."""
-
-    def __init__(self, context, joint: str):
-        from actuator_msgs.msg import ControllerState, CurrentCommand, PlantTruth, StateEstimate
-        from actuator_ros.qos import control_qos
-        from sensor_msgs.msg import JointState
-
-        super().__init__(context, 'attacker')
-        self.joint = joint
-        self.types = {
-            'joint_states': JointState,
-            'eso/estimate': StateEstimate,
-            'current_command': CurrentCommand,
-        }
-        self.qos = control_qos('realtime')
-        self.states: list = []
-        self.truth: list = []
-        self.node.create_subscription(
-            ControllerState, 'controller/state', self.states.append, self.qos
-        )
-        self.node.create_subscription(PlantTruth, 'plant/truth', self.truth.append, self.qos)
-        #: the joint's measurements (a rogue's own joint_states, which carry no effort, left out)
-        self.measured: list = []
-        self.node.create_subscription(
-            JointState,
-            'joint_states',
-            lambda m: self.measured.append(m) if len(m.effort) == 1 else None,
-            self.qos,
-        )
-        self.commands: list = []
-        self.node.create_subscription(
-            CurrentCommand, 'current_command', self.commands.append, self.qos
-        )
-
-    def wait_until_controlling(self, timeout: float = 60.0) -> None:
-        end = time.monotonic() + timeout
-        while time.monotonic() < end:
-            self.spin(0.2)
-            # the attacks stamp their messages with the newest measurement: one must be in
-            if self.measured and sum(s.status in CONTROLLED for s in self.states[-200:]) > 150:
-                return
-        raise AssertionError('the loop never reached closed-loop control')
-
-    def newest_stamp_ns(self) -> int:
-        return stamp_to_ns(self.measured[-1].header.stamp)
-
-    def joint_samples(self, after_ns: int = 0) -> list:
-        """(stamp ns, position rad, braked, at rest) of the joint's samples received, by stamp.
-
-        The plant's truth says its brake and velocity. A drive says neither per sample (its
-        brake is bit 16 of 0x60FD, read over SDO at a stop): there braked is "no torque at the
-        joint" (effort from 0x6077 exactly 0) and at rest "the position of the braked sample
-        received before" (the simulated drive's brake holds the joint exactly, as the plant's
-        does; a joint still sliding moves by many encoder counts per period).
-        """
-        if self.joint == 'plant':
-            out = [
-                (
-                    stamp_to_ns(t.header.stamp),
-                    t.position_rad,
-                    t.brake_engaged,
-                    t.velocity_rad_s == 0.0,
-                )
-                for t in self.truth
-            ]
-            return sorted(x for x in out if x[0] > after_ns)
-        out, previous = [], None
-        for m in sorted(self.measured, key=lambda m: stamp_to_ns(m.header.stamp)):
-            stamp, position, braked = stamp_to_ns(m.header.stamp), m.position[0], m.effort[0] == 0
-            # at rest: the position of the braked sample received before, within a stretch
-            rest = braked and previous is not None and previous[1:] == (position, True)
-            rest = rest and stamp - previous[0] <= BRAKED_GAP_NS
-            out.append((stamp, position, braked, rest))
-            previous = (stamp, position, braked)
-        return [x for x in out if x[0] > after_ns]
-
-    def publisher(self, topic: str, matched: bool = True):
-        """Create a rogue publisher; ``matched``: wait until every subscriber matched it."""
-        pub = self.node.create_publisher(self.types[topic], topic, self.qos)
-        end = time.monotonic() + 20.0
-        while matched and time.monotonic() < end:
-            wanted = self.node.count_subscribers(topic)  # the graph's view, this node included
-            if wanted and pub.get_subscription_count() >= wanted:
-                break
-            self.spin(0.005)
-        return pub
-
-
-def tracking_again(attacker: Attacker, seconds: float = 1.0) -> float:
-    """Max |e| of the controlled samples in the last ``seconds`` (inf when none was controlled)."""
-    recent = attacker.states[-int(seconds * 1000) :]
-    errors = [
-        abs(s.error_rad) for s in recent if s.status in CONTROLLED and math.isfinite(s.error_rad)
-    ]
-    return max(errors) if len(errors) > 0.5 * len(recent) else math.inf
 
 
 @pytest.fixture(params=JOINT_KINDS)
@@ -227,57 +60,6 @@ def loop(request, ros_env, rclpy_context, tmp_path):
         codes = running.stop()
         assert all(c == 0 for c in codes.values()), codes
         assert not any('Traceback' in running.log(key) for key in running.specs)
-
-
-def _assert_recovered(running: Loop, attacker: Attacker) -> str:
-    """No latched stop, control again, and a second tracking within TRACKING_RAD by the deadline.
-
-    Judged from 3 s after the attack on; a later stall of this shared machine can cost another
-    resync, so the loop gets until RECOVERY_DEADLINE_S to show one calm second. Safety holds on
-    every run: no latch, and the law commands again (controlled samples in the last second).
-    The tracking figure is the host's when it kept the loop late in that last second (more than
-    LATE_SHARE_MAX of its commands late, or a stall answer among its states): then this returns
-    why it was not judged, with the figures, for the test to skip with once its own safety
-    assertions have passed (``_skip_unjudged``); with the host on time, a loop still outside
-    TRACKING_RAD fails, naming the statuses and the logs' ends. Returns '' when it tracks.
-    """
-    attacker.spin(3.0)
-    end = time.monotonic() + RECOVERY_DEADLINE_S - 3.0
-    while tracking_again(attacker) >= TRACKING_RAD and time.monotonic() < end:
-        assert 'safe stop latched' not in running.log('controller')
-        attacker.spin(0.5)
-    assert 'safe stop latched' not in running.log('controller')
-    error = tracking_again(attacker)
-    if error < TRACKING_RAD:
-        print(f'\ntracking again: max |e| {error:.2e} rad of the last second')
-        return ''
-    recent = attacker.states[-1000:]
-    statuses = collections.Counter(s.status for s in recent)
-    first, last = (stamp_to_ns(s.header.stamp) for s in (recent[0], recent[-1]))
-    samples = max(1, round((last - first) / (limits.SAMPLE_TIME_S * 1e9)) + 1)
-    late = (recent[-1].late_samples - recent[0].late_samples) / samples
-    stalls = sum(statuses[s] for s in STALL_ANSWERS)
-    figures = (
-        f'max |e| {error:.2e} rad (bound {TRACKING_RAD:.2e}) {RECOVERY_DEADLINE_S:g} s after the '
-        f'attack; in its last second {late:.1%} of the commands late, statuses '
-        f'{dict(statuses)} of {len(recent)} states received'
-    )
-    tails = {
-        key: running.log(key).splitlines()[-8:] for key in ('controller', 'eso', running.joint_key)
-    }
-    said = '\n'.join(f'--- {key}:\n' + '\n'.join(lines) for key, lines in tails.items())
-    assert any(s.status in CONTROLLED for s in recent), (
-        f'the law never ran again: {figures}\n{said}'
-    )
-    if late > LATE_SHARE_MAX or stalls:
-        return f'the host kept the loop late (no latch, the law ran again; not judged): {figures}'
-    raise AssertionError(f'not tracking with the host on time: {figures}\n{said}')
-
-
-def _skip_unjudged(unjudged: str) -> None:
-    """End a test whose safety assertions passed: skip if the host set its tracking figure."""
-    if unjudged:
-        pytest.skip(unjudged)
 
 
 #: A resync stamp starts a new episode after this long without one [ns].
@@ -313,9 +95,6 @@ def _brake_in_resync(samples: list, resync: set) -> list:
 #: not move at all. Before it is at rest it slides: from the fast trajectory's 8.8 rad/s peak,
 #: up to 0.26 rad at the brake's 150 rad/s^2.
 HELD_RAD = 1e-6
-#: A stamp gap longer than this ends a stretch of braked samples [ns]: the listener misses
-#: samples, and a release and a new brake are a command timeout (10 ms) apart at least.
-BRAKED_GAP_NS = 5 * 10**6
 #: Braked samples at rest the listener gets after a restart, at least. A stopped ESO or
 #: controller leaves the joint braked for the restart's pause and start-up (over 1 s: 700-4200
 #: received here); a restarted joint is braked only until the controller's resync ends, and
@@ -354,30 +133,6 @@ def _held_offsets(stretches: list) -> list:
     return out
 
 
-def _logged_after(log: str, text: str, after_s: float) -> bool:
-    """Whether a log line containing ``text`` was written after wall time ``after_s``."""
-    return _logged_between(log, text, after_s, math.inf) > 0
-
-
-def _logged_between(log: str, text: str, after_s: float, before_s: float) -> int:
-    """How many log lines containing ``text`` were written between wall times (s)."""
-    count = 0
-    for line in log.splitlines():
-        match = re.match(r'\[\w+\] \[(\d+\.\d+)\]', line)
-        count += bool(text in line and match and after_s < float(match.group(1)) < before_s)
-    return count
-
-
-def _log_time_s(log: str, text: str) -> float:
-    """Wall time [s] of the first log line containing ``text`` (rclpy's [LEVEL] [time] prefix)."""
-    for line in log.splitlines():
-        if text in line:
-            match = re.match(r'\[\w+\] \[(\d+\.\d+)\]', line)
-            if match:
-                return float(match.group(1))
-    raise AssertionError(f'no log line with {text!r}')
-
-
 def test_stamp_attacks_are_refused_with_their_reasons_and_tracking_goes_on(loop):
     running, attacker = loop
     est = attacker.publisher('eso/estimate')
@@ -393,7 +148,7 @@ def test_stamp_attacks_are_refused_with_their_reasons_and_tracking_goes_on(loop)
         est.publish(e)
         attacker.spin(0.0005)
     attacker.node.destroy_publisher(est)
-    unjudged = _assert_recovered(running, attacker)
+    unjudged = assert_recovered(running, attacker)
     log = running.log('controller')
     # The first refusal line names one of the far-ahead stamps (the rate-limited log keeps the
     # first of each kind; a genuine estimate a lagging controller refused is another kind).
@@ -413,7 +168,7 @@ def test_stamp_attacks_are_refused_with_their_reasons_and_tracking_goes_on(loop)
     # None of the rogue's estimates was used: no state carries its velocity.
     assert not any(s.estimated_velocity_rad_s == 7.77 for s in attacker.states)
     assert '2 publishers on eso/estimate (' in log and '/attacker gid ' in log
-    _skip_unjudged(unjudged)
+    skip_unjudged(unjudged)
 
 
 def test_nan_and_absurd_values_in_each_field_are_refused(loop):
@@ -435,14 +190,14 @@ def test_nan_and_absurd_values_in_each_field_are_refused(loop):
         est.publish(e)
         attacker.spin(1.1)  # one report per field and second (rate-limited log)
     attacker.node.destroy_publisher(est)
-    unjudged = _assert_recovered(running, attacker)
+    unjudged = assert_recovered(running, attacker)
     log = running.log('controller')
     for field, value, bound in cases:
         assert (
             f'estimate for {stamp} ns refused: {field} = {value} is not finite or beyond '
             f'+-{bound:g}'
         ) in log
-    _skip_unjudged(unjudged)
+    skip_unjudged(unjudged)
 
 
 @pytest.mark.parametrize(
@@ -479,7 +234,7 @@ def test_a_second_publisher_is_seen_when_it_matches_and_control_stops_safely(
     conflict = [s for s in attacker.states[-1000:] if s.status == STATUS_CONFLICT]
     assert conflict or topic == 'current_command', 'the controller never reported the conflict'
     attacker.node.destroy_publisher(rogue)
-    unjudged = _assert_recovered(running, attacker)
+    unjudged = assert_recovered(running, attacker)
     text = f'2 publishers on {topic} ('
     for guard in watchers:
         log = running.log(guard)
@@ -488,7 +243,7 @@ def test_a_second_publisher_is_seen_when_it_matches_and_control_stops_safely(
         line = next(x for x in log.splitlines() if text in x)
         assert line.count(' gid ') == 2 and '/actuator_' in line, line
         if guard in guards:  # seen when it matched: before its second message was sent
-            assert _log_time_s(log, text) < sent[1], (_log_time_s(log, text) - sent[0], guard)
+            assert log_time_s(log, text) < sent[1], (log_time_s(log, text) - sent[0], guard)
     if topic == 'eso/estimate':  # none of the rogue's estimates reached the law
         assert not any(s.estimated_velocity_rad_s == 5.0 for s in attacker.states)
     if conflict:
@@ -505,7 +260,7 @@ def test_a_second_publisher_is_seen_when_it_matches_and_control_stops_safely(
             m.effort[0] for m in attacker.measured if first <= stamp_to_ns(m.header.stamp) <= last
         ]
         assert effort and not any(effort), max(effort, key=abs)
-    _skip_unjudged(unjudged)
+    skip_unjudged(unjudged)
 
 
 @pytest.mark.parametrize(
@@ -531,9 +286,9 @@ def test_a_restarted_node_resumes_control(loop, restarted_node, what):
     ):
         attacker.spin(0.2)
     attacker.spin(2.0)
-    unjudged = _assert_recovered(running, attacker)
+    unjudged = assert_recovered(running, attacker)
     if what:  # said for this restart, not for the start-up
-        assert _logged_after(running.log('controller'), what, restarted), what
+        assert logged_after(running.log('controller'), what, restarted), what
     since = attacker.joint_samples(int(restarted * 1e9))
     # The joint was braked while control was down and through the resync, and held there: every
     # braked sample from the one at rest on is where that one was (before it, the joint slides
@@ -562,7 +317,7 @@ def test_a_restarted_node_resumes_control(loop, restarted_node, what):
         # released it: 85 % held on one run). (The 10-deep best-effort listener of a loaded
         # test process may miss a whole episode.)
         assert not held or np.mean(held) > BRAKE_HELD_MIN, (sorted(resync), held)
-    _skip_unjudged(unjudged)
+    skip_unjudged(unjudged)
 
 
 #: Stall lengths [s] (issue 21): each node is stopped (SIGSTOP) this long, in turn.
@@ -625,7 +380,7 @@ def test_a_stalled_node_ends_in_a_calm_recovery(loop, key):
         after = attacker.states[mark:]
         # resyncs the controller logged meanwhile: one stall makes one or two (its gap and the
         # observer's restart); more are stalls of the host around it
-        resyncs = _logged_between(running.log('controller'), RESYNC_LINE, stopped, time.time())
+        resyncs = logged_between(running.log('controller'), RESYNC_LINE, stopped, time.time())
         at_limit = sum(abs(s.current_a) >= limits.CURRENT_LIMIT_A - 1e-9 for s in after)
         errors = [
             (stamp_to_ns(s.header.stamp), abs(s.error_rad))
@@ -641,17 +396,17 @@ def test_a_stalled_node_ends_in_a_calm_recovery(loop, key):
         detail = (table, dict(statuses), running.log('controller').splitlines()[-6:])
         assert not statuses[STATUS_LATCHED], detail
         if host_late > HOST_LATE_MAX or resyncs > RESYNCS_PER_STALL:  # the host set the figures
-            unjudged.append(stall_s)
+            unjudged.append((stall_s, 'host'))
             continue
         if calm > AT_LIMIT_MAX:  # the loop was at the limit before the stall: not the stall's
-            unjudged.append(stall_s)
+            unjudged.append((stall_s, 'at the limit before'))
             continue
         if at_limit > AT_LIMIT_MAX or recover_s > RECOVER_S:
             assert running.joint != 'plant', detail
             chattered.append(stall_s)  # through the drive: known, reported below
             continue
         if stall_s > limits.COMMAND_TIMEOUT_S:  # the joint was braked: a resync, logged
-            assert _logged_after(running.log('controller'), RESYNC_LINE, stopped), detail
+            assert logged_after(running.log('controller'), RESYNC_LINE, stopped), detail
     log = running.log('controller')
     assert 'RECOVERING: the law runs again after a gap or a resync' in log
     # a stalled controller finds the gap itself; a stalled ESO restarts and says so first
@@ -672,8 +427,8 @@ def test_a_stalled_node_ends_in_a_calm_recovery(loop, key):
         )
     if unjudged:
         pytest.skip(
-            f'the host kept more than {HOST_LATE_MAX} commands late or stalled the loop into '
-            f'more than {RESYNCS_PER_STALL} resyncs around the stalls of {unjudged} s, or the '
-            f'loop was at the current limit more than {AT_LIMIT_MAX} times in the second before '
-            f'(no latch; not judged): {table}'
+            f'not judged (no latch): stalls {unjudged}, where "host" = the host kept more than '
+            f'{HOST_LATE_MAX} commands late or stalled the loop into more than '
+            f'{RESYNCS_PER_STALL} resyncs, "at the limit before" = the loop was at the current '
+            f'limit more than {AT_LIMIT_MAX} times in the second before the stall: {table}'
         )

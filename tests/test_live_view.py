@@ -121,7 +121,9 @@ def test_a_foxglove_client_sees_the_loop_decimated_stop_and_restart(ros_env, ros
 
     got = client.collect(0.5)
     for run in (1, 2):
-        loop = _run_loop(ros_process, 4.0)
+        # 8 s of sim time: over 2.5 s of wall time for the rate below at up to 3x real time (the
+        # lockstep publishes synchronously: a 4 s run lasted 2.3 s here)
+        loop = _run_loop(ros_process, 8.0)
         got = client.collect(60.0, got, until=lambda r, loop=loop: not loop.running)
         assert loop.wait(30) == 0, loop.describe()
         got = client.collect(2.0, got)  # the loop has stopped: nothing more comes
@@ -145,8 +147,8 @@ def test_a_foxglove_client_sees_the_loop_decimated_stop_and_restart(ros_env, ros
     assert seconds > 2.5 and 0.6 * RATE_HZ <= (n - 1) / seconds <= 1.05 * RATE_HZ, spans
     assert all((n - 1) / s <= 1.05 * RATE_HZ for n, s in spans), spans
     full = _bursts(got.times('/joint_states'), gap_s=2.0)
-    # full rate on request: every sample the lockstep made (sim runs at 0.3-0.5x real time
-    # here: 3330-3921 of 4000 forwarded, 6-9x the decimated count)
+    # full rate on request: every sample the lockstep made (with sim at 0.3-0.5x real time, 4 s
+    # runs had 3330-3921 of 4000 forwarded, 6-9x the decimated count)
     assert len(full) == 2 and all(len(f) > 4 * len(b) for f, b in zip(full, bursts)), spans
 
     states = [m for _, m in got.messages['/controller/state']]

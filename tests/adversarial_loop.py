@@ -1,0 +1,280 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""The running loop for tests/test_adversarial.py: its processes, the attacker, the judgement.
+
+``Loop`` starts the closed loop as processes from the one description (graph.closed_loop) with
+either joint kind, ``Attacker`` is the rogue publisher and the listener in the test process,
+``assert_recovered`` judges whether the loop tracks again after an attack (or says why the
+host, not the loop, set the figure), and the log helpers read rclpy's [LEVEL] [time] lines.
+"""
+
+import collections
+import math
+import re
+import time
+from pathlib import Path
+
+import pytest
+
+from actuator_core import limits
+from actuator_core.timing import stamp_to_ns
+from actuator_tools.bringup import scenario_file
+from actuator_tools.graph import closed_loop
+from actuator_tools.supervisor import RosProcess, process_log
+from ros_helpers import TestNode, start_closed_loop
+
+SCENARIO = 'case2_pp_nftsmc_eso'
+#: The joint kinds every attack runs against (graph.closed_loop's ``joint``).
+JOINT_KINDS = ('plant', 'cia402_sim')
+#: README "Safety", the stall table: after a 20-300 ms stall of the ESO or the controller the
+#: loop tracks again with max |e| 1.2e-3 rad (core model, fast deep-sea case; the real loop's
+#: table beside it: 8.2e-4 to 2.6e-3).
+README_RECOVERED_ERROR_RAD = 1.2e-3
+#: |e| of the controlled samples in the last second that counts as tracking again: within 3x
+#: the README's figure [rad] (was 0.05 rad, which a joint 40x off the documented tracking passed).
+TRACKING_RAD = 3 * README_RECOVERED_ERROR_RAD
+#: Seconds after an attack by which a calm second must have come (see assert_recovered).
+RECOVERY_DEADLINE_S = 20.0
+#: Share of the commands of that last second later than one period (the controller's
+#: late_samples) above which the host, not the loop, set its figure (as in
+#: tests/test_realtime_closed_loop.py).
+LATE_SHARE_MAX = 0.05
+#: A stamp gap longer than this ends a stretch of braked samples [ns]: the listener misses
+#: samples, and a release and a new brake are a command timeout (10 ms) apart at least.
+BRAKED_GAP_NS = 5 * 10**6
+#: ControllerState statuses whose command is the law's (OK, RECOVERING).
+CONTROLLED = (0, 9)
+STATUS_CONFLICT, STATUS_LATCHED, STATUS_RESYNC = 7, 5, 6
+#: Statuses that answer a stall (stale measurement, stale estimate, resync): in a second the
+#: host kept on time there is none.
+STALL_ANSWERS = (2, 3, STATUS_RESYNC)
+
+
+class Loop:
+    """The closed loop as processes, from the one description (graph.closed_loop).
+
+    With restarts.
+    """
+
+    def __init__(self, env: dict, tmp: Path, joint: str):
+        self.env, self.tmp, self.joint = env, tmp, joint
+        #: the key of the joint's process: the plant, or the driver of the simulated drive
+        self.joint_key = 'plant' if joint == 'plant' else 'driver'
+        self.params = scenario_file(SCENARIO)
+        self.bag = tmp / 'bag'
+        self.specs = {
+            s.key: s
+            for s in closed_loop(
+                'realtime', 0.0, record=True, bag=self.bag, joint=joint, thread_priority=50
+            )
+        }
+        self.starts: dict[str, int] = {}
+        self.procs: dict[str, RosProcess] = start_closed_loop(
+            self._process, self.specs.values(), self.params, on_start=drive_ready
+        )
+
+    def _process(self, package: str, executable: str, args: list, name: str) -> RosProcess:
+        """Process of key ``name``, numbered by its start: every start's log is kept."""
+        n = self.starts[name] = self.starts.get(name, 0) + 1
+        return RosProcess.installed(
+            package, executable, args, env=self.env, log_dir=self.tmp / 'logs', name=f'{name}{n}'
+        )
+
+    def start(self, key: str) -> RosProcess:
+        self.procs[key] = start_closed_loop(self._process, [self.specs[key]], self.params)[key]
+        return self.procs[key]
+
+    def restart(self, key: str, pause_s: float = 0.5) -> None:
+        """SIGINT the process (as Ctrl-C or a crash handler would), wait, start a new one."""
+        assert self.procs[key].stop() == 0
+        time.sleep(pause_s)
+        self.start(key)
+
+    def log(self, key: str) -> str:
+        """Everything every process of ``key`` (the first and any restarted one) wrote."""
+        return ''.join(
+            process_log(self.tmp / 'logs', f'{key}{n}') for n in range(1, self.starts[key] + 1)
+        )
+
+    def stop(self) -> dict:
+        return {k: p.stop() for k, p in reversed(list(self.procs.items()))}
+
+
+def drive_ready(key: str, proc: RosProcess) -> None:
+    """Wait until the simulated drive listens, before its driver configures (as the runner)."""
+    if key == 'drive':
+        proc.wait_for_output(r'^drive 1 ready$', timeout=30)
+
+
+class Attacker(TestNode):
+    """An rclpy node in the test process: the rogue publisher and the listener."""
+
+    def __init__(self, context, joint: str):
+        from actuator_msgs.msg import ControllerState, CurrentCommand, PlantTruth, StateEstimate
+        from actuator_ros.qos import control_qos
+        from sensor_msgs.msg import JointState
+
+        super().__init__(context, 'attacker')
+        self.joint = joint
+        self.types = {
+            'joint_states': JointState,
+            'eso/estimate': StateEstimate,
+            'current_command': CurrentCommand,
+        }
+        self.qos = control_qos('realtime')
+        self.states: list = []
+        self.truth: list = []
+        self.node.create_subscription(
+            ControllerState, 'controller/state', self.states.append, self.qos
+        )
+        self.node.create_subscription(PlantTruth, 'plant/truth', self.truth.append, self.qos)
+        #: the joint's measurements (a rogue's own joint_states, which carry no effort, left out)
+        self.measured: list = []
+        self.node.create_subscription(
+            JointState,
+            'joint_states',
+            lambda m: self.measured.append(m) if len(m.effort) == 1 else None,
+            self.qos,
+        )
+        self.commands: list = []
+        self.node.create_subscription(
+            CurrentCommand, 'current_command', self.commands.append, self.qos
+        )
+
+    def wait_until_controlling(self, timeout: float = 60.0) -> None:
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            self.spin(0.2)
+            # the attacks stamp their messages with the newest measurement: one must be in
+            if self.measured and sum(s.status in CONTROLLED for s in self.states[-200:]) > 150:
+                return
+        raise AssertionError('the loop never reached closed-loop control')
+
+    def newest_stamp_ns(self) -> int:
+        return stamp_to_ns(self.measured[-1].header.stamp)
+
+    def joint_samples(self, after_ns: int = 0) -> list:
+        """(stamp ns, position rad, braked, at rest) of the joint's samples received, by stamp.
+
+        The plant's truth says its brake and velocity. A drive says neither per sample (its
+        brake is bit 16 of 0x60FD, read over SDO at a stop): there braked is "no torque at the
+        joint" (effort from 0x6077 exactly 0) and at rest "the position of the braked sample
+        received before" (the simulated drive's brake holds the joint exactly, as the plant's
+        does; a joint still sliding moves by many encoder counts per period).
+        """
+        if self.joint == 'plant':
+            out = [
+                (
+                    stamp_to_ns(t.header.stamp),
+                    t.position_rad,
+                    t.brake_engaged,
+                    t.velocity_rad_s == 0.0,
+                )
+                for t in self.truth
+            ]
+            return sorted(x for x in out if x[0] > after_ns)
+        out, previous = [], None
+        for m in sorted(self.measured, key=lambda m: stamp_to_ns(m.header.stamp)):
+            stamp, position, braked = stamp_to_ns(m.header.stamp), m.position[0], m.effort[0] == 0
+            # at rest: the position of the braked sample received before, within a stretch
+            rest = braked and previous is not None and previous[1:] == (position, True)
+            rest = rest and stamp - previous[0] <= BRAKED_GAP_NS
+            out.append((stamp, position, braked, rest))
+            previous = (stamp, position, braked)
+        return [x for x in out if x[0] > after_ns]
+
+    def publisher(self, topic: str, matched: bool = True):
+        """Create a rogue publisher; ``matched``: wait until every subscriber matched it."""
+        pub = self.node.create_publisher(self.types[topic], topic, self.qos)
+        end = time.monotonic() + 20.0
+        while matched and time.monotonic() < end:
+            wanted = self.node.count_subscribers(topic)  # the graph's view, this node included
+            if wanted and pub.get_subscription_count() >= wanted:
+                break
+            self.spin(0.005)
+        return pub
+
+
+def tracking_again(attacker: Attacker, seconds: float = 1.0) -> float:
+    """Max |e| of the controlled samples in the last ``seconds`` (inf when none was controlled)."""
+    recent = attacker.states[-int(seconds * 1000) :]
+    errors = [
+        abs(s.error_rad) for s in recent if s.status in CONTROLLED and math.isfinite(s.error_rad)
+    ]
+    return max(errors) if len(errors) > 0.5 * len(recent) else math.inf
+
+
+def assert_recovered(running: Loop, attacker: Attacker) -> str:
+    """No latched stop, control again, and a second tracking within TRACKING_RAD by the deadline.
+
+    Judged from 3 s after the attack on; a later stall of this shared machine can cost another
+    resync, so the loop gets until RECOVERY_DEADLINE_S to show one calm second. Safety holds on
+    every run: no latch, and the law commands again (controlled samples in the last second).
+    The tracking figure is the host's when it kept the loop late in that last second (more than
+    LATE_SHARE_MAX of its commands late, or a stall answer among its states): then this returns
+    why it was not judged, with the figures, for the test to skip with once its own safety
+    assertions have passed (``skip_unjudged``); with the host on time, a loop still outside
+    TRACKING_RAD fails, naming the statuses and the logs' ends. Returns '' when it tracks.
+    """
+    attacker.spin(3.0)
+    end = time.monotonic() + RECOVERY_DEADLINE_S - 3.0
+    while tracking_again(attacker) >= TRACKING_RAD and time.monotonic() < end:
+        assert 'safe stop latched' not in running.log('controller')
+        attacker.spin(0.5)
+    assert 'safe stop latched' not in running.log('controller')
+    error = tracking_again(attacker)
+    if error < TRACKING_RAD:
+        print(f'\ntracking again: max |e| {error:.2e} rad of the last second')
+        return ''
+    recent = attacker.states[-1000:]
+    statuses = collections.Counter(s.status for s in recent)
+    first, last = (stamp_to_ns(s.header.stamp) for s in (recent[0], recent[-1]))
+    samples = max(1, round((last - first) / (limits.SAMPLE_TIME_S * 1e9)) + 1)
+    late = (recent[-1].late_samples - recent[0].late_samples) / samples
+    stalls = sum(statuses[s] for s in STALL_ANSWERS)
+    figures = (
+        f'max |e| {error:.2e} rad (bound {TRACKING_RAD:.2e}) {RECOVERY_DEADLINE_S:g} s after the '
+        f'attack; in its last second {late:.1%} of the commands late, statuses '
+        f'{dict(statuses)} of {len(recent)} states received'
+    )
+    tails = {
+        key: running.log(key).splitlines()[-8:] for key in ('controller', 'eso', running.joint_key)
+    }
+    said = '\n'.join(f'--- {key}:\n' + '\n'.join(lines) for key, lines in tails.items())
+    assert any(s.status in CONTROLLED for s in recent), (
+        f'the law never ran again: {figures}\n{said}'
+    )
+    if late > LATE_SHARE_MAX or stalls:
+        return f'the host kept the loop late (no latch, the law ran again; not judged): {figures}'
+    raise AssertionError(f'not tracking with the host on time: {figures}\n{said}')
+
+
+def skip_unjudged(unjudged: str) -> None:
+    """End a test whose safety assertions passed: skip if the host set its tracking figure."""
+    if unjudged:
+        pytest.skip(unjudged)
+
+
+def logged_after(log: str, text: str, after_s: float) -> bool:
+    """Whether a log line containing ``text`` was written after wall time ``after_s``."""
+    return logged_between(log, text, after_s, math.inf) > 0
+
+
+def logged_between(log: str, text: str, after_s: float, before_s: float) -> int:
+    """How many log lines containing ``text`` were written between wall times (s)."""
+    count = 0
+    for line in log.splitlines():
+        match = re.match(r'\[\w+\] \[(\d+\.\d+)\]', line)
+        count += bool(text in line and match and after_s < float(match.group(1)) < before_s)
+    return count
+
+
+def log_time_s(log: str, text: str) -> float:
+    """Wall time [s] of the first log line containing ``text`` (rclpy's [LEVEL] [time] prefix)."""
+    for line in log.splitlines():
+        if text in line:
+            match = re.match(r'\[\w+\] \[(\d+\.\d+)\]', line)
+            if match:
+                return float(match.group(1))
+    raise AssertionError(f'no log line with {text!r}')
