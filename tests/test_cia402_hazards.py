@@ -326,6 +326,30 @@ def test_deactivate_waits_for_the_quick_stop_ramp_and_the_brake_before_disable(s
     assert took_s >= 0.06 + 0.02  # 300 per mille at 5000 per mille/s, then 20 ms of brake
 
 
+def test_deactivate_after_the_last_cycles_brake_ends_with_the_voltage_disabled(sim_drive, tool):
+    # The joint node's own stop: its last cycle wrote 0 A with the brake (disable operation, whose
+    # ramp and brake the drive then runs), so deactivate's quick stop finds the drive still in
+    # 'operation enabled'; the drive ends that reaction in 'switched on'. Before, the master
+    # waited 1 s for 'quick stop active', gave up with a note and left the drive switched on
+    # (voltage on, NMT operational): seen at every driver stop of the adversarial runs.
+    drive = sim_drive()
+    joint = joint_for(drive)
+    with active(joint):
+        result = run_on_grid(joint, 3.0, 0.05, 0.3, PERIOD_S)
+        assert result['fault'] == ''
+        joint.write(0.0, True)
+        joint.read(0)  # the cycle's SYNC: the drive latches the brake (disable operation)
+        start = time.monotonic()
+        notes = joint.deactivate()
+        took_s = time.monotonic() - start
+        state = state_of(tool(drive.address))
+    assert notes == [], notes
+    assert state is p.State.SWITCH_ON_DISABLED
+    assert took_s < 0.5, took_s  # the ramp and the brake's 20 ms, not a state timeout
+    tail = drive.stdout.split('NMT reset communication')[-1]
+    assert 'stopped: switched on' in tail and 'voltage disabled with the brake open' not in tail
+
+
 @pytest.mark.parametrize(
     'kind, words',
     [

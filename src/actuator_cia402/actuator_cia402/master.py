@@ -320,9 +320,17 @@ class Cia402Master:
         notes = []
         statusword, state = self.read_state()
         if state in (p.State.OPERATION_ENABLED, p.State.QUICK_STOP_ACTIVE):
+            # 'switched on': a disable-operation reaction already under way (the last cycle's
+            # brake) ran its ramp and closed the brake; disable voltage follows as after a quick
+            # stop
             self.command(
                 p.Command.QUICK_STOP,
-                (p.State.QUICK_STOP_ACTIVE, p.State.SWITCH_ON_DISABLED, p.State.FAULT),
+                (
+                    p.State.QUICK_STOP_ACTIVE,
+                    p.State.SWITCH_ON_DISABLED,
+                    p.State.FAULT,
+                    p.State.SWITCHED_ON,
+                ),
                 done=lambda sw: (
                     p.decode_state(sw) is not p.State.QUICK_STOP_ACTIVE or sw & p.SW_TARGET_REACHED
                 ),
