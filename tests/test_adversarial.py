@@ -359,6 +359,11 @@ def _recovered_after_s(errors: list, resumed_ns: int) -> float:
     return math.inf
 
 
+def _at_limit(states: list) -> int:
+    """How many of ``states`` commanded the current limit (either sign)."""
+    return sum(abs(s.current_a) >= limits.CURRENT_LIMIT_A - 1e-9 for s in states)
+
+
 @pytest.mark.parametrize('key', ['eso', 'controller'])
 def test_a_stalled_node_ends_in_a_calm_recovery(loop, key):
     running, attacker = loop
@@ -368,9 +373,7 @@ def test_a_stalled_node_ends_in_a_calm_recovery(loop, key):
         before = len(attacker.states)
         attacker.spin(1.0)
         mark = len(attacker.states)
-        calm = sum(
-            abs(s.current_a) >= limits.CURRENT_LIMIT_A - 1e-9 for s in attacker.states[before:mark]
-        )
+        calm = _at_limit(attacker.states[before:mark])
         os.killpg(proc.pid, signal.SIGSTOP)
         stopped = time.time()
         time.sleep(stall_s)
@@ -381,7 +384,7 @@ def test_a_stalled_node_ends_in_a_calm_recovery(loop, key):
         # resyncs the controller logged meanwhile: one stall makes one or two (its gap and the
         # observer's restart); more are stalls of the host around it
         resyncs = logged_between(running.log('controller'), RESYNC_LINE, stopped, time.time())
-        at_limit = sum(abs(s.current_a) >= limits.CURRENT_LIMIT_A - 1e-9 for s in after)
+        at_limit = _at_limit(after)
         errors = [
             (stamp_to_ns(s.header.stamp), abs(s.error_rad))
             for s in after
