@@ -425,8 +425,9 @@ def test_a_stalled_node_ends_in_a_calm_recovery(loop, key):
         # the loop through the drive, open in issue 20: recorded as an expected failure.
         pytest.xfail(
             f'through the simulated drive the loop oscillated at the current limit after the '
-            f'stalls of {chattered} s (one SYNC of command delay more than the plant, plus the '
-            f"host's lateness: no margin left for a stall's transient): {table}"
+            f"stalls of {chattered} s (the paper's design leaves almost no margin for the drive's "
+            f'one SYNC of delay; it chatters without a stall too: src/actuator_cia402/README.md): '
+            f'{table}'
         )
     if unjudged:
         pytest.skip(

@@ -343,6 +343,21 @@ def test_offline_drive_model_without_effects_is_the_offline_core_and_the_sync_de
     assert late[0] > 5 * drive[0]  # two SYNCs of delay: a limit cycle
 
 
+def test_one_sync_of_delay_leaves_the_papers_observer_bandwidth_a_narrow_window():
+    """With the drive's one SYNC, w0 = 60 rad/s (Table 4) holds 16 s; 50 rad/s chatters.
+
+    The margin table of ``python -m actuator_cia402.offline --margin`` (README "Attacked as the
+    plant is"): a lower observer bandwidth is not the cure for the drive's delay.
+    """
+    from actuator_cia402.offline import margin_table
+
+    rows = margin_table(duration_s=16.0, bandwidths_rad_s=(50.0, 60.0), torque_lags_s=(2.0e-4,))
+    (w_low, _, chatter, _), (w_paper, _, calm, peak) = rows
+    assert (w_low, w_paper) == (50.0, 60.0)
+    assert calm == 0 and peak < 2.0e-3, rows
+    assert chatter > 500, rows  # a sustained limit cycle sets in after about 8 s
+
+
 def test_offline_drive_effects_are_the_parts_of_the_one_simulated_joint():
     """The drive scenario sets delay, torque loop and encoder of the loop's SimulatedJoint."""
     from actuator_cia402.offline import drive_scenario
