@@ -20,11 +20,10 @@ import pytest
 from actuator_core import limits
 from actuator_core.timing import stamp_to_ns
 from actuator_tools.bringup import scenario_file
-from actuator_tools.graph import closed_loop
+from actuator_tools.graph import closed_loop, default_scenario
 from actuator_tools.supervisor import RosProcess, process_log
 from ros_helpers import TestNode, start_closed_loop
 
-SCENARIO = 'case2_pp_nftsmc_eso'
 #: The joint kinds every attack runs against (graph.closed_loop's ``joint``).
 JOINT_KINDS = ('plant', 'cia402_sim')
 #: README "Safety", the stall table: after a 20-300 ms stall of the ESO or the controller the
@@ -61,7 +60,7 @@ class Loop:
         self.env, self.tmp, self.joint = env, tmp, joint
         #: the key of the joint's process: the plant, or the driver of the simulated drive
         self.joint_key = 'plant' if joint == 'plant' else 'driver'
-        self.params = scenario_file(SCENARIO)
+        self.params = scenario_file(default_scenario(joint))  # what bringup --joint runs
         self.bag = tmp / 'bag'
         self.specs = {
             s.key: s

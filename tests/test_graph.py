@@ -12,9 +12,11 @@ import pytest
 from actuator_sim.params_yaml import node_parameters
 from actuator_tools import bringup
 from actuator_tools.graph import (
+    JOINTS,
     LIVE_DIAGNOSTICS_RATE_HZ,
     SYNC_PRODUCER_GRACE_S,
     closed_loop,
+    default_scenario,
     ros_arguments,
 )
 
@@ -153,3 +155,20 @@ def test_the_bus_load_of_every_joint_is_checked():
     assert check_bus_load(1_000_000, 1e-3) is None  # one joint: 39 %
     with pytest.raises(BusLoadError, match='for 2 joints exceeds the limit of 80 %'):
         check_bus_load(500_000, 1e-3, joints=2)
+
+
+def test_a_cia402_joint_runs_the_drive_tuning_and_the_plant_the_papers_unless_named():
+    """graph.default_scenario: what bringup --joint and launch joint:= run by default."""
+    from actuator_sim.params_yaml import all_scenarios
+
+    assert default_scenario('plant') == 'case2_pp_nftsmc_eso'
+    assert default_scenario('cia402_sim') == default_scenario('cia402') == 'drive_pp_nftsmc_eso'
+    scenarios = all_scenarios()
+    for joint in JOINTS:
+        assert default_scenario(joint) in scenarios
+        bringup.scenario_file(default_scenario(joint))  # installed
+    drive = scenarios['drive_pp_nftsmc_eso']
+    assert drive.command_delay_samples == 1 and drive.gains.k3_per_s == 100.0
+    assert (drive.eso.l1, drive.eso.l2, drive.eso.l3) == (12.0, 48.0, 64.0)
+    with pytest.raises(ValueError, match='joint must be one of'):
+        default_scenario('plnat')

@@ -47,6 +47,7 @@ from actuator_tools.graph import (
     MAX_JOINTS_ON_BUS,
     closed_loop,
     compose,
+    default_scenario,
     ros_arguments,
 )
 
@@ -123,6 +124,8 @@ def _processes(context):
     priority = int(LaunchConfiguration('thread_priority').perform(context))
     if not _flag(context, 'plant'):
         joint = 'none'
+    if not scenario:  # none named: the joint's own (the drive's is tuned for its SYNC delay)
+        scenario = default_scenario(joint)
     params = os.path.join(
         get_package_share_directory('actuator_bringup'), 'config', f'{scenario}.yaml'
     )
@@ -209,8 +212,9 @@ def generate_launch_description():
         [
             DeclareLaunchArgument(
                 'scenario',
-                default_value='case2_pp_nftsmc_eso',
-                description='parameter file share/actuator_bringup/config/<scenario>.yaml',
+                default_value='',
+                description='parameter file share/actuator_bringup/config/<scenario>.yaml; empty: '
+                'case2_pp_nftsmc_eso for the plant, drive_pp_nftsmc_eso for a CiA 402 joint',
             ),
             DeclareLaunchArgument(
                 'mode',

@@ -17,7 +17,7 @@ from pathlib import Path
 import yaml
 
 from actuator_sim.loop import Scenario
-from actuator_sim.scenarios import case1, case2
+from actuator_sim.scenarios import case1, case2, through_a_drive
 from actuator_controller.laws import GAINS_BY_NAME
 
 
@@ -96,12 +96,12 @@ def dotted(tree: dict, prefix: str = '') -> dict:
 
 
 def all_scenarios() -> dict[str, Scenario]:
-    """Every paper scenario by name (Case 1's four runs, Case 2's controllers)."""
-    return {s.name: s for s, _ in case1() + case2()}
+    """Every scenario by name: Case 1's four runs, Case 2's controllers, Case 2 through a drive."""
+    return {s.name: s for s in [s for s, _ in case1() + case2()] + through_a_drive()}
 
 
 def write_config(folder: Path) -> list[Path]:
-    """Write one <scenario>.yaml per paper scenario into ``folder``."""
+    """Write one <scenario>.yaml per scenario into ``folder``."""
     folder.mkdir(parents=True, exist_ok=True)
     written = []
     for name, scenario in all_scenarios().items():

@@ -35,6 +35,7 @@ from actuator_tools.graph import (
     PINNING,
     closed_loop,
     compose,
+    default_scenario,
     ros_arguments,
 )
 from actuator_tools.supervisor import ProcessFigures, RosProcess
@@ -320,8 +321,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog='bringup', description=__doc__.splitlines()[0])
     parser.add_argument(
         '--scenario',
-        default='case2_pp_nftsmc_eso',
-        help='installed scenario (share/actuator_bringup/config/<name>.yaml)',
+        default=None,
+        help='installed scenario (share/actuator_bringup/config/<name>.yaml; default: '
+        "case2_pp_nftsmc_eso for the plant, drive_pp_nftsmc_eso, tuned for the drive's delay, "
+        'for a CiA 402 joint)',
     )
     parser.add_argument('--mode', choices=MODES, default='realtime')
     parser.add_argument(
@@ -414,6 +417,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     for path in args.params_file:
         if not path.is_file():
             parser.error(f'--params-file {path}: no such file')
+    if args.scenario is None:
+        args.scenario = default_scenario(args.joint)
     duration = args.duration if args.duration is not None else scenario_duration(args.scenario)
     result = run_closed_loop(
         args.scenario,

@@ -30,6 +30,15 @@ from actuator_sim.params_yaml import node_parameters
 #: What plays the joint: the simulated plant, the CiA 402 driver with its simulated drive on
 #: a virtual CAN bus, the driver on a real bus, or nothing (a driver started elsewhere).
 JOINTS = ('plant', 'cia402_sim', 'cia402', 'none')
+#: The scenario each joint runs unless one is named: the paper's Case 2 for the simulated plant;
+#: for a CiA 402 drive, whose RPDO acts one SYNC later, the same case tuned for that delay
+#: (``actuator_sim.scenarios.through_a_drive``).
+DEFAULT_SCENARIOS = {
+    'plant': 'case2_pp_nftsmc_eso',
+    'cia402_sim': 'drive_pp_nftsmc_eso',
+    'cia402': 'drive_pp_nftsmc_eso',
+    'none': 'case2_pp_nftsmc_eso',
+}
 #: ``bringup --pin`` on a 2-core machine: the ESO and the controller work in strict sequence
 #: each sample (command -> estimate -> command), so they share a core; the joint uses the other.
 PINNING = {'joint': '0', 'eso': '1', 'controller': '1'}
@@ -92,6 +101,13 @@ def compose(specs: list[NodeSpec]) -> list[NodeSpec]:
         members=members,
     )
     return [s for s in specs if s.key not in inside] + [container]
+
+
+def default_scenario(joint: str) -> str:
+    """Return the scenario a run with ``joint`` gets when none is named (DEFAULT_SCENARIOS)."""
+    if joint not in DEFAULT_SCENARIOS:
+        raise ValueError(f'joint must be one of {", ".join(JOINTS)}, got {joint!r}')
+    return DEFAULT_SCENARIOS[joint]
 
 
 def recorder_parameters(mode: str) -> dict:
