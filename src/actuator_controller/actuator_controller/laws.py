@@ -363,7 +363,11 @@ class PpNftsmcEsoController(Controller):
             t - self.envelope_start_s, self.envelope_rho0_rad
         )
         tr = transform_error(e, rho, g.ppf)  # (21), r of (12)
-        bounds_kept = tr.inside  # reported even when restarted below
+        # Kept: inside (8) as the gains set it from the run's start, the bounds reported. A
+        # restarted envelope holds the law together (resolution 22) but is no performance kept:
+        # outside the gains' own the status says RECOVERING, however wide the restarted one is.
+        rho_gains = g.ppf.rho(t)
+        bounds_kept = tr.inside & transform_error(e, rho_gains, g.ppf).inside
         if g.ppf.restart_margin > 0.0 and not xm.all_true(
             tr.inside
         ):  # left the envelope: restart (8) at t
@@ -392,7 +396,7 @@ class PpNftsmcEsoController(Controller):
         u_eq = c.theta2n * x2_hat + x3_hat - alpha_dot + integrand  # (33)
         u_sw = g.eta_rad_s2 * xm.sign(sigma) + g.k3_per_s * sigma  # (34)
         u_b = 2.0 * xm.fabs(z1 * z2) * tanh_sq_over(sigma, g.tau_rad_s)  # (35)
-        lower, upper = -g.ppf.lower_scale * rho, g.ppf.upper_scale * rho
+        lower, upper = -g.ppf.lower_scale * rho_gains, g.ppf.upper_scale * rho_gains
         return self._finish(
             -(u_eq + u_sw + u_b) / c.theta1n,
             integrand,
