@@ -18,6 +18,8 @@ import pytest
 from actuator_core import limits
 from actuator_core.assembly import (
     PENDING_LIMIT,
+    RESYNC_MAX_SAMPLES,
+    RESYNC_REST_VELOCITY_RAD_S,
     first_rest_s,
     RESYNC_SAMPLES,
     ControlSampleAssembly,
@@ -61,6 +63,30 @@ def test_resync_holds_exactly_resync_samples_then_restarts_from_the_joint() -> N
     assert s.output.error_rad == pytest.approx(0.0)
     nxt = control(a, base + RESYNC_SAMPLES + 1, 0.2)
     assert nxt.t_s == pytest.approx(1e-3) and a.resyncs == 1
+
+
+@pytest.mark.parametrize(
+    'rest_at, ends_at',
+    [
+        (None, RESYNC_SAMPLES),  # at rest all along: the 50 samples
+        (80, 80),  # still sliding after 50: held until x2_hat is under the rest velocity
+        (10_000, RESYNC_MAX_SAMPLES),  # never at rest: restarted after the longest hold anyway
+    ],
+)
+def test_a_resync_holds_on_while_the_braked_joint_still_slides(rest_at, ends_at) -> None:
+    """The law restarts once the 50 samples are over and x2_hat is under 0.5 rad/s, at most 300."""
+    a = assembly()
+    control(a, 0)
+    base = 1000
+    sliding = 2.0 * RESYNC_REST_VELOCITY_RAD_S
+    for i in range(RESYNC_MAX_SAMPLES + 2):
+        x2 = 0.0 if rest_at is None or i >= rest_at else sliding
+        a.add_estimate((base + i) * P, x2, 0.0, initial=i == 0)
+        s = a.add_measurement((base + i) * P, 0.2)
+        if s.status is not Status.RESYNC:
+            break
+    assert i == ends_at and s.status is Status.RECOVERING and s.t_s == 0.0
+    assert a.resyncs == 1
 
 
 @pytest.mark.parametrize('kind', ['fast', 'slow', 'sine'])

@@ -63,6 +63,13 @@ PENDING_LIMIT = 64
 RESYNC_SAMPLES = 50
 #: Samples after the law restarts (a resync, a short gap) that say RECOVERING.
 RECOVERY_SAMPLES = RESYNC_SAMPLES
+#: A resync also waits until x2_hat says the braked joint is at rest [rad/s], at most
+#: RESYNC_MAX_SAMPLES in all: a drive's brake closes in about 20 ms and a joint coming from the
+#: fast trajectory's 8.8 rad/s slides for up to 60 ms, so after 50 samples it could still move at
+#: 3 rad/s, and the law restarted on a reference at rest stopped it at the current limit (9
+#: samples through the simulated drive). Below this the law's first commands stay off the limit.
+RESYNC_REST_VELOCITY_RAD_S = 0.5
+RESYNC_MAX_SAMPLES = 300
 #: Held in place of an estimate two publishers claimed differently.
 CONFLICTED = ('conflicted',)
 #: An estimate may be stamped up to this many samples after the newest measurement seen.
@@ -113,6 +120,7 @@ class ControlSampleAssembly:
         self.needs_estimate = needs_estimate
         self.following_error_limit_rad = following_error_limit_rad
         self.resync_samples = resync_samples
+        self.resync_extra_ns = max(0, RESYNC_MAX_SAMPLES - resync_samples) * period_ns
         self.brake_after_s = brake_after_s
         self.brake_after_ns = int(round(brake_after_s * 1e9))
         self.gap_limit_ns = gap_limit_samples(period_ns) * period_ns
@@ -308,7 +316,12 @@ class ControlSampleAssembly:
             self._recover_until(stamp)  # a short gap: the law goes on, saying RECOVERING
         self.stale_answered = self.brake_answered = self.stalled = False
         if self.resync_until_ns is not None:
-            if stamp < self.resync_until_ns:
+            sliding = self.needs_estimate and xm.any_true(
+                xm.fabs(estimate[0]) > RESYNC_REST_VELOCITY_RAD_S
+            )
+            if stamp < self.resync_until_ns or (
+                sliding and stamp < self.resync_until_ns + self.resync_extra_ns
+            ):
                 return self.safe_sample(stamp, Status.RESYNC, y)
             self.resync_until_ns = None
             self.reference_shift_s = self.rest_s
