@@ -27,6 +27,7 @@ from typing import Sequence
 import numpy as np
 
 from actuator_core import limits
+from actuator_sim.scenarios import DRIVE_DELAY_SAMPLES
 from actuator_plant.encoder import EncoderParameters
 from actuator_cia402.config import SimDriveSettings
 
@@ -35,7 +36,10 @@ MOTOR_COUNTS_PER_REV = 4096
 
 
 def drive_scenario(
-    scenario, delay_syncs: int = 1, tau_s: float | None = None, quantise: bool = True
+    scenario,
+    delay_syncs: int = DRIVE_DELAY_SAMPLES,
+    tau_s: float | None = None,
+    quantise: bool = True,
 ):
     """``scenario`` with the drive's command delay, torque loop and encoder counts."""
     tau = SimDriveSettings().torque_time_constant_s if tau_s is None else tau_s
@@ -56,7 +60,7 @@ PAPER_SCENARIO = 'case2_pp_nftsmc_eso'
 def run(
     scenario_name: str = DRIVE_SCENARIO,
     duration_s: float = 5.0,
-    delay_syncs: int = 1,
+    delay_syncs: int = DRIVE_DELAY_SAMPLES,
     tau_s: float | None = None,
     quantise: bool = True,
     omega0_rad_s: float | None = None,
