@@ -27,7 +27,7 @@ from typing import Sequence
 import numpy as np
 
 from actuator_core import limits
-from actuator_sim.scenarios import DRIVE_DELAY_SAMPLES
+from actuator_sim.scenarios import DRIVE_DELAY_SAMPLES, DRIVE_SCENARIO
 from actuator_plant.encoder import EncoderParameters
 from actuator_cia402.config import SimDriveSettings
 
@@ -52,8 +52,7 @@ def drive_scenario(
     )
 
 
-#: The scenario the CiA 402 joints run (graph.DEFAULT_SCENARIOS), and the paper's.
-DRIVE_SCENARIO = 'drive_pp_nftsmc_eso'
+#: The paper's scenario (DRIVE_SCENARIO: the one the CiA 402 joints run, graph.DEFAULT_SCENARIOS).
 PAPER_SCENARIO = 'case2_pp_nftsmc_eso'
 
 

@@ -40,7 +40,7 @@ from typing import NamedTuple
 from actuator_core import limits
 from actuator_core import xmath as xm
 from actuator_core.params import spec, validate
-from actuator_controller.ppf import PrescribedPerformance, transform_error
+from actuator_controller.ppf import PrescribedPerformance, inside_band, transform_error
 from actuator_controller.reference import ReferenceSample
 
 CONTROLLER_NAMES = ('pp_nftsmc_eso', 'nftsmc_eso', 'smc_eso', 'pi')
@@ -367,7 +367,7 @@ class PpNftsmcEsoController(Controller):
         # restarted envelope holds the law together (resolution 22) but is no performance kept:
         # outside the gains' own the status says RECOVERING, however wide the restarted one is.
         rho_gains = g.ppf.rho(t)
-        bounds_kept = tr.inside & transform_error(e, rho_gains, g.ppf).inside
+        bounds_kept = tr.inside & inside_band(e, rho_gains, g.ppf)
         if g.ppf.restart_margin > 0.0 and not xm.all_true(
             tr.inside
         ):  # left the envelope: restart (8) at t

@@ -120,6 +120,16 @@ class Transformed(NamedTuple):
     inside: object
 
 
+def inside_band(e, rho, ppf: PrescribedPerformance):
+    """Whether -l rho < e < h rho, the band of (11) (elementwise)."""
+    return _in_band(e / rho, ppf)
+
+
+def _in_band(eps, ppf: PrescribedPerformance):
+    """Whether -l < eps < h for the normalised error eps = e / rho (elementwise)."""
+    return (eps > -ppf.lower_scale) & (eps < ppf.upper_scale)
+
+
 def transform_error(e, rho, ppf: PrescribedPerformance) -> Transformed:
     """Compute z = S^-1(e / rho) of (11) and r of (12), clamping e / rho into the band.
 
@@ -127,7 +137,7 @@ def transform_error(e, rho, ppf: PrescribedPerformance) -> Transformed:
     """
     lo, hi = -ppf.lower_scale, ppf.upper_scale
     eps = e / rho
-    inside = (eps > lo) & (eps < hi)
+    inside = _in_band(eps, ppf)
     margin = BOUNDARY_MARGIN * (hi - lo)
     eps_c = xm.clip(eps, lo + margin, hi - margin)
     z = 0.5 * xm.log((eps_c - lo) / (hi - eps_c))

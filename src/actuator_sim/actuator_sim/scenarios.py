@@ -50,6 +50,8 @@ DRIVE_DELAY_SAMPLES = 1
 #: limit (src/actuator_cia402/README.md "Tuned for the drive's delay").
 DRIVE_ESO_POLE_MULTIPLE = 4.0
 DRIVE_K3_PER_S = 100.0
+#: Name of that scenario (its parameter file share/actuator_bringup/config/<name>.yaml).
+DRIVE_SCENARIO = 'drive_pp_nftsmc_eso'
 
 
 def paper_scenario(
@@ -129,7 +131,7 @@ def through_a_drive(duration_s: float = 10.0) -> list[Scenario]:
     """
     gains = dataclasses.replace(PpNftsmcGains(), k3_per_s=DRIVE_K3_PER_S)
     scenario = paper_scenario(
-        'drive_pp_nftsmc_eso', 'pp_nftsmc_eso', 'fast', 'deep_sea', duration_s, gains
+        DRIVE_SCENARIO, 'pp_nftsmc_eso', 'fast', 'deep_sea', duration_s, gains
     )
     paper_eso = EsoGains()
     scenario.eso = EsoGains.from_bandwidth(

@@ -26,6 +26,7 @@ from typing import Optional
 import yaml
 
 from actuator_sim.params_yaml import node_parameters
+from actuator_sim.scenarios import DRIVE_SCENARIO
 
 #: What plays the joint: the simulated plant, the CiA 402 driver with its simulated drive on
 #: a virtual CAN bus, the driver on a real bus, or nothing (a driver started elsewhere).
@@ -35,8 +36,8 @@ JOINTS = ('plant', 'cia402_sim', 'cia402', 'none')
 #: (``actuator_sim.scenarios.through_a_drive``).
 DEFAULT_SCENARIOS = {
     'plant': 'case2_pp_nftsmc_eso',
-    'cia402_sim': 'drive_pp_nftsmc_eso',
-    'cia402': 'drive_pp_nftsmc_eso',
+    'cia402_sim': DRIVE_SCENARIO,
+    'cia402': DRIVE_SCENARIO,
     'none': 'case2_pp_nftsmc_eso',
 }
 #: ``bringup --pin`` on a 2-core machine: the ESO and the controller work in strict sequence
