@@ -26,6 +26,7 @@ setup(
         ('share/' + package_name, ['package.xml']),
         *share_files('launch', '*.launch.py'),
         *share_files('config', '*.yaml'),
+        *share_files('config', '*.xml'),
     ],
     install_requires=['setuptools'],
     zip_safe=True,

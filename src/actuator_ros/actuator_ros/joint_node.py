@@ -175,6 +175,7 @@ class JointNode(ManagedNode):
         self.fault = ''  # a joint fault: error processing follows
         self.lockstep_timeouts = 0
         self.skipped_cycles = 0  # realtime, a real joint: cycles the host was too late to run
+        self.longest_stall_cycles = 0  # the most cycles one stall skipped
         self.lost_feedback = 0  # cycles the joint gave no sample for (its read returned None)
         self.refused = 0
         self.binding.reset()
@@ -332,11 +333,26 @@ class JointNode(ManagedNode):
                     while self.sample_index < due and self._cycle(self.sample_index + 1):
                         pass
                 elif due > self.sample_index:  # a real joint: missed cycles are skipped
-                    self.skipped_cycles += due - self.sample_index - 1
+                    skipped = due - self.sample_index - 1
+                    if skipped:
+                        self._host_stalled(skipped)
                     self._cycle(due)
         except Exception as exc:  # noqa: BLE001 - reported by run_node, never lost with the thread
             self.error = f'sampling thread failed: {exc!r}'
             self.finished = True
+
+    def _host_stalled(self, skipped: int) -> None:
+        """Count and log the cycles a host stall took (a real joint skips them)."""
+        self.skipped_cycles += skipped
+        self.longest_stall_cycles = max(self.longest_stall_cycles, skipped)
+        self.log.warn(
+            'host_stall',
+            lambda: (
+                f'host stall: {skipped} cycles skipped (the sampling thread woke '
+                f'{skipped * self.period_ns * 1e-6:.0f} ms late; {self.skipped_cycles} in all, the '
+                f'longest {self.longest_stall_cycles})'
+            ),
+        )
 
     def _cycle(self, k: int, write: bool = True) -> bool:
         """Write the gate's hold to the joint, read sample k, publish it; False: control ended."""
@@ -464,7 +480,8 @@ class JointNode(ManagedNode):
             f'stopped at sample {self.sample_index}; refused commands {self.gate.refused} by '
             f'value and {self.refused} by stamp, command timeouts {self.gate.timeouts}, '
             f'lockstep timeouts {self.lockstep_timeouts}; cycles skipped by host stalls '
-            f'{self.skipped_cycles}, cycles without feedback {self.lost_feedback}'
+            f'{self.skipped_cycles} (the longest stall {self.longest_stall_cycles}), '
+            f'cycles without feedback {self.lost_feedback}'
         )
 
     def health_monitor(self) -> HealthMonitor:

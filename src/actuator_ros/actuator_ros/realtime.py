@@ -118,14 +118,17 @@ def pre_init_settings(args: Sequence[str], node_name: str) -> RealtimeSettings:
     )
 
 
-def publication_mode(args: Sequence[str], node_name: str) -> tuple[str, str]:
-    """(variable, value) of Fast DDS's publication mode for ``node_name``'s process.
-
-    PUBLICATION_MODES: sim when its ROS arguments say ``mode`` sim or ``use_sim_time`` true.
-    """
+def in_sim_time(args: Sequence[str], node_name: str) -> bool:
+    """Whether ``node_name``'s ROS arguments say ``mode`` sim or ``use_sim_time`` true."""
     found = _parameters(args, node_name, ('mode', 'use_sim_time'))
-    sim = found.get('mode') == 'sim' or found.get('use_sim_time') is True
-    return PUBLICATION_MODE_VARIABLE, PUBLICATION_MODES['sim' if sim else 'realtime']
+    return found.get('mode') == 'sim' or found.get('use_sim_time') is True
+
+
+def publication_mode(args: Sequence[str], node_name: str) -> tuple[str, str]:
+    """(variable, value) of Fast DDS's publication mode for ``node_name``'s process."""
+    return PUBLICATION_MODE_VARIABLE, PUBLICATION_MODES[
+        'sim' if in_sim_time(args, node_name) else 'realtime'
+    ]
 
 
 def _parameters(args: Sequence[str], node_name: str, names: Sequence[str]) -> dict:

@@ -28,7 +28,13 @@ from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
 from actuator_ros.parameters import ParameterError
-from actuator_ros.realtime import RealtimeSettings, pre_init_settings, publication_mode
+from actuator_ros.middleware import installed_profile, realtime_transport
+from actuator_ros.realtime import (
+    RealtimeSettings,
+    in_sim_time,
+    pre_init_settings,
+    publication_mode,
+)
 
 #: Longest wait at shutdown for RELIABLE subscribers to acknowledge what was published [s]. A
 #: sample the transport dropped is resent only when the reader answers the writer's heartbeat
@@ -125,6 +131,10 @@ def run_nodes(
     refused = settings.apply()  # before rclpy.init: the middleware's threads inherit it
     # read by rmw_fastrtps when rclpy.init creates it; sim time and real time differ
     os.environ.setdefault(*publication_mode(args, settings_node))
+    transport = None
+    if not in_sim_time(args, settings_node):  # a lockstep has no deadline to miss
+        transport = realtime_transport(os.environ, installed_profile())
+        transport.apply(os.environ)
     try:
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     except Exception as exc:  # rcl's RCLError: an unparsable parameter file, a bad --ros-args
@@ -139,6 +149,9 @@ def run_nodes(
             print(f'{prog}: {exc}', file=sys.stderr)
             return 2
         first = nodes[0]
+        if transport is not None and transport.note:
+            say = first.get_logger().warning if transport.warning else first.get_logger().info
+            say(transport.note)
         if refused:
             first.get_logger().warning(refused)
         elif settings.thread_priority:
