@@ -13,6 +13,7 @@ import math
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -199,6 +200,22 @@ def test_variants_per_diagnostics_rate_and_publication_mode():
     assert 'at 1 kHz' in variants[3].title and 'synchronous publication' in variants[3].title
     modes = bench_variants.make_variants(['sim'], [], 50, [100.0], ['SYNCHRONOUS', 'ASYNCHRONOUS'])
     assert [v.slug for v in modes] == ['sim_synchronous', 'sim_asynchronous']  # no rate in sim
+
+
+def test_variants_per_transport_and_the_shared_memory_environment():
+    """--transports: a variant per transport; shared memory is a choice the runner keeps."""
+    from actuator_ros.middleware import realtime_transport
+
+    variants = bench_variants.make_variants(
+        ['realtime'], ['fifo'], 50, (), (), False, ['udp', 'shared-memory']
+    )
+    assert [v.slug for v in variants] == ['realtime_fifo50_udp', 'realtime_fifo50_shared_memory']
+    assert variants[1].title.endswith('Fast DDS over shared memory')
+    assert bench_run.transport_environment('udp') == {}  # the runner's own in real time
+    shared = bench_run.transport_environment('shared-memory')
+    env = {'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST', **shared}
+    assert realtime_transport(env, Path('profile.xml')).set == {}  # kept: shared memory stays
+    assert realtime_transport({'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST'}, Path('p')).set
 
 
 def test_each_variant_once_more_without_the_recorder():

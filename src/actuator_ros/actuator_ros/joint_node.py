@@ -349,8 +349,8 @@ class JointNode(ManagedNode):
             'host_stall',
             lambda: (
                 f'host stall: {skipped} cycles skipped (the sampling thread woke '
-                f'{skipped * self.period_ns * 1e-6:.0f} ms late; {self.skipped_cycles} in all, the '
-                f'longest {self.longest_stall_cycles})'
+                f'{skipped * self.period_ns * 1e-6:.0f} ms late; {self.skipped_cycles} in all, '
+                f'the longest {self.longest_stall_cycles})'
             ),
         )
 

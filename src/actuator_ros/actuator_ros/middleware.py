@@ -37,6 +37,10 @@ USER_CHOICES = (
     'FASTRTPS_DEFAULT_PROFILES_FILE',
     'FASTDDS_DEFAULT_PROFILES_FILE',
 )
+#: Fast DDS's own default transports (shared memory and UDP), as a user's choice that
+#: ``realtime_transport`` keeps (the benchmark's shared-memory variant). With the range LOCALHOST
+#: rmw_fastrtps builds the same pair itself.
+SHARED_MEMORY_ENVIRONMENT = {'FASTDDS_BUILTIN_TRANSPORTS': 'DEFAULT'}
 #: The rmw implementations this applies to (Fast DDS).
 FASTDDS_RMWS = ('rmw_fastrtps_cpp', 'rmw_fastrtps_dynamic_cpp')
 

@@ -40,6 +40,7 @@ from actuator_tools.bench_run import (
 from actuator_tools.bench_variants import (
     MODES,
     PUBLICATION_MODES,
+    TRANSPORTS,
     RT_VARIANTS,
     make_variants,
     missing_tool,
@@ -117,6 +118,15 @@ def build_parser() -> OneLineParser:
         help="run every variant under each of Fast DDS's publication modes (default: the "
         "runner's, SYNCHRONOUS in sim time and ASYNCHRONOUS in real time; see "
         'actuator_ros.realtime.PUBLICATION_MODES)',
+    )
+    p.add_argument(
+        '--transports',
+        nargs='+',
+        choices=TRANSPORTS,
+        default=[],
+        help="run every variant over each of Fast DDS's transports: udp (the runner's own in "
+        "real time, actuator_ros.middleware) and shared-memory (Fast DDS's default, shared "
+        "memory and UDP) (default: the runner's, not named)",
     )
     p.add_argument(
         '--without-recorder',
@@ -224,6 +234,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         args.diagnostics_rates,
         args.publication_modes,
         args.without_recorder,
+        args.transports,
     ):
         why = missing_tool(variant)
         if why:

@@ -143,6 +143,13 @@ def publication_mode_environment(mode: str) -> dict:
     return {PUBLICATION_MODE_VARIABLE: mode} if mode else {}
 
 
+def transport_environment(transport: str) -> dict:
+    """Environment for a transport of bench_variants.TRANSPORTS ('': the runner's)."""
+    from actuator_ros.middleware import SHARED_MEMORY_ENVIRONMENT
+
+    return dict(SHARED_MEMORY_ENVIRONMENT) if transport == 'shared-memory' else {}
+
+
 @contextmanager
 def _environment(values: dict):
     """Set ``values`` in os.environ for the processes started inside; restore them after."""
@@ -172,7 +179,10 @@ def run_one(
     try:
         with (
             progress(label, expected_wall_s(variant, args.duration), args.quiet),
-            _environment(publication_mode_environment(variant.publication_mode)),
+            _environment(
+                publication_mode_environment(variant.publication_mode)
+                | transport_environment(variant.transport)
+            ),
         ):
             result = (
                 run_launched(

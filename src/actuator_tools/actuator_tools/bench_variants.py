@@ -30,6 +30,9 @@ RT_VARIANTS = (
 #: Fast DDS publication modes a run can be given (RMW_FASTRTPS_PUBLICATION_MODE): the two the
 #: runner chooses between (actuator_ros.realtime.PUBLICATION_MODES).
 PUBLICATION_MODES = tuple(sorted(set(realtime.PUBLICATION_MODES.values()), reverse=True))
+#: Fast DDS transports a run can be given: the runner's own (UDP only in real time,
+#: actuator_ros.middleware), or Fast DDS's default with shared memory, which the runner keeps.
+TRANSPORTS = ('udp', 'shared-memory')
 #: ROS modes: sim time across processes, sim time with the three nodes in one process, real time.
 MODES = ('realtime', 'sim', 'sim-composed')
 
@@ -45,6 +48,7 @@ class Variant:
     composed: bool = False  # joint, ESO and controller in one process (graph.compose)
     diagnostics_rate_hz: Optional[float] = None  # controller/state, plant/truth (None: default)
     publication_mode: str = ''  # RMW_FASTRTPS_PUBLICATION_MODE ('': the runner's)
+    transport: str = ''  # one of TRANSPORTS ('': the runner's, not named)
     recorded: bool = True  # the recorder runs (its bag gives the tracking figures)
 
     @property
@@ -62,6 +66,8 @@ class Variant:
             base += f'_diag{self.diagnostics_rate_hz:g}hz'
         if self.publication_mode:
             base += f'_{self.publication_mode.lower()}'
+        if self.transport:
+            base += f'_{self.transport.replace("-", "_")}'
         return base if self.recorded else f'{base}_unrecorded'
 
     @property
@@ -73,6 +79,8 @@ class Variant:
             one += f', controller/state and plant/truth at {f"{rate:g} Hz" if rate else "1 kHz"}'
         if self.publication_mode:
             one += f', Fast DDS {self.publication_mode.lower()} publication'
+        if self.transport:
+            one += f', Fast DDS over {"UDP" if self.transport == "udp" else "shared memory"}'
         if not self.recorded:
             one += ', no recorder'
         if self.mode == 'sim':
@@ -103,12 +111,14 @@ def make_variants(
     diagnostics_rates: Sequence[float] = (),
     publication_modes: Sequence[str] = (),
     without_recorder: bool = False,
+    transports: Sequence[str] = (),
 ) -> list[Variant]:
     """Return the variants to run, sim first, in the order given.
 
     Each real-time variant runs once more per rate of ``diagnostics_rates``; every variant runs
-    once per mode of ``publication_modes`` (none: the runner's own mode), and once more without
-    the recorder if ``without_recorder``.
+    once per mode of ``publication_modes`` (none: the runner's own mode) and per transport of
+    ``transports`` (none: the runner's), and once more without the recorder if
+    ``without_recorder``.
     """
     variants = [Variant('sim')] if 'sim' in modes else []
     if 'sim-composed' in modes:
@@ -132,6 +142,12 @@ def make_variants(
             dataclasses.replace(v, publication_mode=mode)
             for v in variants
             for mode in dict.fromkeys(publication_modes)
+        ]
+    if transports:
+        variants = [
+            dataclasses.replace(v, transport=transport)
+            for v in variants
+            for transport in dict.fromkeys(transports)
         ]
     if without_recorder:
         variants = [v for r in variants for v in (r, dataclasses.replace(r, recorded=False))]
