@@ -185,26 +185,39 @@ def test_unreadable_parameter_file_is_left_to_rcl(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize(
-    'args, mode',
+    'args, sim',
     [
-        ([], 'ASYNCHRONOUS'),  # a node run alone: real time
-        (['--ros-args', '-p', 'mode:=realtime'], 'ASYNCHRONOUS'),
-        (['--ros-args', '-p', 'mode:=sim'], 'SYNCHRONOUS'),
-        (['--ros-args', '-p', 'use_sim_time:=true'], 'SYNCHRONOUS'),  # the recorder's way
-        (['--ros-args', '-p', f'{NODE}:mode:=sim'], 'SYNCHRONOUS'),  # a composed process
-        (['--ros-args', '-p', 'actuator_eso:mode:=sim'], 'ASYNCHRONOUS'),  # another node's
-        (['--ros-args', '-p', 'mode:=sim', '-p', 'mode:=realtime'], 'ASYNCHRONOUS'),
+        ([], False),  # a node run alone: real time
+        (['--ros-args', '-p', 'mode:=realtime'], False),
+        (['--ros-args', '-p', 'mode:=sim'], True),
+        (['--ros-args', '-p', 'use_sim_time:=true'], True),  # the recorder's way
+        (['--ros-args', '-p', f'{NODE}:mode:=sim'], True),  # a composed process
+        (['--ros-args', '-p', 'actuator_eso:mode:=sim'], False),  # another node's
+        (['--ros-args', '-p', 'mode:=sim', '-p', 'mode:=realtime'], False),
     ],
 )
-def test_sim_time_publishes_synchronously_and_real_time_asynchronously(args, mode) -> None:
-    """A lockstep loses nothing by a publish that waits; a real-time thread must not wait."""
-    assert realtime.publication_mode(args, NODE) == ('RMW_FASTRTPS_PUBLICATION_MODE', mode)
+def test_sim_time_is_read_from_the_nodes_own_arguments(args, sim) -> None:
+    """Only real time gets the UDP-only transport (a lockstep has no deadline to miss)."""
+    assert realtime.in_sim_time(args, NODE) is sim
 
 
-def test_the_publication_mode_of_a_parameter_file_section(tmp_path: Path) -> None:
-    """The node's section of a file (as launch_ros writes one) says sim: synchronous."""
+@pytest.mark.parametrize(
+    'sim, fifo, mode',
+    [
+        (True, False, 'SYNCHRONOUS'),  # a lockstep saves the sending thread's wake-up
+        (True, True, 'SYNCHRONOUS'),
+        (False, True, 'ASYNCHRONOUS'),  # the sending thread runs at once under SCHED_FIFO
+        (False, False, 'SYNCHRONOUS'),  # normal scheduling: no hand-off to wait a slice for
+    ],
+)
+def test_the_publication_mode_follows_time_and_scheduling(sim, fifo, mode) -> None:
+    assert realtime.publication_mode(sim, fifo) == mode
+
+
+def test_sim_time_from_a_parameter_file_section(tmp_path: Path) -> None:
+    """The node's section of a file (as launch_ros writes one) says sim."""
     params = tmp_path / 'p.yaml'
     params.write_text(f'{NODE}:\n  ros__parameters:\n    mode: sim\n')
     args = ['--ros-args', '--params-file', str(params)]
-    assert realtime.publication_mode(args, NODE)[1] == 'SYNCHRONOUS'
-    assert realtime.publication_mode(args, 'actuator_eso')[1] == 'ASYNCHRONOUS'
+    assert realtime.in_sim_time(args, NODE)
+    assert not realtime.in_sim_time(args, 'actuator_eso')

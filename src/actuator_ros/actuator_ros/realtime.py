@@ -26,18 +26,25 @@ EXECUTORS = ('events', 'single_threaded')
 
 #: The variable rmw_fastrtps reads its publication mode from when rclpy.init creates it.
 PUBLICATION_MODE_VARIABLE = 'RMW_FASTRTPS_PUBLICATION_MODE'
-#: Fast DDS's publication mode for every process the runner starts, unless the environment sets
-#: it, whatever rmw_fastrtps's own default. Real time: ASYNCHRONOUS (a sending thread per
-#: writer). Not SYNCHRONOUS there: a publish then sends in the caller's thread and waits on a
-#: subscriber that does not read. Measured here with the subscriber process stopped (SIGSTOP),
-#: 5000 publishes of controller/state at 1 kHz: synchronous mean 564 us, worst 63 ms (best
-#: effort; reliable: 523 us, 80 ms); asynchronous mean 72 us, worst 7.4 ms (reliable: 123 us,
-#: 4.8 ms). A stopped recorder or `ros2 topic echo` would hold the joint's sampling thread. Sim
-#: time (lockstep): SYNCHRONOUS, where such a wait costs speed and nothing else (no deadline),
-#: and each hop saves the sending thread's wake-up: 10 s runs here, separate processes 0.99x ->
-#: 1.27x real time, composed without the recorder 2.94x -> 3.39x (README "Performance"). The
-#: benchmark compares both (bench --publication-modes).
-PUBLICATION_MODES = {'realtime': 'ASYNCHRONOUS', 'sim': 'SYNCHRONOUS'}
+#: Fast DDS's publication mode for a process run_node starts, unless the environment sets it,
+#: by how its threads are scheduled. ASYNCHRONOUS (a sending thread per writer) only where that
+#: thread runs at once, under SCHED_FIFO; SYNCHRONOUS (a publish sends in the caller's thread)
+#: under normal scheduling and in sim time. Measured in two benchmark invocations of 2026-12-05
+#: (2 x 20 s per variant, real time over UDP, README "Performance"): under normal scheduling
+#: every hand-off to a sending thread is a chance to wait a time slice, asynchronous lost
+#: 1596-1853 samples of 20000 against 132-147 synchronous (composed 842-1067 against 141-222);
+#: under SCHED_FIFO, composed, asynchronous keeps the latency p50 at 264 us against 362 us
+#: (rcl_publish holds the GIL while it sends, so a synchronous send delays the next callback of
+#: the process). Over shared memory a synchronous publish waited on a subscriber that did not
+#: read; over UDP (actuator_ros.middleware) it does not: 5000 publishes of controller/state at
+#: 1 kHz to a stopped (SIGSTOP) subscriber, synchronous mean 30 us, worst 461 us; asynchronous
+#: 42 us, 4.9 ms. A lockstep saves the sending thread's wake-up on every hop.
+PUBLICATION_MODES = {'sim': 'SYNCHRONOUS', 'fifo': 'ASYNCHRONOUS', 'normal': 'SYNCHRONOUS'}
+
+
+def publication_mode(sim: bool, fifo: bool) -> str:
+    """Return Fast DDS's publication mode for a process (PUBLICATION_MODES)."""
+    return PUBLICATION_MODES['sim' if sim else 'fifo' if fifo else 'normal']
 
 
 @dataclass(frozen=True)
@@ -122,13 +129,6 @@ def in_sim_time(args: Sequence[str], node_name: str) -> bool:
     """Whether ``node_name``'s ROS arguments say ``mode`` sim or ``use_sim_time`` true."""
     found = _parameters(args, node_name, ('mode', 'use_sim_time'))
     return found.get('mode') == 'sim' or found.get('use_sim_time') is True
-
-
-def publication_mode(args: Sequence[str], node_name: str) -> tuple[str, str]:
-    """(variable, value) of Fast DDS's publication mode for ``node_name``'s process."""
-    return PUBLICATION_MODE_VARIABLE, PUBLICATION_MODES[
-        'sim' if in_sim_time(args, node_name) else 'realtime'
-    ]
 
 
 def _parameters(args: Sequence[str], node_name: str, names: Sequence[str]) -> dict:

@@ -30,6 +30,7 @@ from rclpy.signals import SignalHandlerOptions
 from actuator_ros.parameters import ParameterError
 from actuator_ros.middleware import installed_profile, realtime_transport
 from actuator_ros.realtime import (
+    PUBLICATION_MODE_VARIABLE,
     RealtimeSettings,
     in_sim_time,
     pre_init_settings,
@@ -129,10 +130,14 @@ def run_nodes(
         signal.signal(signum, request_stop)
     faulthandler.register(signal.SIGUSR1, all_threads=True)  # kill -USR1: every thread's stack
     refused = settings.apply()  # before rclpy.init: the middleware's threads inherit it
-    # read by rmw_fastrtps when rclpy.init creates it; sim time and real time differ
-    os.environ.setdefault(*publication_mode(args, settings_node))
+    sim = in_sim_time(args, settings_node)
+    # read by rmw_fastrtps when rclpy.init creates it
+    os.environ.setdefault(
+        PUBLICATION_MODE_VARIABLE,
+        publication_mode(sim, fifo=os.sched_getscheduler(0) == os.SCHED_FIFO),
+    )
     transport = None
-    if not in_sim_time(args, settings_node):  # a lockstep has no deadline to miss
+    if not sim:  # a lockstep has no deadline to miss
         transport = realtime_transport(os.environ, installed_profile())
         transport.apply(os.environ)
     try:

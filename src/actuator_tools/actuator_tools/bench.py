@@ -116,7 +116,7 @@ def build_parser() -> OneLineParser:
         choices=PUBLICATION_MODES,
         default=[],
         help="run every variant under each of Fast DDS's publication modes (default: the "
-        "runner's, SYNCHRONOUS in sim time and ASYNCHRONOUS in real time; see "
+        "runner's: ASYNCHRONOUS under SCHED_FIFO, SYNCHRONOUS otherwise and in sim time; "
         'actuator_ros.realtime.PUBLICATION_MODES)',
     )
     p.add_argument(

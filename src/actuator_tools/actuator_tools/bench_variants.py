@@ -27,7 +27,7 @@ RT_VARIANTS = (
     'normal-composed',
     'fifo-composed',
 )
-#: Fast DDS publication modes a run can be given (RMW_FASTRTPS_PUBLICATION_MODE): the two the
+#: Fast DDS publication modes a run can be given (RMW_FASTRTPS_PUBLICATION_MODE): those the
 #: runner chooses between (actuator_ros.realtime.PUBLICATION_MODES).
 PUBLICATION_MODES = tuple(sorted(set(realtime.PUBLICATION_MODES.values()), reverse=True))
 #: Fast DDS transports a run can be given: the runner's own (UDP only in real time,
