@@ -27,7 +27,7 @@ from typing import Sequence
 import numpy as np
 
 from actuator_core import limits
-from actuator_sim.scenarios import DRIVE_DELAY_SAMPLES, DRIVE_SCENARIO
+from actuator_sim.scenarios import DRIVE_DELAY_SAMPLES, DRIVE_SCENARIO, PAPER_SCENARIO
 from actuator_plant.encoder import EncoderParameters
 from actuator_cia402.config import SimDriveSettings
 
@@ -50,10 +50,6 @@ def drive_scenario(
         torque_time_constant_s=tau,
         encoder=EncoderParameters(counts_per_rev=counts) if quantise else None,
     )
-
-
-#: The paper's scenario (DRIVE_SCENARIO: the one the CiA 402 joints run, graph.DEFAULT_SCENARIOS).
-PAPER_SCENARIO = 'case2_pp_nftsmc_eso'
 
 
 def run(

@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Optional, Sequence
 
 from actuator_core import limits
+from actuator_sim.scenarios import PAPER_SCENARIO
 from actuator_tools.bench_figures import Figures
 from actuator_tools.bench_report import one_line, report
 from actuator_tools.bench_run import (
@@ -46,7 +47,7 @@ from actuator_tools.bench_variants import (
     missing_tool,
 )
 
-DEFAULT_SCENARIO = 'case2_pp_nftsmc_eso'
+DEFAULT_SCENARIO = PAPER_SCENARIO
 DURATION_RANGE_S = (1.0, 3600.0)
 
 

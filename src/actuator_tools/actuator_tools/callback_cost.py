@@ -25,7 +25,9 @@ from typing import Sequence
 
 import numpy as np
 
-SCENARIO = 'case2_pp_nftsmc_eso'
+from actuator_sim.scenarios import PAPER_SCENARIO
+
+SCENARIO = PAPER_SCENARIO
 
 
 def _wire(nodes: dict, queue: collections.deque, listened: bool = True) -> None:

@@ -26,7 +26,7 @@ from typing import Optional
 import yaml
 
 from actuator_sim.params_yaml import node_parameters
-from actuator_sim.scenarios import DRIVE_SCENARIO
+from actuator_sim.scenarios import DRIVE_SCENARIO, PAPER_SCENARIO
 
 #: What plays the joint: the simulated plant, the CiA 402 driver with its simulated drive on
 #: a virtual CAN bus, the driver on a real bus, or nothing (a driver started elsewhere).
@@ -35,10 +35,10 @@ JOINTS = ('plant', 'cia402_sim', 'cia402', 'none')
 #: for a CiA 402 drive, whose RPDO acts one SYNC later, the same case tuned for that delay
 #: (``actuator_sim.scenarios.through_a_drive``).
 DEFAULT_SCENARIOS = {
-    'plant': 'case2_pp_nftsmc_eso',
+    'plant': PAPER_SCENARIO,
     'cia402_sim': DRIVE_SCENARIO,
     'cia402': DRIVE_SCENARIO,
-    'none': 'case2_pp_nftsmc_eso',
+    'none': PAPER_SCENARIO,
 }
 #: ``bringup --pin`` on a 2-core machine: the ESO and the controller work in strict sequence
 #: each sample (command -> estimate -> command), so they share a core; the joint uses the other.

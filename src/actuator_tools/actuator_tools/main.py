@@ -28,8 +28,9 @@ from actuator_tools.bringup import RunResult, run_closed_loop
 from actuator_sim.loop import ClosedLoop
 from actuator_sim.offline import trace_metrics
 from actuator_sim.params_yaml import all_scenarios
+from actuator_sim.scenarios import PAPER_SCENARIO
 
-SCENARIO = 'case2_pp_nftsmc_eso'
+SCENARIO = PAPER_SCENARIO
 
 
 def timing_figures(result: RunResult) -> dict:
