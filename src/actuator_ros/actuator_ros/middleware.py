@@ -7,8 +7,9 @@ Fast DDS's shared-memory transport opens a peer's port on the first send to it a
 port's listeners; a check that finds a listener idle sleeps ``healthy_check_timeout_ms / 3`` =
 333 ms before it looks again (Fast DDS 2.14, ``SharedMemGlobal::Port::healthy_check``, 1000 ms
 by default). In the asynchronous publication mode the sending thread does this while it holds the
-writer's flow controller, and every publish on a full KEEP_LAST history waits for that lock; rclpy
-holds the GIL inside ``rcl_publish``. So when a peer joins or rejoins (a restarted node, a
+writer's flow controller, and every publish on a full KEEP_LAST history waits for that lock; in
+the synchronous mode the publishing thread does it itself; rclpy holds the GIL inside
+``rcl_publish``. So when a peer joins or rejoins (a restarted node, a
 recorder, ``ros2 topic echo``), the joint's sampling thread and every other thread of its process
 could stop for 321-333 ms: measured here with py-spy on the CiA 402 driver (its sampling thread
 in ``FlowControllerImpl::remove_change``, waiting on the lock), after which the drive's
