@@ -207,10 +207,14 @@ def test_variants_per_transport_and_the_shared_memory_environment():
     from actuator_ros.middleware import realtime_transport
 
     variants = bench_variants.make_variants(
-        ['realtime'], ['fifo'], 50, (), (), False, ['udp', 'shared-memory']
+        ['sim', 'realtime'], ['fifo'], 50, (), (), False, ['udp', 'shared-memory']
     )
-    assert [v.slug for v in variants] == ['realtime_fifo50_udp', 'realtime_fifo50_shared_memory']
-    assert variants[1].title.endswith('Fast DDS over shared memory')
+    assert [v.slug for v in variants] == [
+        'sim',  # sim time keeps shared memory: a "udp" sim run would be mislabelled
+        'realtime_fifo50_udp',
+        'realtime_fifo50_shared_memory',
+    ]
+    assert variants[2].title.endswith('Fast DDS over shared memory')
     assert bench_run.transport_environment('udp') == {}  # the runner's own in real time
     shared = bench_run.transport_environment('shared-memory')
     env = {'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST', **shared}

@@ -125,9 +125,9 @@ def build_parser() -> OneLineParser:
         nargs='+',
         choices=TRANSPORTS,
         default=[],
-        help="run every variant over each of Fast DDS's transports: udp (the runner's own in "
-        "real time, actuator_ros.middleware) and shared-memory (Fast DDS's default, shared "
-        "memory and UDP) (default: the runner's, not named)",
+        help="run every real-time variant over each of Fast DDS's transports: udp (the "
+        "runner's own, actuator_ros.middleware) and shared-memory (Fast DDS's default, shared "
+        "memory and UDP); sim time keeps shared memory (default: the runner's, not named)",
     )
     p.add_argument(
         '--without-recorder',

@@ -116,9 +116,9 @@ def make_variants(
     """Return the variants to run, sim first, in the order given.
 
     Each real-time variant runs once more per rate of ``diagnostics_rates``; every variant runs
-    once per mode of ``publication_modes`` (none: the runner's own mode) and per transport of
-    ``transports`` (none: the runner's), and once more without the recorder if
-    ``without_recorder``.
+    once per mode of ``publication_modes`` (none: the runner's own mode); every real-time
+    variant once per transport of ``transports`` (none: the runner's; sim time keeps its own,
+    shared memory); and each once more without the recorder if ``without_recorder``.
     """
     variants = [Variant('sim')] if 'sim' in modes else []
     if 'sim-composed' in modes:
@@ -143,11 +143,11 @@ def make_variants(
             for v in variants
             for mode in dict.fromkeys(publication_modes)
         ]
-    if transports:
+    if transports:  # real time only: the runner keeps shared memory in sim time
         variants = [
             dataclasses.replace(v, transport=transport)
             for v in variants
-            for transport in dict.fromkeys(transports)
+            for transport in (dict.fromkeys(transports) if v.mode == 'realtime' else ('',))
         ]
     if without_recorder:
         variants = [v for r in variants for v in (r, dataclasses.replace(r, recorded=False))]
