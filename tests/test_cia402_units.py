@@ -433,3 +433,69 @@ def test_every_driver_parameter_is_a_spec_with_description_and_numeric_range():
         assert f.metadata['description'], name
         if isinstance(f.default, (int, float)) and not isinstance(f.default, bool):
             assert m.isfinite(f.metadata['low']) and m.isfinite(f.metadata['high']), name
+
+
+@pytest.mark.parametrize('phase', [0.02, 0.5, 0.98])
+def test_the_simulated_drive_locks_its_cycle_to_the_sync_and_takes_one_period_per_sync(
+    monkeypatch, phase
+):
+    """SYNCs that jitter by a fifth of a period, whatever their phase against the drive's clock.
+
+    Before, the drive counted periods on its own grid: SYNCs near its period boundary took two
+    periods or none by turns, a measurement step the observer refused.
+    """
+    from actuator_cia402 import sim_drive
+    from actuator_cia402.sim_drive_main import default_eds
+
+    scaling = Scaling(4096, limits.NOMINAL_GEAR_RATIO, 1.05, 10.0, 0.105)
+    drive = sim_drive.SimulatedDrive(default_eds(), 1, scaling, 1e-3)  # not on a bus
+    period = drive.period_ns
+    base = drive._t0_ns  # the drive's own period grid starts here
+    now = [base]
+    monkeypatch.setattr(sim_drive.time, 'monotonic_ns', lambda: now[0])
+    jitter = [0, 200_000, -150_000, 180_000, 0, -200_000, 120_000, 200_000, -200_000, 50_000]
+    steps = []
+    for k in range(200):
+        now[0] = base + (10 + k) * period + int(phase * period) + jitter[k % len(jitter)]
+        before = drive.syncs
+        drive._on_sync(0x80, b'', 0.0)
+        steps.append(drive.syncs - before)
+    assert steps[0] >= 1 and all(step == 1 for step in steps[1:]), steps
+    now[0] += 5 * period  # a master that skipped four SYNCs: the four idle periods pass
+    before = drive.syncs
+    drive._on_sync(0x80, b'', 0.0)
+    assert drive.syncs - before == 5
+
+
+def test_with_the_sync_counter_the_drive_takes_one_period_per_sync_however_late_it_came(
+    monkeypatch,
+):
+    """The drive's process late by most of a period (a loaded host), SYNCs counted (0x1019).
+
+    Without the counter a SYNC taken more than half a period late looks like a skipped one
+    followed by an on-time one: drive time ran a period ahead of the master's stamps for good.
+    """
+    from actuator_cia402 import sim_drive
+    from actuator_cia402.sim_drive_main import default_eds
+
+    scaling = Scaling(4096, limits.NOMINAL_GEAR_RATIO, 1.05, 10.0, 0.105)
+    drive = sim_drive.SimulatedDrive(default_eds(), 1, scaling, 1e-3)  # not on a bus
+    overflow = p.SYNC_COUNTER_MAX
+    od = drive.od[p.SYNC_COUNTER_OVERFLOW]
+    drive._on_write(p.SYNC_COUNTER_OVERFLOW, 0, od, od.encode_raw(overflow))
+    period, base = drive.period_ns, drive._t0_ns
+    now = [base]
+    monkeypatch.setattr(sim_drive.time, 'monotonic_ns', lambda: now[0])
+    late = [0, 800_000, 100_000, 0, 700_000, 750_000, 0, 50_000]  # taken late, in order
+    steps = []
+    for k in range(500):  # past the counter's overflow
+        now[0] = base + (10 + k) * period + late[k % len(late)]
+        before = drive.syncs
+        drive._on_sync(0x80, bytes((k % overflow + 1,)), 0.0)
+        steps.append(drive.syncs - before)
+    assert all(step == 1 for step in steps[1:]), steps
+    k += 4  # three SYNCs the master skipped (its host), the fourth taken 0.9 period late
+    now[0] = base + (10 + k) * period + 900_000
+    before = drive.syncs
+    drive._on_sync(0x80, bytes((k % overflow + 1,)), 0.0)
+    assert drive.syncs - before == 4

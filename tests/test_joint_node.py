@@ -163,6 +163,66 @@ def test_a_joint_fault_in_real_time_ends_the_sampling_thread(rclpy_context):
     node.destroy_node()
 
 
+class StallingJoint(Joint):
+    """A real joint (no replay of missed samples) whose first read from instant 5 holds the host.
+
+    It returns 0.6 of a period into the second instant after it: too late for that cycle.
+    """
+
+    kind = 'stalling'
+    supports_sim_time = True
+
+    def __init__(self):
+        self.node, self.instants, self.stalled_at = None, [], None
+
+    def write(self, current_a, brake):
+        pass
+
+    def read(self, stamp_ns):
+        import time
+
+        node = self.node
+        k = (stamp_ns - node.start_ns) // node.period_ns
+        self.instants.append(k)
+        if self.stalled_at is None and k >= 5:
+            self.stalled_at = k
+            wake_ns = node.start_mono_ns + (k + 2) * node.period_ns + 6 * node.period_ns // 10
+            time.sleep(max(0, wake_ns - time.monotonic_ns()) * 1e-9)
+        if len(self.instants) >= 10:
+            node.stopped_reason = 'enough samples'
+        return JointSample(stamp_ns, 0.0, 0.0)
+
+
+def test_a_real_joint_skips_a_cycle_it_woke_too_late_for(rclpy_context):
+    # A real joint samples when its cycle runs (the drive, when the SYNC reaches it). Before, the
+    # thread woke 0.6 ms into an instant and ran its cycle there: the drive sampled 0.6 ms after
+    # the stamp, and a SYNC-locked drive took it for the next one (a measurement step).
+    from rclpy.parameter import Parameter
+
+    from actuator_ros.joint_node import JointNode
+
+    class StallingNode(JointNode):
+        def make_joint(self):
+            return StallingJoint()
+
+    node = StallingNode(
+        'stalling_joint',
+        context=rclpy_context,
+        parameter_overrides=[Parameter('mode', value='realtime')],
+    )
+    node.trigger_configure()
+    node.trigger_activate()
+    node.joint.node = node
+    node._start_sampling()
+    node.sampler.join(timeout=2.0)
+    k, stalled = node.joint.instants, node.joint.stalled_at
+    after = k[k.index(stalled) + 1]
+    # instant stalled+1 passed during the stall, stalled+2 was 0.6 of a period gone
+    assert after >= stalled + 3, k
+    assert node.longest_stall_cycles >= after - stalled - 1
+    node.destroy_node()
+
+
 @pytest.mark.parametrize('name, value', [('current_limit_a', 0.0), ('brake_delay_s', -1.0)])
 def test_joint_settings_out_of_range_are_refused_in_one_line(rclpy_context, name, value):
     from rclpy.parameter import Parameter

@@ -64,6 +64,13 @@ class SimDriveSettings:
     drop_tpdo_fraction: float = spec(
         0.0, 'share of SYNCs the drive answers without TPDOs', '', 0.0, 1.0
     )
+    late_tpdo_fraction: float = spec(
+        0.0,
+        "share of SYNCs the drive answers only just before the next SYNC's TPDOs",
+        '',
+        0.0,
+        1.0,
+    )
     silent_at_s: float = spec(
         -1.0,
         'time after the first SYNC from which the drive is silent (negative: never)',
@@ -71,7 +78,7 @@ class SimDriveSettings:
         -1.0,
         1.0e6,
     )
-    seed: int = spec(1, 'seed of the dropped-TPDO draw', '', 0, 2**31 - 1)
+    seed: int = spec(1, 'seed of the dropped- and late-TPDO draws', '', 0, 2**31 - 1)
 
     def __post_init__(self) -> None:
         """Refuse an unknown condition or fault kind."""
@@ -108,6 +115,8 @@ class SimDriveSettings:
             repr(self.over_current_a),
             '--drop-tpdo',
             repr(self.drop_tpdo_fraction),
+            '--late-tpdo',
+            repr(self.late_tpdo_fraction),
             '--silent-at',
             repr(self.silent_at_s),
             '--seed',

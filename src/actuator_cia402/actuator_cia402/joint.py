@@ -12,10 +12,12 @@ Lifecycle (each step raises JointError with the reason in one line):
   deactivate  ``Cia402Master.stop``: quick stop, the ramp, the brake closed, disable voltage;
   acknowledge_fault  the one way to reset a drive fault: a person asks (the node's service).
 Cycle: ``write`` sends RPDO1 (controlword, target torque) at once, for the next SYNC; ``read``
-sends the SYNC (``sync_producer``) or waits for the bus's SYNC, then for TPDO1/TPDO2, and
-returns the angle (32-bit position unwrapped, zero offset applied), the torque actual 0x6077
-at the joint, and ``fault`` for every statusword bit that means the drive does not apply the
-torque it is told (``torque_fault``), for bus-off, error-passive and a vanished adapter.
+sends the SYNC (``sync_producer``; with the counter 0x1019 when the drive takes one) or waits
+for the bus's SYNC, then for the TPDO1 that answers it (a producer counts them: a late answer
+never stands in for the next SYNC's) and TPDO2, and returns the angle (32-bit position
+unwrapped, zero offset applied), the torque actual 0x6077 at the joint, and ``fault`` for
+every statusword bit that means the drive does not apply the torque it is told
+(``torque_fault``), for bus-off, error-passive and a vanished adapter.
 The master heartbeat is sent only while the cycle runs (or the joint is not active), so a
 hung, killed or disconnected master stops the drive through its heartbeat consumer.
 """
@@ -38,6 +40,10 @@ from actuator_cia402.master import Cia402Error, Cia402Master
 HEARTBEAT_OPERATIONAL = 0x05
 #: How long configure tries to reach the simulated drive's hub [s].
 HUB_CONNECT_TIMEOUT_S = 20.0
+#: Cycles in a row whose TPDO1 count stays behind while answers come: those were dropped. A
+#: drive late this many SYNCs in a row would be taken for one that dropped answers; a drop
+#: costs this many cycles without a sample (the controller waits 7 before it resyncs).
+TPDO_LAG_CYCLES = 5
 ALLOWED_WHILE_RUNNING = (p.State.SWITCHED_ON, p.State.OPERATION_ENABLED)
 
 
@@ -126,7 +132,12 @@ class Cia402Joint(Joint):
         self.active = False
         self._arrived = threading.Condition()
         self._tpdo1: Optional[tuple] = None
-        self._tpdo1_seq = 0
+        self._tpdo1_seq = 0  # TPDO1s received
+        self._syncs_sent = 0  # SYNCs this master sent (sync_producer)
+        self._tpdo1_lost = 0  # SYNCs whose TPDO1 was judged dropped
+        self._tpdo1_lag_cycles = 0  # cycles in a row whose answer was behind, others coming
+        self._tpdo1_lag_least = 0  # the least the count was behind in those cycles
+        self.dropped_answers = 0
         self._tpdo2 = (0, 0, p.MODE_CST)
         self._sync_seq = 0
         self._consumed_sync = 0
@@ -210,6 +221,9 @@ class Cia402Joint(Joint):
         self.master.node.emcy.reset()
         self._enable_since_ns = self._not_following_since_ns = None
         self._missed_in_row = self._unsynced_in_row = 0
+        with self._arrived:  # every SYNC before this run counts as answered
+            self._tpdo1_lost = self._syncs_sent - self._tpdo1_seq
+            self._tpdo1_lag_cycles = 0
         self._synced = False
         self._cycling = False  # the heartbeat watches the cycle from its first read on
         self.active = True
@@ -295,8 +309,10 @@ class Cia402Joint(Joint):
         self.cycles += 1
         if self.cfg.sync_producer:
             with self._arrived:
+                self._syncs_sent += 1
                 seq = self._tpdo1_seq
-            self._send(0x80, b'')
+            self._send(0x80, self._sync_data(stamp_ns))
+            got = self._answered(seq)
         else:  # the SYNC of this cycle, from the bus's producer (it may have come already)
             if not self._wait(
                 lambda: self._sync_seq > self._consumed_sync, self.cfg.sync_period_s
@@ -306,12 +322,12 @@ class Cia402Joint(Joint):
             with self._arrived:
                 self._consumed_sync = self._sync_seq
                 seq = self._tpdo1_at_sync
-        # TPDO1 carries no SYNC counter: after a miss the first to come may answer the SYNC
-        # before, so that cycle waits for a second one until the deadline and takes the newest.
-        need = 2 if self._missed_last else 1
-        got = self._wait(lambda: self._tpdo1_seq >= seq + need, self.wait_s)
-        got = got or self._tpdo1_seq > seq
-        self._missed_last = not got
+            # TPDO1 carries no SYNC counter: after a miss the first to come may answer the SYNC
+            # before, so that cycle waits for a second one until the deadline, takes the newest.
+            need = 2 if self._missed_last else 1
+            got = self._wait(lambda: self._tpdo1_seq >= seq + need, self.wait_s)
+            got = got or self._tpdo1_seq > seq
+            self._missed_last = not got
         if self.health.fault:
             return JointSample(stamp_ns, self.position_rad, 0.0, self.health.fault)
         if not got:  # silence counts in cycles the master ran: its own stalls are not the drive's
@@ -334,6 +350,43 @@ class Cia402Joint(Joint):
         )
         effort = self.scaling.torque_permille_to_nm(torque_permille) * self.scaling.gear_ratio
         return JointSample(stamp_ns, self.position_rad, effort, self._fault(statusword))
+
+    def _answered(self, seq: int) -> bool:
+        """Wait for the TPDO1 that answers the SYNC just sent; False: none in time.
+
+        A drive answers its SYNCs in order, so TPDO1 number n answers SYNC number n, less the
+        answers it dropped. A late answer is never taken for the next SYNC's: it only counts.
+        Answers that keep coming ``TPDO_LAG_CYCLES`` cycles in a row while the count stays
+        behind are the sign of dropped ones: the least it stayed behind is taken as dropped
+        (a late drive catches up instead, and a late answer on top of a drop is not a drop).
+        """
+        n = self._syncs_sent
+        self._wait(lambda: self._tpdo1_seq + self._tpdo1_lost >= n, self.wait_s)
+        with self._arrived:
+            behind = n - self._tpdo1_seq - self._tpdo1_lost
+            if behind < 0:  # an answer judged dropped came after all
+                self._tpdo1_lost, behind = n - self._tpdo1_seq, 0
+            if behind == 0:
+                self._tpdo1_lag_cycles = 0
+                return True
+            if self._tpdo1_seq == seq:  # nothing came: a silent or late drive, not a drop
+                return False
+            self._tpdo1_lag_cycles += 1
+            least = behind if self._tpdo1_lag_cycles == 1 else self._tpdo1_lag_least
+            self._tpdo1_lag_least = least = min(least, behind)
+            if self._tpdo1_lag_cycles < TPDO_LAG_CYCLES:
+                return False
+            self.dropped_answers += least
+            self._tpdo1_lost += least
+            self._tpdo1_lag_cycles = 0
+            return behind == least  # then the newest answers this SYNC
+
+    def _sync_data(self, stamp_ns: int) -> bytes:
+        """Return the SYNC's data: its counter, 1 to the overflow value, one step per period."""
+        overflow = self.master.sync_counter_overflow
+        if not overflow:
+            return b''
+        return bytes((stamp_ns // self.period_ns % overflow + 1,))
 
     def _unsynced(self, stamp_ns: int) -> Optional[JointSample]:
         """Judge a SYNC consumer's cycle without the bus's SYNC: no TPDO is owed, none missed.

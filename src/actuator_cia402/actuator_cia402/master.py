@@ -10,7 +10,8 @@ Every object it reads or writes, and why, is in the README's object table.
               EDS; a drive left enabled is stopped (quick stop, ramp, brake, disable voltage);
               0x6071 = 0; rated current/torque, encoder resolution, factor group 0x6091/0x6092
               and polarity 0x607E checked; limits 0x6072/0x6073/0x6080 written and read back;
-              option codes 0x605A/0x605C/0x605E and torque slope 0x6087 set; SYNC period 0x1006,
+              option codes 0x605A/0x605C/0x605E and torque slope 0x6087 set; SYNC counter
+              0x1019 (a SYNC producer, when the EDS has it), SYNC period 0x1006,
               window 0x1007, interpolation period 0x60C2; PDO mapping; heartbeat consumer 0x1016
               and abort connection option 0x6007 written and verified; mode 0x6060 = CST.
   enable      0x6071 = 0, mode display 0x6061 polled; shutdown, switch on (brake still closed);
@@ -73,6 +74,7 @@ class Cia402Master:
         self.codecs: tuple = ()
         self.identity = ''
         self.fault_reaction = 0
+        self.sync_counter_overflow = 0  # 0x1019 as configured: 0, SYNCs carry no counter
 
     def _sdo(self, index: int, subindex: Optional[int] = None):
         """Return the SDO variable of an object (blocking transfers: transitions only)."""
@@ -199,6 +201,8 @@ class Cia402Master:
         )
         self.fault_reaction = self._sdo(p.FAULT_REACTION_OPTION).raw  # the drive tool's
         period_us = int(round(cfg.sync_period_s * 1e6))
+        if cfg.sync_producer and p.SYNC_COUNTER_OVERFLOW in self.node.object_dictionary:
+            notes += self._configure_sync_counter()
         self._write_verified(p.COMMUNICATION_CYCLE_US, None, period_us, 'communication cycle')
         self._write_verified(
             p.SYNC_WINDOW_US, None, int(round(cfg.sync_window_fraction * period_us)), 'SYNC window'
@@ -219,6 +223,22 @@ class Cia402Master:
         )
         self._write_verified(p.MODES_OF_OPERATION, None, p.MODE_CST, 'modes of operation')
         return notes
+
+    def _configure_sync_counter(self) -> list[str]:
+        """Send SYNCs with a counter (0x1019): the drive tells a late SYNC from a skipped one.
+
+        CiA 301 has 0x1019 written while 0x1006 is 0; a drive that refuses it gets SYNCs
+        without a counter (returned as a note).
+        """
+        try:
+            self._write_verified(p.COMMUNICATION_CYCLE_US, None, 0, 'communication cycle')
+            self._write_verified(
+                p.SYNC_COUNTER_OVERFLOW, None, p.SYNC_COUNTER_MAX, 'SYNC counter overflow'
+            )
+        except (canopen.SdoAbortedError, Cia402Error) as exc:
+            return [f'node {self.node.id} takes no SYNC counter (0x1019: {exc}): plain SYNCs']
+        self.sync_counter_overflow = p.SYNC_COUNTER_MAX
+        return []
 
     def _check_equal(
         self, index: int, subindex: Optional[int], expected: int, what: str, unit: str

@@ -12,12 +12,16 @@ from __future__ import annotations
 
 import enum
 
+#: The largest SYNC counter overflow value (CiA 301, 0x1019): the counter runs 1..240.
+SYNC_COUNTER_MAX = 240
+
 # --- object dictionary indices (CiA 301 communication area, CiA 402 profile area) -----------
 DEVICE_TYPE = 0x1000  # UNSIGNED32; low 16 bits = device profile number (402)
 ERROR_REGISTER = 0x1001  # UNSIGNED8 (CiA 301)
 SYNC_COB_ID = 0x1005  # UNSIGNED32
 COMMUNICATION_CYCLE_US = 0x1006  # UNSIGNED32, SYNC period [us]
 SYNC_WINDOW_US = 0x1007  # UNSIGNED32, synchronous window length [us]
+SYNC_COUNTER_OVERFLOW = 0x1019  # UNSIGNED8: 0 SYNC without counter, 2-240 the counter's overflow
 HEARTBEAT_CONSUMER = 0x1016  # ARRAY of UNSIGNED32: bits 16-23 producer node id, 0-15 time [ms]
 HEARTBEAT_PRODUCER_MS = 0x1017  # UNSIGNED16
 IDENTITY = 0x1018  # RECORD

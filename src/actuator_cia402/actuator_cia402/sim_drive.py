@@ -6,10 +6,15 @@
 It behaves as a real CST drive does, hazards included, so the master can be tested against
 them (the console script ``cia402_sim_drive`` runs it in a process of its own):
 
-- drive time follows the wall clock whether SYNCs come or not (a clock thread steps the
-  periods no SYNC stepped); a SYNC latches the RPDO received since the last SYNC (0x6040,
-  0x6071), samples and answers TPDO1/TPDO2. With no master the drive keeps its last target
-  torque: only its heartbeat consumer (0x1016) stops it, by the abort connection option 0x6007;
+- the SYNCs step drive time, as a cyclic synchronous drive's cycle is theirs: with the SYNC
+  counter 0x1019 each SYNC says how many periods passed, however late it came; without it the
+  drive's period grid is phase-locked to the SYNCs (they fall mid-period), so a SYNC less than
+  half a period late neither adds nor drops a period. Either way the master's stamps and the
+  drive's samples keep one time base. With no SYNC for a few periods drive time follows the
+  wall clock (a clock thread steps it). A SYNC latches the RPDO received since the last SYNC
+  (0x6040, 0x6071), samples and answers TPDO1/TPDO2. With no master the drive keeps its last
+  target torque: only its heartbeat consumer (0x1016) stops it, by the abort connection
+  option 0x6007;
 - 0x6071 is a stored object: kept across NMT start and across enable (no zeroing);
 - the SYNC window 0x1007 discards an RPDO that arrives later than the window after the SYNC;
 - quick stop (0x605A), disable operation (0x605C) and the fault reaction (0x605E) ramp the
@@ -17,7 +22,8 @@ them (the console script ``cia402_sim_drive`` runs it in a process of its own):
   (0x2100); the state changes when that is done ('fault reaction active' meanwhile). Disable
   voltage during a ramp cuts it (logged as an event);
 - the brake's state is readable: 0x60FD bit 16 (manufacturer-specific) = brake closed;
-- injectable: drive faults, EMCY, dropped TPDOs, a silent drive, STO (operation left without a
+- injectable: drive faults, EMCY, dropped TPDOs, late TPDOs (sent with the next SYNC's
+  answer), a silent drive, STO (operation left without a
   fault, voltage off), a quick-stop input, remote off, 'target ignored' (statusword bit 12 low),
   and bus errors (sent by the hub as error frames);
 - polarity 0x607E bit 7 inverts position and torque; position actual 0x6064 wraps as INTEGER32;
@@ -52,6 +58,12 @@ MAX_CATCH_UP_PERIODS = 1000
 #: 0x60FD bit 16 (manufacturer-specific): the holding brake is closed.
 DI_BRAKE_CLOSED = 1 << 16
 INT32 = 2**32
+#: Silence after which a SYNC re-locks the drive's cycle at once (a new master) [periods].
+SYNC_RELOCK_PERIODS = 100
+#: Share of each SYNC's phase error the drive's cycle follows (a first-order phase lock).
+SYNC_LOCK_GAIN = 1.0 / 16.0
+#: SYNC silence after which the drive's clock steps drive time itself [periods].
+FREE_RUN_AFTER_PERIODS = 10
 
 
 def wrap_int32(value: int) -> int:
@@ -110,10 +122,16 @@ class SimulatedDrive:
         self.syncs = 0  # periods of drive time
         self.origin: int | None = None  # period of the first SYNC: time 0 of the fault plan
         self.sync_frames = 0
+        self.counted_syncs = 0  # SYNCs whose counter (0x1019) told the periods that passed
         self.tpdos_dropped = 0
+        self.tpdos_late = 0
+        self._late_sends: list[Callable[[], None]] = []  # a late answer, sent with the next
         self.rpdos_discarded = 0
         self._rpdo_data: tuple | None = None
         self._last_sync_mono = 0.0
+        self._locked_sync_ns: int | None = None  # monotonic time of the last SYNC the cycle took
+        self._last_sync_counter: int | None = None  # the counter the last SYNC carried
+        self._sync_period = 0  # drive time after the last SYNC's cycle [periods]
         self._pdo_ready = False
         self._injected: set = set()
         self._heartbeat_seen: float | None = None
@@ -399,27 +417,71 @@ class SimulatedDrive:
 
     # --- the cycle --------------------------------------------------------------------------
     def _clock(self) -> None:
-        """Step the periods no SYNC stepped (drive time follows the wall clock)."""
+        """Step the periods no SYNC stepped (drive time follows the wall clock).
+
+        While SYNCs come, the SYNCs step drive time and this waits: the drive's cycle is theirs.
+        """
         while not self._clock_stop.wait(max(0.002, 2 * self.dt_s)):
             with self.lock:
-                self._catch_up(margin=1)
+                last = self._locked_sync_ns
+                silence_ns = time.monotonic_ns() - (last or 0)
+                if last is None or silence_ns > FREE_RUN_AFTER_PERIODS * self.period_ns:
+                    self._catch_up(margin=1)
 
-    def _catch_up(self, margin: int) -> None:
+    def _catch_up(self, margin: int, now_ns: int | None = None) -> None:
         """Step idle periods until drive time is ``margin`` periods behind the wall clock."""
-        due = (time.monotonic_ns() - self._t0_ns) // self.period_ns
+        now_ns = time.monotonic_ns() if now_ns is None else now_ns
+        due = (now_ns - self._t0_ns) // self.period_ns
         for _ in range(min(MAX_CATCH_UP_PERIODS, due - margin - self.syncs)):
             self._advance(cycle=False)
 
+    def _lock_cycle(self, now_ns: int) -> bool:
+        """Move the drive's period grid so that SYNCs fall mid-period (a phase lock).
+
+        The first SYNC, and the first after a silence of ``SYNC_RELOCK_PERIODS``, sets the
+        phase at once (returns True); each later one moves it by ``SYNC_LOCK_GAIN`` of its
+        error, so the jitter of single SYNCs averages out.
+        """
+        error_ns = (now_ns - self._t0_ns) % self.period_ns - self.period_ns // 2
+        last = self._locked_sync_ns
+        relock = last is None or now_ns - last > SYNC_RELOCK_PERIODS * self.period_ns
+        self._t0_ns += error_ns if relock else round(error_ns * SYNC_LOCK_GAIN)
+        self._locked_sync_ns = now_ns
+        return relock
+
+    def _counted_periods(self, data: bytes, relock: bool) -> int | None:
+        """Periods since the last SYNC by the SYNC counter (0x1019); None without one."""
+        overflow = self._cfg(p.SYNC_COUNTER_OVERFLOW)
+        counter = data[0] if overflow and len(data) >= 1 else None
+        last, self._last_sync_counter = self._last_sync_counter, counter
+        if counter is None or last is None or relock:
+            return None
+        return (counter - last) % overflow or overflow
+
     def _on_sync(self, can_id, data, timestamp) -> None:
-        """SYNC: the periods before it pass, then one drive cycle."""
+        """SYNC: the periods before it pass, then one drive cycle.
+
+        With a counter the SYNCs say how many periods passed, however late this one came;
+        without one the phase lock tells, for SYNCs less than half a period late.
+        """
         if self.silent:
             return
+        now_ns = time.monotonic_ns()
         with self.lock:
             self.sync_frames += 1
             if self.origin is None:  # the faults' clock starts with the first SYNC
                 self.origin = self.syncs
-            self._catch_up(margin=0)
+            counted = self._counted_periods(bytes(data), self._lock_cycle(now_ns))
+            if counted is None:
+                self._catch_up(margin=0, now_ns=now_ns)
+            else:  # the idle periods the counter says passed, less those the clock stepped
+                self.counted_syncs += 1
+                for _ in range(
+                    min(MAX_CATCH_UP_PERIODS, self._sync_period + counted - 1 - self.syncs)
+                ):
+                    self._advance(cycle=False)
             self._advance(cycle=self._pdo_ready)
+            self._sync_period = self.syncs
             self._last_sync_mono = time.monotonic()
 
     def _applied_target(self) -> int:
@@ -501,7 +563,10 @@ class SimulatedDrive:
                 self.apply_controlword(p.Command.QUICK_STOP.value)
 
     def _send_tpdos(self) -> None:
-        """TPDO1/TPDO2 with the objects the master mapped."""
+        """TPDO1/TPDO2 with the objects the master mapped; a late answer goes before them."""
+        late, self._late_sends = self._late_sends, []
+        for send in late:
+            send()
         if self.faults.drop_tpdo_fraction and self.rng.random() < self.faults.drop_tpdo_fraction:
             self.tpdos_dropped += 1
             return
@@ -514,11 +579,26 @@ class SimulatedDrive:
             p.MODES_OF_OPERATION_DISPLAY: self._cfg(p.MODES_OF_OPERATION),
             p.DIGITAL_INPUTS: DI_BRAKE_CLOSED if self.brake_closed else 0,
         }
-        for pdo_map, codec, indices in self._tpdo_codecs:
-            values = [live[i] for i in indices]
-            if codec is not None:
-                self.network.send_message(codec.cob_id, codec.pack(values))
-            else:
-                for index, value in zip(indices, values):
-                    pdo_map[index].raw = value
-                pdo_map.transmit()
+        sends = [
+            self._tpdo_send(pdo_map, codec, indices, [live[i] for i in indices])
+            for pdo_map, codec, indices in self._tpdo_codecs
+        ]
+        if self.faults.late_tpdo_fraction and self.rng.random() < self.faults.late_tpdo_fraction:
+            self.tpdos_late += 1
+            self._late_sends = sends  # answered with the next SYNC's, just before them
+            return
+        for send in sends:
+            send()
+
+    def _tpdo_send(self, pdo_map, codec, indices, values) -> Callable[[], None]:
+        """Return the sending of one TPDO with these values."""
+        if codec is not None:
+            frame = codec.pack(values)
+            return lambda: self.network.send_message(codec.cob_id, frame)
+
+        def transmit() -> None:
+            for index, value in zip(indices, values):
+                pdo_map[index].raw = value
+            pdo_map.transmit()
+
+        return transmit

@@ -95,6 +95,7 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument('--seed', type=int, default=1)
     ap.add_argument('--silent-at', type=float, default=-1.0)
     ap.add_argument('--drop-tpdo', type=float, default=0.0)
+    ap.add_argument('--late-tpdo', type=float, default=0.0)
     ap.add_argument(
         '--inject',
         type=_injection,
@@ -144,6 +145,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         args.silent_at,
         args.seed,
         tuple(args.inject),
+        late_tpdo_fraction=args.late_tpdo,
     )
     if args.thread_priority:  # before any thread exists: every thread inherits it
         refused = RealtimeSettings(thread_priority=args.thread_priority).apply()
@@ -192,8 +194,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     for drive in drives:
         drive.stop()
         print(
-            f'drive {drive.node.id}: SYNCs {drive.sync_frames}, RPDOs discarded '
-            f'{drive.rpdos_discarded}, TPDOs dropped {drive.tpdos_dropped}',
+            f'drive {drive.node.id}: SYNCs {drive.sync_frames} ({drive.counted_syncs} with a '
+            f'counter), RPDOs discarded '
+            f'{drive.rpdos_discarded}, TPDOs dropped {drive.tpdos_dropped}, late '
+            f'{drive.tpdos_late}',
             flush=True,
         )
     for network in networks:

@@ -40,6 +40,7 @@ class FaultPlan:
     silent_at_s: float = -1.0  # from then on the drive is silent (no TPDO, SDO, heartbeat)
     seed: int = 1
     inject: tuple = ()  # ((kind, t_s), ...) with kind in INJECTIONS
+    late_tpdo_fraction: float = 0.0  # share of SYNCs answered only after the next SYNC
 
     def __post_init__(self) -> None:
         """Refuse an unknown kind or a fraction outside [0, 1]."""
@@ -47,10 +48,9 @@ class FaultPlan:
             raise ValueError(
                 f'fault_kind must be none, {", ".join(FAULT_CODES)}; got {self.fault_kind!r}'
             )
-        if not 0.0 <= self.drop_tpdo_fraction <= 1.0:
-            raise ValueError(
-                f'drop_tpdo_fraction must be in [0, 1], got {self.drop_tpdo_fraction}'
-            )
+        for name in ('drop_tpdo_fraction', 'late_tpdo_fraction'):
+            if not 0.0 <= getattr(self, name) <= 1.0:
+                raise ValueError(f'{name} must be in [0, 1], got {getattr(self, name)}')
         for kind, _ in self.inject:
             if kind not in INJECTIONS:
                 raise ValueError(

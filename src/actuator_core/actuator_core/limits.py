@@ -27,6 +27,10 @@ THETA2N = -NOMINAL_VISCOUS_NM_S_RAD / NOMINAL_INERTIA_KG_M2
 #: Sample time of the loop [s] (section 5.1: 1 ms), and the range a node accepts.
 SAMPLE_TIME_S = 1.0e-3
 SAMPLE_TIME_RANGE_S = (1.0e-4, 0.1)
+#: A real joint's cycle that starts later than this share of a period after its instant is
+#: skipped: the drive samples when the SYNC reaches it, and a SYNC this late would be taken
+#: for the next instant (a SYNC-locked drive tolerates jitter under half a period).
+CYCLE_LATENESS_MAX_FRACTION = 0.4
 
 # --- current ----------------------------------------------------------------------------------
 #: The one motor current limit [A]: the controller clamps to it, the drive gate refuses beyond

@@ -41,6 +41,7 @@ from sensor_msgs.msg import JointState
 from actuator_core.gate import CommandGate
 from actuator_core.health import HealthMonitor, Level, Snapshot
 from actuator_core.binding import CommandBinding
+from actuator_core.limits import CYCLE_LATENESS_MAX_FRACTION
 from actuator_core.joint import (
     CommandFreshness,
     Joint,
@@ -128,6 +129,7 @@ class JointNode(ManagedNode):
             self.joint = None
             raise ParameterError(f'{self.summary}: {exc}') from None
         self.period_ns = period_ns(cfg.sample_time_s)
+        self.late_cycle_ns = round(CYCLE_LATENESS_MAX_FRACTION * self.period_ns)
         self.gate = CommandGate(cfg.current_limit_a, cfg.command_timeout_s, cfg.brake_delay_s)
         self.gate_lock = threading.Lock()
         self.binding = CommandBinding(self.period_ns)
@@ -319,19 +321,27 @@ class JointNode(ManagedNode):
     def _sampling_loop(self) -> None:
         """Realtime: sleep to the next instant of the monotonic grid, run the due cycles.
 
+        A real joint samples when its cycle runs, so a cycle runs at its instant or not at all:
+        one that would start more than ``CYCLE_LATENESS_MAX_FRACTION`` of a period late is
+        skipped, and the stamp of every sample stays the instant it was taken at.
+
         Ends with control (a fault, a soft limit, a stale loop): a cycle then reads nothing, so
         the grid would not advance and this SCHED_FIFO thread would spin until deactivation.
         """
         try:
+            next_k = 0  # the next instant a cycle may run at (a real joint skips late ones)
             while not (self.finished or self.stopped_reason or self.stop_sampling.is_set()):
-                next_ns = self.start_mono_ns + (self.sample_index + 1) * self.period_ns
-                wait_ns = next_ns - time.monotonic_ns()
+                next_k = max(next_k, self.sample_index + 1)
+                wait_ns = self.start_mono_ns + next_k * self.period_ns - time.monotonic_ns()
                 if wait_ns > 0:
                     time.sleep(wait_ns * 1e-9)
-                due = (time.monotonic_ns() - self.start_mono_ns) // self.period_ns
+                since_start_ns = time.monotonic_ns() - self.start_mono_ns
+                due = since_start_ns // self.period_ns
                 if self.joint.replays_missed:  # a simulation loses no time: each sample in turn
                     while self.sample_index < due and self._cycle(self.sample_index + 1):
                         pass
+                elif since_start_ns - due * self.period_ns > self.late_cycle_ns:
+                    next_k = due + 1  # too late for this instant's cycle: the next one runs
                 elif due > self.sample_index:  # a real joint: missed cycles are skipped
                     skipped = due - self.sample_index - 1
                     if skipped:
