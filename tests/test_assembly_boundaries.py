@@ -213,6 +213,34 @@ def test_a_stall_the_watchdog_notices_first_holds_the_whole_resync() -> None:
     assert (a.resyncs, a.gap_resyncs) == (1, 1)
 
 
+def test_a_stall_that_caught_the_node_mid_sample_holds_from_when_it_woke() -> None:
+    """The sample in hand when the stall began resyncs; the hold runs from the wake-up.
+
+    Seen in CI (2026-12-05): the controller, stopped 60 ms with y(k) in hand, resynced at k on
+    waking; a hold counted in stamps from k was over at the next sample it took (k + 52 ms),
+    so the law restarted on a braked joint at once and drove +20 A for 30 samples.
+    """
+    a = assembly()
+    for k in range(6):  # received 1 ms after their stamps, on the receipt clock
+        a.add_estimate(k * P, 0.0, 0.0, received_ns=(k + 1) * P)
+        a.add_measurement(k * P, 0.0, received_ns=(k + 1) * P)
+    a.add_measurement(6 * P, 0.0, received_ns=7 * P)  # y(6) in hand: the stall begins
+    woke = 67 * P
+    a.command_gap(60 * P, now_ns=woke)
+    s = a.add_estimate(6 * P, 0.0, 0.0, received_ns=woke)
+    assert s.status is Status.RESYNC and s.safe_stop
+
+    def sample(k):  # the joint kept its 1 kHz grid; from the wake-up on, 1 ms to the receipt
+        a.add_measurement(k * P, 0.0, received_ns=(k + 1) * P)
+        return a.add_estimate(k * P, 0.0, 0.0, received_ns=(k + 1) * P)
+
+    held = [sample(k) for k in range(66, 66 + RESYNC_SAMPLES)]  # the newest when it woke: 66
+    assert all(h.status is Status.RESYNC and h.safe_stop for h in held), [h.status for h in held]
+    restart = sample(66 + RESYNC_SAMPLES)
+    assert restart.status is Status.RECOVERING and restart.t_s == 0.0
+    assert (a.resyncs, a.gap_resyncs) == (1, 1)
+
+
 def test_a_silence_the_watchdog_allows_by_design_is_no_stall() -> None:
     """Long stale timeouts (the joint holds its command): silence within them resyncs nothing."""
     a = assembly()

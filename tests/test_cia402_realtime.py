@@ -358,8 +358,8 @@ def test_two_joints_on_one_bus_close_two_loops_under_namespaces(isolated):
         joints=2,
     )
     logs = {k: process_log(result.run_dir, k) for k in result.exit_codes if k != 'bringup'}
-    assert '(producer), bus load 72.5 % of 1000 kbit/s' in logs['driver1']
-    assert '(consumer), bus load 72.5 % of 1000 kbit/s' in logs['driver2']
+    assert '(producer), bus load 73.5 % of 1000 kbit/s' in logs['driver1']
+    assert '(consumer), bus load 73.5 % of 1000 kbit/s' in logs['driver2']
     assert all('for 2 joints' in logs[f'driver{i}'] for i in (1, 2))
     with AnyReader([result.bag]) as reader:
         topics = {conn.topic for conn in reader.connections}

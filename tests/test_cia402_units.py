@@ -145,14 +145,18 @@ def test_frame_bits_with_worst_case_stuffing():
         frame_bits(9)
 
 
-def test_one_joint_at_1_khz_is_39_percent_of_1_mbit_and_78_percent_of_500_kbit():
-    """The documented bus-load figures (TPDO2 carries the mode display: 5 bytes)."""
-    assert cycle_load(1_000_000, 1e-3).fraction == pytest.approx(0.39)
+def test_one_joint_at_1_khz_is_40_percent_of_1_mbit_and_80_percent_of_500_kbit():
+    """The documented bus-load figures (TPDO2 carries the mode display: 5 bytes).
+
+    The SYNC carries its counter (0x1019, 1 byte): 65 bits, not 55.
+    """
+    assert frame_bits(1) == 65 and frame_bits(0) == 55
+    assert cycle_load(1_000_000, 1e-3).fraction == pytest.approx(0.40)
     assert check_bus_load(1_000_000, 1e-3) is None
     warning = check_bus_load(500_000, 1e-3)
-    assert warning and '78.0 %' in warning
-    assert cycle_load(500_000, 2e-3).fraction == pytest.approx(0.39)  # 500 Hz on 500 kbit/s
-    assert cycle_load(1_000_000, 1e-3, joints=2).fraction == pytest.approx(0.725)
+    assert warning and '80.0 %' in warning
+    assert cycle_load(500_000, 2e-3).fraction == pytest.approx(0.40)  # 500 Hz on 500 kbit/s
+    assert cycle_load(1_000_000, 1e-3, joints=2).fraction == pytest.approx(0.735)
 
 
 def test_impossible_bus_load_is_refused_with_the_figure_in_one_line():
@@ -160,7 +164,7 @@ def test_impossible_bus_load_is_refused_with_the_figure_in_one_line():
     with pytest.raises(BusLoadError) as info:
         check_bus_load(125_000, 1e-3)
     text = str(info.value)
-    assert '312.0 % of 125 kbit/s' in text and '\n' not in text
+    assert '320.0 % of 125 kbit/s' in text and '\n' not in text
 
 
 # --- parameters ------------------------------------------------------------------------------
@@ -183,7 +187,7 @@ def test_driver_defaults_are_the_project_limits():
     [
         (lambda: DriverParameters(interface='pcan', eds_file='d.eds'), 'interface'),
         (lambda: DriverParameters(interface='socketcan', simulated_drive=True), 'simulated_drive'),
-        (lambda: DriverParameters(bitrate=125_000, eds_file='d.eds'), '312.0 %'),
+        (lambda: DriverParameters(bitrate=125_000, eds_file='d.eds'), '320.0 %'),
         (lambda: DriverParameters(node_id=0, eds_file='d.eds'), 'node_id'),
         (lambda: DriverParameters(sync_period_s=0.0, eds_file='d.eds'), 'sync_period_s'),
         (lambda: DriverParameters().eds_path(), 'eds_file must name'),  # none on a real bus

@@ -150,9 +150,9 @@ def test_the_bus_load_of_every_joint_is_checked():
     from actuator_cia402.busload import BusLoadError, check_bus_load, cycle_load
 
     two = cycle_load(1_000_000, 1e-3, joints=2)
-    assert two.bits_per_cycle == 55 + 2 * (95 + 135 + 105)  # one SYNC, each drive's 3 PDOs
+    assert two.bits_per_cycle == 65 + 2 * (95 + 135 + 105)  # one SYNC, each drive's 3 PDOs
     assert 'for 2 joints is above 60 %' in check_bus_load(1_000_000, 1e-3, joints=2)
-    assert check_bus_load(1_000_000, 1e-3) is None  # one joint: 39 %
+    assert check_bus_load(1_000_000, 1e-3) is None  # one joint: 40 %
     with pytest.raises(BusLoadError, match='for 2 joints exceeds the limit of 80 %'):
         check_bus_load(500_000, 1e-3, joints=2)
 

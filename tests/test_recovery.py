@@ -85,7 +85,7 @@ class RealTimeModel:
             kind, stamp, value = self.controller_inbox.popleft()
             if kind == 'y':
                 if self.command_done is not None:  # the node's own silence (a stall of its own)
-                    self.assembly.command_gap(now - self.command_done, QUIET_NS)
+                    self.assembly.command_gap(now - self.command_done, QUIET_NS, now)
                 out.append(self.assembly.add_measurement(stamp, value, now))
             else:
                 e = value

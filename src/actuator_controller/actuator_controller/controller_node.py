@@ -265,7 +265,7 @@ class ControllerNode(ManagedNode):
     def _after_silence(self, now_ns: int) -> None:
         """Real time: tell the assembly how long this node sent no command (a stall of its own)."""
         if self.params.mode == 'realtime' and self.command_done_ns is not None:
-            self.assembly.command_gap(now_ns - self.command_done_ns, self.quiet_ns)
+            self.assembly.command_gap(now_ns - self.command_done_ns, self.quiet_ns, now_ns)
 
     def on_estimate(self, msg: StateEstimate) -> None:
         """x_hat(k): every field checked against its physical range, then the assembly."""

@@ -140,6 +140,9 @@ class ControlSampleAssembly:
         self.latched = False
         self.braking = False  # the newest command asked for the brake (safe_stop)
         self.resync_until_ns: Optional[int] = None
+        # a stall's hold on the receipt clock too: as many periods from when it was noticed
+        self.resync_until_received_ns = 0
+        self.stall_noticed_ns: Optional[int] = None  # receipt clock: when a stall was noticed
         self.refusal = ''  # why the last input was refused ('' when it was not)
         self.initial_ahead: Optional[tuple] = None  # an observer restart ahead of y, kept aside
         self.corrected = self.unanswered = self.missed = self.resyncs = 0
@@ -234,13 +237,24 @@ class ControlSampleAssembly:
         if self.resync_until_ns is not None and stamp_ns < self.resync_until_ns:
             return  # already resyncing
         self.resyncs += 1
-        self.resync_until_ns = stamp_ns + self.resync_samples * self.period_ns
+        hold_ns = self.resync_samples * self.period_ns
+        self.resync_until_ns = stamp_ns + hold_ns
+        # A stall caught this node with the sample in hand (received long before the stall was
+        # noticed): its stamp is from before the stall, so the hold counts from waking too.
+        noticed, received = self.stall_noticed_ns, self.measurement_received_ns
+        caught = None not in (noticed, received) and noticed - received > self.gap_limit_ns
+        self.resync_until_received_ns = noticed + hold_ns if caught else 0
         self.estimates = {s: e for s, e in self.estimates.items() if s >= stamp_ns}
         if self.pending is not None and self.pending[0] < stamp_ns:
             self.pending = None
         self.controlled_ns = None
 
-    def command_gap(self, silent_ns: int, quiet_ns: int = 0) -> None:
+    def _latest_received_ns(self, default_ns: int) -> int:
+        """Return the latest input receipt time known, else ``default_ns``."""
+        known = [t for t in (self.measurement_received_ns, self.estimate_received_ns) if t]
+        return max(known) if known else default_ns
+
+    def command_gap(self, silent_ns: int, quiet_ns: int = 0, now_ns: Optional[int] = None) -> None:
         """Take note that no command went out for ``silent_ns`` [ns] (a stall of this node).
 
         Its stamps show no gap then. ``quiet_ns``: the longest this node is silent by design
@@ -249,10 +263,13 @@ class ControlSampleAssembly:
         the next sample the law is to run for takes the resync path instead of chasing the
         reference (that sample, not the newest seen: the watchdog's timer may notice the stall
         first, when the newest stamp is from before it, and a hold counted from there would
-        be over before it began).
+        be over before it began). ``now_ns``: when the stall was noticed, on the receipt clock;
+        when the stall caught the node with a sample in hand (received before it), the hold also
+        lasts ``resync_samples`` periods from then.
         """
         if silent_ns > max(self.gap_limit_ns, quiet_ns) and self.controlled_ns is not None:
             self.stalled = True  # the resync starts at the sample the law is to run for next
+            self.stall_noticed_ns = now_ns
 
     def reset(self) -> None:
         """Clear the latch and start over (lifecycle: cleanup and configure)."""
@@ -319,11 +336,14 @@ class ControlSampleAssembly:
             sliding = self.needs_estimate and xm.any_true(
                 xm.fabs(estimate[0]) > RESYNC_REST_VELOCITY_RAD_S
             )
-            if stamp < self.resync_until_ns or (
-                sliding and stamp < self.resync_until_ns + self.resync_extra_ns
+            received_ns = self._latest_received_ns(stamp)
+            if (
+                stamp < self.resync_until_ns
+                or received_ns < self.resync_until_received_ns
+                or (sliding and stamp < self.resync_until_ns + self.resync_extra_ns)
             ):
                 return self.safe_sample(stamp, Status.RESYNC, y)
-            self.resync_until_ns = None
+            self.resync_until_ns = self.stall_noticed_ns = None
             self.reference_shift_s = self.rest_s
             self.reference_offset_rad = (
                 y - self.reference.sample(self.reference_shift_s).position_rad
