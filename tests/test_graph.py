@@ -6,6 +6,7 @@
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 import pytest
 
@@ -16,6 +17,7 @@ from actuator_tools.graph import (
     LIVE_DIAGNOSTICS_RATE_HZ,
     SYNC_PRODUCER_GRACE_S,
     closed_loop,
+    compose,
     default_scenario,
     ros_arguments,
 )
@@ -112,6 +114,35 @@ def test_two_joints_on_one_bus_each_loop_under_its_namespace():
     topics = by_key['recorder'].parameters['topics']
     assert '/joint1/joint_states' in topics and '/joint2/controller/state' in topics
     assert len(topics) == 8
+
+
+def test_composed_cia402_joints_one_process_per_joint_each_node_its_full_name(tmp_path):
+    """--composed with CiA 402 joints: one container per joint, in its namespace.
+
+    rcl's ``-p node:name:=value`` rules reach /node only, so a namespaced container gets a
+    file whose sections name each node fully (/joint2/actuator_cia402_driver).
+    """
+    import yaml
+
+    scenario = bringup.scenario_file('drive_pp_nftsmc_eso')
+    one = compose(closed_loop('realtime', 5.0, joint='cia402_sim'))
+    loop = {s.key: s for s in one}['loop']
+    assert [m.key for m in loop.members] == ['driver', 'controller', 'eso']  # the joint first
+    assert ros_arguments(loop, scenario)[:4] == ['--nodes', 'driver', 'controller', 'eso']
+    specs = compose(closed_loop('realtime', 5.0, joint='cia402_sim', joints=2))
+    assert [s.key for s in specs] == ['recorder', 'drive', 'loop1', 'loop2']  # producer: first
+    for i, spec in enumerate(specs[2:], start=1):
+        args = ros_arguments(spec, scenario, tmp_path)
+        assert args[:6] == ['--nodes', 'driver', 'controller', 'eso', '--ros-args', '-r']
+        assert args[6] == f'__ns:=/joint{i}' and args[7] == '--params-file'
+        sections = yaml.safe_load(Path(args[8]).read_text())
+        driver = sections[f'/joint{i}/actuator_cia402_driver']['ros__parameters']
+        assert driver['node_id'] == i and driver['sync_producer'] is (i == 1)
+        controller = sections[f'/joint{i}/actuator_controller']['ros__parameters']
+        assert controller['controller'] == 'pp_nftsmc_eso'  # the file's section, inlined
+        assert controller['joint_name'] == f'joint{i}'  # and the spec's own parameters
+    with pytest.raises(ValueError, match='a joint of its own'):
+        compose([s for s in closed_loop('realtime', 5.0) if s.key != 'plant'])
 
 
 def test_a_namespaced_node_gets_its_file_sections_as_values():

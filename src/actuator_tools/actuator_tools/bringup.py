@@ -148,7 +148,7 @@ def run_closed_loop(
     try:
         for spec in specs:
             extra = _extra_arguments(spec, extra_params)
-            args = ros_arguments(spec, params)
+            args = ros_arguments(spec, params, run_dir)
             procs[spec.key] = RosProcess.installed(
                 spec.package, spec.executable, args + extra, log_dir=run_dir, name=spec.key
             )
@@ -397,8 +397,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error(f'--joints must be in [1, {MAX_JOINTS_ON_BUS}]')
     if args.joints > 1 and args.joint not in ('cia402_sim', 'cia402'):
         parser.error('--joints above 1 needs --joint cia402_sim or cia402 (drives on one bus)')
-    if args.joints > 1 and args.composed:
-        parser.error('--composed holds the simulated plant: one joint')
     low, high = limits.DIAGNOSTICS_RATE_RANGE_HZ
     if args.diagnostics_rate is not None and not low <= args.diagnostics_rate <= high:
         parser.error(f'--diagnostics-rate must be in [{low:g}, {high:g}] Hz')

@@ -23,6 +23,7 @@ from typing import Callable, Sequence
 #: Node kinds the container can hold: key -> (module, class, node name).
 KINDS = {
     'plant': ('actuator_plant.plant_node', 'PlantNode', 'actuator_plant'),
+    'driver': ('actuator_cia402.driver_node', 'Cia402DriverNode', 'actuator_cia402_driver'),
     'eso': ('actuator_eso.eso_node', 'EsoNode', 'actuator_eso'),
     'controller': ('actuator_controller.controller_node', 'ControllerNode', 'actuator_controller'),
 }

@@ -19,6 +19,8 @@ exceeded the kernel's RT budget (sched_rt_runtime_us) and were stopped for 27-63
 
 from __future__ import annotations
 
+import hashlib
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
@@ -78,30 +80,50 @@ class NodeSpec:
 #: before the ESO: one executor takes a sample's deliveries in that order, and the controller's
 #: law needs y(k) at once while the ESO needs it only for x_hat(k+1) (measured, composed under
 #: SCHED_FIFO, no recorder, 2 x 8 s each way: latency p50 284 / 277 us against 323 / 330 us).
-COMPOSABLE = ('plant', 'controller', 'eso')
+COMPOSABLE = ('plant', 'driver', 'controller', 'eso')
+#: The joints a composed loop can hold (the CiA 402 drive itself stays a process: hardware).
+COMPOSABLE_JOINTS = ('plant', 'driver')
 CONTAINER = ('actuator_tools', 'loop_container')
 
 
 def compose(specs: list[NodeSpec]) -> list[NodeSpec]:
-    """Put the joint, the ESO and the controller of ``specs`` into one process.
+    """Put each joint's joint, ESO and controller of ``specs`` into one process.
 
     The same nodes with the same parameters, on one executor (actuator_tools.container); the
-    recorder and a joint that cannot be composed keep their own processes. Start order: the
-    others, then the container (it holds the joint, which starts sampling when all are there).
+    recorder and the simulated drive (hardware) keep their own processes. Several joints: one
+    container per joint, in its namespace, in the joints' order (the SYNC producer's first, so
+    it is stopped last). Start order: the others, then the containers (each holds its joint,
+    which starts sampling when all are there).
     """
-    inside = {s.key: s for s in specs if s.key in COMPOSABLE}
-    if 'plant' not in inside:
-        raise ValueError('a composed loop needs the simulated plant as its joint (joint:=plant)')
-    members = tuple(inside[k] for k in COMPOSABLE if k in inside)
-    container = NodeSpec(
-        'loop',
-        *CONTAINER,
-        'loop_container',
-        {},
-        leader=any(m.leader for m in members),
-        members=members,
-    )
-    return [s for s in specs if s.key not in inside] + [container]
+    loops: dict[str, dict[str, NodeSpec]] = {}
+    for spec in specs:
+        if node_kind(spec) in COMPOSABLE:
+            loops.setdefault(spec.namespace, {})[node_kind(spec)] = spec
+    if not loops or any(not set(COMPOSABLE_JOINTS) & set(inside) for inside in loops.values()):
+        raise ValueError(
+            'a composed loop needs a joint of its own: the simulated plant or a CiA 402 driver'
+        )
+    containers = []
+    for ns, inside in loops.items():
+        members = tuple(inside[k] for k in COMPOSABLE if k in inside)
+        containers.append(
+            NodeSpec(
+                f'loop{ns.removeprefix("joint")}',
+                *CONTAINER,
+                'loop_container',
+                {},
+                leader=any(m.leader for m in members),
+                members=members,
+                namespace=ns,
+            )
+        )
+    inside_keys = {m.key for c in containers for m in c.members}
+    return [s for s in specs if s.key not in inside_keys] + containers
+
+
+def node_kind(spec: NodeSpec) -> str:
+    """Return a spec's node kind: its key without a joint's number (controller2: controller)."""
+    return spec.key.rstrip('0123456789')
 
 
 def default_scenario(joint: str) -> str:
@@ -369,7 +391,9 @@ def closed_loop(
     return specs
 
 
-def ros_arguments(spec: NodeSpec, scenario_file: Optional[Path]) -> list[str]:
+def ros_arguments(
+    spec: NodeSpec, scenario_file: Optional[Path], workdir: Optional[Path] = None
+) -> list[str]:
     """``--ros-args`` of a process started directly (the runner).
 
     The file, then the node's parameters. rcl reads a ``-p`` value as YAML, so a string that
@@ -381,7 +405,12 @@ def ros_arguments(spec: NodeSpec, scenario_file: Optional[Path]) -> list[str]:
     if spec.arguments:
         return list(spec.arguments)
     if spec.members:
-        args = ['--nodes', *(m.key for m in spec.members), '--ros-args']
+        args = ['--nodes', *(node_kind(m) for m in spec.members), '--ros-args']
+        if spec.namespace:
+            # rcl's -p rules name a node without its namespace and then match /name only; a
+            # parameter file's sections may name the node fully (/joint1/actuator_controller)
+            args += ['-r', f'__ns:=/{spec.namespace}']
+            return args + ['--params-file', str(_namespaced_file(spec, scenario_file, workdir))]
         if scenario_file is not None:
             args += ['--params-file', str(scenario_file)]
         for member in spec.members:
@@ -395,6 +424,27 @@ def ros_arguments(spec: NodeSpec, scenario_file: Optional[Path]) -> list[str]:
     elif spec.scenario_file and scenario_file is not None:
         args += ['--params-file', str(scenario_file)]
     return args + _parameter_arguments(spec.parameters)
+
+
+def _namespaced_file(
+    spec: NodeSpec, scenario_file: Optional[Path], workdir: Optional[Path]
+) -> Path:
+    """Write a container's parameters, each member's section under its full name; return it.
+
+    Into ``workdir`` (the run's folder; default the temporary one), named by its content.
+    """
+    sections = {}
+    for member in spec.members:
+        own = {}
+        if member.scenario_file and scenario_file is not None:
+            own = node_parameters(scenario_file, member.name)
+        own.update(member.parameters)
+        sections[f'/{spec.namespace}/{member.name}'] = {'ros__parameters': own}
+    text = yaml.safe_dump(sections, sort_keys=True)
+    folder = Path(tempfile.gettempdir()) if workdir is None else Path(workdir)
+    path = folder / f'{spec.key}_{hashlib.sha1(text.encode()).hexdigest()[:12]}.yaml'
+    path.write_text(text)
+    return path
 
 
 def _parameter_arguments(parameters: dict, target: str = '') -> list[str]:
