@@ -203,3 +203,25 @@ def test_a_cia402_joint_runs_the_drive_tuning_and_the_plant_the_papers_unless_na
     assert (drive.eso.l1, drive.eso.l2, drive.eso.l3) == (12.0, 48.0, 64.0)
     with pytest.raises(ValueError, match='joint must be one of'):
         default_scenario('plnat')
+
+
+def test_the_runners_extra_parameters_reach_the_eso_and_the_controllers_only():
+    """--params-file / -p of the runner: every joint's ESO and controller, no other process.
+
+    Before, with --joints 2 the keys controller1, eso1 ... were not recognised and the
+    arguments went to every process: the simulated drive exited 2 on '--params-file'.
+    """
+    extra = ['--params-file', 'gains.yaml', '-p', 'x:=1']
+    specs = closed_loop('realtime', 5.0, joint='cia402_sim', joints=2)
+    got = {s.key: bringup._extra_arguments(s, extra) for s in specs}
+    assert {k for k, v in got.items() if v} == {'controller1', 'eso1', 'controller2', 'eso2'}
+    assert got['eso2'] == extra
+    loop = {s.key: s for s in compose(closed_loop('realtime', 5.0))}['loop']
+    assert bringup._extra_arguments(loop, extra) == [
+        '--params-file',
+        'gains.yaml',
+        '-p',
+        'actuator_controller:x:=1',
+        '-p',
+        'actuator_eso:x:=1',
+    ]

@@ -36,6 +36,7 @@ from actuator_tools.graph import (
     closed_loop,
     compose,
     default_scenario,
+    node_kind,
     ros_arguments,
 )
 from actuator_tools.supervisor import ProcessFigures, RosProcess
@@ -186,9 +187,11 @@ def run_closed_loop(
 
 def _extra_arguments(spec, extra_params: Sequence[str]) -> list[str]:
     """``extra_params`` (ROS arguments for the ESO and the controller) of one process."""
-    if spec.key in ('controller', 'eso'):
+    if node_kind(spec) in ('controller', 'eso'):
         return list(extra_params)
-    targets = [m.name for m in spec.members if m.key in ('controller', 'eso')]
+    targets = [m.name for m in spec.members if node_kind(m) in ('controller', 'eso')]
+    if not targets:  # the joint, the drive, the recorder: none of them
+        return []
     out, it = [], iter(extra_params)
     for arg in it:  # in a container each '-p name:=value' is aimed at the ESO and controller
         if arg in ('-p', '--param'):
