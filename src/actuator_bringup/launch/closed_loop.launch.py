@@ -174,6 +174,8 @@ def _processes(context):
             )
             actions.append(action)
             leaders.append(action)
+            if any(m.parameters.get('sync_producer') for m in spec.members):
+                producer = action  # several composed CiA 402 joints: the SYNC's container
             continue
         # rcl applies a file's 'actuator_controller:' section to /actuator_controller only: a
         # node in a namespace (several joints) gets its sections as values
