@@ -583,4 +583,4 @@ def test_late_and_dropped_answers_never_give_a_sample_another_syncs_position(sim
     moving = velocity[1:] > 1.0
     assert moving.sum() > 100, velocity
     assert np.max(np.abs(acceleration[moving])) < 1000.0, np.sort(np.abs(acceleration))[-5:]
-    assert joint.dropped_answers <= dropped
+    assert joint.answers.dropped <= dropped

@@ -33,6 +33,7 @@ import canopen
 
 from actuator_core.joint import Joint, JointError, JointSample
 from actuator_cia402 import profile as p
+from actuator_cia402.answers import AnswerCount
 from actuator_cia402.hub import HubBus, bus_error
 from actuator_cia402.master import Cia402Error, Cia402Master
 
@@ -40,10 +41,6 @@ from actuator_cia402.master import Cia402Error, Cia402Master
 HEARTBEAT_OPERATIONAL = 0x05
 #: How long configure tries to reach the simulated drive's hub [s].
 HUB_CONNECT_TIMEOUT_S = 20.0
-#: Cycles in a row whose TPDO1 count stays behind while answers come: those were dropped. A
-#: drive late this many SYNCs in a row would be taken for one that dropped answers; a drop
-#: costs this many cycles without a sample (the controller waits 7 before it resyncs).
-TPDO_LAG_CYCLES = 5
 ALLOWED_WHILE_RUNNING = (p.State.SWITCHED_ON, p.State.OPERATION_ENABLED)
 
 
@@ -134,10 +131,7 @@ class Cia402Joint(Joint):
         self._tpdo1: Optional[tuple] = None
         self._tpdo1_seq = 0  # TPDO1s received
         self._syncs_sent = 0  # SYNCs this master sent (sync_producer)
-        self._tpdo1_lost = 0  # SYNCs whose TPDO1 was judged dropped
-        self._tpdo1_lag_cycles = 0  # cycles in a row whose answer was behind, others coming
-        self._tpdo1_lag_least = 0  # the least the count was behind in those cycles
-        self.dropped_answers = 0
+        self.answers = AnswerCount()  # which TPDO1 answers which of those SYNCs
         self._tpdo2 = (0, 0, p.MODE_CST)
         self._sync_seq = 0
         self._consumed_sync = 0
@@ -222,8 +216,7 @@ class Cia402Joint(Joint):
         self._enable_since_ns = self._not_following_since_ns = None
         self._missed_in_row = self._unsynced_in_row = 0
         with self._arrived:  # every SYNC before this run counts as answered
-            self._tpdo1_lost = self._syncs_sent - self._tpdo1_seq
-            self._tpdo1_lag_cycles = 0
+            self.answers.restart(self._syncs_sent, self._tpdo1_seq)
         self._synced = False
         self._cycling = False  # the heartbeat watches the cycle from its first read on
         self.active = True
@@ -352,34 +345,11 @@ class Cia402Joint(Joint):
         return JointSample(stamp_ns, self.position_rad, effort, self._fault(statusword))
 
     def _answered(self, seq: int) -> bool:
-        """Wait for the TPDO1 that answers the SYNC just sent; False: none in time.
-
-        A drive answers its SYNCs in order, so TPDO1 number n answers SYNC number n, less the
-        answers it dropped. A late answer is never taken for the next SYNC's: it only counts.
-        Answers that keep coming ``TPDO_LAG_CYCLES`` cycles in a row while the count stays
-        behind are the sign of dropped ones: the least it stayed behind is taken as dropped
-        (a late drive catches up instead, and a late answer on top of a drop is not a drop).
-        """
+        """Wait for the TPDO1 that answers the SYNC just sent (``answers.py``); False: none."""
         n = self._syncs_sent
-        self._wait(lambda: self._tpdo1_seq + self._tpdo1_lost >= n, self.wait_s)
+        self._wait(lambda: self.answers.owed(n, self._tpdo1_seq) <= 0, self.wait_s)
         with self._arrived:
-            behind = n - self._tpdo1_seq - self._tpdo1_lost
-            if behind < 0:  # an answer judged dropped came after all
-                self._tpdo1_lost, behind = n - self._tpdo1_seq, 0
-            if behind == 0:
-                self._tpdo1_lag_cycles = 0
-                return True
-            if self._tpdo1_seq == seq:  # nothing came: a silent or late drive, not a drop
-                return False
-            self._tpdo1_lag_cycles += 1
-            least = behind if self._tpdo1_lag_cycles == 1 else self._tpdo1_lag_least
-            self._tpdo1_lag_least = least = min(least, behind)
-            if self._tpdo1_lag_cycles < TPDO_LAG_CYCLES:
-                return False
-            self.dropped_answers += least
-            self._tpdo1_lost += least
-            self._tpdo1_lag_cycles = 0
-            return behind == least  # then the newest answers this SYNC
+            return self.answers.judge(n, self._tpdo1_seq, seq)
 
     def _sync_data(self, stamp_ns: int) -> bytes:
         """Return the SYNC's data: its counter, 1 to the overflow value, one step per period."""
