@@ -423,10 +423,9 @@ class SimulatedDrive:
         """
         while not self._clock_stop.wait(max(0.002, 2 * self.dt_s)):
             with self.lock:
-                last = self._locked_sync_ns
-                silence_ns = time.monotonic_ns() - (last or 0)
-                if last is None or silence_ns > FREE_RUN_AFTER_PERIODS * self.period_ns:
-                    self._catch_up(margin=1)
+                now_ns, last = time.monotonic_ns(), self._locked_sync_ns
+                if last is None or now_ns - last > FREE_RUN_AFTER_PERIODS * self.period_ns:
+                    self._catch_up(margin=1, now_ns=now_ns)
 
     def _catch_up(self, margin: int, now_ns: int | None = None) -> None:
         """Step idle periods until drive time is ``margin`` periods behind the wall clock."""
