@@ -362,11 +362,11 @@ def test_player_unknown_topic(ros_process, tmp_path: Path) -> None:
     )
 
 
-@pytest.mark.ros  # the recorder module imports rclpy
+@pytest.mark.unit  # recording.py is ROS-free
 def test_a_system_topic_under_a_namespace_has_its_type() -> None:
     """Several joints: /joint2/eso/estimate is the StateEstimate topic of joint 2."""
     from actuator_bag.errors import BagError
-    from actuator_bag.recorder_node import parse_topic
+    from actuator_bag.recording import parse_topic
 
     assert parse_topic('/joint2/eso/estimate') == (
         '/joint2/eso/estimate',
@@ -472,11 +472,12 @@ def test_recorder_allows_unknown_parameters_when_asked(ros_process, tmp_path: Pa
 
 def test_recorder_parameters_have_descriptions(rclpy_context, tmp_path: Path) -> None:
     """Every parameter the recorder declares has a description (ros2 param describe shows it)."""
-    from actuator_bag.recorder_node import RecorderNode, build_parser
+    from actuator_bag.recorder_node import RecorderNode
+    from actuator_bag.recording import add_arguments
 
-    node = RecorderNode(
-        build_parser().parse_args(['-o', str(tmp_path / 'desc')]), context=rclpy_context
-    )
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    node = RecorderNode(parser.parse_args(['-o', str(tmp_path / 'desc')]), context=rclpy_context)
     try:
         names = sorted(n for n in node._parameters if n != 'use_sim_time')  # noqa: SLF001
         assert {

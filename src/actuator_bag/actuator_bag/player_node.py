@@ -9,26 +9,31 @@ installed message packages, so a replayed message is byte-identical to the recor
 QoS: KEEP_LAST with a deep queue, RELIABLE by default. Timing follows the recorded log
 times: message k goes out at start + (t_k - t_0) / rate on the monotonic clock.
 SIGINT/SIGTERM at any moment (also during the imports: entry.py) stop it with exit 0.
+
+The node is a ``ProcessMember`` in a process started by ``run_nodes``: ``autostart`` starts the
+playing thread, which ends the run (``finished``) when the bag is played through, or fails it
+(``error``: one line ``player: error: ...``, exit 1); ``halt`` stops it.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
-import sys
+import threading
 import time
 from pathlib import Path
 from typing import Any, Optional, Sequence
 
-import rclpy
 from rclpy.node import Node
-from rclpy.signals import SignalHandlerOptions
-from rclpy.utilities import remove_ros_args
+
+from actuator_ros.node import declare_realtime
+from actuator_ros.process_member import MemberError, ProcessMember
+from actuator_ros.realtime import RealtimeSettings
 
 from .errors import BagError
 from .progress import Progress
 from .reading import open_bag, topic_names
-from .ros_common import StopFlag, make_qos, message_class
+from .ros_common import make_qos, message_class, run_bag_node
 
 #: Sleep in coarse steps until this close to a message's due time, then spin [s].
 _SPIN_WINDOW_S = 0.0015
@@ -39,12 +44,15 @@ def _absolute(name: str) -> str:
     return name if name.startswith('/') else '/' + name
 
 
-class PlayerNode(Node):
+class PlayerNode(Node, ProcessMember):
     """Holds one publisher per replayed topic and publishes bag messages on schedule."""
 
-    def __init__(self, defaults: argparse.Namespace) -> None:
+    def __init__(
+        self, defaults: argparse.Namespace, settings: RealtimeSettings = RealtimeSettings()
+    ) -> None:
         """Declare parameters (defaults from the command line) and validate them."""
         super().__init__('player')
+        declare_realtime(self, settings)
         self.declare_parameter('bag', defaults.bag or '')
         self.declare_parameter('rate', float(defaults.rate))
         self.declare_parameter('topics', list(defaults.topics) or [''])
@@ -75,11 +83,50 @@ class PlayerNode(Node):
         )
         self.publishers_: dict[int, Any] = {}
         self.counts: dict[str, int] = {}
+        self.stop_requested = threading.Event()
+        self.elapsed_s = 0.0
+        self.played_through = False  # the bag played to its end, not stopped
+        self._thread = threading.Thread(target=self._run, name='player', daemon=True)
 
-    def play(self, stop: StopFlag) -> float:
-        """Replay the bag (repeatedly with loop) until done or stopped.
+    # --- ProcessMember: the playing thread ends the run ---------------------------------------
+    def autostart(self) -> bool:
+        """Start playing."""
+        self._thread.start()
+        return True
 
-        Return the seconds spent publishing.
+    def _run(self) -> None:
+        """Play; what ends it ends the run (an error with its one line)."""
+        try:
+            self.play(self.stop_requested)
+            self.played_through = not self.stop_requested.is_set()
+        except BagError as err:
+            self.error = str(err)
+        except Exception as exc:  # noqa: BLE001 - reported by run_nodes, never lost with the thread
+            self.error = f'playing failed: {exc!r}'
+        self.finished = True
+
+    def halt(self) -> None:
+        """Stop playing (the message being waited for is not sent)."""
+        self.stop_requested.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout=2.0)
+
+    def release(self) -> None:
+        """Print the summary line; a failed run says its reason instead."""
+        if self.error:
+            raise MemberError(self.error)
+        per_topic = ', '.join(f'{k}={v}' for k, v in self.counts.items())
+        how = 'done' if self.played_through else 'stopped'
+        print(
+            f'player: {how}: published {sum(self.counts.values())} messages '
+            f'in {self.elapsed_s:.3f} s ({per_topic})',
+            flush=True,
+        )
+
+    def play(self, stop: threading.Event) -> None:
+        """Replay the bag (repeatedly with loop) until done or ``stop`` is set.
+
+        ``elapsed_s``: the seconds spent publishing.
         """
         with open_bag(self.bag) as reader:
             conns = reader.connections
@@ -106,12 +153,14 @@ class PlayerNode(Node):
                 f'at rate {self.rate:g}' + (' (loop)' if self.loop else '')
             )
             started = time.monotonic()
-            while not stop.requested:
-                progress = Progress(f'player {self.bag.name}', total, unit='messages')
-                self._play_once(reader, conns, stop, progress)
-                if not self.loop:
-                    break
-            return time.monotonic() - started
+            try:
+                while not stop.is_set():
+                    progress = Progress(f'player {self.bag.name}', total, unit='messages')
+                    self._play_once(reader, conns, stop, progress)
+                    if not self.loop:
+                        break
+            finally:
+                self.elapsed_s = time.monotonic() - started
 
     def _playable(self, conns: list) -> list:
         """Return (connection, message class) of the topics whose type is installed.
@@ -137,13 +186,13 @@ class PlayerNode(Node):
             raise BagError(f'{self.bag}: nothing to play: no topic has an installed type')
         return playable
 
-    def _wait_for_subscribers(self, stop: StopFlag) -> None:
+    def _wait_for_subscribers(self, stop: threading.Event) -> None:
         """Block until every publisher has wait_for_subscribers matched subscriptions.
 
         Then wait start_delay.
         """
         deadline = time.monotonic() + self.wait_timeout
-        while self.wait_for and not stop.requested:
+        while self.wait_for and not stop.is_set():
             if all(p.get_subscription_count() >= self.wait_for for p in self.publishers_.values()):
                 break
             if time.monotonic() > deadline:
@@ -153,10 +202,12 @@ class PlayerNode(Node):
                 )
             time.sleep(0.02)
         end = time.monotonic() + self.start_delay
-        while not stop.requested and time.monotonic() < end:
+        while not stop.is_set() and time.monotonic() < end:
             time.sleep(0.02)
 
-    def _play_once(self, reader: Any, conns: list, stop: StopFlag, progress: Progress) -> None:
+    def _play_once(
+        self, reader: Any, conns: list, stop: threading.Event, progress: Progress
+    ) -> None:
         """Publish every message once on schedule."""
         start_wall: Optional[float] = None
         first_ns = 0
@@ -168,7 +219,7 @@ class PlayerNode(Node):
                 start_wall, first_ns = time.monotonic(), log_ns
             due = start_wall + (log_ns - first_ns) * 1e-9 / self.rate
             while True:
-                if stop.requested:
+                if stop.is_set():
                     return
                 left = due - time.monotonic()
                 if left <= 0:
@@ -183,17 +234,15 @@ class PlayerNode(Node):
         progress.update(done)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """Command-line interface of the player.
+DESCRIPTION = (
+    'Publish the messages of a rosbag2 (MCAP) bag again at their recorded timing. Each option '
+    'sets the default of the node parameter of the same name (override with --ros-args -p '
+    'name:=value).'
+)
 
-    Each option is the default of the parameter of the same name.
-    """
-    parser = argparse.ArgumentParser(
-        prog='player',
-        description='Publish the messages of a rosbag2 (MCAP) bag again at their recorded timing. '
-        'Each option sets the default of the node parameter of the same name '
-        '(override with --ros-args -p name:=value).',
-    )
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the player's options to ``parser``."""
     parser.add_argument('bag', nargs='?', default='', help='bag folder (or .mcap file) to play')
     parser.add_argument(
         '--rate', type=float, default=1.0, help='time scale factor > 0 (default: %(default)s)'
@@ -238,45 +287,11 @@ def build_parser() -> argparse.ArgumentParser:
         help='pause before the first message, e.g. to let discovery settle [s] '
         '(default: %(default)s)',
     )
-    return parser
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    """Entry point of ``player``."""
-    argv = list(sys.argv if argv is None else argv)
-    args = build_parser().parse_args(remove_ros_args(argv)[1:])
-    stop = StopFlag()
-    stop.install()
-    try:
-        rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
-    except Exception as exc:  # noqa: BLE001 - rcl's RCLError: a bad --ros-args or parameter file
-        print(
-            f'player: ROS arguments refused: {str(exc).splitlines()[0] if str(exc) else exc!r}',
-            file=sys.stderr,
-        )
-        return 2
-    node: Optional[PlayerNode] = None
-    try:
-        if stop.requested:
-            return 0
-        node = PlayerNode(args)
-        elapsed = node.play(stop)
-        per_topic = ', '.join(f'{k}={v}' for k, v in node.counts.items())
-        how = 'stopped' if stop.requested else 'done'
-        print(
-            f'player: {how}: published {sum(node.counts.values())} messages '
-            f'in {elapsed:.3f} s ({per_topic})',
-            flush=True,
-        )
-        return 0
-    except BagError as err:
-        print(f'player: error: {err}', file=sys.stderr)
-        return 1
-    finally:
-        if node is not None:
-            node.destroy_node()
-        if rclpy.ok():
-            rclpy.shutdown()
+    """Entry point of ``player``: its one node in a process started by ``run_nodes``."""
+    return run_bag_node('player', DESCRIPTION, add_arguments, PlayerNode, argv)
 
 
 if __name__ == '__main__':

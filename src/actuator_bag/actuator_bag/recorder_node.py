@@ -15,16 +15,18 @@ Timestamps: a message's log time is its receive time on the node's ROS clock, as
 record does, not its header.stamp: every topic gets a time (also ones without a header),
 playback reproduces the timing the recorder saw, and the header.stamp stays in the message
 for pairing. With use_sim_time that clock is sim time from /clock; otherwise it is system
-time taken in the callback. (With ``--executor single`` the middleware's reception
+time taken in the callback. (With ``-p executor:=single_threaded`` the middleware's reception
 timestamp is used instead, which executor queueing does not delay, and publish_time is the
 publisher's source timestamp; rclpy 7.1's EventsExecutor fails with SystemError on
 callbacks that take message info, so the default executor stamps in the callback.)
 bag_analyze pairs samples by header.stamp and computes command latency as log time minus
 header.stamp.
 
-SIGINT/SIGTERM (at any moment, also during the imports: entry.py): stop taking new messages,
-write what was received, close the bag (MCAP summary, metadata.yaml), print one summary line,
-exit 0. SIGKILL: what was flushed (all but the last <= 1 s / 1 MiB) stays on disk and
+The process is started by ``actuator_ros.runner.run_nodes``, as every node's is, and the node
+keeps its ``ProcessMember`` contract. SIGINT/SIGTERM (at any moment, also during the imports:
+entry.py): take what the middleware delivered until nothing new came for ``QUIET_S``
+(``settled``), write it, close the bag (MCAP summary, metadata.yaml), print one summary line,
+exit 0 (``release``). SIGKILL: what was flushed (all but the last <= 1 s / 1 MiB) stays on disk and
 ``bag_repair`` recovers it. A failed write (disk full: ENOSPC, or any OSError) is noticed at
 once (within 0.1 s): the recorder stops, the file is cut back to its last complete chunk (so
 ``bag_repair`` recovers all of it; there is no room for an index or metadata.yaml), one error
@@ -38,33 +40,22 @@ wrong type or a name it does not declare is refused with one line and exit 2, un
 from __future__ import annotations
 
 import argparse
-import collections
-import faulthandler
-import signal
-import sys
-import threading
 import time
-from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Optional, Sequence
 
 import rclpy
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
-from rclpy.signals import SignalHandlerOptions
-from rclpy.utilities import remove_ros_args
 
 from .bag_format import (
-    DEFAULT_CHUNK_SIZE,
-    DEFAULT_FLUSH_INTERVAL_S,
     BagSummary,
     BagWriter,
     TopicSpec,
 )
 from .errors import BagError, BagIOError
-from .msgdefs import DefinitionSource, normalize_msgtype
+from .msgdefs import DefinitionSource
 from actuator_ros.parameters import (
-    ParameterError,
     check_unknown_parameters,
     declare_choice,
     declare_flag,
@@ -74,113 +65,32 @@ from actuator_ros.parameters import (
 )
 from actuator_core.health import HealthMonitor, Level, Snapshot
 from actuator_ros.diagnostics import NodeDiagnostics
-from actuator_ros.runner import make_executor
+from actuator_ros.node import declare_realtime
+from actuator_ros.process_member import MemberError, ProcessMember
+from actuator_ros.realtime import RealtimeSettings
 
-from .ros_common import EXECUTORS, StopFlag, make_qos, message_class, to_bag_qos
-
-#: The system's topics (relative names) and their types.
-SYSTEM_TOPICS = {
-    'joint_states': 'sensor_msgs/msg/JointState',
-    'current_command': 'actuator_msgs/msg/CurrentCommand',
-    'eso/estimate': 'actuator_msgs/msg/StateEstimate',
-    'controller/state': 'actuator_msgs/msg/ControllerState',
-    'plant/truth': 'actuator_msgs/msg/PlantTruth',
-    '/clock': 'rosgraph_msgs/msg/Clock',
-    '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray',
-}
-DEFAULT_TOPICS = [
-    'joint_states',
-    'current_command',
-    'eso/estimate',
-    'controller/state',
-    'plant/truth',
-]
+from .recording import (
+    DESCRIPTION,
+    BagWriterThread,
+    add_arguments,
+    default_output,
+    parse_topic,
+)
+from .ros_common import make_qos, message_class, run_bag_node, to_bag_qos
 
 
-def parse_topic(entry: str) -> tuple[str, str]:
-    """``name`` (a system topic) or ``name:pkg/msg/Type`` -> (name, type).
-
-    A system topic may stand under a namespace (``/joint1/joint_states``: several joints).
-    """
-    name, sep, msgtype = entry.partition(':')
-    name = name.strip()
-    if not name:
-        raise BagError(f'empty topic name in {entry!r}')
-    if sep:
-        return name, normalize_msgtype(msgtype.strip())
-    if name in SYSTEM_TOPICS:
-        return name, SYSTEM_TOPICS[name]
-    for topic, system_type in SYSTEM_TOPICS.items():
-        if not topic.startswith('/') and name.endswith(f'/{topic}'):
-            return name, system_type
-    raise BagError(f'topic {name!r} is not a system topic; give its type as {name}:pkg/msg/Type')
-
-
-def default_output(now: Optional[datetime] = None) -> Path:
-    """Return ``bags/<UTC timestamp>`` under the working directory.
-
-    With a suffix if that exists already.
-    """
-    stamp = (now or datetime.now(timezone.utc)).strftime('%Y%m%dT%H%M%SZ')
-    path = Path('bags') / stamp
-    n = 1
-    while path.exists():
-        path = Path('bags') / f'{stamp}_{n}'
-        n += 1
-    return path
-
-
-class BagWriterThread(threading.Thread):
-    """Drains (topic, log time, publish time, data) items from a deque into a BagWriter."""
-
-    def __init__(self, writer: BagWriter, specs: list[TopicSpec]) -> None:
-        """Write into an open BagWriter; topics are registered when their first message arrives."""
-        super().__init__(name='bag-writer', daemon=True)
-        self.writer = writer
-        self.specs = specs
-        self.queue: collections.deque = collections.deque()
-        self.handles: dict[int, int] = {}
-        self.max_backlog = 0
-        self.written = 0
-        self.error: Optional[BaseException] = None
-        self._stop_requested = threading.Event()
-
-    def stop(self) -> None:
-        """Ask the thread to write what is queued and end."""
-        self._stop_requested.set()
-
-    def run(self) -> None:
-        """Write until stopped and the queue is empty."""
-        queue = self.queue
-        writer = self.writer
-        try:
-            while True:
-                backlog = len(queue)
-                if backlog > self.max_backlog:
-                    self.max_backlog = backlog
-                if not backlog:
-                    if self._stop_requested.is_set():
-                        return
-                    writer.flush_if_due()
-                    time.sleep(0.002)
-                    continue
-                for _ in range(backlog):
-                    index, log_ns, pub_ns, data = queue.popleft()
-                    handle = self.handles.get(index)
-                    if handle is None:
-                        handle = self.handles[index] = writer.add_topic(self.specs[index])
-                    writer.write(handle, log_ns, data, pub_ns)
-                    self.written += 1
-        except BaseException as err:  # noqa: BLE001 - reported by the node on shutdown
-            self.error = err
-
-
-class RecorderNode(Node):
+class RecorderNode(Node, ProcessMember):
     """Subscribes raw to each topic and hands messages to the writer thread."""
 
-    def __init__(self, defaults: argparse.Namespace, **node_options: Any) -> None:
+    def __init__(
+        self,
+        defaults: argparse.Namespace,
+        settings: RealtimeSettings = RealtimeSettings(),
+        **node_options: Any,
+    ) -> None:
         """Declare parameters (defaults from the command line), resolve topics, open the bag."""
         super().__init__('recorder', **node_options)
+        executor = declare_realtime(self, settings).executor
         declare_flag(
             self,
             'allow_unknown_parameters',
@@ -283,7 +193,7 @@ class RecorderNode(Node):
                 # the receive time.
                 'publish_time': (
                     'publisher source timestamp (message info)'
-                    if defaults.executor == 'single_threaded' and not self.sim_time
+                    if executor == 'single_threaded' and not self.sim_time
                     else 'receive time (no message info with this executor or in sim time)'
                 ),
             },
@@ -312,13 +222,15 @@ class RecorderNode(Node):
                 self.create_subscription(
                     cls,
                     resolved,
-                    self._make_callback(index, defaults.executor == 'single_threaded'),
+                    self._make_callback(index, executor == 'single_threaded'),
                     qos,
                     raw=True,
                     event_callbacks=events,
                 )
             )
         self.thread.start()
+        self._received_at_check, self._quiet_since = -1, time.monotonic()
+        self._released = False
         self.diagnostics = NodeDiagnostics(
             self,
             HealthMonitor(
@@ -420,6 +332,43 @@ class RecorderNode(Node):
         """True once the writer thread has stopped on an error (a failed write)."""
         return self.thread.error is not None
 
+    # --- ProcessMember: a failed write ends the run; at the end, take what came, then close --
+    @property
+    def finished(self) -> bool:
+        """The run is over for the recorder once a write failed (release says why)."""
+        return self.failed
+
+    def settled(self) -> bool:
+        """Whether nothing new came for QUIET_S (or a write failed).
+
+        A stop right after a fast run (sim time) would otherwise lose the messages still queued
+        in the subscriptions; measured in CI: 208 of 2000 samples of a 2 s lockstep run.
+        """
+        now = time.monotonic()
+        received = self.thread.written + len(self.thread.queue)
+        if received != self._received_at_check:
+            self._received_at_check, self._quiet_since = received, now
+        return self.failed or now - self._quiet_since > QUIET_S
+
+    def release(self) -> None:
+        """Close the bag and print the summary line; MemberError: what is on disk, and why."""
+        if self._released:
+            return
+        self._released = True
+        try:
+            summary = self.finish()
+        except BagError as err:
+            raise MemberError(str(err)) from None
+        lost = f', {self.lost} reported lost by the middleware' if self.lost else ''
+        backlog = self.thread.max_backlog
+        print(f'recorder: wrote {summary.line()}; max writer backlog {backlog}{lost}', flush=True)
+
+    def destroy_node(self) -> None:
+        """Destroy the node; a bag never closed (an exception on the way) is cut back."""
+        if self.writer.is_open:
+            self.writer.abort()
+        super().destroy_node()
+
     def finish(self) -> BagSummary:
         """Stop the subscriptions, let the writer drain, close the bag.
 
@@ -452,144 +401,18 @@ class RecorderNode(Node):
         )
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """Command-line interface of the recorder.
-
-    Each option is the default of the parameter of the same name.
-    """
-    parser = argparse.ArgumentParser(
-        prog='recorder',
-        description='Record the actuator topics into a rosbag2 (MCAP) bag. '
-        'Each option sets the default of the node parameter of the same name '
-        '(override with --ros-args -p name:=value). Stops on SIGINT/SIGTERM.',
-    )
-    parser.add_argument(
-        '-o', '--output', default='', help='bag folder to create (default: bags/<UTC timestamp>)'
-    )
-    parser.add_argument(
-        '--topics',
-        nargs='+',
-        default=DEFAULT_TOPICS,
-        metavar='NAME[:TYPE]',
-        help='topics to record; system topics need no type (default: %(default)s)',
-    )
-    parser.add_argument(
-        '--record-clock', dest='record_clock', action='store_true', help='also record /clock'
-    )
-    parser.add_argument(
-        '--record-diagnostics',
-        dest='record_diagnostics',
-        action='store_true',
-        help='also record /diagnostics',
-    )
-    parser.add_argument(
-        '--queue-depth',
-        dest='queue_depth',
-        type=int,
-        default=1000,
-        help='subscription KEEP_LAST depth per topic (default: %(default)s)',
-    )
-    parser.add_argument(
-        '--reliability',
-        choices=('best_effort', 'reliable'),
-        default='best_effort',
-        help='subscription reliability; best_effort matches every publisher '
-        '(default: %(default)s)',
-    )
-    parser.add_argument(
-        '--flush-interval',
-        dest='flush_interval',
-        type=float,
-        default=DEFAULT_FLUSH_INTERVAL_S,
-        help='longest time data stays in memory before it is written [s] (default: %(default)s)',
-    )
-    parser.add_argument(
-        '--chunk-size',
-        dest='chunk_size',
-        type=int,
-        default=DEFAULT_CHUNK_SIZE,
-        help='MCAP chunk size before compression [bytes] (default: %(default)s)',
-    )
-    parser.add_argument(
-        '--executor',
-        choices=EXECUTORS,
-        default='events',
-        help='rclpy executor (default: %(default)s)',
-    )
-    return parser
-
-
+#: After the stop, the recorder has taken what was delivered once nothing new came for this long
+#: [s] (ProcessMember.settled; run_nodes spins at most SETTLE_LIMIT_S for it).
+QUIET_S = 0.3
 #: Middlewares whose message-lost event deadlocks with a sample being lost (the AB-BA lock
 #: order of take_event against on_sample_lost, fixed in ros2/rmw_fastrtps#890, not in the
 #: Jazzy wheels this project pins): the recorder does not watch the event on them.
 MESSAGE_LOST_DEADLOCK_RMWS = frozenset({'rmw_fastrtps_cpp', 'rmw_fastrtps_dynamic_cpp'})
 
 
-def drain(executor: Any, node: 'RecorderNode', quiet_s: float = 0.3, limit_s: float = 3.0) -> None:
-    """After a stop request, take what the middleware already delivered.
-
-    Spin until nothing new came for ``quiet_s``. A stop right after a fast run (sim time) would
-    otherwise lose the messages still queued in the subscriptions; measured in CI: 208 of 2000
-    samples of a 2 s lockstep run.
-    """
-    end = time.monotonic() + limit_s
-    last, quiet_since = -1, time.monotonic()
-    while rclpy.ok() and time.monotonic() < end and not node.failed:
-        executor.spin_once(timeout_sec=0.05)
-        received = node.thread.written + len(node.thread.queue)
-        if received != last:
-            last, quiet_since = received, time.monotonic()
-        elif time.monotonic() - quiet_since > quiet_s:
-            return
-
-
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    """Entry point of ``recorder``."""
-    argv = list(sys.argv if argv is None else argv)
-    args = build_parser().parse_args(remove_ros_args(argv)[1:])
-    stop = StopFlag()
-    stop.install()
-    faulthandler.register(signal.SIGUSR1, all_threads=True)  # kill -USR1: every thread's stack
-    try:
-        rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
-    except Exception as exc:  # noqa: BLE001 - rcl's RCLError: a bad --ros-args or parameter file
-        print(
-            f'recorder: ROS arguments refused: {str(exc).splitlines()[0] if str(exc) else exc!r}',
-            file=sys.stderr,
-        )
-        return 2
-    node: Optional[RecorderNode] = None
-    try:
-        if stop.requested:
-            return 0
-        node = RecorderNode(args)
-        executor = make_executor(args.executor)
-        executor.add_node(node)
-        while not stop.requested and rclpy.ok() and not node.failed:
-            executor.spin_once(timeout_sec=0.1)
-        if not node.failed:
-            drain(executor, node)
-        summary = node.finish()
-        lost = f', {node.lost} reported lost by the middleware' if node.lost else ''
-        print(
-            f'recorder: wrote {summary.line()}; '
-            f'max writer backlog {node.thread.max_backlog}{lost}',
-            flush=True,
-        )
-        return 0
-    except ParameterError as err:
-        print(f'recorder: {err}', file=sys.stderr)
-        return 2
-    except BagError as err:
-        print(f'recorder: error: {err}', file=sys.stderr)
-        return 1
-    finally:
-        if node is not None:
-            if node.writer.is_open:
-                node.writer.abort()
-            node.destroy_node()
-        if rclpy.ok():
-            rclpy.shutdown()
+    """Entry point of ``recorder``: its one node in a process started by ``run_nodes``."""
+    return run_bag_node('recorder', DESCRIPTION, add_arguments, RecorderNode, argv)
 
 
 if __name__ == '__main__':

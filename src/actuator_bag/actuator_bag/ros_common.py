@@ -3,15 +3,15 @@
 
 """rclpy helpers shared by the recorder and the player.
 
-Message classes, QoS conversion, signals, executors.
+Message classes, QoS conversion, and their main().
 """
 
 from __future__ import annotations
 
+import argparse
 import importlib
-import signal
-from types import FrameType
-from typing import Any, Optional
+import sys
+from typing import Any, Callable, Optional, Sequence
 
 from rclpy.duration import Duration
 from rclpy.qos import (
@@ -22,12 +22,44 @@ from rclpy.qos import (
     ReliabilityPolicy,
 )
 
+from rclpy.utilities import remove_ros_args
+
+from actuator_ros.process_member import MemberError, ProcessMember
+from actuator_ros.realtime import RealtimeSettings
+from actuator_ros.runner import run_nodes
+
 from .bag_format import QosProfile
 from .errors import BagError
 from .msgdefs import normalize_msgtype
 
-#: Executors a node can be run with.
-EXECUTORS = ('events', 'single_threaded')  # actuator_ros.runner.make_executor's names
+
+def run_bag_node(
+    prog: str,
+    description: str,
+    add_arguments: Callable[[argparse.ArgumentParser], None],
+    node_class: Callable[[argparse.Namespace, RealtimeSettings], ProcessMember],
+    argv: Optional[Sequence[str]] = None,
+) -> int:
+    """Run the recorder's or the player's node in a process started by ``run_nodes``.
+
+    Its options (the defaults of its parameters) come from the command line; a BagError while
+    it is built (an output that exists, no bag) is one line ``prog: error: ...``, exit 1.
+    """
+    args = sys.argv[1:] if argv is None else list(argv)
+    parser = argparse.ArgumentParser(prog=prog, description=description)
+    add_arguments(parser)
+    try:
+        options = parser.parse_args(remove_ros_args([prog, *args])[1:])
+    except Exception:  # noqa: BLE001 - run_nodes reports bad ROS arguments in one line
+        options = parser.parse_args([])
+
+    def build(settings: RealtimeSettings) -> ProcessMember:
+        try:
+            return node_class(options, settings)
+        except BagError as err:
+            raise MemberError(str(err)) from None
+
+    return run_nodes(prog, description, [build], prog, args, add_arguments)
 
 
 def message_class(msgtype: str) -> Any:
@@ -85,25 +117,3 @@ def make_qos(reliability: str, depth: int) -> QoSProfile:
         reliability=policies[reliability],
         durability=DurabilityPolicy.VOLATILE,
     )
-
-
-class StopFlag:
-    """Turns SIGINT and SIGTERM into a flag that a spin loop checks.
-
-    For rclpy.init with signal handling off.
-    """
-
-    def __init__(self) -> None:
-        """Not installed yet; call install()."""
-        self.requested = False
-        self.signum: Optional[int] = None
-
-    def install(self) -> None:
-        """Handle SIGINT and SIGTERM from now on."""
-        signal.signal(signal.SIGINT, self._handle)
-        signal.signal(signal.SIGTERM, self._handle)
-
-    def _handle(self, signum: int, frame: Optional[FrameType]) -> None:
-        """Record the request; the spin loop ends at its next check."""
-        self.requested = True
-        self.signum = signum

@@ -35,6 +35,7 @@ from actuator_ros.parameters import (
     declare_text,
     only_while_unconfigured,
 )
+from actuator_ros.process_member import ProcessMember
 from actuator_ros.realtime import EXECUTORS, RealtimeSettings
 
 
@@ -70,7 +71,7 @@ def declare_realtime(node, settings: RealtimeSettings) -> RealtimeSettings:
     )
 
 
-class ManagedNode(LifecycleNode):
+class ManagedNode(LifecycleNode, ProcessMember):
     """Lifecycle plumbing; subclasses write load_parameters, build, start, stop, drop."""
 
     def __init__(
@@ -84,8 +85,8 @@ class ManagedNode(LifecycleNode):
         self.log = RateLimitedLog(self.get_logger())
         self.configured = False
         self.active = False
-        self.finished = False  # read by run_node: the run is over
-        self.error: str | None = None  # read by run_node: the run failed
+        self.finished = False  # ProcessMember: the run is over
+        self.error: str | None = None  # ProcessMember: the run failed
         declare_common(self)
         self.set_descriptor(
             'use_sim_time',
@@ -212,6 +213,10 @@ class ManagedNode(LifecycleNode):
     def halt(self) -> None:
         """Stop acting now (at exit, before the last messages are acknowledged); idempotent."""
         self._stop()
+
+    def release(self) -> None:
+        """At exit, after the acknowledgements: stop and drop, as the shutdown transition does."""
+        self.on_shutdown(None)
 
     def _stop(self) -> None:
         """stop() once, if active."""

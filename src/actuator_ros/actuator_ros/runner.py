@@ -4,8 +4,10 @@
 """main() of every node: real-time settings, rclpy.init, the node, autostart, spin, clean exit.
 
 Exit codes: 0 after SIGINT or SIGTERM at any moment (no traceback) or when the node ended the
-run itself (``finished``); 1 when it failed (``error``, logged); 2 with one line on stderr for
-a refused parameter, an unreadable parameter file or a refused configure at autostart.
+run itself (``finished``); 1 when it failed (``error``, logged) or could not be built or
+released (``process_member.MemberError``: one line ``prog: error: ...`` on stderr); 2 with one
+line on stderr for a refused parameter, an unreadable parameter file or a refused configure at
+autostart.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
 from actuator_ros.parameters import ParameterError
+from actuator_ros.process_member import SETTLE_LIMIT_S, MemberError, ProcessMember
 from actuator_ros.middleware import installed_profile, realtime_transport
 from actuator_ros.realtime import (
     PUBLICATION_MODE_VARIABLE,
@@ -73,7 +76,7 @@ def spin_until(executor, done: Callable[[], bool], wake=None) -> None:
 def run_node(
     prog: str,
     description: str,
-    node_factory: Callable[[RealtimeSettings], Node],
+    node_factory: Callable[[RealtimeSettings], ProcessMember],
     node_name: str,
     argv: Sequence[str] | None = None,
 ) -> int:
@@ -84,7 +87,7 @@ def run_node(
 def run_nodes(
     prog: str,
     description: str,
-    node_factories: Sequence[Callable[[RealtimeSettings], Node]],
+    node_factories: Sequence[Callable[[RealtimeSettings], ProcessMember]],
     settings_node: str,
     argv: Sequence[str] | None = None,
     own_arguments: Callable[[argparse.ArgumentParser], None] | None = None,
@@ -93,8 +96,8 @@ def run_nodes(
 
     The process's real-time settings are ``settings_node``'s (one policy per process). The run
     ends when any node ended it (``finished``) or failed (``error``); every node is then
-    halted, its RELIABLE subscribers given time to acknowledge, and shut down. Nodes are
-    managed (``ManagedNode``: autostart, halt) or plain (``close``).
+    halted, left to settle, its RELIABLE subscribers given time to acknowledge, and released.
+    Every node is a ``ProcessMember`` (process_member.py says the order); no attribute probing.
     """
     args = sys.argv[1:] if argv is None else list(argv)
     try:
@@ -149,10 +152,17 @@ def run_nodes(
     try:
         try:
             for factory in node_factories:
-                nodes.append(factory(settings))
+                node = factory(settings)
+                if not isinstance(node, ProcessMember):  # a programming error: said plainly
+                    node.destroy_node()
+                    raise TypeError(f'{type(node).__name__} is not a ProcessMember')
+                nodes.append(node)
         except ParameterError as exc:
             print(f'{prog}: {exc}', file=sys.stderr)
             return 2
+        except MemberError as exc:  # a node that could not be built for what it was given
+            print(f'{prog}: error: {exc}', file=sys.stderr)
+            return 1
         first = nodes[0]
         if transport is not None and transport.note:
             say = first.get_logger().warning if transport.warning else first.get_logger().info
@@ -168,7 +178,7 @@ def run_nodes(
         for node in nodes:
             executor.add_node(node)
         for node in nodes:
-            if hasattr(node, 'autostart') and not node.autostart():
+            if not node.autostart():
                 print(
                     f'{prog}: autostart of {node.get_name()}: configure or activate failed '
                     '(see the log above)',
@@ -179,37 +189,62 @@ def run_nodes(
         # so a collection in the 1 kHz path scans only what the loop itself allocates.
         gc.collect()
         gc.freeze()
-        spin_until(
-            executor,
-            lambda: stop.is_set() or any(getattr(n, 'finished', False) for n in nodes),
-            wake,
-        )
-        failed = [n for n in nodes if getattr(n, 'error', None)]
+        spin_until(executor, lambda: stop.is_set() or any(n.finished for n in nodes), wake)
+        failed = [n for n in nodes if n.error]
         for node in failed:
             node.get_logger().error(node.error)
-        return 1 if failed else 0
+        code = 1 if failed else 0
+        # the end, in ProcessMember's order; a second Ctrl-C must not cut it short
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(signum, signal.SIG_IGN)
+        for node in nodes:
+            node.halt()  # stop acting (a joint's last safe-stop command goes out)
+        settle(executor, nodes)
+        return max(code, _finish(prog, nodes))
     except (KeyboardInterrupt, ExternalShutdownException):
         return 0
     finally:
-        if nodes:
+        if nodes:  # after an exception (or the return above: then all of it is done once)
             for signum in (signal.SIGINT, signal.SIGTERM):
-                signal.signal(
-                    signum, signal.SIG_IGN
-                )  # a second Ctrl-C must not cut the clean-up short
+                signal.signal(signum, signal.SIG_IGN)
             for node in nodes:
-                if hasattr(node, 'halt'):
-                    node.halt()  # stop acting (its last safe-stop command goes out)
-                elif hasattr(node, 'close'):
-                    node.close()  # a plain node (the benchmark's floor nodes)
-            deadline = time.monotonic() + ACK_TIMEOUT_S
-            for node in nodes:  # before the publishers are destroyed
-                wait_for_acknowledgements(node, max(0.0, deadline - time.monotonic()))
-            for node in nodes:
-                if hasattr(node, 'halt'):
-                    node.on_shutdown(None)  # drop what it built
-                node.destroy_node()
+                node.halt()
+            _finish(prog, nodes)
         if rclpy.ok():
             rclpy.shutdown()
+
+
+def settle(executor, nodes: Sequence[ProcessMember], limit_s: float = SETTLE_LIMIT_S) -> bool:
+    """After the halt, spin until every node has taken what was delivered (``settled``).
+
+    Returns False when ``limit_s`` passed first.
+    """
+    end = time.monotonic() + limit_s
+    while not all(n.settled() for n in nodes):
+        if time.monotonic() >= end or not rclpy.ok():
+            return False
+        executor.spin_once(timeout_sec=0.05)
+    return True
+
+
+def _finish(prog: str, nodes: list) -> int:
+    """Acknowledgements, release and destruction of ``nodes`` (emptied: done once).
+
+    Returns 1 when a release failed (its one line printed), else 0.
+    """
+    code = 0
+    deadline = time.monotonic() + ACK_TIMEOUT_S
+    for node in nodes:  # before the publishers are destroyed
+        wait_for_acknowledgements(node, max(0.0, deadline - time.monotonic()))
+    for node in nodes:
+        try:
+            node.release()
+        except MemberError as exc:
+            print(f'{prog}: error: {exc}', file=sys.stderr, flush=True)
+            code = 1
+        node.destroy_node()
+    nodes.clear()
+    return code
 
 
 def share_clock_subscription(nodes: Sequence[Node]) -> int:

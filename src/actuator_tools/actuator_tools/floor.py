@@ -26,6 +26,7 @@ import numpy as np
 from rclpy.node import Node
 
 from actuator_ros.parameters import declare_number, declare_text
+from actuator_ros.process_member import ProcessMember
 from actuator_ros.qos import control_qos
 from actuator_ros.runner import run_node
 from actuator_msgs.msg import CurrentCommand
@@ -33,7 +34,7 @@ from actuator_msgs.msg import CurrentCommand
 PING, PONG = 'floor/ping', 'floor/pong'
 
 
-class EchoNode(Node):
+class EchoNode(Node, ProcessMember):
     """Republishes every message of floor/ping on floor/pong, as it arrived."""
 
     def __init__(self) -> None:
@@ -44,7 +45,7 @@ class EchoNode(Node):
         self.create_subscription(CurrentCommand, PING, self.pub.publish, qos)
 
 
-class SourceNode(Node):
+class SourceNode(Node, ProcessMember):
     """Publishes stamped messages on a fixed grid and records the round trip of each echo."""
 
     def __init__(self) -> None:
@@ -112,8 +113,8 @@ class SourceNode(Node):
             time.time_ns() - (msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec)
         )
 
-    def close(self) -> None:
-        """Stop the thread; write the round trips and the sent count."""
+    def halt(self) -> None:
+        """Stop the thread; write the round trips and the sent count (ProcessMember)."""
         self.stop.set()
         if self.thread.is_alive():
             self.thread.join(timeout=1.0)

@@ -33,7 +33,7 @@ import time
 
 import foxglove
 from actuator_bag.msgdefs import DefinitionSource
-from actuator_bag.recorder_node import DEFAULT_TOPICS as RECORDED_TOPICS, parse_topic
+from actuator_bag.recording import DEFAULT_TOPICS as RECORDED_TOPICS, parse_topic
 from actuator_core.health import HealthMonitor, Level, Snapshot
 from actuator_ros.diagnostics import NodeDiagnostics
 from actuator_ros.node import declare_realtime
@@ -43,6 +43,7 @@ from actuator_ros.parameters import (
     declare_text,
     declare_text_list,
 )
+from actuator_ros.process_member import ProcessMember
 from actuator_ros.runner import run_node
 from actuator_core.decimation import Decimator
 from actuator_tools.live_core import SEND_LOSSY_LOGGER, OutboxWatch
@@ -76,7 +77,7 @@ class _Subscribers(foxglove.websocket.ServerListener):
             self.by_client.pop(client.id, None)
 
 
-class LiveViewNode(Node):
+class LiveViewNode(Node, ProcessMember):
     """Forwards the loop's serialized messages to Foxglove clients, decimated per topic."""
 
     def __init__(self, settings=None) -> None:
@@ -214,8 +215,8 @@ class LiveViewNode(Node):
             [(Level.WARN, f'{dropped} messages dropped for slow clients')] if dropped else [],
         )
 
-    def close(self) -> None:
-        """Stop the server (run_node calls this at exit)."""
+    def release(self) -> None:
+        """Stop the server (ProcessMember: at exit)."""
         self.diagnostics.destroy()
         self.server.stop()
 

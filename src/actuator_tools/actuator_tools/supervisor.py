@@ -150,7 +150,8 @@ class RosProcess:
         """Before SIGKILL, send SIGUSR1 to the leader: a hang at stop leaves its place in the log.
 
         A node of ours writes every thread's stack to its stderr on it (faulthandler, registered
-        by ``run_nodes`` and the recorder); a process without that handler ends by SIGUSR1.
+        by ``run_nodes``, which starts every node process); a process without that handler ends by
+        SIGUSR1.
         """
         try:
             os.kill(self.popen.pid, signal.SIGUSR1)
