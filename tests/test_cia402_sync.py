@@ -83,7 +83,7 @@ def test_the_simulated_drive_locks_its_cycle_to_the_sync_and_takes_one_period_pe
     scaling = Scaling(4096, limits.NOMINAL_GEAR_RATIO, 1.05, 10.0, 0.105)
     drive = sim_drive.SimulatedDrive(default_eds(), 1, scaling, 1e-3)  # not on a bus
     period = drive.period_ns
-    base = drive._t0_ns  # the drive's own period grid starts here
+    base = drive.clock.t0_ns  # the drive's own period grid starts here
     now = [base]
     monkeypatch.setattr(sim_drive.time, 'monotonic_ns', lambda: now[0])
     jitter = [0, 200_000, -150_000, 180_000, 0, -200_000, 120_000, 200_000, -200_000, 50_000]
@@ -116,7 +116,7 @@ def test_with_the_sync_counter_the_drive_takes_one_period_per_sync_however_late_
     overflow = p.SYNC_COUNTER_MAX
     od = drive.od[p.SYNC_COUNTER_OVERFLOW]
     drive._on_write(p.SYNC_COUNTER_OVERFLOW, 0, od, od.encode_raw(overflow))
-    period, base = drive.period_ns, drive._t0_ns
+    period, base = drive.period_ns, drive.clock.t0_ns
     now = [base]
     monkeypatch.setattr(sim_drive.time, 'monotonic_ns', lambda: now[0])
     late = [0, 800_000, 100_000, 0, 700_000, 750_000, 0, 50_000]  # taken late, in order
@@ -132,3 +132,29 @@ def test_with_the_sync_counter_the_drive_takes_one_period_per_sync_however_late_
     before = drive.syncs
     drive._on_sync(0x80, bytes((k % overflow + 1,)), 0.0)
     assert drive.syncs - before == 4
+
+
+def test_the_drive_clock_counts_across_the_counter_overflow_and_relocks_after_a_silence():
+    """DriveClock alone: the counter's wrap, SYNCs taken late, the clock's free run, a relock."""
+    from actuator_cia402.drive_clock import FREE_RUN_AFTER_PERIODS, SYNC_RELOCK_PERIODS, DriveClock
+
+    period = 1_000_000
+    clock = DriveClock(period, t0_ns=0)
+    now = 10 * period + period // 2
+    assert clock.free_running(now)  # no SYNC yet: the clock steps drive time
+    periods = clock.on_sync(now, counter=239, overflow=240, periods=0) + 1
+    assert periods == 11 and clock.counted_syncs == 0  # the first SYNC locks; the grid counts
+    clock.cycle_done(periods)
+    # (counter, the SYNC's period, how late the drive took it [ns]): 240 wraps to 1, 2 skipped
+    for counter, k, late_ns in ((240, 11, 900_000), (3, 14, 0), (4, 15, 450_000)):
+        now = k * period + period // 2 + late_ns
+        periods += clock.on_sync(now, counter, 240, periods) + 1
+        clock.cycle_done(periods)
+    assert periods == 11 + 1 + 3 + 1 and clock.counted_syncs == 3
+    assert not clock.free_running(now + FREE_RUN_AFTER_PERIODS * period)
+    assert clock.free_running(now + (FREE_RUN_AFTER_PERIODS + 1) * period)
+    # after a silence the next SYNC locks anew: its counter is not trusted against the old one
+    now += 2 * SYNC_RELOCK_PERIODS * period
+    periods += clock.idle_periods(now, periods, margin=1)  # what the clock thread stepped
+    assert clock.on_sync(now, counter=7, overflow=240, periods=periods) == 1
+    assert clock.counted_syncs == 3

@@ -10,8 +10,8 @@ them (the console script ``cia402_sim_drive`` runs it in a process of its own):
   counter 0x1019 each SYNC says how many periods passed, however late it came; without it the
   drive's period grid is phase-locked to the SYNCs (they fall mid-period), so a SYNC less than
   half a period late neither adds nor drops a period. Either way the master's stamps and the
-  drive's samples keep one time base. With no SYNC for a few periods drive time follows the
-  wall clock (a clock thread steps it). A SYNC latches the RPDO received since the last SYNC
+  drive's samples keep one time base (``drive_clock.DriveClock``). With no SYNC for a few
+  periods drive time follows the wall clock (a clock thread steps it). A SYNC latches the RPDO received since the last SYNC
   (0x6040, 0x6071), samples and answers TPDO1/TPDO2. With no master the drive keeps its last
   target torque: only its heartbeat consumer (0x1016) stops it, by the abort connection
   option 0x6007;
@@ -46,6 +46,7 @@ import canopen
 from actuator_plant.model import PlantParameters
 from actuator_plant.sim_joint import SimulatedJoint
 from actuator_cia402 import profile as p
+from actuator_cia402.drive_clock import DriveClock
 from actuator_cia402.pdo_codec import PdoCodec
 from actuator_cia402.scaling import Scaling
 from actuator_cia402.sim_faults import FAULT_CODES, FaultPlan, inject_due, plant_parameters
@@ -53,17 +54,9 @@ from actuator_cia402.sim_faults import FAULT_CODES, FaultPlan, inject_due, plant
 ERROR_REGISTER_GENERIC = 0x01
 ERROR_REGISTER_CURRENT = 0x02
 HEARTBEAT_ERROR = 0x8130
-#: Longest gap caught up at once [periods]; beyond it the joint model's time is lost.
-MAX_CATCH_UP_PERIODS = 1000
 #: 0x60FD bit 16 (manufacturer-specific): the holding brake is closed.
 DI_BRAKE_CLOSED = 1 << 16
 INT32 = 2**32
-#: Silence after which a SYNC re-locks the drive's cycle at once (a new master) [periods].
-SYNC_RELOCK_PERIODS = 100
-#: Share of each SYNC's phase error the drive's cycle follows (a first-order phase lock).
-SYNC_LOCK_GAIN = 1.0 / 16.0
-#: SYNC silence after which the drive's clock steps drive time itself [periods].
-FREE_RUN_AFTER_PERIODS = 10
 
 
 def wrap_int32(value: int) -> int:
@@ -122,23 +115,19 @@ class SimulatedDrive:
         self.syncs = 0  # periods of drive time
         self.origin: int | None = None  # period of the first SYNC: time 0 of the fault plan
         self.sync_frames = 0
-        self.counted_syncs = 0  # SYNCs whose counter (0x1019) told the periods that passed
         self.tpdos_dropped = 0
         self.tpdos_late = 0
         self._late_sends: list[Callable[[], None]] = []  # a late answer, sent with the next
         self.rpdos_discarded = 0
         self._rpdo_data: tuple | None = None
         self._last_sync_mono = 0.0
-        self._locked_sync_ns: int | None = None  # monotonic time of the last SYNC the cycle took
-        self._last_sync_counter: int | None = None  # the counter the last SYNC carried
-        self._sync_period = 0  # drive time after the last SYNC's cycle [periods]
         self._pdo_ready = False
         self._injected: set = set()
         self._heartbeat_seen: float | None = None
         self._heartbeat_lost = False
         self._heartbeat_producer = 0
         self.network: canopen.Network | None = None
-        self._t0_ns = time.monotonic_ns()
+        self.clock = DriveClock(self.period_ns, time.monotonic_ns())  # drive time's grid
         self._clock_stop = threading.Event()
         self._cache: dict = {}
 
@@ -423,46 +412,17 @@ class SimulatedDrive:
         """
         while not self._clock_stop.wait(max(0.002, 2 * self.dt_s)):
             with self.lock:
-                now_ns, last = time.monotonic_ns(), self._locked_sync_ns
-                if last is None or now_ns - last > FREE_RUN_AFTER_PERIODS * self.period_ns:
-                    self._catch_up(margin=1, now_ns=now_ns)
+                now_ns = time.monotonic_ns()
+                if self.clock.free_running(now_ns):
+                    self._idle(self.clock.idle_periods(now_ns, self.syncs, margin=1))
 
-    def _catch_up(self, margin: int, now_ns: int | None = None) -> None:
-        """Step idle periods until drive time is ``margin`` periods behind the wall clock."""
-        now_ns = time.monotonic_ns() if now_ns is None else now_ns
-        due = (now_ns - self._t0_ns) // self.period_ns
-        for _ in range(min(MAX_CATCH_UP_PERIODS, due - margin - self.syncs)):
+    def _idle(self, periods: int) -> None:
+        """Step ``periods`` of drive time without a cycle."""
+        for _ in range(periods):
             self._advance(cycle=False)
 
-    def _lock_cycle(self, now_ns: int) -> bool:
-        """Move the drive's period grid so that SYNCs fall mid-period (a phase lock).
-
-        The first SYNC, and the first after a silence of ``SYNC_RELOCK_PERIODS``, sets the
-        phase at once (returns True); each later one moves it by ``SYNC_LOCK_GAIN`` of its
-        error, so the jitter of single SYNCs averages out.
-        """
-        error_ns = (now_ns - self._t0_ns) % self.period_ns - self.period_ns // 2
-        last = self._locked_sync_ns
-        relock = last is None or now_ns - last > SYNC_RELOCK_PERIODS * self.period_ns
-        self._t0_ns += error_ns if relock else round(error_ns * SYNC_LOCK_GAIN)
-        self._locked_sync_ns = now_ns
-        return relock
-
-    def _counted_periods(self, data: bytes, relock: bool) -> int | None:
-        """Periods since the last SYNC by the SYNC counter (0x1019); None without one."""
-        overflow = self._cfg(p.SYNC_COUNTER_OVERFLOW)
-        counter = data[0] if overflow and len(data) >= 1 else None
-        last, self._last_sync_counter = self._last_sync_counter, counter
-        if counter is None or last is None or relock:
-            return None
-        return (counter - last) % overflow or overflow
-
     def _on_sync(self, can_id, data, timestamp) -> None:
-        """SYNC: the periods before it pass, then one drive cycle.
-
-        With a counter the SYNCs say how many periods passed, however late this one came;
-        without one the phase lock tells, for SYNCs less than half a period late.
-        """
+        """SYNC: the periods before it pass (drive_clock says how many), then one drive cycle."""
         if self.silent:
             return
         now_ns = time.monotonic_ns()
@@ -470,17 +430,11 @@ class SimulatedDrive:
             self.sync_frames += 1
             if self.origin is None:  # the faults' clock starts with the first SYNC
                 self.origin = self.syncs
-            counted = self._counted_periods(bytes(data), self._lock_cycle(now_ns))
-            if counted is None:
-                self._catch_up(margin=0, now_ns=now_ns)
-            else:  # the idle periods the counter says passed, less those the clock stepped
-                self.counted_syncs += 1
-                for _ in range(
-                    min(MAX_CATCH_UP_PERIODS, self._sync_period + counted - 1 - self.syncs)
-                ):
-                    self._advance(cycle=False)
+            overflow = self._cfg(p.SYNC_COUNTER_OVERFLOW)
+            counter = data[0] if overflow and len(data) >= 1 else None
+            self._idle(self.clock.on_sync(now_ns, counter, overflow, self.syncs))
             self._advance(cycle=self._pdo_ready)
-            self._sync_period = self.syncs
+            self.clock.cycle_done(self.syncs)
             self._last_sync_mono = time.monotonic()
 
     def _applied_target(self) -> int:

@@ -194,8 +194,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     for drive in drives:
         drive.stop()
         print(
-            f'drive {drive.node.id}: SYNCs {drive.sync_frames} ({drive.counted_syncs} with a '
-            f'counter), RPDOs discarded '
+            f'drive {drive.node.id}: SYNCs {drive.sync_frames} '
+            f'({drive.clock.counted_syncs} with a counter), RPDOs discarded '
             f'{drive.rpdos_discarded}, TPDOs dropped {drive.tpdos_dropped}, late '
             f'{drive.tpdos_late}',
             flush=True,
