@@ -4,6 +4,7 @@
 """The benchmark of two versions of the project in one invocation: a commit and the tree now.
 
     python scripts/bench_before_after.py [--before REV] [--rounds N] [--duration S]
+        [--rt-variant fifo|normal]
 
 The commit ``REV`` (default: the last one before the one joint node, issue 20) is extracted to
 ``build/before/<sha>/``, built there by its own ``scripts/build.sh`` with this tree's
@@ -28,10 +29,13 @@ from pathlib import Path
 from typing import Optional, Sequence
 
 ROOT = Path(__file__).resolve().parent.parent
+#: ``--rt-variant`` -> the bench's variant name in summary.json.
+REALTIME_VARIANTS = {'fifo': 'realtime_fifo50', 'normal': 'realtime_normal'}
 #: The parent of 6f5780e, which brought the one joint node (actuator_ros.joint_node).
 BEFORE_JOINT_NODE = '4a95bb9'
 #: (variant in summary.json, figure, label) compared; every figure a median over the rounds
-#: (realtime_fifo50: SCHED_FIFO priority 50, the bench's default).
+#: (realtime_fifo50: SCHED_FIFO priority 50, the bench's default; ``--rt-variant normal`` reads
+#: realtime_normal instead).
 FIGURES = (
     ('realtime_fifo50', 'cpu_plant_pct', 'CPU plant (joint) [% of a core]'),
     ('realtime_fifo50', 'cpu_eso_pct', 'CPU ESO [%]'),
@@ -53,6 +57,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--rounds', type=int, default=3, help='runs of each version (default 3)')
     p.add_argument('--duration', type=float, default=20.0, help='seconds per run (default 20)')
     p.add_argument('--out', type=Path, default=ROOT / 'results' / 'bench-before-after')
+    p.add_argument(
+        '--rt-variant',
+        choices=REALTIME_VARIANTS,
+        default='fifo',
+        help='the real-time runs: SCHED_FIFO 50 or normal scheduling (default %(default)s)',
+    )
     p.add_argument(
         '--table', type=Path, metavar='DIR', help='only print the table of an earlier invocation'
     )
@@ -83,13 +93,13 @@ def prepare(rev: str) -> Path:
     return tree
 
 
-def run_bench(tree: Path, out: Path, duration_s: float) -> dict:
-    """One benchmark of the version in ``tree`` (sim, and real time under SCHED_FIFO)."""
+def run_bench(tree: Path, out: Path, duration_s: float, rt_variant: str = 'fifo') -> dict:
+    """One benchmark of the version in ``tree`` (sim, and real time as ``rt_variant`` says)."""
     out.mkdir(parents=True, exist_ok=True)
     command = (
         'source scripts/env.sh && exec python -m actuator_tools.bench --modes realtime sim '
-        f'--rt-variants fifo --repeats 1 --duration {duration_s:g} --skip-offline --floor-s 0 '
-        f'--quiet --out {out}'
+        f'--rt-variants {rt_variant} --repeats 1 --duration {duration_s:g} --skip-offline '
+        f'--floor-s 0 --quiet --out {out}'
     )
     env = {k: v for k, v in os.environ.items() if not k.startswith(('AMENT_', 'COLCON_'))}
     env.pop('PYTHONPATH', None)
@@ -100,13 +110,17 @@ def run_bench(tree: Path, out: Path, duration_s: float) -> dict:
     return json.loads(summaries[-1].read_text())
 
 
-def figures_of(summary: dict) -> dict:
-    """{(variant, figure): value} of one benchmark's runs."""
+def figures_of(summary: dict, realtime: str = REALTIME_VARIANTS['fifo']) -> dict:
+    """{(variant, figure): value} of one benchmark's runs; ``realtime``: its real-time variant.
+
+    The real-time figures are filed under FIGURES' name (realtime_fifo50) whichever it was.
+    """
     out = {}
     for run in summary.get('runs', []):
         for variant, figure, _ in FIGURES:
             value = run.get('figures', {}).get(figure)
-            if run.get('variant') == variant and value is not None:
+            ran = realtime if variant == REALTIME_VARIANTS['fifo'] else variant
+            if run.get('variant') == ran and value is not None:
                 out[variant, figure] = float(value)
     return out
 
@@ -132,10 +146,11 @@ def table(rounds: dict) -> list[str]:
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Build the earlier version, run both in alternation, print and write the table."""
     args = build_parser().parse_args(argv)
+    realtime = REALTIME_VARIANTS[args.rt_variant]
     if args.table:  # rounds as the folders name them: round<r>_<version>/<stamp>/summary.json
         rounds = {
             v: [
-                figures_of(json.loads(f.read_text()))
+                figures_of(json.loads(f.read_text()), realtime)
                 for f in sorted(args.table.glob(f'round*_{v}/*/summary.json'))
             ]
             for v in ('before', 'after')
@@ -152,12 +167,14 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         for version in order:
             loads.append(os.getloadavg()[0])
             print(f'[round {r}] {version}: {trees[version]}', flush=True)
-            summary = run_bench(trees[version], base / f'round{r}_{version}', args.duration)
-            rounds[version].append(figures_of(summary))
+            summary = run_bench(
+                trees[version], base / f'round{r}_{version}', args.duration, args.rt_variant
+            )
+            rounds[version].append(figures_of(summary, realtime))
     lines = table(rounds)
     header = (
         f'before = {args.before} ({before}), after = the tree now; {args.rounds} rounds of '
-        f"{args.duration:g} s each; 1-min load at the runs' starts "
+        f"{args.duration:g} s each, real time {realtime}; 1-min load at the runs' starts "
         f'{min(loads):.1f}-{max(loads):.1f} on {os.cpu_count()} CPUs'
     )
     print('\n' + header + '\n' + '\n'.join(lines))

@@ -11,10 +11,10 @@ them (the console script ``cia402_sim_drive`` runs it in a process of its own):
   drive's period grid is phase-locked to the SYNCs (they fall mid-period), so a SYNC less than
   half a period late neither adds nor drops a period. Either way the master's stamps and the
   drive's samples keep one time base (``drive_clock.DriveClock``). With no SYNC for a few
-  periods drive time follows the wall clock (a clock thread steps it). A SYNC latches the RPDO received since the last SYNC
-  (0x6040, 0x6071), samples and answers TPDO1/TPDO2. With no master the drive keeps its last
-  target torque: only its heartbeat consumer (0x1016) stops it, by the abort connection
-  option 0x6007;
+  periods drive time follows the wall clock (a clock thread steps it). A SYNC latches the
+  RPDO received since the last SYNC (0x6040, 0x6071), samples and answers TPDO1/TPDO2. With
+  no master the drive keeps its last target torque: only its heartbeat consumer (0x1016)
+  stops it, by the abort connection option 0x6007;
 - 0x6071 is a stored object: kept across NMT start and across enable (no zeroing);
 - the SYNC window 0x1007 discards an RPDO that arrives later than the window after the SYNC;
 - quick stop (0x605A), disable operation (0x605C) and the fault reaction (0x605E) ramp the
