@@ -230,7 +230,6 @@ class RecorderNode(Node, ProcessMember):
             )
         self.thread.start()
         self._received_at_check, self._quiet_since = -1, time.monotonic()
-        self._released = False
         self.diagnostics = NodeDiagnostics(
             self,
             HealthMonitor(
@@ -352,9 +351,6 @@ class RecorderNode(Node, ProcessMember):
 
     def release(self) -> None:
         """Close the bag and print the summary line; MemberError: what is on disk, and why."""
-        if self._released:
-            return
-        self._released = True
         try:
             summary = self.finish()
         except BagError as err:
@@ -362,12 +358,6 @@ class RecorderNode(Node, ProcessMember):
         lost = f', {self.lost} reported lost by the middleware' if self.lost else ''
         backlog = self.thread.max_backlog
         print(f'recorder: wrote {summary.line()}; max writer backlog {backlog}{lost}', flush=True)
-
-    def destroy_node(self) -> None:
-        """Destroy the node; a bag never closed (an exception on the way) is cut back."""
-        if self.writer.is_open:
-            self.writer.abort()
-        super().destroy_node()
 
     def finish(self) -> BagSummary:
         """Stop the subscriptions, let the writer drain, close the bag.
