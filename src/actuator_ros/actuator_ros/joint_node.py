@@ -39,7 +39,6 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState
 
 from actuator_core.gate import CommandGate
-from actuator_core.health import HealthMonitor, Level, Snapshot
 from actuator_core.binding import CommandBinding
 from actuator_core.limits import CYCLE_LATENESS_MAX_FRACTION
 from actuator_core.joint import (
@@ -55,6 +54,7 @@ from actuator_msgs.msg import CurrentCommand
 from actuator_ros.conversions import ns_to_stamp
 from actuator_ros.diagnostics import NodeDiagnostics
 from actuator_ros.guard import GraphGuard
+from actuator_ros.joint_report import JointReport
 from actuator_ros.node import ManagedNode
 from actuator_ros.parameters import (
     ParameterError,
@@ -70,7 +70,7 @@ SIM_START_NS = 1_000_000_000
 SETTLE_NS = 500_000_000
 
 
-class JointNode(ManagedNode):
+class JointNode(JointReport, ManagedNode):
     """Timing, gate, checks and lifecycle of one joint; subclasses say which joint."""
 
     #: Description of the node for ``--help`` and logs.
@@ -481,58 +481,3 @@ class JointNode(ManagedNode):
             and self.waiting_since_ns is not None
         ):
             self._sim_step()
-
-    def close_log(self) -> None:
-        """Log a one-line summary; write the per-sample log if asked."""
-        if self.timing_log:
-            self.samples_log.save(self.timing_log)
-        self.get_logger().info(
-            f'stopped at sample {self.sample_index}; refused commands {self.gate.refused} by '
-            f'value and {self.refused} by stamp, command timeouts {self.gate.timeouts}, '
-            f'lockstep timeouts {self.lockstep_timeouts}; cycles skipped by host stalls '
-            f'{self.skipped_cycles} (the longest stall {self.longest_stall_cycles}), '
-            f'cycles without feedback {self.lost_feedback}'
-        )
-
-    def health_monitor(self) -> HealthMonitor:
-        """Rules of /diagnostics: STALE without samples; WARN on refusals and timeouts."""
-        return HealthMonitor(
-            self.get_name(),
-            inputs={'samples': 'samples from the joint'},
-            warn_on={
-                'refused_by_stamp': 'commands refused by stamp',
-                'refused_by_value': 'commands refused by value',
-                'command_timeouts': 'command timeouts (0 A, then the brake)',
-                'lockstep_timeouts': 'sim steps without a command',
-            },
-            hardware_id=self.joint.kind,
-        )
-
-    def health(self) -> Snapshot:
-        """Report to /diagnostics: counts, the joint's own key-values, why control ended."""
-        problems = []
-        if self.stopped_reason:
-            problems.append((Level.ERROR, f'control ended: {self.stopped_reason}'))
-        if self.conflict:
-            problems.append((Level.ERROR, 'more than one publisher on current_command'))
-        if self.freshness.degraded and not self.stopped_reason:
-            problems.append((Level.WARN, f'loop too slow: {self.freshness.describe()}'))
-        share = self.freshness.share
-        return Snapshot(
-            'active' if self.active else 'inactive',
-            {
-                'samples': self.sample_index + 1,
-                'refused_by_stamp': self.refused,
-                'refused_by_value': self.gate.refused,
-                'command_timeouts': self.gate.timeouts,
-                'lockstep_timeouts': self.lockstep_timeouts,
-            },
-            {
-                'mode': self.mode,
-                'brake': bool(self.held.brake),
-                'held': self.held.reason or f'{self.held.current_a:.3f} A',
-                'fresh commands [%]': 'not judged yet' if share is None else f'{100 * share:.1f}',
-                **self.joint.diagnostics(),
-            },
-            problems,
-        )

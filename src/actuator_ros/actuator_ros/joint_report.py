@@ -1,0 +1,71 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""What the joint node says: its closing line, its /diagnostics.
+
+``JointReport`` is a part of ``JointNode`` (a mixin): it reads the node's counters, its gate
+and its joint, and changes nothing the sampling loop reads.
+"""
+
+from __future__ import annotations
+
+from actuator_core.health import HealthMonitor, Level, Snapshot
+
+
+class JointReport:
+    """The closing line and the /diagnostics of the joint node."""
+
+    def close_log(self) -> None:
+        """Log a one-line summary; write the per-sample log if asked."""
+        if self.timing_log:
+            self.samples_log.save(self.timing_log)
+        self.get_logger().info(
+            f'stopped at sample {self.sample_index}; refused commands {self.gate.refused} by '
+            f'value and {self.refused} by stamp, command timeouts {self.gate.timeouts}, '
+            f'lockstep timeouts {self.lockstep_timeouts}; cycles skipped by host stalls '
+            f'{self.skipped_cycles} (the longest stall {self.longest_stall_cycles}), '
+            f'cycles without feedback {self.lost_feedback}'
+        )
+
+    def health_monitor(self) -> HealthMonitor:
+        """Rules of /diagnostics: STALE without samples; WARN on refusals and timeouts."""
+        return HealthMonitor(
+            self.get_name(),
+            inputs={'samples': 'samples from the joint'},
+            warn_on={
+                'refused_by_stamp': 'commands refused by stamp',
+                'refused_by_value': 'commands refused by value',
+                'command_timeouts': 'command timeouts (0 A, then the brake)',
+                'lockstep_timeouts': 'sim steps without a command',
+            },
+            hardware_id=self.joint.kind,
+        )
+
+    def health(self) -> Snapshot:
+        """Report to /diagnostics: counts, the joint's own key-values, why control ended."""
+        problems = []
+        if self.stopped_reason:
+            problems.append((Level.ERROR, f'control ended: {self.stopped_reason}'))
+        if self.conflict:
+            problems.append((Level.ERROR, 'more than one publisher on current_command'))
+        if self.freshness.degraded and not self.stopped_reason:
+            problems.append((Level.WARN, f'loop too slow: {self.freshness.describe()}'))
+        share = self.freshness.share
+        return Snapshot(
+            'active' if self.active else 'inactive',
+            {
+                'samples': self.sample_index + 1,
+                'refused_by_stamp': self.refused,
+                'refused_by_value': self.gate.refused,
+                'command_timeouts': self.gate.timeouts,
+                'lockstep_timeouts': self.lockstep_timeouts,
+            },
+            {
+                'mode': self.mode,
+                'brake': bool(self.held.brake),
+                'held': self.held.reason or f'{self.held.current_a:.3f} A',
+                'fresh commands [%]': 'not judged yet' if share is None else f'{100 * share:.1f}',
+                **self.joint.diagnostics(),
+            },
+            problems,
+        )
