@@ -252,18 +252,21 @@ class SimulatedDrive:
     def _on_read(self, index: int, subindex: int, od) -> int | None:
         """Live values of the process objects for SDO reads."""
         with self.lock:
-            live = {
-                p.STATUSWORD: self.statusword,
-                p.MODES_OF_OPERATION_DISPLAY: self._cfg(p.MODES_OF_OPERATION),
-                p.POSITION_ACTUAL: self.position_counts,
-                p.TORQUE_ACTUAL: self.torque_permille,
-                p.CURRENT_ACTUAL: self.scaling.current_to_permille(self.current_a),
-                p.ERROR_CODE: self.error_code,
-                p.ERROR_REGISTER: self.error_register,
-                p.TARGET_TORQUE: self.target_permille,
-                p.DIGITAL_INPUTS: DI_BRAKE_CLOSED if self.brake_closed else 0,
-            }
-            return live.get(index)
+            return self._process_values().get(index)
+
+    def _process_values(self) -> dict[int, int]:
+        """Return the process objects' values now, as an SDO read or a TPDO gives them."""
+        return {
+            p.STATUSWORD: self.statusword,
+            p.MODES_OF_OPERATION_DISPLAY: self._cfg(p.MODES_OF_OPERATION),
+            p.POSITION_ACTUAL: self.position_counts,
+            p.TORQUE_ACTUAL: self.torque_permille,
+            p.CURRENT_ACTUAL: self.scaling.current_to_permille(self.current_a),
+            p.ERROR_CODE: self.error_code,
+            p.ERROR_REGISTER: self.error_register,
+            p.TARGET_TORQUE: self.target_permille,
+            p.DIGITAL_INPUTS: DI_BRAKE_CLOSED if self.brake_closed else 0,
+        }
 
     def _on_write(self, index: int, subindex: int, od, data: bytes) -> None:
         """SDO writes that act at once: controlword, target torque, heartbeat consumer."""
@@ -523,15 +526,7 @@ class SimulatedDrive:
         if self.faults.drop_tpdo_fraction and self.rng.random() < self.faults.drop_tpdo_fraction:
             self.tpdos_dropped += 1
             return
-        live = {
-            p.STATUSWORD: self.statusword,
-            p.POSITION_ACTUAL: self.position_counts,
-            p.TORQUE_ACTUAL: self.torque_permille,
-            p.CURRENT_ACTUAL: self.scaling.current_to_permille(self.current_a),
-            p.ERROR_CODE: self.error_code,
-            p.MODES_OF_OPERATION_DISPLAY: self._cfg(p.MODES_OF_OPERATION),
-            p.DIGITAL_INPUTS: DI_BRAKE_CLOSED if self.brake_closed else 0,
-        }
+        live = self._process_values()
         sends = [
             self._tpdo_send(pdo_map, codec, indices, [live[i] for i in indices])
             for pdo_map, codec, indices in self._tpdo_codecs
