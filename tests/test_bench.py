@@ -401,3 +401,13 @@ def test_a_run_that_raises_is_that_runs_error(monkeypatch, tmp_path):
         bench_variants.Variant('realtime', 50, False, True), 1, args, tmp_path, 10**6
     )
     assert record.error.startswith('run failed: FileNotFoundError') and 'ros2' in record.error
+
+
+def test_the_tick_period_max_after_the_start_leaves_out_the_first_second():
+    """A 50 ms start-up stall at 0.2 s is the max; after the first second the max is 2.5 ms."""
+    periods = [1000.0] * 200 + [50_000.0] + [1000.0] * 900 + [2500.0] + [1000.0] * 100
+    f = bench_figures.period_figures(ticks_ns(periods), PERIOD_NS)
+    assert f['period_max_us'] == pytest.approx(50_000.0)
+    assert f['period_max_after_start_us'] == pytest.approx(2500.0)
+    short = bench_figures.period_figures(ticks_ns([1000.0] * 10), PERIOD_NS)
+    assert short['period_max_after_start_us'] is None  # a log shorter than the start

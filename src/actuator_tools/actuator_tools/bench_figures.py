@@ -24,6 +24,9 @@ from actuator_tools.supervisor import process_log
 NODES = ('plant', 'eso', 'controller', 'recorder', 'loop')  # loop: the composed process
 
 Figures = dict[str, Optional[float]]
+#: The first seconds of a controller's timing log that ``period_max_after_start_us`` leaves out:
+#: the loop's start (discovery, the first lifecycle transitions) stalls it for 50-70 ms here.
+START_UP_S = 1.0
 
 
 # --- figures of one run (pure functions of the logged arrays) -----------------------------------
@@ -40,13 +43,24 @@ def _percentiles_us(values_ns: np.ndarray, prefix: str) -> Figures:
 def period_figures(received_wall_ns: np.ndarray, period_ns: int) -> Figures:
     """Summarise the controller tick periods (diff of arrival wall times).
 
-    mean, p50/p99/max, p99 |deviation|, count > 2 periods.
+    mean, p50/p99/max, p99 |deviation|, count > 2 periods; the max again without the log's
+    first ``START_UP_S``.
     """
-    periods_ns = np.diff(np.asarray(received_wall_ns, dtype=np.int64))
+    arrivals_ns = np.asarray(received_wall_ns, dtype=np.int64)
+    periods_ns = np.diff(arrivals_ns)
     figures = _percentiles_us(periods_ns, 'period')
     if periods_ns.size == 0:
-        figures.update(period_mean_us=None, period_dev_p99_us=None, periods_over_2x=None)
+        figures.update(
+            period_mean_us=None,
+            period_dev_p99_us=None,
+            periods_over_2x=None,
+            period_max_after_start_us=None,
+        )
         return figures
+    after_start = periods_ns[arrivals_ns[1:] - arrivals_ns[0] > START_UP_S * 1e9]
+    figures['period_max_after_start_us'] = (
+        float(after_start.max() / 1e3) if after_start.size else None
+    )
     figures['period_mean_us'] = float(periods_ns.mean() / 1e3)
     figures['period_dev_p99_us'] = float(np.percentile(np.abs(periods_ns - period_ns), 99) / 1e3)
     figures['periods_over_2x'] = float(np.count_nonzero(periods_ns > 2 * period_ns))
