@@ -11,8 +11,8 @@ times: message k goes out at start + (t_k - t_0) / rate on the monotonic clock.
 SIGINT/SIGTERM at any moment (also during the imports: entry.py) stop it with exit 0.
 
 The node is a ``ProcessMember`` in a process started by ``run_nodes``: ``autostart`` starts the
-playing thread, which ends the run (``finished``) when the bag is played through, or fails it
-(``error``: one line ``player: error: ...``, exit 1); ``halt`` stops it.
+playing thread, which ends the run (``finished``) when the bag is played through or could not be
+played (``release`` then says why in one line ``player: error: ...``, exit 1); ``halt`` stops it.
 """
 
 from __future__ import annotations
@@ -86,6 +86,7 @@ class PlayerNode(Node, ProcessMember):
         self.stop_requested = threading.Event()
         self.elapsed_s = 0.0
         self.played_through = False  # the bag played to its end, not stopped
+        self.failure = ''  # why the bag could not be played (said once, at release)
         self._thread = threading.Thread(target=self._run, name='player', daemon=True)
 
     # --- ProcessMember: the playing thread ends the run ---------------------------------------
@@ -100,9 +101,9 @@ class PlayerNode(Node, ProcessMember):
             self.play(self.stop_requested)
             self.played_through = not self.stop_requested.is_set()
         except BagError as err:
-            self.error = str(err)
-        except Exception as exc:  # noqa: BLE001 - reported by run_nodes, never lost with the thread
-            self.error = f'playing failed: {exc!r}'
+            self.failure = str(err)
+        except Exception as exc:  # noqa: BLE001 - said at release, never lost with the thread
+            self.failure = f'playing failed: {exc!r}'
         self.finished = True
 
     def halt(self) -> None:
@@ -113,8 +114,8 @@ class PlayerNode(Node, ProcessMember):
 
     def release(self) -> None:
         """Print the summary line; a failed run says its reason instead."""
-        if self.error:
-            raise MemberError(self.error)
+        if self.failure:
+            raise MemberError(self.failure)
         per_topic = ', '.join(f'{k}={v}' for k, v in self.counts.items())
         how = 'done' if self.played_through else 'stopped'
         print(

@@ -149,6 +149,7 @@ def run_nodes(
         print(f'{prog}: ROS arguments refused: {str(exc).splitlines()[0]}', file=sys.stderr)
         return 2
     nodes: list = []
+    executor = None
     try:
         try:
             for factory in node_factories:
@@ -193,23 +194,12 @@ def run_nodes(
         failed = [n for n in nodes if n.error]
         for node in failed:
             node.get_logger().error(node.error)
-        code = 1 if failed else 0
-        # the end, in ProcessMember's order; a second Ctrl-C must not cut it short
-        for signum in (signal.SIGINT, signal.SIGTERM):
-            signal.signal(signum, signal.SIG_IGN)
-        for node in nodes:
-            node.halt()  # stop acting (a joint's last safe-stop command goes out)
-        settle(executor, nodes)
-        return max(code, _finish(prog, nodes))
+        return max(1 if failed else 0, _end(prog, nodes, executor))
     except (KeyboardInterrupt, ExternalShutdownException):
         return 0
     finally:
-        if nodes:  # after an exception (or the return above: then all of it is done once)
-            for signum in (signal.SIGINT, signal.SIGTERM):
-                signal.signal(signum, signal.SIG_IGN)
-            for node in nodes:
-                node.halt()
-            _finish(prog, nodes)
+        if nodes:  # an early return or an exception: the same end (_end empties ``nodes``)
+            _end(prog, nodes, executor)
         if rclpy.ok():
             rclpy.shutdown()
 
@@ -227,11 +217,19 @@ def settle(executor, nodes: Sequence[ProcessMember], limit_s: float = SETTLE_LIM
     return True
 
 
-def _finish(prog: str, nodes: list) -> int:
-    """Acknowledgements, release and destruction of ``nodes`` (emptied: done once).
+def _end(prog: str, nodes: list, executor=None) -> int:
+    """End ``nodes`` in ProcessMember's order; ``nodes`` is emptied, so it is done once.
 
+    A second Ctrl-C must not cut it short. Halt (a joint's last safe-stop command goes out),
+    settle (with the executor, once there is one), acknowledgements, release, destruction.
     Returns 1 when a release failed (its one line printed), else 0.
     """
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, signal.SIG_IGN)
+    for node in nodes:
+        node.halt()
+    if executor is not None:
+        settle(executor, nodes)
     code = 0
     deadline = time.monotonic() + ACK_TIMEOUT_S
     for node in nodes:  # before the publishers are destroyed
