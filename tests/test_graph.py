@@ -15,6 +15,7 @@ from actuator_tools import bringup
 from actuator_tools.graph import (
     JOINTS,
     LIVE_DIAGNOSTICS_RATE_HZ,
+    RECORDER_NICE,
     SYNC_PRODUCER_GRACE_S,
     closed_loop,
     compose,
@@ -225,3 +226,16 @@ def test_the_runners_extra_parameters_reach_the_eso_and_the_controllers_only():
         '-p',
         'actuator_eso:x:=1',
     ]
+
+
+@pytest.mark.parametrize('mode, nice', [('realtime', RECORDER_NICE), ('sim', None)])
+def test_the_recorder_yields_the_cpu_to_the_loop_in_real_time_only(mode, nice):
+    """Real time: the recorder's process at RECORDER_NICE, on its command line; no loop node is."""
+    specs = {s.key: s for s in closed_loop(mode, 5.0)}
+    assert specs['recorder'].parameters.get('nice') == nice
+    assert RECORDER_NICE > 0
+    for key in ('plant', 'eso', 'controller'):
+        assert 'nice' not in specs[key].parameters
+    if nice is not None:
+        _, values = _arguments_of(specs['recorder'], None)
+        assert values['nice'] == str(RECORDER_NICE)

@@ -45,6 +45,14 @@ def test_defaults_are_valid_and_change_nothing(monkeypatch: pytest.MonkeyPatch) 
             "parameter 'thread_priority' = '50' refused: an integer in [0, 99]",
         ),
         (
+            RealtimeSettings(nice=20),
+            "parameter 'nice' = 20 refused: an integer in [-20, 19]",
+        ),
+        (
+            RealtimeSettings(nice=-21),
+            "parameter 'nice' = -21 refused: an integer in [-20, 19]",
+        ),
+        (
             RealtimeSettings(executor='multi_threaded'),
             "parameter 'executor' = 'multi_threaded' refused: one of events, single_threaded",
         ),
@@ -117,6 +125,26 @@ def test_apply_really_pins_a_process() -> None:
     assert out.stdout.strip() == f'[{cpu}]'
 
 
+def test_apply_really_lowers_a_process_and_says_why_it_cannot_raise_one() -> None:
+    """In a child process: nice 10 is taken (lowering is free); a refusal is one note."""
+    code = textwrap.dedent(
+        """
+        import os
+        from actuator_ros.realtime import RealtimeSettings
+        assert RealtimeSettings(nice=10).apply() is None
+        print(os.getpriority(os.PRIO_PROCESS, 0))
+        note = RealtimeSettings(nice=-5).apply() if os.geteuid() != 0 else 'root'
+        print(note)
+        """
+    )
+    out = subprocess.run(
+        [sys.executable, '-c', code], capture_output=True, text=True, timeout=60, check=True
+    )
+    niceness, note = out.stdout.strip().splitlines()
+    assert int(niceness) == max(10, os.getpriority(os.PRIO_PROCESS, 0))
+    assert note == 'root' or note.startswith('nice -5 refused by the kernel')
+
+
 def test_command_line_values_are_parsed_as_rcl_does() -> None:
     """-p values are YAML scalars; the cpu list stays text; names of other parameters ignored."""
     settings = pre_init_settings(
@@ -126,10 +154,11 @@ def test_command_line_values_are_parsed_as_rcl_does() -> None:
             '-p', 'cpu_affinity:=1',
             '--param', 'executor:=single_threaded',
             '-p', 'mode:=realtime',
+            '-p', 'nice:=3',
         ],
         NODE,
     )  # fmt: skip
-    assert settings == RealtimeSettings(50, '1', 'single_threaded')
+    assert settings == RealtimeSettings(50, '1', 'single_threaded', 3)
 
 
 def test_node_prefixed_values_apply_to_that_node_only() -> None:

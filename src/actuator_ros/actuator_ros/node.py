@@ -36,11 +36,11 @@ from actuator_ros.parameters import (
     only_while_unconfigured,
 )
 from actuator_ros.process_member import ProcessMember
-from actuator_ros.realtime import EXECUTORS, RealtimeSettings
+from actuator_ros.realtime import EXECUTORS, NICE_RANGE, RealtimeSettings
 
 
 def declare_realtime(node, settings: RealtimeSettings) -> RealtimeSettings:
-    """Declare thread_priority, cpu_affinity and executor.
+    """Declare thread_priority, cpu_affinity, executor and nice.
 
     Applied before rclpy.init, see realtime.
     """
@@ -67,6 +67,15 @@ def declare_realtime(node, settings: RealtimeSettings) -> RealtimeSettings:
             settings.executor,
             EXECUTORS,
             'rclpy executor: events (EventsExecutor, lower latency) or single_threaded',
+        ),
+        nice=declare_number(
+            node,
+            'nice',
+            settings.nice,
+            *NICE_RANGE,
+            '',
+            'niceness of the process under normal scheduling, applied before the middleware '
+            'starts (above 0: the loop gets a contended core first; below 0 needs CAP_SYS_NICE)',
         ),
     )
 

@@ -7,10 +7,13 @@ They are ros2_control's thread_priority and cpu_affinity. SCHED_FIFO must be set
 ``rclpy.init``: the middleware's threads (Fast DDS receive and event threads), which every message
 passes through, inherit the policy only if it is set before they exist (measured:
 plant-to-controller delivery p99 9.3 ms -> 0.17 ms). A node cannot read its parameters before init,
-so ``pre_init_settings`` reads these three from the same sources rcl will (``-p name:=value`` and
+so ``pre_init_settings`` reads these four from the same sources rcl will (``-p name:=value`` and
 ``--params-file`` sections for this node or ``/**``), and the node declares them again afterwards
-so that ``ros2 param`` shows them. Memory is not locked (ros2_control's lock_memory): mlockall made
-300-400 MB resident per node.
+so that ``ros2 param`` shows them. ``nice`` is the process's niceness under normal scheduling
+(``setpriority``): a process outside the loop (the recorder) is started at
+``actuator_tools.graph.RECORDER_NICE``, so that the kernel's fair scheduler gives the loop's
+processes a contended core first; below 0 needs CAP_SYS_NICE, as SCHED_FIFO does. Memory is not
+locked (ros2_control's lock_memory): mlockall made 300-400 MB resident per node.
 """
 
 from __future__ import annotations
@@ -22,6 +25,8 @@ from typing import Optional, Sequence
 import yaml
 
 EXECUTORS = ('events', 'single_threaded')
+#: The range of ``nice`` (Linux setpriority).
+NICE_RANGE = (-20, 19)
 
 
 #: The variable rmw_fastrtps reads its publication mode from when rclpy.init creates it.
@@ -49,11 +54,12 @@ def publication_mode(sim: bool, fifo: bool) -> str:
 
 @dataclass(frozen=True)
 class RealtimeSettings:
-    """thread_priority (SCHED_FIFO 1-99, 0 = normal), cpu_affinity ('0,1', '' = any), executor."""
+    """thread_priority (SCHED_FIFO 1-99, 0: normal), cpu_affinity ('' = any), executor, nice."""
 
     thread_priority: int = 0
     cpu_affinity: str = ''
     executor: str = 'events'
+    nice: int = 0
 
     def problems(self) -> list[str]:
         """Return what is invalid, one line each."""
@@ -63,6 +69,9 @@ class RealtimeSettings:
                 f"parameter 'thread_priority' = {self.thread_priority!r} refused: "
                 'an integer in [0, 99]'
             )
+        low, high = NICE_RANGE
+        if not isinstance(self.nice, int) or not low <= self.nice <= high:
+            out.append(f"parameter 'nice' = {self.nice!r} refused: an integer in [{low}, {high}]")
         if self.executor not in EXECUTORS:
             out.append(
                 f"parameter 'executor' = {self.executor!r} refused: one of {', '.join(EXECUTORS)}"
@@ -94,6 +103,11 @@ class RealtimeSettings:
                 notes.append(
                     f'cpu_affinity {self.cpu_affinity!r} refused by the kernel ({exc}); not pinned'
                 )
+        if self.nice:
+            try:
+                os.setpriority(os.PRIO_PROCESS, 0, self.nice)
+            except OSError as exc:
+                notes.append(f'nice {self.nice} refused by the kernel ({exc}); running at nice 0')
         if self.thread_priority:
             try:
                 os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(self.thread_priority))
@@ -119,7 +133,7 @@ def pre_init_settings(args: Sequence[str], node_name: str) -> RealtimeSettings:
 
     Later wins.
     """
-    found = _parameters(args, node_name, ('thread_priority', 'cpu_affinity', 'executor'))
+    found = _parameters(args, node_name, ('thread_priority', 'cpu_affinity', 'executor', 'nice'))
     return RealtimeSettings(
         **{k: (str(v) if k == 'cpu_affinity' else v) for k, v in found.items()}
     )

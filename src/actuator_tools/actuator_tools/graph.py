@@ -133,19 +133,26 @@ def default_scenario(joint: str) -> str:
     return DEFAULT_SCENARIOS[joint]
 
 
+#: The recorder's niceness in real time (actuator_ros.realtime): under normal scheduling the
+#: recorder (23-26 % of a core, 2026-12-05) competes with the loop's processes for two cores,
+#: and the loop's samples wait for it; it has a queue of seconds, the loop a period.
+RECORDER_NICE = 10
+
+
 def recorder_parameters(mode: str) -> dict:
     """Return the recorder's queue for a closed-loop run in ``mode``.
 
-    realtime: BEST_EFFORT, 5 s of queue per topic: the recorder keeps normal scheduling, and the
-    queue rides out the bursts in which the SCHED_FIFO loop leaves it no CPU (measured, 3 runs
-    each way: longest plant gap 17-43 ms -> 5-18 ms; a 1 s queue overflowed once, 8 % lost).
+    realtime: BEST_EFFORT, 5 s of queue per topic, at ``RECORDER_NICE``: the recorder keeps
+    normal scheduling, and the queue rides out the bursts in which the SCHED_FIFO loop leaves it
+    no CPU (measured, 3 runs each way: longest plant gap 17-43 ms -> 5-18 ms; a 1 s queue
+    overflowed once, 8 % lost).
     sim: RELIABLE like the publishers, and 10 s of queue: the lockstep runs as fast as the CPU
     allows and does not wait for the recorder (2 s PI runs lost 68-669 of 2000 samples in 12
     of 94 runs with 1 s; 0 of 32 with 10 s).
     """
     if mode == 'sim':
         return {'reliability': 'reliable', 'queue_depth': 10000}
-    return {'reliability': 'best_effort', 'queue_depth': 5000}
+    return {'reliability': 'best_effort', 'queue_depth': 5000, 'nice': RECORDER_NICE}
 
 
 def closed_loop(
