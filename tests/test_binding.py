@@ -14,6 +14,7 @@ import pytest
 from actuator_core import limits
 from actuator_core.assembly import ControlSampleAssembly
 from actuator_core.binding import (
+    late_window_samples,
     PLAUSIBILITY_MEMORY_S,
     SAFE_STOP_SAMPLES,
     CommandBinding,
@@ -21,6 +22,7 @@ from actuator_core.binding import (
     SeenSamples,
 )
 from actuator_core.clock import Schedule, SteppedClock
+from actuator_core.gate import CommandGate
 from actuator_core.pairing import ObserverInputPairing
 from actuator_core.status import CONTROLLED, Status
 from actuator_core.timebase import StampCheck, Verdict
@@ -153,20 +155,27 @@ def test_pairing_restarts_after_a_gap_instead_of_back_filling_it():
 # --- the joint binds commands to samples it produced (the integrator wires this) -------------
 def test_command_binding_windows():
     b = CommandBinding(P)
+    late = b.late_samples
+    assert late == late_window_samples(P) == 9  # 10 ms command timeout, one sample kept
     assert b.check(T0, False) == 'command no sample seen yet: refused'
-    for k in range(10):
+    for k in range(20):
         b.produced(T0 + k * P)
-    k = T0 + 9 * P
-    assert b.check(k - P, False) == ''  # k-1: late but in the window
+    k = T0 + 19 * P
+    assert b.check(k - late * P, False) == ''  # the oldest sample of the late window
+    assert b.check(k - P, False) == ''  # k-1: late but in the window, and newer
+    assert b.check(k - 2 * P, False) == (
+        f'command for sample {k - 2 * P} ns is not newer than the one applied ({k - P} ns; a '
+        'duplicate or a replay): refused'
+    )
     assert b.check(k, False) == ''  # k
     assert b.check(k, False) == (
         f'command for sample {k} ns is not newer than the one applied ({k} ns; a duplicate or '
         'a replay): refused'
     )
     b.produced(k + P)
-    assert b.check(k - P, False) == (
-        f'command for sample {k - P} ns is 2 ms old (the window is the newest sample and 1 '
-        'before): refused'
+    assert b.check(k - late * P, False) == (
+        f'command for sample {k - late * P} ns is {late + 1} ms old (the window is the newest '
+        f'sample and {late} before): refused'
     )
     assert b.check(k + 2 * P, False) == (
         f'command stamped 1.000 ms ahead of the newest sample seen ({k + P} ns): refused'
@@ -175,7 +184,33 @@ def test_command_binding_windows():
         assert b.check(stamp, False).endswith('refused')
     assert b.check(k + 2 * P, True).startswith('safe stop stamped 1.000 ms ahead')
     assert b.check(T0, True) == '' and b.check(T0, True) == ''  # a stop: any recent sample, again
-    assert b.applied_ns == k and b.refused == 9
+    assert b.applied_ns == k and b.refused == 10
+
+
+def test_a_late_current_is_valid_for_the_timeout_from_the_sample_it_answers():
+    """Accepted 5 samples late: the gate's 0 A comes 5 ms sooner; a safe stop holds from now."""
+    timeout_ns = int(round(limits.COMMAND_TIMEOUT_S * 1e9))
+    for late in (0, 5):
+        b, gate = CommandBinding(P), CommandGate()
+        gate.activate()
+        for k in range(20):
+            b.produced(T0 + k * P)
+        now = T0 + 19 * P + P // 2
+        stamp = T0 + (19 - late) * P
+        assert b.check(stamp, False) == ''
+        gate.offer(1.5, stamp, False, b.valid_from_ns(stamp, False, now))
+        assert gate.hold(now + timeout_ns - late * P).current_a == 1.5
+        assert gate.hold(now + timeout_ns - late * P + 1).reason == 'command timeout'
+        assert b.valid_from_ns(stamp, True, now) == now
+
+
+def test_the_late_window_is_what_the_command_timeout_still_covers():
+    """9 samples at 1 kHz, 4 at 500 Hz, and at least one whatever the period."""
+    assert late_window_samples(P, 0.01) == 9
+    assert late_window_samples(2 * P, 0.01) == 4
+    assert late_window_samples(P, 0.002) == 1
+    assert late_window_samples(20 * P, 0.01) == 1
+    assert late_window_samples(P) == int(round(limits.COMMAND_TIMEOUT_S * 1e3)) - 1
 
 
 def test_command_binding_keeps_safe_stops_for_its_window_only():

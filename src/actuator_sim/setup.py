@@ -39,6 +39,7 @@ setup(
             'offline_sim = actuator_sim.offline:main',
             'stability_check = actuator_sim.stability:main',
             'late_commands = actuator_sim.late_commands:main',
+            'late_answers = actuator_sim.late_answers:main',
         ],
     },
 )

@@ -7,9 +7,10 @@ A command or estimate is an answer to one measurement sample. It counts only for
 receiver saw happen (README "Safety", the windows):
   ``SeenSamples``         the stamps a receiver has seen (the ESO and the controller: the
                           measurements they received) or produced (the joint: its own samples);
-  ``CommandBinding``      the joint's rule: a current command only for its newest sample k, or
-                          k-1 when late (``late_samples``), each sample once, never older than
-                          the command applied; a safe stop for any sample of the last
+  ``CommandBinding``      the joint's rule: a current command only for one of its samples within
+                          the command timeout (the newest k, or up to ``late_samples`` before
+                          when late: 9 at 1 kHz), each sample once, never older than the
+                          command applied; a safe stop for any sample of the last
                           ``safe_stop_samples`` (it only makes the joint safer, and repeats are
                           fine); anything ahead of the newest sample, or off its samples,
                           refused with the reason;
@@ -29,8 +30,21 @@ from actuator_core import limits
 
 #: Samples of history a receiver keeps (1 s at 1 kHz).
 SEEN_DEPTH = 1000
-#: Joint: a current command may answer the newest sample k or up to this many before (late).
-LATE_SAMPLES = 1
+
+
+def late_window_samples(period_ns: int, timeout_s: float = limits.COMMAND_TIMEOUT_S) -> int:
+    """Joint: how many samples before the newest a current command may answer (its late window).
+
+    Those the drive's command timeout still covers: a command valid for the timeout from the
+    sample it answers (the joint node offers it to the gate that much earlier) would otherwise
+    be refused while the gate holds an older one for up to the timeout. Under normal scheduling
+    the controller answers 2-11 samples late for tens of ms at a time (README "Performance"), and
+    a joint that refused those answers held commands 2-16 ms old instead: the newest answer is
+    never older than the command held. One sample of validity is kept, so at least one before.
+    """
+    return max(1, int(round(timeout_s * 1e9)) // period_ns - 1)
+
+
 #: Joint: a safe stop may answer any of the newest this many samples (the controller's watchdog
 #: stamps its stop with the newest measurement it saw, which may be some samples old).
 SAFE_STOP_SAMPLES = 100
@@ -96,11 +110,13 @@ class CommandBinding:
     def __init__(
         self,
         period_ns: int,
-        late_samples: int = LATE_SAMPLES,
+        late_samples: Optional[int] = None,
         safe_stop_samples: int = SAFE_STOP_SAMPLES,
     ):
-        """Windows in samples of ``period_ns`` (module docstring)."""
+        """Windows in samples of ``period_ns`` (default late window: ``late_window_samples``)."""
         self.period_ns = period_ns
+        if late_samples is None:
+            late_samples = late_window_samples(period_ns)
         self.late_samples = late_samples
         self.samples = SeenSamples(period_ns, max(safe_stop_samples, late_samples + 1))
         self.applied_ns: Optional[int] = None  # stamp of the newest current command accepted
@@ -109,6 +125,18 @@ class CommandBinding:
     def produced(self, stamp_ns: int) -> None:
         """Record that the joint published sample ``stamp_ns``."""
         self.samples.add(stamp_ns)
+
+    def valid_from_ns(self, stamp_ns: int, safe_stop: bool, now_ns: int) -> int:
+        """When the gate's timeout starts for a command accepted at ``now_ns``.
+
+        A current answering a sample before the newest: earlier by the samples it is late (valid
+        for the command timeout from the sample it answers, ``late_window_samples``); a safe stop
+        and a current for the newest sample: at once.
+        """
+        newest = self.samples.newest_ns
+        if safe_stop or newest is None:
+            return now_ns
+        return now_ns - max(0, newest - stamp_ns)
 
     def check(self, stamp_ns: int, safe_stop: bool) -> str:
         """'' when a command stamped ``stamp_ns`` may be applied, else why not."""

@@ -12,8 +12,9 @@ factories of this node; everything their contract has in common lives here once:
   subscribes current_command (actuator_msgs/CurrentCommand)
 
 A command passes the command binding (``actuator_core.binding.CommandBinding``: it must answer
-a sample this node produced, the newest or the one before, once; a safe stop any of the last
-100), the one-publisher guard
+a sample this node produced within the command timeout, the newest or one of the 9 before
+(``late_window_samples``), once, valid for the timeout from that sample; a safe stop any of the
+last 100), the one-publisher guard
 and the ``CommandGate`` (finite, within the current limit, safe_stop, timeout, the one brake
 policy) under one lock, since the executor thread offers and the sampling thread holds.
 
@@ -471,8 +472,9 @@ class JointNode(JointReport, ManagedNode):
                 'conflict', lambda: 'command refused: more than one publisher on current_command'
             )
             return
+        valid_from_ns = self.binding.valid_from_ns(stamp_ns, msg.safe_stop, self._gate_now_ns())
         with self.gate_lock:
-            refusal = self.gate.offer(msg.current_a, stamp_ns, msg.safe_stop, self._gate_now_ns())
+            refusal = self.gate.offer(msg.current_a, stamp_ns, msg.safe_stop, valid_from_ns)
         if refusal:
             self.log.error('bad_command', lambda: refusal)
         if (

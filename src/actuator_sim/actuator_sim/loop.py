@@ -132,14 +132,14 @@ class ClosedLoop:
         y = self.joint.read(stamp).position_rad
         velocity = self.plant.velocity_rad_s
         truth = self.joint.truth()
-        self._forward(self.pairing.add_measurement(stamp, y))
+        self.deliver_estimates(self.pairing.add_measurement(stamp, y))
         x1_hat, x2_hat, x3_hat = self.estimate.x_hat
         sample = self.assembly.add_measurement(stamp, y)
         if not command_lost:
             self.gate.offer(sample.current_a, stamp, sample.safe_stop, stamp)
         held = self.gate.hold(stamp)
         self.joint.write(held.current_a, held.brake)
-        self._forward(
+        self.deliver_estimates(
             self.pairing.add_command(
                 stamp, held.current_a if eso_integrates_applied else sample.current_a
             )
@@ -173,7 +173,7 @@ class ClosedLoop:
         record['status'] = sample.status
         return record
 
-    def _forward(self, estimates) -> None:
+    def deliver_estimates(self, estimates) -> None:
         """Hand the observer's new estimates to the controller, as the estimate topic does."""
         for estimate in estimates:
             self.estimate = estimate
