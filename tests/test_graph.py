@@ -15,7 +15,6 @@ from actuator_tools import bringup
 from actuator_tools.graph import (
     JOINTS,
     LIVE_DIAGNOSTICS_RATE_HZ,
-    LOOP_SLICE_US,
     RECORDER_NICE,
     SYNC_PRODUCER_GRACE_S,
     closed_loop,
@@ -240,14 +239,3 @@ def test_the_recorder_yields_the_cpu_to_the_loop_in_real_time_only(mode, nice):
     if nice is not None:
         _, values = _arguments_of(specs['recorder'], None)
         assert values['nice'] == str(RECORDER_NICE)
-
-
-@pytest.mark.parametrize('mode, priority', [('realtime', 0), ('realtime', 50), ('sim', 0)])
-def test_the_loop_asks_for_a_short_slice_under_normal_scheduling_in_real_time(mode, priority):
-    """LOOP_SLICE_US for the joint, ESO and controller in real time at normal scheduling only."""
-    specs = {s.key: s for s in closed_loop(mode, 5.0, thread_priority=priority)}
-    expected = LOOP_SLICE_US if (mode, priority) == ('realtime', 0) else None
-    for key in ('plant', 'eso', 'controller'):
-        assert specs[key].parameters.get('sched_slice_us') == expected
-    assert 'sched_slice_us' not in specs['recorder'].parameters
-    assert 100 <= LOOP_SLICE_US <= 100_000

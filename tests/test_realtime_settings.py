@@ -6,7 +6,6 @@
 from __future__ import annotations
 
 import os
-import shutil
 import subprocess
 import sys
 import textwrap
@@ -52,16 +51,6 @@ def test_defaults_are_valid_and_change_nothing(monkeypatch: pytest.MonkeyPatch) 
         (
             RealtimeSettings(nice=-21),
             "parameter 'nice' = -21 refused: an integer in [-20, 19]",
-        ),
-        (
-            RealtimeSettings(sched_slice_us=99),
-            "parameter 'sched_slice_us' = 99 refused: 0 (the kernel's default) or an integer in "
-            '[100, 100000]',
-        ),
-        (
-            RealtimeSettings(sched_slice_us=100_001),
-            "parameter 'sched_slice_us' = 100001 refused: 0 (the kernel's default) or an integer "
-            'in [100, 100000]',
         ),
         (
             RealtimeSettings(executor='multi_threaded'),
@@ -156,42 +145,6 @@ def test_apply_really_lowers_a_process_and_says_why_it_cannot_raise_one() -> Non
     assert note == 'root' or note.startswith('nice -5 refused by the kernel')
 
 
-def test_apply_really_shortens_the_time_slice_of_the_threads_created_after_it() -> None:
-    """A child process without privileges runs with the 100 us slice asked (EEVDF, Linux 6.12+).
-
-    The main thread and a thread started afterwards, at the niceness set first.
-    """
-    if 'se.slice' not in Path('/proc/self/sched').read_text():
-        pytest.skip('this kernel has no EEVDF time slice (Linux before 6.12): nothing to apply')
-    code = textwrap.dedent(
-        """
-        import os, threading
-        from actuator_ros.realtime import RealtimeSettings
-        assert RealtimeSettings(nice=5, sched_slice_us=100).apply() is None
-        def slice_of(tid):
-            text = open(f'/proc/self/task/{tid}/sched').read()
-            return int(text.split('se.slice')[1].split(':')[1].split()[0])
-        found = []
-        thread = threading.Thread(target=lambda: found.append(slice_of(threading.get_native_id())))
-        thread.start()
-        thread.join()
-        print(slice_of(threading.get_native_id()), found[0], os.getpriority(os.PRIO_PROCESS, 0))
-        """
-    )
-    unprivileged = ['setpriv', '--reuid=65534', '--regid=65534', '--clear-groups']
-    if os.geteuid() != 0 or not shutil.which('setpriv'):
-        unprivileged = []
-    out = subprocess.run(
-        [*unprivileged, sys.executable, '-c', code],
-        capture_output=True,
-        text=True,
-        timeout=60,
-        check=True,
-        env={**os.environ, 'HOME': '/tmp'},
-    )
-    assert out.stdout.split() == ['100000', '100000', '5']
-
-
 def test_command_line_values_are_parsed_as_rcl_does() -> None:
     """-p values are YAML scalars; the cpu list stays text; names of other parameters ignored."""
     settings = pre_init_settings(
@@ -202,11 +155,10 @@ def test_command_line_values_are_parsed_as_rcl_does() -> None:
             '--param', 'executor:=single_threaded',
             '-p', 'mode:=realtime',
             '-p', 'nice:=3',
-            '-p', 'sched_slice_us:=250',
         ],
         NODE,
     )  # fmt: skip
-    assert settings == RealtimeSettings(50, '1', 'single_threaded', 3, 250)
+    assert settings == RealtimeSettings(50, '1', 'single_threaded', 3)
 
 
 def test_node_prefixed_values_apply_to_that_node_only() -> None:

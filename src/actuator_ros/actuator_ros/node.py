@@ -36,11 +36,11 @@ from actuator_ros.parameters import (
     only_while_unconfigured,
 )
 from actuator_ros.process_member import ProcessMember
-from actuator_ros.realtime import EXECUTORS, NICE_RANGE, SLICE_RANGE_US, RealtimeSettings
+from actuator_ros.realtime import EXECUTORS, NICE_RANGE, RealtimeSettings
 
 
 def declare_realtime(node, settings: RealtimeSettings) -> RealtimeSettings:
-    """Declare thread_priority, cpu_affinity, executor, nice and sched_slice_us.
+    """Declare thread_priority, cpu_affinity, executor and nice.
 
     Applied before rclpy.init, see realtime.
     """
@@ -76,17 +76,6 @@ def declare_realtime(node, settings: RealtimeSettings) -> RealtimeSettings:
             '',
             'niceness of the process under normal scheduling, applied before the middleware '
             'starts (above 0: the loop gets a contended core first; below 0 needs CAP_SYS_NICE)',
-        ),
-        sched_slice_us=declare_number(
-            node,
-            'sched_slice_us',
-            settings.sched_slice_us,
-            0,
-            SLICE_RANGE_US[1],
-            'us',
-            'time slice asked of the fair scheduler under normal scheduling (Linux 6.12+, '
-            f'EEVDF; shorter: run sooner on waking); 0: the kernel default, else at least '
-            f'{SLICE_RANGE_US[0]}',
         ),
     )
 

@@ -7,27 +7,18 @@ They are ros2_control's thread_priority and cpu_affinity. SCHED_FIFO must be set
 ``rclpy.init``: the middleware's threads (Fast DDS receive and event threads), which every message
 passes through, inherit the policy only if it is set before they exist (measured:
 plant-to-controller delivery p99 9.3 ms -> 0.17 ms). A node cannot read its parameters before init,
-so ``pre_init_settings`` reads these five from the same sources rcl will (``-p name:=value`` and
+so ``pre_init_settings`` reads them all from the same sources rcl will (``-p name:=value`` and
 ``--params-file`` sections for this node or ``/**``), and the node declares them again afterwards
 so that ``ros2 param`` shows them. ``nice`` is the process's niceness under normal scheduling
 (``setpriority``): a process outside the loop (the recorder) is started at
 ``actuator_tools.graph.RECORDER_NICE``, so that the kernel's fair scheduler gives the loop's
-processes a contended core first; below 0 needs CAP_SYS_NICE, as SCHED_FIFO does.
-``sched_slice_us`` is the time slice the process asks of the kernel's fair scheduler (EEVDF,
-Linux 6.12 and later: ``sched_setattr``'s ``sched_runtime`` for SCHED_OTHER, no privilege
-needed, inherited by threads created afterwards): a task with a shorter slice gets an earlier
-virtual deadline, so on waking it is run, or preempts the task running, sooner. The loop's
-processes ask for ``actuator_tools.graph.LOOP_SLICE_US`` in real time. Memory is not locked
-(ros2_control's lock_memory): mlockall made 300-400 MB resident per node.
+processes a contended core first; below 0 needs CAP_SYS_NICE, as SCHED_FIFO does. Memory is not
+locked (ros2_control's lock_memory): mlockall made 300-400 MB resident per node.
 """
 
 from __future__ import annotations
 
-import ctypes
-import errno
 import os
-import platform
-import struct
 from dataclasses import dataclass, fields
 from typing import Optional, Sequence
 
@@ -36,11 +27,6 @@ import yaml
 EXECUTORS = ('events', 'single_threaded')
 #: The range of ``nice`` (Linux setpriority).
 NICE_RANGE = (-20, 19)
-#: The range of ``sched_slice_us`` the kernel takes (it clamps sched_runtime to 0.1-100 ms); 0
-#: leaves the kernel's default slice.
-SLICE_RANGE_US = (100, 100_000)
-#: sched_setattr's system call number by machine (glibc has no wrapper before 2.41).
-SCHED_SETATTR = {'x86_64': 314, 'aarch64': 274}
 
 
 #: The variable rmw_fastrtps reads its publication mode from when rclpy.init creates it.
@@ -74,7 +60,6 @@ class RealtimeSettings:
     cpu_affinity: str = ''
     executor: str = 'events'
     nice: int = 0
-    sched_slice_us: int = 0
 
     def problems(self) -> list[str]:
         """Return what is invalid, one line each."""
@@ -87,13 +72,6 @@ class RealtimeSettings:
         low, high = NICE_RANGE
         if not isinstance(self.nice, int) or not low <= self.nice <= high:
             out.append(f"parameter 'nice' = {self.nice!r} refused: an integer in [{low}, {high}]")
-        low, high = SLICE_RANGE_US
-        slice_us = self.sched_slice_us
-        if not isinstance(slice_us, int) or not (slice_us == 0 or low <= slice_us <= high):
-            out.append(
-                f"parameter 'sched_slice_us' = {slice_us!r} refused: 0 (the kernel's default) "
-                f'or an integer in [{low}, {high}]'
-            )
         if self.executor not in EXECUTORS:
             out.append(
                 f"parameter 'executor' = {self.executor!r} refused: one of {', '.join(EXECUTORS)}"
@@ -130,14 +108,6 @@ class RealtimeSettings:
                 os.setpriority(os.PRIO_PROCESS, 0, self.nice)
             except OSError as exc:
                 notes.append(f'nice {self.nice} refused by the kernel ({exc}); running at nice 0')
-        if self.sched_slice_us:
-            try:
-                set_fair_slice(self.sched_slice_us * 1000)
-            except OSError as exc:
-                notes.append(
-                    f'sched_slice_us {self.sched_slice_us} refused by the kernel ({exc}); '
-                    "running with the kernel's default slice"
-                )
         if self.thread_priority:
             try:
                 os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(self.thread_priority))
@@ -148,25 +118,6 @@ class RealtimeSettings:
                     '(grant CAP_SYS_NICE or an rtprio limit to enable it)'
                 )
         return '; '.join(notes) or None
-
-
-def set_fair_slice(slice_ns: int) -> None:
-    """Ask the fair scheduler for a ``slice_ns`` time slice for this thread (OSError if refused).
-
-    sched_setattr(2) with SCHED_OTHER, the thread's nice kept, ``sched_runtime`` = the slice
-    (struct sched_attr, its first version: 48 bytes).
-    """
-    number = SCHED_SETATTR.get(platform.machine())
-    if number is None:
-        raise OSError(errno.ENOSYS, f'sched_setattr is not known on {platform.machine()}')
-    nice = os.getpriority(os.PRIO_PROCESS, 0)
-    attr = ctypes.create_string_buffer(
-        struct.pack('IIQiIQQQ', 48, os.SCHED_OTHER, 0, nice, 0, slice_ns, 0, 0), 48
-    )
-    libc = ctypes.CDLL(None, use_errno=True)
-    if libc.syscall(number, 0, attr, 0) != 0:
-        code = ctypes.get_errno()
-        raise OSError(code, os.strerror(code))
 
 
 def _value(text: str):

@@ -174,11 +174,6 @@ def run_nodes(
             first.get_logger().info(
                 f'running under SCHED_FIFO priority {settings.thread_priority} (all threads)'
             )
-        elif settings.sched_slice_us:
-            first.get_logger().info(
-                f'running with normal scheduling, a {settings.sched_slice_us} us time slice '
-                '(all threads)'
-            )
         share_clock_subscription(nodes)
         executor = make_executor(settings.executor)
         for node in nodes:

@@ -133,12 +133,6 @@ def default_scenario(joint: str) -> str:
     return DEFAULT_SCENARIOS[joint]
 
 
-#: The time slice [us] the loop's processes ask of the fair scheduler in real time under normal
-#: scheduling (actuator_ros.realtime; the kernel's shortest): a sample's work is 15-50 us of
-#: Python per node, and with the default slice (1.4 ms here) a node that wakes while the other
-#: loop processes hold both cores waits for their slices; the loop then answers samples late.
-LOOP_SLICE_US = 100
-
 #: The recorder's niceness in real time (actuator_ros.realtime): under normal scheduling the
 #: recorder (23-26 % of a core, 2026-12-05) competes with the loop's processes for two cores,
 #: and the loop's samples wait for it; it has a queue of seconds, the loop a period.
@@ -212,8 +206,6 @@ def closed_loop(
         out = {'executor': executor, 'autostart': autostart}
         if priority:
             out['thread_priority'] = priority
-        elif not sim:
-            out['sched_slice_us'] = LOOP_SLICE_US
         if key in cpus:
             out['cpu_affinity'] = cpus[key]
         return out
