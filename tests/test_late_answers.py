@@ -85,15 +85,21 @@ def _sample(a, k, late_ns=0):
     return a.add_measurement(T0 + k * P, 0.0, T0 + k * P + OFFSET + late_ns)
 
 
-def test_the_assembly_lowers_the_feedback_while_answers_are_late_and_restores_it():
-    """Real time (base 1): on time, 0.4 ms late: whole; 1.2 ms late (delay 2) or more: lowered."""
+def test_the_assembly_lowers_the_feedback_after_a_run_of_late_answers_and_restores_it():
+    """Real time (base 1): 0.4 ms late is on time; 1.2 ms (delay 2) or more, 3 in a row: lowered.
+
+    One late answer alone changes nothing; the first on-time answer restores the gains.
+    """
     a, law = _assembly()
     given = law.gains
+    assert limits.LATE_FEEDBACK_RUN_SAMPLES == 3
+    lowered = limits.LATE_FEEDBACK_SCALE
+    lateness_ms = (0, 0.4, 1.2, 0, 1.2, 3.0, 2.0, 4.0, 0.3, 1.5)
     scales = []
-    for k, late_ns in enumerate((0, 400_000, 1_200_000, 3_000_000, 0)):
-        assert _sample(a, k, late_ns) is not None
+    for k, late_ms in enumerate(lateness_ms):
+        assert _sample(a, k, int(late_ms * 1e6)) is not None
         scales.append(law.feedback_scale)
-    assert scales == [1.0, 1.0, limits.LATE_FEEDBACK_SCALE, limits.LATE_FEEDBACK_SCALE, 1.0]
+    assert scales == [1.0, 1.0, 1.0, 1.0, 1.0, 1.0, lowered, lowered, 1.0, 1.0]
     assert law.gains is given and a.late_feedback == 2
 
 
@@ -105,6 +111,6 @@ def test_sim_and_offline_never_lower_the_feedback_and_one_turns_it_off():
         a.add_measurement(T0 + k * P, 0.0)
         assert law.feedback_scale == 1.0
     a, law = _assembly(late_feedback_scale=1.0)
-    for k, late_ns in enumerate((0, 5_000_000)):
-        _sample(a, k, late_ns)
-    assert law.feedback_scale == 1.0 and a.late_feedback == 1
+    for k, late_ms in enumerate((0, 5, 5, 5, 5)):
+        _sample(a, k, late_ms * 1_000_000)
+    assert law.feedback_scale == 1.0 and a.late_feedback == 2

@@ -121,8 +121,9 @@ class ControlSampleAssembly:
         self.law = law
         self.late_feedback_scale = late_feedback_scale
         self.answer_delay = AnswerDelay(period_ns, base_delay_samples)
-        self.delay_samples = base_delay_samples  # of the newest measurement's answer
-        self.late_feedback = 0  # law samples answered late (feedback lowered unless scale 1)
+        self.delay_samples = base_delay_samples  # of the newest sample's answer
+        self.late_run = 0  # answers in a row at LATE_FEEDBACK_DELAY_SAMPLES or more
+        self.late_feedback = 0  # law samples run late (feedback lowered unless scale 1)
         self.reference = reference
         self.reference_offset_rad = None  # set by a restart after a resync
         self.reference_shift_s = 0.0  # t_0 once a resync restarted the reference
@@ -338,6 +339,8 @@ class ControlSampleAssembly:
         """Run the law for sample ``stamp``; latch on a non-finite output or a following error."""
         if _scalar(y):  # the law runs now: when the later of y(k) and x_hat(k) came in
             self.delay_samples = self.answer_delay.update(stamp, self._latest_received_ns(stamp))
+            late = self.delay_samples >= limits.LATE_FEEDBACK_DELAY_SAMPLES
+            self.late_run = self.late_run + 1 if late else 0
         if self.latched is True:
             return self.safe_sample(stamp, Status.LATCHED, y)
         if self.controlled_ns is not None and (
@@ -379,7 +382,7 @@ class ControlSampleAssembly:
         ref = self.reference.sample(t + self.reference_shift_s)
         if self.reference_offset_rad is not None:
             ref = ref._replace(position_rad=ref.position_rad + self.reference_offset_rad)
-        late = self.delay_samples >= limits.LATE_FEEDBACK_DELAY_SAMPLES
+        late = self.late_run >= limits.LATE_FEEDBACK_RUN_SAMPLES
         self.late_feedback += late
         self.law.set_feedback_scale(self.late_feedback_scale if late else 1.0)
         out = self.law.update(t, y, estimate[0], estimate[1], ref)
