@@ -91,9 +91,6 @@ class ControllerNode(ControllerReport, ManagedNode):
             self.period_ns,
             self.params.name != 'pi',
             self.params.following_error_limit_rad,
-            late_feedback_scale=self.params.late_feedback_scale,
-            # real time: a command sent at once is applied from the joint's next cycle
-            base_delay_samples=1 if self.params.mode == 'realtime' else 0,
         )
         tolerance = int(self.params.future_tolerance_s * 1e9)
         self.measurement_check = StampCheck(self.period_ns, self.params.mode == 'sim', tolerance)

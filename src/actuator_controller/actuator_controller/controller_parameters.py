@@ -44,7 +44,6 @@ class ControllerParameters:
     joint_name: str  #: the joint's name in joint_states
     timing_log: str  #: per-update timing (.npz) path, '' for none
     state_rate_hz: float  #: rate of controller/state, 0: every sample
-    late_feedback_scale: float  #: the law's feedback while the loop answers late (1: unchanged)
 
 
 def declare_controller_parameters(node) -> ControllerParameters:
@@ -164,16 +163,6 @@ def declare_controller_parameters(node) -> ControllerParameters:
         'rate of controller/state on the sample stamps, and every change of status; 0: every '
         'sample, as the bag analysis needs',
     )
-    late_feedback_scale = declare_number(
-        node,
-        'late_feedback_scale',
-        limits.LATE_FEEDBACK_SCALE,
-        *limits.LATE_FEEDBACK_SCALE_RANGE,
-        '',
-        'scale of the feedback gains while the command for a sample reaches the joint '
-        f'{limits.LATE_FEEDBACK_DELAY_SAMPLES} or more samples after it (the loop answers late; '
-        'the feedforward stays whole); 1: the gains unchanged',
-    )
     node.refuse_sim_time_in_realtime(mode)
     if mode == 'sim' and not node.get_parameter('use_sim_time').value:
         raise ParameterError(
@@ -195,5 +184,4 @@ def declare_controller_parameters(node) -> ControllerParameters:
         joint_name=joint_name,
         timing_log=timing_log,
         state_rate_hz=state_rate_hz,
-        late_feedback_scale=late_feedback_scale,
     )

@@ -91,7 +91,6 @@ class ControllerReport:
             'stale_events': self.stale_events,
             'resyncs': a.resyncs,
             'envelope_restarts': self.envelope_restarts,
-            'late_feedback': a.late_feedback,
             **{f'refused {k}': n for k, n in self.refusals.items()},
         }
         return Snapshot('active' if self.active else 'inactive', counts, values, problems)
@@ -114,7 +113,6 @@ class ControllerReport:
             'envelope_restarts': self.envelope_restarts,
             'resyncs': a.resyncs,
             'gap_resyncs': a.gap_resyncs,
-            'late_feedback': a.late_feedback,
             'refused_estimates_binding': a.refused,
             'estimate_conflicts': a.conflicts,
             'implausible_measurements': self.plausibility.refused,

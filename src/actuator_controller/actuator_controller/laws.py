@@ -34,7 +34,6 @@ Resolutions of the paper's gaps, by equation (docs/paper-resolutions.md lists th
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -187,35 +186,12 @@ class Controller:
     integral_current_sign = -1.0
     #: Whether the controller has an integral state at all.
     has_integral = True
-    #: The gains of the feedback terms, which ``set_feedback_scale`` scales (the feedforward of
-    #: the reference and of x3_hat is left whole).
-    FEEDBACK_GAINS: tuple[str, ...] = ()
 
     def __init__(self, gains, common: CommonConfig):
         """Hold the gains (the subclass' gains dataclass); the integral state starts at zero."""
-        self.gains = self.nominal_gains = gains
+        self.gains = gains
         self.common = common
         self.integral = 0.0
-        self.feedback_scale = 1.0
-        self._scaled: dict[float, object] = {}
-
-    def set_feedback_scale(self, scale: float) -> None:
-        """Use the feedback gains times ``scale`` from the next update on (1: the gains given).
-
-        The assembly lowers the feedback while the loop answers its samples late (resolution 28).
-        """
-        if scale == self.feedback_scale:
-            return
-        self.feedback_scale = scale
-        if scale == 1.0:
-            self.gains = self.nominal_gains
-            return
-        if scale not in self._scaled:
-            g = self.nominal_gains
-            self._scaled[scale] = dataclasses.replace(
-                g, **{name: getattr(g, name) * scale for name in self.FEEDBACK_GAINS}
-            )
-        self.gains = self._scaled[scale]
 
     def reset(self) -> None:
         """Zero the integral state (a new run)."""
@@ -251,7 +227,6 @@ class PiController(Controller):
 
     name = 'pi'
     gains: PiGains
-    FEEDBACK_GAINS = ('kp_a_rad', 'ki_a_rad_s')
     integral_current_sign = 1.0
 
     def update(self, t, y, x2_hat, x3_hat, ref: ReferenceSample) -> ControlOutput:
@@ -285,7 +260,6 @@ class SmcEsoController(Controller):
 
     name = 'smc_eso'
     gains: SmcGains
-    FEEDBACK_GAINS = ('k1_per_s', 'k2_per_s')
     has_integral = False
 
     def update(self, t, y, x2_hat, x3_hat, ref: ReferenceSample) -> ControlOutput:
@@ -322,7 +296,6 @@ class NftsmcEsoController(Controller):
 
     name = 'nftsmc_eso'
     gains: NftsmcGains
-    FEEDBACK_GAINS = ('k1', 'k2', 'k3_per_s')
 
     def update(self, t, y, x2_hat, x3_hat, ref: ReferenceSample) -> ControlOutput:
         """Compute the current for this sample.
@@ -362,7 +335,6 @@ class PpNftsmcEsoController(Controller):
 
     name = 'pp_nftsmc_eso'
     gains: PpNftsmcGains
-    FEEDBACK_GAINS = ('k0_per_s', 'k1', 'k2', 'k3_per_s')
 
     def __init__(self, gains, common: CommonConfig):
         """Start the envelope (8) at t = 0 with the gains' rho0 (until a restart, see ppf)."""

@@ -53,7 +53,6 @@ import numpy as np
 
 from actuator_core import limits
 from actuator_core import xmath as xm
-from actuator_core.lateness import AnswerDelay
 from actuator_core.status import Status
 from actuator_core.timing import sample_time_s
 
@@ -110,20 +109,9 @@ class ControlSampleAssembly:
         following_error_limit_rad: float = limits.FOLLOWING_ERROR_LIMIT_RAD,
         resync_samples: int = RESYNC_SAMPLES,
         brake_after_s: float = limits.BRAKE_AFTER_S,
-        late_feedback_scale: float = limits.LATE_FEEDBACK_SCALE,
-        base_delay_samples: int = 0,
     ):
-        """``law``: an actuator_controller.laws controller; ``reference``: has ``sample(t)``.
-
-        ``late_feedback_scale``: the law's feedback while its answers are late (1: unchanged);
-        ``base_delay_samples``: the delay of an on-time answer (``lateness.AnswerDelay``).
-        """
+        """``law``: an actuator_controller.laws controller; ``reference``: has ``sample(t)``."""
         self.law = law
-        self.late_feedback_scale = late_feedback_scale
-        self.answer_delay = AnswerDelay(period_ns, base_delay_samples)
-        self.delay_samples = base_delay_samples  # of the newest sample's answer
-        self.late_run = 0  # answers in a row at LATE_FEEDBACK_DELAY_SAMPLES or more
-        self.late_feedback = 0  # law samples run late (feedback lowered unless scale 1)
         self.reference = reference
         self.reference_offset_rad = None  # set by a restart after a resync
         self.reference_shift_s = 0.0  # t_0 once a resync restarted the reference
@@ -248,7 +236,6 @@ class ControlSampleAssembly:
         """
         if self.resync_until_ns is not None and stamp_ns < self.resync_until_ns:
             return  # already resyncing
-        self.answer_delay.reset()  # the clocks' offset may be new
         self.resyncs += 1
         hold_ns = self.resync_samples * self.period_ns
         self.resync_until_ns = stamp_ns + hold_ns
@@ -294,8 +281,6 @@ class ControlSampleAssembly:
             self.following_error_limit_rad,
             self.resync_samples,
             self.brake_after_s,
-            self.late_feedback_scale,
-            self.answer_delay.base_delay_samples,
         )
         self.law.reset()
 
@@ -337,10 +322,6 @@ class ControlSampleAssembly:
 
     def _control(self, stamp: int, y, estimate: tuple) -> ControlSample:
         """Run the law for sample ``stamp``; latch on a non-finite output or a following error."""
-        if _scalar(y):  # the law runs now: when the later of y(k) and x_hat(k) came in
-            self.delay_samples = self.answer_delay.update(stamp, self._latest_received_ns(stamp))
-            late = self.delay_samples >= limits.LATE_FEEDBACK_DELAY_SAMPLES
-            self.late_run = self.late_run + 1 if late else 0
         if self.latched is True:
             return self.safe_sample(stamp, Status.LATCHED, y)
         if self.controlled_ns is not None and (
@@ -382,9 +363,6 @@ class ControlSampleAssembly:
         ref = self.reference.sample(t + self.reference_shift_s)
         if self.reference_offset_rad is not None:
             ref = ref._replace(position_rad=ref.position_rad + self.reference_offset_rad)
-        late = self.late_run >= limits.LATE_FEEDBACK_RUN_SAMPLES
-        self.late_feedback += late
-        self.law.set_feedback_scale(self.late_feedback_scale if late else 1.0)
         out = self.law.update(t, y, estimate[0], estimate[1], ref)
         bad = xm.logical_not(out.finite) | (
             xm.fabs(out.error_rad) > self.following_error_limit_rad

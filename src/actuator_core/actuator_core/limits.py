@@ -116,19 +116,6 @@ TIMEOUT_RANGE_S = (1.0e-3, 10.0)
 #: (safe_stop). Equal to the drive's command timeout: a joint that has not been commanded
 #: for that long is braked by its own gate too, and any gap beyond it ends in the resync.
 BRAKE_AFTER_S = COMMAND_TIMEOUT_S
-#: A loop that answers late (actuator_core.lateness, resolution 28): when the commands for
-#: LATE_FEEDBACK_RUN_SAMPLES samples in a row will be applied LATE_FEEDBACK_DELAY_SAMPLES or more
-#: after their samples (Table 4's gains have the margin for one: spectral radius 0.987; two:
-#: 1.005, three: 1.07), the law runs with its feedback gains times LATE_FEEDBACK_SCALE, its
-#: feedforward whole, until an answer is on time again. One late answer is a lost command, which
-#: the loop rides out (``actuator_sim.late_commands``); lowering the feedback for each of them
-#: (2-5 % of the samples under normal scheduling) measured no better in real time. Offline
-#: (``actuator_sim.late_answers``, lag 2-4 and 3-5 samples in 40-80 ms bursts, 4 seeds of 10
-#: s): max steady error 0.8e-3-4.8e-2 rad with the gains whole, 3.1e-3-8.1e-3 scaled by 0.15.
-LATE_FEEDBACK_DELAY_SAMPLES = 2
-LATE_FEEDBACK_RUN_SAMPLES = 3
-LATE_FEEDBACK_SCALE = 0.15
-LATE_FEEDBACK_SCALE_RANGE = (0.01, 1.0)
 #: Realtime: a stamp later than the receiver's clock plus this [s] is refused. The joint stamps
 #: each sample at its instant, before it is sent, so on one host a genuine stamp is never
 #: ahead; 2 ms covers clock granularity and scheduling. Raise it (parameter

@@ -8,14 +8,11 @@ samples after the joint made it, for tens of ms at a time, without a gap that wo
 recovery policy (README "Performance": 2-11 ms for 20-200 ms). Their answers then reach the
 joint late, and its command binding decides what it applies: a window of one sample (the newest
 or the one before) refuses them, and the gate holds an older command for up to its timeout; the
-timeout's window (``binding.late_window_samples``) applies the newest answer. An answer applied
-two samples or more after its sample is beyond the margin of Table 4's gains, and the controller
-then lowers its feedback (``limits.LATE_FEEDBACK_SCALE``, resolution 28). This runs the offline
-core (``ClosedLoop``'s objects) with the observer and controller ``lag`` samples behind the
-joint, in bursts: a window of one sample, the timeout's window, and the timeout's window with
-the feedback lowered while late; it prints the max steady-state error and the samples the
-controller commanded at the current limit; a run that latched (following error beyond 0.5 rad)
-is reported as inf.
+timeout's window (``binding.late_window_samples``) applies the newest answer. This runs the
+offline core (``ClosedLoop``'s objects) with the observer and controller ``lag`` samples behind
+the joint, in bursts, under both windows, and prints the max steady-state error and the samples
+the controller commanded at the current limit; a run that latched (following error beyond 0.5
+rad) is reported as inf.
 """
 
 from __future__ import annotations
@@ -28,7 +25,7 @@ from typing import Optional, Sequence
 import numpy as np
 
 from actuator_core.binding import CommandBinding
-from actuator_core.limits import CURRENT_LIMIT_A, LATE_FEEDBACK_SCALE, STEADY_STATE_START_S
+from actuator_core.limits import CURRENT_LIMIT_A, STEADY_STATE_START_S
 from actuator_sim.loop import ClosedLoop
 from actuator_sim.scenarios import paper_scenario
 
@@ -66,21 +63,16 @@ def lag_profile(
 
 
 def run_lagged(
-    lag: np.ndarray,
-    late_samples: Optional[int] = None,
-    duration_s: float = 10.0,
-    late_feedback_scale: float = LATE_FEEDBACK_SCALE,
+    lag: np.ndarray, late_samples: Optional[int] = None, duration_s: float = 10.0
 ) -> tuple[float, int]:
     """Return (max |e| over [5 s, end) or inf if latched, samples commanded at the limit).
 
     The paper's fast deep-sea PP-NFTSMC-ESO run; at sample k the observer and controller take
     every sample up to k - ``lag[k]`` they have not taken, and the joint binds each answer with
     ``CommandBinding(late_samples)`` (None: the joint's default window) and offers what it accepts
-    to its gate, valid from the sample it answers, as the joint node does. The controller's
-    feedback while late: ``late_feedback_scale`` (1: unchanged).
+    to its gate, valid from the sample it answers, as the joint node does.
     """
     loop = ClosedLoop(paper_scenario('late', 'pp_nftsmc_eso', 'fast', 'deep_sea', duration_s))
-    loop.assembly.late_feedback_scale = late_feedback_scale
     period = loop.period_ns
     binding = CommandBinding(period, late_samples)
     start = int(round(STEADY_STATE_START_S / loop.scenario.common.dt_s))
@@ -122,7 +114,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         help='probability that a burst of late answers starts at a sample',
     )
     parser.add_argument(
-        '--max-lag', type=int, default=5, metavar='N', help='largest lag in a burst [samples]'
+        '--max-lag', type=int, default=10, metavar='N', help='largest lag in a burst [samples]'
     )
     parser.add_argument('--seeds', type=int, default=3, metavar='N', help='runs per setting')
     parser.add_argument(
@@ -139,26 +131,23 @@ def main(argv: Sequence[str] | None = None) -> int:
             'fractions in [0, 0.1], max-lag in [2, 100], seeds in [1, 100], duration in (5, 600] s'
         )
     samples = int(round(args.duration * 1000))
-    window = CommandBinding(1_000_000).late_samples
-    variants = (
-        ('window 1, gains whole', 1, 1.0),
-        (f'window {window}, gains whole', None, 1.0),
-        (f'window {window}, feedback x{LATE_FEEDBACK_SCALE:g} late', None, LATE_FEEDBACK_SCALE),
-    )
+    windows = (1, CommandBinding(1_000_000).late_samples)
     print(
         f'fast deep-sea PP-NFTSMC-ESO, {args.duration:g} s, lag 2-{args.max_lag} samples in '
         f'bursts of 20-200, {args.seeds} seeds: max steady-state error [rad] / samples at the '
         'limit (inf: latched)'
     )
+    print(f'{"bursts":>7s} {"late":>6s}  ' + '  '.join(f'window {w} sample(s)' for w in windows))
     for fraction in args.fractions:
         lags = [
             lag_profile(samples, fraction, seed, (2, args.max_lag)) for seed in range(args.seeds)
         ]
         share = 100.0 * float(np.mean([(lag > 0).mean() for lag in lags]))
-        print(f'bursts start with p = {fraction:g} per sample ({share:.1f} % of samples late):')
-        for name, late_samples, scale in variants:
-            runs = [run_lagged(lag, late_samples, args.duration, scale) for lag in lags]
-            print(f'  {name:32s} ' + ' '.join(f'{e:.1e}/{n}' for e, n in runs))
+        cells = []
+        for window in windows:
+            runs = [run_lagged(lag, window, args.duration) for lag in lags]
+            cells.append(' '.join(f'{e:.1e}/{n}' for e, n in runs))
+        print(f'{fraction:7.4f} {share:5.1f}%  ' + '  '.join(cells))
     return 0
 
 
