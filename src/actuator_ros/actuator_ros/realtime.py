@@ -107,7 +107,10 @@ class RealtimeSettings:
             try:
                 os.setpriority(os.PRIO_PROCESS, 0, self.nice)
             except OSError as exc:
-                notes.append(f'nice {self.nice} refused by the kernel ({exc}); running at nice 0')
+                kept = os.getpriority(os.PRIO_PROCESS, 0)
+                notes.append(
+                    f'nice {self.nice} refused by the kernel ({exc}); running at nice {kept}'
+                )
         if self.thread_priority:
             try:
                 os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(self.thread_priority))
