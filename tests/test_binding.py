@@ -14,12 +14,12 @@ import pytest
 from actuator_core import limits
 from actuator_core.assembly import ControlSampleAssembly
 from actuator_core.binding import (
-    late_window_samples,
     PLAUSIBILITY_MEMORY_S,
     SAFE_STOP_SAMPLES,
     CommandBinding,
     MeasurementPlausibility,
     SeenSamples,
+    late_window_samples,
 )
 from actuator_core.clock import Schedule, SteppedClock
 from actuator_core.gate import CommandGate

@@ -24,8 +24,9 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from actuator_core.binding import CommandBinding
-from actuator_core.limits import CURRENT_LIMIT_A, STEADY_STATE_START_S
+from actuator_core.binding import CommandBinding, late_window_samples
+from actuator_core.limits import CURRENT_LIMIT_A, SAMPLE_TIME_S, STEADY_STATE_START_S
+from actuator_core.timing import period_ns
 from actuator_sim.loop import ClosedLoop
 from actuator_sim.scenarios import paper_scenario
 
@@ -131,7 +132,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             'fractions in [0, 0.1], max-lag in [2, 100], seeds in [1, 100], duration in (5, 600] s'
         )
     samples = int(round(args.duration * 1000))
-    windows = (1, CommandBinding(1_000_000).late_samples)
+    windows = (1, late_window_samples(period_ns(SAMPLE_TIME_S)))  # the paper's 1 ms
     print(
         f'fast deep-sea PP-NFTSMC-ESO, {args.duration:g} s, lag 2-{args.max_lag} samples in '
         f'bursts of 20-200, {args.seeds} seeds: max steady-state error [rad] / samples at the '
