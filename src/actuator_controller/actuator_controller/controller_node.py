@@ -44,17 +44,18 @@ from actuator_core.timebase import StampCheck, Verdict
 from actuator_core.timing import period_ns, stamp_to_ns
 from actuator_controller.controller_parameters import declare_controller_parameters
 from actuator_controller.controller_report import ControllerReport
-from actuator_controller.controller_state import fill_controller_state
+from actuator_controller.controller_state import controller_state_fields
 from actuator_core.decimation import Decimator
 from actuator_controller.laws import make_controller
 from actuator_controller.reference import make_reference
 from actuator_msgs.msg import ControllerState, CurrentCommand, StateEstimate
-from actuator_ros.conversions import joint_position, ns_to_stamp
+from actuator_ros.conversions import joint_position
 from actuator_ros.diagnostics import NodeDiagnostics
 from actuator_ros.guard import GraphGuard
 from actuator_ros.node import ManagedNode
 from actuator_ros.qos import control_qos
 from actuator_ros.runner import run_node
+from actuator_ros.wire_io import codec, subscribe_views
 from rclpy.clock import Clock as RosClock
 from rclpy.clock import ClockType
 from sensor_msgs.msg import JointState
@@ -104,8 +105,8 @@ class ControllerNode(ControllerReport, ManagedNode):
         self.cmd_pub = self.create_lifecycle_publisher(CurrentCommand, 'current_command', qos)
         self.state_pub = self.create_lifecycle_publisher(ControllerState, 'controller/state', qos)
         self.subs = [
-            self.create_subscription(
-                kind, topic, callback, qos, event_callbacks=self.guard.callbacks(topic)
+            subscribe_views(
+                self, kind, topic, callback, qos, event_callbacks=self.guard.callbacks(topic)
             )
             for kind, topic, callback in (
                 (JointState, 'joint_states', self.on_measurement),
@@ -145,8 +146,8 @@ class ControllerNode(ControllerReport, ManagedNode):
         self.received_ns = 0
         self.received_mono_ns = None
         self.command_done_ns: int | None = None  # perf_counter of the newest command published
-        self.cmd = CurrentCommand()
-        self.state = ControllerState(controller_name=self.params.name)
+        self.encode_command = codec(CurrentCommand).encode
+        self.encode_state = codec(ControllerState).encode
         self.state_decimator = Decimator(self.params.state_rate_hz)
         self.timing = SampleLog(('received_wall_ns', 'stamp_ns', 'latency_ns', 'compute_ns'))
         self.diagnostics = NodeDiagnostics(self, self.health_monitor(), self.health)
@@ -421,13 +422,18 @@ class ControllerNode(ControllerReport, ManagedNode):
 
     def _publish(self, sample: ControlSample, started_ns: int | None, state: bool = True) -> None:
         """current_command and controller/state for one sample (NaN where the law did not run)."""
-        stamp = ns_to_stamp(sample.stamp_ns)
         changed = sample.status != self.status
         self.status = Status(sample.status)
-        self.cmd.header.stamp = stamp
-        self.cmd.current_a = float(sample.current_a)
-        self.cmd.safe_stop = bool(sample.safe_stop)
-        self.cmd_pub.publish(self.cmd)
+        self.cmd_pub.publish(
+            self.encode_command(
+                {
+                    'header.stamp': sample.stamp_ns,
+                    'header.frame_id': '',
+                    'current_a': float(sample.current_a),
+                    'safe_stop': bool(sample.safe_stop),
+                }
+            )
+        )
         self.command_done_ns, self.command_wall_ns = time.perf_counter_ns(), self.clock.stamp_ns()
         if not (
             state
@@ -436,10 +442,18 @@ class ControllerNode(ControllerReport, ManagedNode):
         ):
             return
         compute_s = 0.0 if started_ns is None else (self.command_done_ns - started_ns) * 1e-9
-        fill_controller_state(
-            self.state, sample, stamp, compute_s, self.late, self.assembly.missed
+        self.state_pub.publish(
+            self.encode_state(
+                controller_state_fields(
+                    sample,
+                    sample.stamp_ns,
+                    self.params.name,
+                    compute_s,
+                    self.late,
+                    self.assembly.missed,
+                )
+            )
         )
-        self.state_pub.publish(self.state)
 
 
 def _estimate_problem(x2, x3, u, gain, current_limit_a: float, dt_s: float) -> tuple[str, str]:

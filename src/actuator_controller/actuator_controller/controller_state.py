@@ -1,14 +1,15 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""controller/state (actuator_msgs/ControllerState) of one control sample, the law's signals."""
+"""controller/state (actuator_msgs/ControllerState) of one control sample, the law's signals.
+
+The fields are the wire codec's (actuator_ros.wire): the node encodes them without building a
+message object.
+"""
 
 from __future__ import annotations
 
 from actuator_core.assembly import ControlSample
-from actuator_core.status import Status
-from actuator_msgs.msg import ControllerState
-from builtin_interfaces.msg import Time
 
 NAN = float('nan')
 #: ControllerState fields copied from the law's output (ControlOutput) of a controlled sample.
@@ -39,35 +40,43 @@ LAW_FIELDS = (
 ) + OUTPUT_FIELDS
 
 
-def fill_controller_state(
-    s: ControllerState,
+def controller_state_fields(
     sample: ControlSample,
-    stamp: Time,
+    stamp_ns: int,
+    controller_name: str,
     compute_time_s: float,
     late: int,
     missed: int,
-) -> None:
-    """Write sample k (its stamp) into ``s``: the law's signals NaN where it did not run."""
-    s.header.stamp = stamp
-    s.status = int(Status(sample.status))
-    s.measured_position_rad = float(sample.y)
-    s.current_a = float(sample.current_a)
-    s.compute_time_s = compute_time_s
-    s.late_samples, s.missed_samples = late, missed
+) -> dict:
+    """Return sample k's ControllerState as codec fields (law signals NaN where it did not run)."""
+    fields = {
+        'header.stamp': stamp_ns,
+        'header.frame_id': '',
+        'controller_name': controller_name,
+        'status': int(sample.status),
+        'measured_position_rad': float(sample.y),
+        'current_a': float(sample.current_a),
+        'compute_time_s': compute_time_s,
+        'late_samples': late,
+        'missed_samples': missed,
+    }
     out = sample.output
     if out is None:
-        for name in LAW_FIELDS:
-            setattr(s, name, NAN)
-        s.bounds_kept = s.saturated = False
-        return
+        fields.update(SAFE_FIELDS)
+        return fields
     ref = sample.reference
-    s.reference_position_rad = float(ref.position_rad)
-    s.reference_velocity_rad_s = float(ref.velocity_rad_s)
-    s.reference_acceleration_rad_s2 = float(ref.acceleration_rad_s2)
-    s.estimated_velocity_rad_s, s.estimated_disturbance_rad_s2 = (
-        float(v) for v in sample.estimate
-    )
+    fields['reference_position_rad'] = float(ref.position_rad)
+    fields['reference_velocity_rad_s'] = float(ref.velocity_rad_s)
+    fields['reference_acceleration_rad_s2'] = float(ref.acceleration_rad_s2)
+    velocity, disturbance = sample.estimate
+    fields['estimated_velocity_rad_s'] = float(velocity)
+    fields['estimated_disturbance_rad_s2'] = float(disturbance)
     for name in OUTPUT_FIELDS:
-        setattr(s, name, float(getattr(out, name)))
-    s.bounds_kept = bool(out.bounds_kept)
-    s.saturated = bool(out.saturated)
+        fields[name] = float(getattr(out, name))
+    fields['bounds_kept'] = bool(out.bounds_kept)
+    fields['saturated'] = bool(out.saturated)
+    return fields
+
+
+#: The fields of a sample the law did not run on (a safe stop): no signal, no bound kept.
+SAFE_FIELDS = {**dict.fromkeys(LAW_FIELDS, NAN), 'bounds_kept': False, 'saturated': False}

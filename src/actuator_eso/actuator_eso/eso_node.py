@@ -49,7 +49,7 @@ from actuator_core.timebase import StampCheck, Verdict
 from actuator_core.timing import period_ns, stamp_to_ns
 from actuator_eso.observer import EsoGains, ExtendedStateObserver
 from actuator_msgs.msg import CurrentCommand, StateEstimate
-from actuator_ros.conversions import joint_position, ns_to_stamp
+from actuator_ros.conversions import joint_position
 from actuator_ros.diagnostics import NodeDiagnostics
 from actuator_ros.guard import GraphGuard
 from actuator_ros.node import ManagedNode
@@ -62,6 +62,7 @@ from actuator_ros.parameters import (
 )
 from actuator_ros.qos import MODES, control_qos
 from actuator_ros.runner import run_node
+from actuator_ros.wire_io import codec, subscribe_views
 from sensor_msgs.msg import JointState
 
 NODE_NAME = 'actuator_eso'
@@ -142,15 +143,15 @@ class EsoNode(ManagedNode):
         qos = control_qos(self.mode)
         self.pub = self.create_lifecycle_publisher(StateEstimate, 'eso/estimate', qos)
         self.subs = [
-            self.create_subscription(
-                kind, topic, callback, qos, event_callbacks=self.guard.callbacks(topic)
+            subscribe_views(
+                self, kind, topic, callback, qos, event_callbacks=self.guard.callbacks(topic)
             )
             for kind, topic, callback in (
                 (JointState, 'joint_states', self.on_measurement),
                 (CurrentCommand, 'current_command', self.on_command),
             )
         ]
-        self.msg = StateEstimate()
+        self.encode_estimate = codec(StateEstimate).encode
         self.diagnostics = NodeDiagnostics(self, self.health_monitor(), self.health)
         beta = ', '.join(f'{b:.4g}' for b in self.gains.beta)
         self.get_logger().info(
@@ -312,17 +313,25 @@ class EsoNode(ManagedNode):
                     f'sample {e.input_ns} ns: command missing; integrating with the last current'
                 ),
             )
-        m = self.msg
-        m.header.stamp = ns_to_stamp(e.sample_ns)
-        m.position_rad, m.velocity_rad_s, m.disturbance_rad_s2 = (float(v) for v in e.x_hat)
-        m.input_stamp = ns_to_stamp(e.input_ns)
-        m.input_position_rad = float(e.input_position_rad)
-        m.input_current_a = float(e.input_current_a)
-        m.input_current_gain = self.input_current_gain
-        m.initial = e.initial
-        m.current_substituted = e.substituted
-        m.missing_current_count = self.pairing.substituted
-        self.pub.publish(m)
+        x1, x2, x3 = e.x_hat
+        self.pub.publish(
+            self.encode_estimate(
+                {
+                    'header.stamp': e.sample_ns,
+                    'header.frame_id': '',
+                    'position_rad': float(x1),
+                    'velocity_rad_s': float(x2),
+                    'disturbance_rad_s2': float(x3),
+                    'input_stamp': e.input_ns,
+                    'input_position_rad': float(e.input_position_rad),
+                    'input_current_a': float(e.input_current_a),
+                    'input_current_gain': self.input_current_gain,
+                    'initial': bool(e.initial),
+                    'current_substituted': bool(e.substituted),
+                    'missing_current_count': self.pairing.substituted,
+                }
+            )
+        )
 
     def close_log(self) -> None:
         """Log a one-line summary; write the pairing counts as JSON if asked."""

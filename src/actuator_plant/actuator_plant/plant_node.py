@@ -23,6 +23,7 @@ from actuator_ros.joint_node import JointNode
 from actuator_ros.parameters import declare_choice, declare_number, declare_spec_parameters
 from actuator_ros.qos import control_qos
 from actuator_ros.runner import run_node
+from actuator_ros.wire_io import codec
 
 NODE_NAME = 'actuator_plant'
 
@@ -84,11 +85,13 @@ class PlantNode(JointNode):
             PlantTruth, 'plant/truth', control_qos(self.mode)
         )
         constants = self.joint.plant.constants
-        self.truth = PlantTruth(
-            pressure_pa=float(self.params.condition.pressure_pa),
-            temperature_degc=float(self.params.condition.temperature_c),
-            viscosity_pa_s=float(constants.viscosity_pa_s),
-        )
+        self.encode_truth = codec(PlantTruth).encode
+        self.truth_constants = {  # the oil's condition, the same every sample
+            'header.frame_id': '',
+            'pressure_pa': float(self.params.condition.pressure_pa),
+            'temperature_degc': float(self.params.condition.temperature_c),
+            'viscosity_pa_s': float(constants.viscosity_pa_s),
+        }
         rate = self.truth_rate_hz
         self.truth_every = max(1, round(1.0 / (rate * self.cfg.sample_time_s))) if rate else 1
         c = self.params.condition
@@ -102,7 +105,7 @@ class PlantNode(JointNode):
         """Destroy plant/truth."""
         self.destroy_lifecycle_publisher(self.truth_pub)
 
-    def publish_extras(self, stamp) -> None:
+    def publish_extras(self, stamp_ns: int) -> None:
         """Ground truth at t_k with the current applied over the preceding sample.
 
         Computed and sent only when someone subscribes (1 us to ask; the parts and the message
@@ -110,27 +113,33 @@ class PlantNode(JointNode):
         """
         if self.sample_index % self.truth_every or not self.truth_pub.get_subscription_count():
             return
-        joint, m = self.joint, self.truth
+        joint = self.joint
         plant, parts = joint.plant, joint.truth()
         f = parts.forces
-        m.header.stamp = stamp
-        m.position_rad = float(plant.position_rad)
-        m.velocity_rad_s = float(plant.velocity_rad_s)
-        m.acceleration_rad_s2 = float(parts.acceleration_rad_s2)
-        m.current_a = float(joint.applied_a)
-        m.disturbance_rad_s2 = float(parts.disturbance_rad_s2)
-        m.parametric_rad_s2 = float(parts.parametric_rad_s2)
-        m.stirring_rad_s2 = float(parts.stirring_rad_s2)
-        m.external_rad_s2 = float(parts.external_rad_s2)
-        m.seal_rad_s2 = float(parts.seal_rad_s2)
-        m.stirring_torque_nm = float(f.stirring_torque_nm)
-        m.external_torque_nm = float(f.external_torque_nm)
-        m.seal_torque_nm = float(f.seal_torque_nm)
-        m.inertia_kg_m2 = float(f.inertia_kg_m2)
-        m.torque_constant_nm_a = float(f.torque_constant_nm_a)
-        m.viscous_coefficient_nm_s_rad = float(f.viscous_coefficient_nm_s_rad)
-        m.brake_engaged = bool(joint.brake)
-        self.truth_pub.publish(m)
+        self.truth_pub.publish(
+            self.encode_truth(
+                {
+                    **self.truth_constants,
+                    'header.stamp': stamp_ns,
+                    'position_rad': float(plant.position_rad),
+                    'velocity_rad_s': float(plant.velocity_rad_s),
+                    'acceleration_rad_s2': float(parts.acceleration_rad_s2),
+                    'current_a': float(joint.applied_a),
+                    'disturbance_rad_s2': float(parts.disturbance_rad_s2),
+                    'parametric_rad_s2': float(parts.parametric_rad_s2),
+                    'stirring_rad_s2': float(parts.stirring_rad_s2),
+                    'external_rad_s2': float(parts.external_rad_s2),
+                    'seal_rad_s2': float(parts.seal_rad_s2),
+                    'stirring_torque_nm': float(f.stirring_torque_nm),
+                    'external_torque_nm': float(f.external_torque_nm),
+                    'seal_torque_nm': float(f.seal_torque_nm),
+                    'inertia_kg_m2': float(f.inertia_kg_m2),
+                    'torque_constant_nm_a': float(f.torque_constant_nm_a),
+                    'viscous_coefficient_nm_s_rad': float(f.viscous_coefficient_nm_s_rad),
+                    'brake_engaged': bool(joint.brake),
+                }
+            )
+        )
 
 
 def main(argv=None) -> int:

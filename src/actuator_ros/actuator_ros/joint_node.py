@@ -52,7 +52,6 @@ from actuator_core.joint import (
 from actuator_core.sample_log import SampleLog
 from actuator_core.timing import period_ns, stamp_to_ns
 from actuator_msgs.msg import CurrentCommand
-from actuator_ros.conversions import ns_to_stamp
 from actuator_ros.diagnostics import NodeDiagnostics
 from actuator_ros.guard import GraphGuard
 from actuator_ros.joint_report import JointReport
@@ -64,6 +63,7 @@ from actuator_ros.parameters import (
     declare_spec_parameters,
 )
 from actuator_ros.qos import MODES, control_qos
+from actuator_ros.wire_io import codec, subscribe_views
 
 #: Stamp of sample 0 in sim mode [ns] (the plant's /clock starts here).
 SIM_START_NS = 1_000_000_000
@@ -93,8 +93,8 @@ class JointNode(JointReport, ManagedNode):
     def build_extras(self) -> None:
         """Create the joint kind's own topics (plant/truth); called at configure."""
 
-    def publish_extras(self, stamp) -> None:
-        """Publish the joint kind's own messages for the sample just published."""
+    def publish_extras(self, stamp_ns: int) -> None:
+        """Publish the joint kind's own messages for the sample just published (its stamp)."""
 
     def drop_extras(self) -> None:
         """Destroy what ``build_extras`` created."""
@@ -145,7 +145,8 @@ class JointNode(JointReport, ManagedNode):
             self.create_lifecycle_publisher(ClockMsg, '/clock', 10) if self.mode == 'sim' else None
         )
         self.guard = GraphGuard(self, self.on_conflict)
-        self.command_sub = self.create_subscription(
+        self.command_sub = subscribe_views(
+            self,
             CurrentCommand,
             'current_command',
             self.on_command,
@@ -157,7 +158,8 @@ class JointNode(JointReport, ManagedNode):
         # Per published sample: stamp, wall ns at publication, stamp of the command held over the
         # preceding interval (-1: none, or 0 A after a timeout). Written to timing_log (.npz).
         self.samples_log = SampleLog(('stamp_ns', 'published_wall_ns', 'held_command_stamp_ns'))
-        self.joint_state = JointState(name=[cfg.joint_name], position=[0.0], effort=[0.0])
+        self.encode_joint_state = codec(JointState).encode
+        self.encode_clock = codec(ClockMsg).encode
         self.timer = self.create_timer(0.1, self.on_tick, clock=self.wall)
         self._reset_run()
         self.diagnostics = NodeDiagnostics(self, self.health_monitor(), self.health)
@@ -434,18 +436,25 @@ class JointNode(JointReport, ManagedNode):
             self.finished = True
             self.waiting_since_ns = None
             return False
-        stamp = ns_to_stamp(sample.stamp_ns)
         if self.clock_pub is not None:
-            self.clock_pub.publish(ClockMsg(clock=stamp))
+            self.clock_pub.publish(self.encode_clock({'clock': sample.stamp_ns}))
             self.waiting_since_ns = self.wall.now().nanoseconds
         self.published_ns = sample.stamp_ns
         self.binding.produced(sample.stamp_ns)
-        self.joint_state.header.stamp = stamp
-        self.joint_state.position[0] = float(sample.position_rad)
-        self.joint_state.effort[0] = float(sample.effort_nm)
-        self.state_pub.publish(self.joint_state)
+        self.state_pub.publish(
+            self.encode_joint_state(
+                {
+                    'header.stamp': sample.stamp_ns,
+                    'header.frame_id': '',
+                    'name': (self.cfg.joint_name,),
+                    'position': (float(sample.position_rad),),
+                    'velocity': (),
+                    'effort': (float(sample.effort_nm),),
+                }
+            )
+        )
         self.samples_log.append((sample.stamp_ns, time.time_ns(), self.held.command_stamp_ns))
-        self.publish_extras(stamp)
+        self.publish_extras(sample.stamp_ns)
         return True
 
     def _sim_step(self) -> None:

@@ -35,12 +35,28 @@ def _wire(nodes: dict, queue: collections.deque, listened: bool = True) -> None:
 
     The diagnostic topics (plant/truth, controller/state) go nowhere; ``listened`` says whether
     a subscriber is there (a recorder: they are filled each sample) or not (they are skipped).
+    A subscriber's decoding of the bytes is counted in its callback, as in its subscription.
     """
+    from actuator_msgs.msg import CurrentCommand, StateEstimate
+    from actuator_ros.wire_io import codec
+    from sensor_msgs.msg import JointState
+
     plant, eso, ctrl = nodes['joint'], nodes['eso'], nodes['controller']
+
+    def taking(callback, cls):
+        decode = codec(cls).decode
+        return lambda data: callback(decode(data))
+
     routes = {
-        (plant, 'state_pub'): [('eso', eso.on_measurement), ('controller', ctrl.on_measurement)],
-        (eso, 'pub'): [('controller', ctrl.on_estimate)],
-        (ctrl, 'cmd_pub'): [('eso', eso.on_command), ('joint', plant.on_command)],
+        (plant, 'state_pub'): [
+            ('eso', taking(eso.on_measurement, JointState)),
+            ('controller', taking(ctrl.on_measurement, JointState)),
+        ],
+        (eso, 'pub'): [('controller', taking(ctrl.on_estimate, StateEstimate))],
+        (ctrl, 'cmd_pub'): [
+            ('eso', taking(eso.on_command, CurrentCommand)),
+            ('joint', taking(plant.on_command, CurrentCommand)),
+        ],
     }
     quiet = [(plant, 'truth_pub'), (plant, 'clock_pub'), (ctrl, 'state_pub')]
     for (node, attr), targets in routes.items():
@@ -60,6 +76,8 @@ def measure(samples: int, listened: bool = True) -> dict:
     import rclpy
 
     from actuator_controller.controller_node import ControllerNode
+    from actuator_msgs.msg import CurrentCommand
+    from actuator_ros.wire_io import codec
     from actuator_eso.eso_node import EsoNode
     from actuator_plant.plant_node import PlantNode
     from actuator_sim.loop import ClosedLoop
@@ -83,8 +101,8 @@ def measure(samples: int, listened: bool = True) -> dict:
         per_node = {key: np.zeros(samples + 1, dtype=np.int64) for key in nodes}
         commands = []
         ctrl = nodes['controller']
-        publish = ctrl.cmd_pub.publish
-        ctrl.cmd_pub.publish = lambda msg: (commands.append(msg.current_a), publish(msg))
+        publish, read = ctrl.cmd_pub.publish, codec(CurrentCommand).decode
+        ctrl.cmd_pub.publish = lambda data: (commands.append(read(data).current_a), publish(data))
         plant = nodes['joint']
         start = time.perf_counter_ns()
         plant._start_sampling()  # publishes sample 0: the chain runs from the queue
