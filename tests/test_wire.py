@@ -181,3 +181,39 @@ def test_encoding_without_a_field_fails_naming_it() -> None:
     codec = Codec(message('actuator_msgs/CurrentCommand'))
     with pytest.raises(KeyError, match='safe_stop'):
         codec.encode({'header.stamp': 0, 'header.frame_id': '', 'current_a': 1.0})
+
+
+def test_a_raw_subscription_hands_views_and_refuses_garbage_with_a_line(rclpy_context) -> None:
+    """Via Fast DDS: a typed message arrives as a view; bytes that are none: logged, dropped."""
+    import rclpy
+    from actuator_ros.wire_io import subscribe_views
+    from rclpy.executors import SingleThreadedExecutor
+
+    CurrentCommand = message('actuator_msgs/CurrentCommand')
+    node = rclpy.create_node('wire_probe', context=rclpy_context)
+    errors: list = []
+
+    class Logger:
+        def error(self, text, **_):
+            errors.append(text)
+
+    node.get_logger = Logger
+    got: list = []
+    try:
+        subscribe_views(node, CurrentCommand, 'probe', got.append, 10)
+        pub = node.create_publisher(CurrentCommand, 'probe', 10)
+        executor = SingleThreadedExecutor(context=rclpy_context)
+        executor.add_node(node)
+        sent = CurrentCommand(current_a=2.5, safe_stop=True)
+        sent.header.stamp.sec = 4
+        pub.publish(ENCAPSULATION + b'\x01\x00')  # a header cut short
+        pub.publish(sent)
+        for _ in range(100):
+            executor.spin_once(timeout_sec=0.05)
+            if got and errors:
+                break
+    finally:
+        node.destroy_node()
+    assert [(v.header.stamp.sec, v.current_a, v.safe_stop) for v in got] == [(4, 2.5, True)]
+    assert len(errors) == 1
+    assert errors[0].startswith('probe: message refused, not a CurrentCommand')

@@ -7,7 +7,9 @@
 
 The joint (plant node, sim mode), the ESO and the controller are built as they run, and
 their publishers are wired to each other's callbacks through a FIFO (the order DDS delivers in
-one process): the deterministic sim lockstep with the middleware taken out. Each callback is
+one process): the deterministic sim lockstep with the middleware taken out. The nodes publish
+CDR bytes (actuator_ros.wire), so each hop's encoding and decoding, our Python, is counted; the
+middleware's own conversion and delivery are not. Each callback is
 timed (perf_counter_ns); the figures are medians per sample and per node, and the chain's
 samples per wall second. The run's commands are checked against the offline loop bit for bit,
 so the figures are those of the real path. The difference to a composed run's speed is the
