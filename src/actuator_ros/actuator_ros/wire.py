@@ -86,9 +86,9 @@ def _walk(cls, prefix: str, leaves: list, shape: list) -> None:
             leaves.append((path, _Leaf(type_name)))
             shape.append(None)
             continue
-        inner: list = []
-        shape.append((name, _message_class(type_name), inner))
-        _walk(_message_class(type_name), f'{path}.', leaves, inner)
+        nested, inner = _message_class(type_name), []
+        shape.append((nested, inner))
+        _walk(nested, f'{path}.', leaves, inner)
 
 
 class Codec:
@@ -99,12 +99,11 @@ class Codec:
         self.cls = cls
         self.fallback = fallback
         leaves: list = []
-        self._shape: list = []
-        _walk(cls, '', leaves, self._shape)
+        shape: list = []
+        _walk(cls, '', leaves, shape)
         self.fields = tuple(path for path, _ in leaves)  # the keys of ``encode``
         self._leaves = tuple(leaf for _, leaf in leaves)
-        self._view = self._view_type(cls, self._shape)
-        self._build = self._builder(self._view)
+        self._build = self._builder(self._view_type(cls, shape))
         self._runs = _runs(self._leaves)
         self._structs: dict = {}
 
@@ -113,7 +112,7 @@ class Codec:
         """Return the named-tuple class of ``cls`` (nested ones for nested messages)."""
         names = list(cls.get_fields_and_field_types())
         view = namedtuple(cls.__name__ + 'View', names)
-        view.inner = [None if s is None else self._view_type(s[1], s[2]) for s in shape]
+        view.inner = [None if s is None else self._view_type(*s) for s in shape]
         return view
 
     def _builder(self, view) -> Callable[[list, int], tuple]:
