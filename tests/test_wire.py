@@ -133,6 +133,18 @@ def test_a_joint_state_of_several_joints_and_empty_sequences() -> None:
         assert deserialize_message(codec.encode(codec_values(codec, msg)), JointState) == msg
 
 
+def test_the_same_bytes_twice_are_decoded_once_and_other_bytes_anew() -> None:
+    """Two readers of one message share its view; a new message never gets the old one."""
+    CurrentCommand = message('actuator_msgs/CurrentCommand')
+    codec = Codec(CurrentCommand)
+    first = serialize_message(CurrentCommand(current_a=1.0))
+    second = serialize_message(CurrentCommand(current_a=2.0))
+    view = codec.decode(first)
+    assert codec.decode(bytes(first)) is view
+    assert codec.decode(second).current_a == 2.0
+    assert codec.decode(first).current_a == 1.0
+
+
 def test_malformed_bytes_are_refused_with_the_reason() -> None:
     """Truncated, an overlong string, an impossible sequence count: WireError, never a value."""
     JointState = message('sensor_msgs/JointState')
