@@ -66,7 +66,7 @@ def _message_class(type_name: str):
 class _Leaf:
     """One field on the wire: a primitive, a string, a Time (as ns), or a sequence of either."""
 
-    __slots__ = ('code', 'string', 'sequence', 'time')
+    __slots__ = ('code', 'string', 'sequence', 'time', 'width')
 
     def __init__(self, type_name: str):
         self.sequence = type_name.startswith('sequence<')
@@ -74,6 +74,8 @@ class _Leaf:
         self.time = element == TIME_TYPE and not self.sequence
         self.string = element == 'string'
         self.code = PRIMITIVES.get(element, '')
+        # Alignment and size of one element (a Time and a string's length align to 4).
+        self.width = struct.calcsize(self.code) if self.code else 4
         if not (self.time or self.string or self.code):
             raise WireError(f'field type {type_name!r} is not supported by the wire codec')
 
@@ -187,7 +189,7 @@ class Codec:
                         items.append(text)
                     values.append(tuple(items))
                 else:
-                    width = struct.calcsize(run.leaf.code)
+                    width = run.leaf.width
                     if count and count * width > size - offset:
                         raise WireError(f'{self.cls.__name__}: a sequence of {count} overruns')
                     if count:
@@ -259,7 +261,7 @@ class Codec:
             field(f'I{length}s', 4, 4 + length)
 
         for leaf in self._leaves:
-            width = struct.calcsize(leaf.code) if leaf.code else 4
+            width = leaf.width
             if leaf.time:
                 field('iI', 4, 8)
             elif leaf.sequence:
@@ -300,10 +302,10 @@ class _Run:
         if unpacker is None:
             parts, offset = ['<'], residue
             for item in self.leaves:
-                code, width = ('iI', 4) if item.time else (item.code, struct.calcsize(item.code))
-                pad = -offset % width
+                code = 'iI' if item.time else item.code
+                pad = -offset % item.width
                 parts.append(f'{pad}x{code}' if pad else code)
-                offset += pad + (8 if item.time else width)
+                offset += pad + (8 if item.time else item.width)
             unpacker = self._unpackers[residue] = struct.Struct(''.join(parts))
         return unpacker
 
