@@ -180,6 +180,14 @@ def test_variants():
     variants = bench_variants.make_variants(['realtime', 'sim'], ['normal', 'fifo'], 50)
     assert [v.slug for v in variants] == ['sim', 'realtime_normal', 'realtime_fifo50']
     assert 'SCHED_FIFO 50' in variants[2].title
+    pinned = bench_variants.make_variants(
+        ['realtime'], ['fifo-pinned-composed', 'fifo-pinned'], 50
+    )
+    assert [(v.slug, v.pinned, v.composed) for v in pinned] == [
+        ('realtime_fifo50_pinned_composed', True, True),
+        ('realtime_fifo50_pinned', True, False),
+    ]
+    assert 'the process on CPU 0' in pinned[0].title and 'ESO, controller CPU 1' in pinned[1].title
 
 
 def test_variants_per_diagnostics_rate_and_publication_mode():

@@ -116,6 +116,27 @@ def test_pin_sets_each_nodes_cpu_affinity_parameter_as_a_string() -> None:
         assert not any('cpu_affinity' in a for a in ros_arguments(spec, None)), spec.key
 
 
+def test_pin_puts_a_composed_loop_on_its_joints_cpu_and_nothing_pins_it_otherwise() -> None:
+    """--composed --pin: the container's process takes the joint's CPU, 0 (graph.PINNING).
+
+    The runner applies the first member's real-time settings to the whole process
+    (realtime.pre_init_settings on the container's own arguments).
+    """
+    from actuator_ros.realtime import pre_init_settings
+    from actuator_tools.graph import compose
+
+    scenario = scenario_file('case2_pp_nftsmc_eso')
+    for cpus, expected in ((PINNING, '0'), (None, '')):
+        specs = compose(closed_loop('realtime', 5.0, thread_priority=50, cpus=cpus))
+        (loop,) = [s for s in specs if s.members]
+        first = loop.members[0]
+        assert first.key == 'plant'
+        settings = pre_init_settings(ros_arguments(loop, scenario), first.name)
+        assert settings.cpu_affinity == expected and settings.thread_priority == 51, settings
+        recorder = {s.key: s for s in specs}['recorder']
+        assert not any('cpu_affinity' in a for a in ros_arguments(recorder, scenario))
+
+
 @pytest.mark.realtime  # timing-dependent: a bound of 0.1 s on a shared machine
 def test_every_node_answers_sigint_within_the_documented_time(ros_process, rclpy_context) -> None:
     """Loop running in real time: SIGINT to each node in turn (controller, ESO, plant).

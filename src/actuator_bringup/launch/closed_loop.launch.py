@@ -15,7 +15,8 @@ ends (``duration`` elapsed, or it failed): every other process is then stopped w
 the joint's exit code is reported. ``composed:=true`` runs the joint, the ESO and the controller
 in one process (actuator_tools loop_container, graph.compose): the nodes then configure and
 activate themselves (autostart), and ``ros2 lifecycle`` still reaches each by its name.
-Booleans are launch conditions: true/false/1/0, anything else is refused.
+``pin:=true`` pins the processes as ``bringup --pin`` does (graph.PINNING; a composed loop on its
+joint's CPU). Booleans are launch conditions: true/false/1/0, anything else is refused.
 """
 
 import os
@@ -45,6 +46,7 @@ from actuator_tools.graph import (
     JOINTS,
     LIVE_DIAGNOSTICS_RATE_HZ,
     MAX_JOINTS_ON_BUS,
+    PINNING,
     closed_loop,
     compose,
     default_scenario,
@@ -143,6 +145,7 @@ def _processes(context):
         bag=bag or None,
         joint=joint,
         thread_priority=priority,
+        cpus=PINNING if _flag(context, 'pin') else None,
         logs=Path(logs) if logs else None,
         autostart=composed,  # launch drives the lifecycle of a node that has a process alone
         live_view=_flag(context, 'live_view'),
@@ -264,6 +267,12 @@ def generate_launch_description():
                 'composed',
                 default_value='false',
                 description='true: the joint, ESO and controller in one process on one executor',
+            ),
+            DeclareLaunchArgument(
+                'pin',
+                default_value='false',
+                description='true: the joint on CPU 0, the ESO and controller on CPU 1; a '
+                "composed loop's process on CPU 0 (as bringup --pin)",
             ),
             DeclareLaunchArgument(
                 'joints',

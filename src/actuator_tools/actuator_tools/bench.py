@@ -96,11 +96,11 @@ def build_parser() -> OneLineParser:
         '--rt-variants',
         nargs='+',
         choices=RT_VARIANTS,
-        default=['normal', 'fifo', 'fifo-composed'],
+        default=['normal', 'fifo', 'fifo-composed', 'fifo-pinned-composed'],
         help='real-time variants: normal scheduling, SCHED_FIFO (--rt-priority), pinned to CPUs '
         '(bringup --pin layout), both, SCHED_FIFO started by ros2 launch where it is installed, '
-        'or the joint, ESO and controller in one process (-composed) '
-        '(default: normal fifo fifo-composed)',
+        'or the joint, ESO and controller in one process (-composed; pinned: that process on '
+        "the joint's CPU) (default: normal fifo fifo-composed fifo-pinned-composed)",
     )
     p.add_argument(
         '--diagnostics-rates',

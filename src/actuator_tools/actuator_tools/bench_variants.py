@@ -26,6 +26,8 @@ RT_VARIANTS = (
     'fifo-launch',
     'normal-composed',
     'fifo-composed',
+    'pinned-composed',
+    'fifo-pinned-composed',
 )
 #: Fast DDS publication modes a run can be given (RMW_FASTRTPS_PUBLICATION_MODE): those the
 #: runner chooses between (actuator_ros.realtime.PUBLICATION_MODES).
@@ -90,9 +92,14 @@ class Variant:
             if self.rt_priority
             else 'normal scheduling (SCHED_OTHER)'
         )
+        pinned = (
+            ', pinned (the process on CPU 0)'
+            if self.composed
+            else ', pinned (plant CPU 0; ESO, controller CPU 1)'
+        )
         return (
             f'realtime: {sched}'
-            f'{", pinned (plant CPU 0; ESO, controller CPU 1)" if self.pinned else ""}'
+            f'{pinned if self.pinned else ""}'
             f'{", started by ros2 launch" if self.launched else ""}{one}'
         )
 

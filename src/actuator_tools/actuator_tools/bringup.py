@@ -363,7 +363,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument(
         '--pin',
         action='store_true',
-        help='pin the joint to CPU 0 and the ESO and controller (which run in sequence) to CPU 1',
+        help='pin the joint to CPU 0 and the ESO and controller (which run in sequence) to CPU '
+        "1; with --composed the loop's process on CPU 0 (graph.PINNING)",
     )
     parser.add_argument(
         '--params-file',

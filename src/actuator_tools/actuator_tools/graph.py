@@ -44,6 +44,10 @@ DEFAULT_SCENARIOS = {
 }
 #: ``bringup --pin`` on a 2-core machine: the ESO and the controller work in strict sequence
 #: each sample (command -> estimate -> command), so they share a core; the joint uses the other.
+#: A composed loop's process takes its joint's CPU (the first member's settings are the
+#: process's): all its threads on one core, which under SCHED_FIFO cost 42-46 % of a core
+#: against 57-60 % unpinned, latency p50 240-258 against 283-297 us (3 alternating pairs of 22 s
+#: runs, 2026-12-05; README "Performance" has the benchmark's figures).
 PINNING = {'joint': '0', 'eso': '1', 'controller': '1'}
 #: Rate of the diagnostic topics (plant/truth, controller/state) in a real-time run that records
 #: nothing [Hz]: enough for a live plot; a recorded or sim run keeps every sample for the analysis.
