@@ -176,6 +176,17 @@ def test_table_lines_carry_target_and_verdict():
     assert 'absent figure' not in table
 
 
+def test_a_composed_process_is_judged_as_the_joint_loop_not_as_one_node():
+    """A composed run: its process's CPU meets the loop's 50 %, not a node's 25 %."""
+    figures = bench_figures.process_figures({'loop': 43.0, 'recorder': 13.0}, {'loop': 86.0})
+    assert figures['cpu_joint_loop_pct'] == 43.0
+    table = bench_table.format_table([('composed', bench_table.realtime_rows(1000.0), [figures])])
+    lines = {line.split('  ')[0].strip(): line for line in table.splitlines()}
+    assert lines['CPU joint + ESO + controller'].rstrip().endswith('PASS 1/1')
+    assert 'MISS' not in lines['CPU loop'] and 'PASS' not in lines['CPU loop']
+    assert 'MISS' not in lines['peak RSS loop']  # 86 MB for three nodes
+
+
 def test_variants():
     variants = bench_variants.make_variants(['realtime', 'sim'], ['normal', 'fifo'], 50)
     assert [v.slug for v in variants] == ['sim', 'realtime_normal', 'realtime_fifo50']
