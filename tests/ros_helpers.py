@@ -476,10 +476,16 @@ class TestNode:
         self.node.destroy_node()
 
 
+#: Depth of the harness's recording subscriptions: 10 s of a 1 kHz stream.
+RECORDED_DEPTH = 10000
+
+
 class Harness(TestNode):
     """A test-side node that publishes into and records from the node under test."""
 
     def __init__(self, context):
+        from rclpy.qos import HistoryPolicy, QoSProfile
+
         from actuator_ros.qos import control_qos
         from actuator_msgs.msg import ControllerState, CurrentCommand, PlantTruth, StateEstimate
         from sensor_msgs.msg import JointState
@@ -493,16 +499,22 @@ class Harness(TestNode):
             None  # created by the first send_command: another publisher on it stops a controller
         )
         self.got = {'command': [], 'state': [], 'estimate': [], 'truth': []}
-        self.node.create_subscription(
-            CurrentCommand, 'current_command', self.got['command'].append, qos
+        # The recording side keeps what a stalled harness has not taken yet: with the loop's depth
+        # of 10, a harness held up by a loaded machine dropped states from its own queue, and a
+        # test that reads every change of status then failed (CI, 2026-12-05).
+        kept = QoSProfile(
+            history=HistoryPolicy.KEEP_LAST,
+            depth=RECORDED_DEPTH,
+            reliability=qos.reliability,
+            durability=qos.durability,
         )
-        self.node.create_subscription(
-            ControllerState, 'controller/state', self.got['state'].append, qos
-        )
-        self.node.create_subscription(
-            StateEstimate, 'eso/estimate', self.got['estimate'].append, qos
-        )
-        self.node.create_subscription(PlantTruth, 'plant/truth', self.got['truth'].append, qos)
+        for kind, topic, key in (
+            (CurrentCommand, 'current_command', 'command'),
+            (ControllerState, 'controller/state', 'state'),
+            (StateEstimate, 'eso/estimate', 'estimate'),
+            (PlantTruth, 'plant/truth', 'truth'),
+        ):
+            self.node.create_subscription(kind, topic, self.got[key].append, kept)
         self.types = {
             'JointState': JointState,
             'StateEstimate': StateEstimate,
