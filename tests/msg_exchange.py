@@ -4,12 +4,12 @@
 """Publisher / subscriber process for the message exchange tests (run with the venv's python).
 
 msg_exchange.py pub --package actuator_msgs --types A,B --seed 7
-    publishes one message of each type, filled by ros_helpers.fill_message(seed + i),
+    publishes one message of each type, filled by message_fill.fill_message(seed + i),
     on topic exchange/<Type> (reliable, transient local, depth 1), prints
     "READY" and keeps serving them until SIGINT, then exits 0.
 msg_exchange.py sub --package actuator_msgs --types A,B --timeout 30
     waits for one message of each type and prints "RECEIVED <json>", the leaves of
-    every message (ros_helpers.message_leaves), then exits 0; exits 2 on timeout.
+    every message (message_fill.message_leaves), then exits 0; exits 2 on timeout.
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ import rclpy  # noqa: E402
 from rclpy.executors import ExternalShutdownException  # noqa: E402
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
 
-import ros_helpers  # noqa: E402
+import message_fill  # noqa: E402
 
 QOS = QoSProfile(
     depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
@@ -57,7 +57,7 @@ def main(argv=None) -> int:
             for i, name in enumerate(types):
                 cls = getattr(module, name)
                 pub = node.create_publisher(cls, topic_of(name), QOS)
-                pub.publish(ros_helpers.fill_message(cls(), args.seed + i))
+                pub.publish(message_fill.fill_message(cls(), args.seed + i))
                 publishers.append(pub)
             print('READY', flush=True)
             rclpy.spin(node)
@@ -67,7 +67,7 @@ def main(argv=None) -> int:
 
         def make_callback(name):
             def callback(msg):
-                received.setdefault(name, ros_helpers.message_leaves(msg))
+                received.setdefault(name, message_fill.message_leaves(msg))
 
             return callback
 

@@ -40,7 +40,7 @@ def publish(argv: list[str]) -> int:
     from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
     from rosgraph_msgs.msg import Clock
 
-    from ros_helpers import fill_message
+    from message_fill import fill_message
 
     parser = argparse.ArgumentParser()
     parser.add_argument('count', type=int)

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import pytest
 
+import message_fill
 import ros_helpers
 
 #: Generated message code and rclpy's serialisation: ROS, not the unit set (which runs without
@@ -27,7 +28,7 @@ HERE = Path(__file__).resolve().parent
 
 
 def _types():
-    return ros_helpers.interface_types(PACKAGE, 'msg')
+    return message_fill.interface_types(PACKAGE, 'msg')
 
 
 def _class(name):
@@ -47,9 +48,9 @@ def test_serialization_round_trip_keeps_every_field(name):
     from rclpy.serialization import deserialize_message, serialize_message
 
     cls = _class(name)
-    default = ros_helpers.message_leaves(cls())
-    msg = ros_helpers.fill_message(cls(), seed=3)
-    filled = ros_helpers.message_leaves(msg)
+    default = message_fill.message_leaves(cls())
+    msg = message_fill.fill_message(cls(), seed=3)
+    filled = message_fill.message_leaves(msg)
 
     # The filler really changed every field (a field it cannot fill would hide a loss).
     unchanged = [k for k in default if k in filled and filled[k] == default[k]]
@@ -58,11 +59,11 @@ def test_serialization_round_trip_keeps_every_field(name):
     data = serialize_message(msg)
     assert isinstance(data, bytes) and len(data) > 4
     back = deserialize_message(data, cls)
-    assert ros_helpers.leaves_equal(filled, ros_helpers.message_leaves(back)) == []
+    assert message_fill.leaves_equal(filled, message_fill.message_leaves(back)) == []
     assert back == msg
 
     # And a second, different filling does not compare equal (the comparison has teeth).
-    other = ros_helpers.fill_message(cls(), seed=4)
+    other = message_fill.fill_message(cls(), seed=4)
     assert deserialize_message(serialize_message(other), cls) != msg
 
 
@@ -89,7 +90,7 @@ def test_every_type_crosses_between_two_processes(ros_env, tmp_path):
     names = _types()
     seed = 11
     expected = {
-        name: ros_helpers.message_leaves(ros_helpers.fill_message(_class(name)(), seed + i))
+        name: message_fill.message_leaves(message_fill.fill_message(_class(name)(), seed + i))
         for i, name in enumerate(names)
     }
     script = HERE / 'msg_exchange.py'
@@ -120,4 +121,4 @@ def test_every_type_crosses_between_two_processes(ros_env, tmp_path):
     received = json.loads(line[len('RECEIVED ') :])
     assert sorted(received) == names
     for name in names:
-        assert ros_helpers.leaves_equal(expected[name], received[name]) == [], name
+        assert message_fill.leaves_equal(expected[name], received[name]) == [], name

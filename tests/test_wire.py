@@ -16,7 +16,7 @@ import struct
 
 import pytest
 from actuator_ros.wire import ENCAPSULATION, Codec, WireError
-from ros_helpers import fill_message, message_leaves
+from message_fill import fill_message, message_leaves
 
 #: rclpy's serialisation is the reference: ROS, not the unit set (which runs without rclpy);
 #: rclpy and the message classes are imported in the tests, so the module collects without it.

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import pytest
 
+import message_fill
 import ros_helpers
 
 WS = ros_helpers.WORKSPACE
@@ -186,8 +187,8 @@ def test_isolated_domains_do_not_see_each_other(rclpy_context, ros_env, tmp_path
     assert ros_env['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'LOCALHOST'
     assert os.environ['ROS_DOMAIN_ID'] == ros_env['ROS_DOMAIN_ID']
     script = HERE / 'msg_exchange.py'
-    mine = ros_helpers.message_leaves(ros_helpers.fill_message(CurrentCommand(), 1))
-    theirs = ros_helpers.message_leaves(ros_helpers.fill_message(CurrentCommand(), 2))
+    mine = message_fill.message_leaves(message_fill.fill_message(CurrentCommand(), 1))
+    theirs = message_fill.message_leaves(message_fill.fill_message(CurrentCommand(), 2))
     assert mine != theirs
 
     with ros_helpers.reserve_domain(exclude=[int(ros_env['ROS_DOMAIN_ID'])]) as other:
@@ -219,7 +220,7 @@ def test_isolated_domains_do_not_see_each_other(rclpy_context, ros_env, tmp_path
             probe.node.create_subscription(
                 CurrentCommand,
                 'exchange/CurrentCommand',
-                lambda m: got.append(ros_helpers.message_leaves(m)),
+                lambda m: got.append(message_fill.message_leaves(m)),
                 qos,
             )
             try:
