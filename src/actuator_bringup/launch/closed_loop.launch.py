@@ -153,7 +153,9 @@ def _processes(context):
         joints=joints,
     )
     if composed:
-        specs = compose(specs)
+        specs = compose(specs, _flag(context, 'record_in_process'))
+    elif _flag(context, 'record_in_process'):
+        raise RuntimeError('record_in_process:=true needs composed:=true (and mode:=sim)')
     actions, leaders, producer, drive = [], [], None, None
     for spec in specs:
         if spec.arguments:  # a plain process (the simulated drive): its own command line
@@ -273,6 +275,12 @@ def generate_launch_description():
                 default_value='false',
                 description='true: the joint on CPU 0, the ESO and controller on CPU 1; a '
                 "composed loop's process on CPU 0 (as bringup --pin)",
+            ),
+            DeclareLaunchArgument(
+                'record_in_process',
+                default_value='false',
+                description="true (composed:=true, mode:=sim): the loop's process writes the bag "
+                'itself, no recorder process (as bringup --record-in-process)',
             ),
             DeclareLaunchArgument(
                 'joints',

@@ -25,6 +25,7 @@ import traceback
 from rcl_interfaces.msg import ParameterDescriptor, ParameterType, SetParametersResult
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 
+from actuator_ros import publisher_hooks
 from actuator_ros.log import RateLimitedLog
 from actuator_ros.parameters import (
     ParameterError,
@@ -218,6 +219,25 @@ class ManagedNode(LifecycleNode, ProcessMember):
         self._stop()
         self._drop()
         return TransitionCallbackReturn.SUCCESS
+
+    # --- publishers: through the process's hooks (an in-process recording's tap) ---------------
+    def create_lifecycle_publisher(self, msg_type, topic, qos_profile, **kwargs):
+        """Return rclpy's lifecycle publisher, passed through actuator_ros.publisher_hooks."""
+        publisher = super().create_lifecycle_publisher(msg_type, topic, qos_profile, **kwargs)
+        return publisher_hooks.hooked(self, publisher, msg_type)
+
+    def destroy_lifecycle_publisher(self, publisher) -> bool:
+        """Destroy a publisher create_lifecycle_publisher returned (wrapped or not)."""
+        return super().destroy_lifecycle_publisher(publisher_hooks.inner(publisher))
+
+    def create_publisher(self, msg_type, topic, qos_profile, **kwargs):
+        """Return rclpy's publisher, passed through actuator_ros.publisher_hooks."""
+        publisher = super().create_publisher(msg_type, topic, qos_profile, **kwargs)
+        return publisher_hooks.hooked(self, publisher, msg_type)
+
+    def destroy_publisher(self, publisher) -> bool:
+        """Destroy a publisher create_publisher returned (wrapped or not)."""
+        return super().destroy_publisher(publisher_hooks.inner(publisher))
 
     def halt(self) -> None:
         """Stop acting now (at exit, before the last messages are acknowledged); idempotent."""

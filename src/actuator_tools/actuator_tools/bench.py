@@ -90,7 +90,8 @@ def build_parser() -> OneLineParser:
         choices=MODES,
         default=list(MODES),
         help='ROS modes to run: realtime, sim (separate processes), sim-composed (joint, ESO '
-        'and controller in one process) (default all)',
+        'and controller in one process), sim-composed-in-process (that process also writes the '
+        'bag, no recorder process) (default all)',
     )
     p.add_argument(
         '--rt-variants',

@@ -208,6 +208,7 @@ def run_one(
                     cpus=PINNING if variant.pinned else None,
                     composed=variant.composed,
                     diagnostics_rate_hz=variant.diagnostics_rate_hz,
+                    record_in_process=variant.in_process,
                 )
             )
     except SystemExit as exc:

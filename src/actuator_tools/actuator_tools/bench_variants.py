@@ -35,8 +35,9 @@ PUBLICATION_MODES = tuple(sorted(set(realtime.PUBLICATION_MODES.values()), rever
 #: Fast DDS transports a run can be given: the runner's own (UDP only in real time,
 #: actuator_ros.middleware), or Fast DDS's default with shared memory, which the runner keeps.
 TRANSPORTS = ('udp', 'shared-memory')
-#: ROS modes: sim time across processes, sim time with the three nodes in one process, real time.
-MODES = ('realtime', 'sim', 'sim-composed')
+#: ROS modes: real time; sim time across processes; sim time with the three nodes in one
+#: process; the same with that process recording the bag itself (graph.compose).
+MODES = ('realtime', 'sim', 'sim-composed', 'sim-composed-in-process')
 
 
 @dataclass(frozen=True)
@@ -52,6 +53,7 @@ class Variant:
     publication_mode: str = ''  # RMW_FASTRTPS_PUBLICATION_MODE ('': the runner's)
     transport: str = ''  # one of TRANSPORTS ('': the runner's, not named)
     recorded: bool = True  # the recorder runs (its bag gives the tracking figures)
+    in_process: bool = False  # a composed loop records its bag itself (no recorder process)
 
     @property
     def slug(self) -> str:
@@ -70,6 +72,8 @@ class Variant:
             base += f'_{self.publication_mode.lower()}'
         if self.transport:
             base += f'_{self.transport.replace("-", "_")}'
+        if self.in_process:
+            base += '_in_process'
         return base if self.recorded else f'{base}_unrecorded'
 
     @property
@@ -85,6 +89,8 @@ class Variant:
             one += f', Fast DDS over {"UDP" if self.transport == "udp" else "shared memory"}'
         if not self.recorded:
             one += ', no recorder'
+        if self.in_process:
+            one += ', recorded in-process (no recorder process)'
         if self.mode == 'sim':
             return f'sim: deterministic sim time (lockstep), normal scheduling{one}'
         sched = (
@@ -130,6 +136,8 @@ def make_variants(
     variants = [Variant('sim')] if 'sim' in modes else []
     if 'sim-composed' in modes:
         variants.append(Variant('sim', composed=True))
+    if 'sim-composed-in-process' in modes:
+        variants.append(Variant('sim', composed=True, in_process=True))
     if 'realtime' in modes:
         for name in dict.fromkeys(rt_variants):
             variant = Variant(
@@ -156,6 +164,10 @@ def make_variants(
             for v in variants
             for transport in (dict.fromkeys(transports) if v.mode == 'realtime' else ('',))
         ]
-    if without_recorder:
-        variants = [v for r in variants for v in (r, dataclasses.replace(r, recorded=False))]
-    return variants
+    if without_recorder:  # an in-process recording unrecorded is the composed loop unrecorded
+        variants = [
+            v
+            for r in variants
+            for v in (r, dataclasses.replace(r, recorded=False, in_process=False))
+        ]
+    return list(dict.fromkeys(variants))

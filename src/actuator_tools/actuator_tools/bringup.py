@@ -101,6 +101,7 @@ def run_closed_loop(
     live_view_parameters: dict | None = None,
     diagnostics_rate_hz: float | None = None,
     joints: int = 1,
+    record_in_process: bool = False,
 ) -> RunResult:
     """Start the nodes of ``scenario`` in ``mode``, run to the end, stop everything.
 
@@ -109,7 +110,8 @@ def run_closed_loop(
     level above for the joint (graph.closed_loop). ``cpus`` pins by key ('joint', 'eso',
     'controller'). ``composed``: the joint, ESO and controller in one process (graph.compose).
     ``diagnostics_rate_hz``: controller/state and plant/truth; ``joints``: CiA 402 drives on
-    one bus, each loop under its namespace (graph.closed_loop).
+    one bus, each loop under its namespace (graph.closed_loop). ``record_in_process``: the
+    composed loop's process writes the bag itself (graph.compose).
     """
     if duration_s is None:
         duration_s = scenario_duration(scenario)
@@ -140,7 +142,7 @@ def run_closed_loop(
         joints=joints,
     )
     if composed:
-        specs = compose(specs)
+        specs = compose(specs, record_in_process)
     procs: dict[str, RosProcess] = {}
     figures: dict[str, ProcessFigures] = {}
     previous = {s: signal.signal(s, _raise_stopped) for s in (signal.SIGTERM, signal.SIGINT)}
@@ -361,6 +363,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         help='run the joint, the ESO and the controller in one process on one executor',
     )
     parser.add_argument(
+        '--record-in-process',
+        action='store_true',
+        help="with --composed in sim mode: the loop's process writes the bag itself, no "
+        'recorder process (a faster lockstep; records only what its nodes publish)',
+    )
+    parser.add_argument(
         '--pin',
         action='store_true',
         help='pin the joint to CPU 0 and the ESO and controller (which run in sequence) to CPU '
@@ -408,6 +416,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error('--duration must be in (0, 3600] s')
     if not 0 <= args.thread_priority <= 99:
         parser.error('--thread-priority must be in [0, 99]')
+    if args.record_in_process and not (args.composed and args.mode == 'sim'):
+        parser.error('--record-in-process needs --composed and --mode sim (graph.compose)')
+    if args.record_in_process and args.no_record:
+        parser.error('--record-in-process records the run: not with --no-record')
     if args.joint in ('cia402_sim', 'cia402') and args.thread_priority == 0:
         print(
             '[bringup] warning: the loop through the CiA 402 driver keeps its 1 kHz SYNC grid '
@@ -437,6 +449,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         live_view=args.live_view,
         diagnostics_rate_hz=args.diagnostics_rate,
         joints=args.joints,
+        record_in_process=args.record_in_process,
     )
     print(
         json.dumps(

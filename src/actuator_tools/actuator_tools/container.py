@@ -12,6 +12,10 @@ participant, so Fast DDS hands them over without the network path (measured in t
 performance section). Parameters go to one node by the ``node:name:=value`` form of
 ``--ros-args -p``, or by the node's section of a parameter file; the process's real-time
 settings (``thread_priority`` ...) are those of the first node named.
+
+``--record BAG``: the container records what its nodes publish itself (actuator_bag.tap: a
+writer process gets the bytes over a pipe; no DDS subscriber, no recorder process), for a
+lockstep in sim time (graph.compose says why not in real time).
 """
 
 from __future__ import annotations
@@ -52,6 +56,13 @@ def _arguments(parser: argparse.ArgumentParser) -> None:
         help='the nodes to run in this process, built in this order (default: plant controller '
         'eso; graph.COMPOSABLE says why)',
     )
+    parser.add_argument(
+        '--record',
+        metavar='BAG',
+        default='',
+        help='record what these nodes publish into the bag folder BAG (which must not exist), '
+        'in-process (actuator_bag.tap); sim time only',
+    )
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -64,20 +75,43 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog='loop_container', description=__doc__.splitlines()[0])
     _arguments(parser)
     try:
-        keys = parser.parse_args(rclpy.utilities.remove_ros_args(args)).nodes
+        own = parser.parse_args(rclpy.utilities.remove_ros_args(args))
+        keys, bag = own.nodes, own.record
     except Exception:  # noqa: BLE001 - run_nodes reports bad ROS arguments in one line
-        keys = ['plant']
+        keys, bag = ['plant'], ''
     if len(set(keys)) != len(keys):
         print(f'loop_container: each node once, got {" ".join(keys)}', file=sys.stderr)
         return 2
-    return run_nodes(
-        'loop_container',
-        __doc__.splitlines()[0],
-        [_factory(k) for k in keys],
-        node_names(keys)[0],
-        args,
-        own_arguments=_arguments,
-    )
+    recording = _start_recording(bag) if bag else None
+    if recording is False:
+        return 2
+    try:
+        code = run_nodes(
+            'loop_container',
+            __doc__.splitlines()[0],
+            [_factory(k) for k in keys],
+            node_names(keys)[0],
+            args,
+            own_arguments=_arguments,
+        )
+    finally:
+        recorded = recording is None or recording.close()
+    return code or (0 if recorded else 1)
+
+
+def _start_recording(bag: str):
+    """Start the in-process recording into ``bag`` and hook it in; False (one line) if refused."""
+    from pathlib import Path
+
+    from actuator_bag.tap import InProcessRecording
+    from actuator_ros import publisher_hooks
+
+    if Path(bag).exists():
+        print(f'loop_container: {bag} exists already, not overwriting', file=sys.stderr)
+        return False
+    recording = InProcessRecording(Path(bag))
+    publisher_hooks.install(recording.hook)
+    return recording
 
 
 if __name__ == '__main__':
