@@ -255,6 +255,19 @@ def test_each_variant_once_more_without_the_recorder():
     assert variants[3].title.endswith(', no recorder')
 
 
+def test_the_in_process_recording_is_a_sim_variant_of_its_own_and_unrecorded_only_once():
+    """sim-composed-in-process: its slug and title; unrecorded, it is sim_composed's twin."""
+    variants = bench_variants.make_variants(
+        ['sim-composed', 'sim-composed-in-process'], [], 50, (), (), True
+    )
+    assert [(v.slug, v.in_process) for v in variants] == [
+        ('sim_composed', False),
+        ('sim_composed_unrecorded', False),
+        ('sim_composed_in_process', True),
+    ]
+    assert variants[2].title.endswith('in one process, recorded in-process (no recorder process)')
+
+
 def test_a_publication_mode_reaches_the_processes_and_is_restored(monkeypatch):
     """The variant's mode is in os.environ only while its run starts processes."""
     name = 'RMW_FASTRTPS_PUBLICATION_MODE'
