@@ -207,6 +207,38 @@ def test_the_tap_records_what_an_active_lifecycle_publisher_sends_and_counts_as_
     assert logged == [1_000_000, 2_000_000, 3_000_000]
 
 
+@pytest.mark.usefixtures('rclpy_context')
+def test_a_node_in_real_time_stops_the_in_process_recording_with_one_line(
+    rclpy_context, tmp_path, capfd
+):
+    """mode realtime: nothing wrapped, one line saying why and what to use; close says False."""
+    from actuator_msgs.msg import CurrentCommand
+    from rclpy.node import Node
+    from rclpy.parameter import Parameter
+
+    from actuator_bag.tap import InProcessRecording
+
+    recording = InProcessRecording(tmp_path / 'bag')
+    node = Node(
+        'joint',
+        context=rclpy_context,
+        parameter_overrides=[Parameter('mode', value='realtime')],
+        automatically_declare_parameters_from_overrides=True,
+    )
+    try:
+        publisher = node.create_publisher(CurrentCommand, 'current_command', 10)
+        assert recording.hook(node, publisher, CurrentCommand) is publisher
+    finally:
+        node.destroy_node()
+    assert not recording.close()
+    lines = [line for line in capfd.readouterr().err.splitlines() if 'loop_container' in line]
+    assert lines == [
+        'loop_container: in-process recording stopped: it is for sim time, and /joint runs in '
+        'realtime mode (a full pipe would hold up its loop): nothing of this run is recorded; '
+        'record a real-time run with the recorder process'
+    ]
+
+
 # ------------------------------------------------------------------------------ whole runs
 def _sim_run(name: str, root: Path, **kwargs):
     """Run a 2 s composed lockstep of the paper's case under ``root``; return its RunResult."""

@@ -96,8 +96,22 @@ class InProcessRecording:
         self.not_recorded = 0
 
     def hook(self, node: Any, publisher: Any, msg_type: type) -> Any:
-        """actuator_ros.publisher_hooks: wrap a publisher on a recorded topic (and /clock)."""
+        """actuator_ros.publisher_hooks: wrap a publisher on a recorded topic (and /clock).
+
+        A node in real time (its ``mode`` parameter) stops the recording at once, with one
+        line: a full pipe would hold up its loop.
+        """
         name = publisher.topic_name
+        if self.error is None and node.has_parameter('mode'):
+            mode = node.get_parameter('mode').value
+            if mode != 'sim':
+                self._fail(
+                    f'it is for sim time, and {node.get_fully_qualified_name()} runs in {mode} '
+                    'mode (a full pipe would hold up its loop): nothing of this run is recorded; '
+                    'record a real-time run with the recorder process'
+                )
+        if self.error is not None:
+            return publisher
         for entry, msgtype in self.topics:
             if node.resolve_topic_name(entry) == name:
                 index = self.indices.get(name)
