@@ -211,7 +211,7 @@ def test_the_tap_records_what_an_active_lifecycle_publisher_sends_and_counts_as_
 def test_a_node_in_real_time_stops_the_in_process_recording_with_one_line(
     rclpy_context, tmp_path, capfd
 ):
-    """mode realtime: nothing wrapped, one line saying why and what to use; close says False."""
+    """A realtime node: nothing wrapped, one line saying why and what to use; close is False."""
     from actuator_msgs.msg import CurrentCommand
     from rclpy.node import Node
     from rclpy.parameter import Parameter
