@@ -101,6 +101,45 @@ def test_ros2_launch_ends_a_sim_run_by_itself_with_every_exit_code_0(ros_env, tm
 
 
 @NEEDS_LAUNCH
+def test_ros2_launch_records_a_composed_lockstep_in_process(ros_env, tmp_path):
+    """record_in_process:=true: one process and its writer, the bag whole; refused alone."""
+    bag = tmp_path / 'bag'
+    proc = subprocess.run(
+        [
+            'ros2',
+            'launch',
+            'actuator_bringup',
+            'closed_loop.launch.py',
+            'duration:=3',
+            'mode:=sim',
+            'composed:=true',
+            'record_in_process:=true',
+            f'bag:={bag}',
+        ],
+        env=ros_env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    out = proc.stdout + proc.stderr
+    assert proc.returncode == 0, out[-3000:]
+    assert 'recorder-' not in out  # no recorder process
+    assert '(in-process recording)' in out  # the writer's summary line
+    metadata = (bag / 'metadata.yaml').read_text()
+    assert 'in-process recording' in metadata and 'message_count: 3000' in metadata
+    refused = subprocess.run(
+        ['ros2', 'launch', 'actuator_bringup', 'closed_loop.launch.py', 'record_in_process:=true'],
+        env=ros_env,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert refused.returncode != 0
+    assert 'record_in_process:=true needs composed:=true' in refused.stdout + refused.stderr
+    assert not ours_running()
+
+
+@NEEDS_LAUNCH
 def test_sigint_to_ros2_launch_leaves_no_process_behind(ros_env, tmp_path):
     launch = RosProcess(
         [
