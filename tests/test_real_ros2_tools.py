@@ -40,6 +40,8 @@ NODES = [
     ('actuator_controller', 'controller_node', '/actuator_controller'),
 ]
 EXECUTABLES = ('plant_node', 'eso_node', 'controller_node', 'recorder')
+#: ``ros2 launch`` of the closed loop (its arguments follow).
+LOOP = ('launch', 'actuator_bringup', 'closed_loop.launch.py')
 
 
 def ros2(env, *args, timeout=60.0) -> subprocess.CompletedProcess:
@@ -76,20 +78,8 @@ def ours_running() -> list:
 
 @NEEDS_LAUNCH
 def test_ros2_launch_ends_a_sim_run_by_itself_with_every_exit_code_0(ros_env, tmp_path):
-    proc = subprocess.run(
-        [
-            'ros2',
-            'launch',
-            'actuator_bringup',
-            'closed_loop.launch.py',
-            'duration:=3',
-            'mode:=sim',
-            f'bag:={tmp_path / "bag"}',
-        ],
-        env=ros_env,
-        capture_output=True,
-        text=True,
-        timeout=120,
+    proc = ros2(
+        ros_env, *LOOP, 'duration:=3', 'mode:=sim', f'bag:={tmp_path / "bag"}', timeout=120
     )
     out = proc.stdout + proc.stderr
     assert proc.returncode == 0, out[-3000:]
@@ -104,21 +94,14 @@ def test_ros2_launch_ends_a_sim_run_by_itself_with_every_exit_code_0(ros_env, tm
 def test_ros2_launch_records_a_composed_lockstep_in_process(ros_env, tmp_path):
     """record_in_process:=true: one process and its writer, the bag whole; refused alone."""
     bag = tmp_path / 'bag'
-    proc = subprocess.run(
-        [
-            'ros2',
-            'launch',
-            'actuator_bringup',
-            'closed_loop.launch.py',
-            'duration:=3',
-            'mode:=sim',
-            'composed:=true',
-            'record_in_process:=true',
-            f'bag:={bag}',
-        ],
-        env=ros_env,
-        capture_output=True,
-        text=True,
+    proc = ros2(
+        ros_env,
+        *LOOP,
+        'duration:=3',
+        'mode:=sim',
+        'composed:=true',
+        'record_in_process:=true',
+        f'bag:={bag}',
         timeout=120,
     )
     out = proc.stdout + proc.stderr
@@ -127,13 +110,7 @@ def test_ros2_launch_records_a_composed_lockstep_in_process(ros_env, tmp_path):
     assert '(in-process recording)' in out  # the writer's summary line
     metadata = (bag / 'metadata.yaml').read_text()
     assert 'in-process recording' in metadata and 'message_count: 3000' in metadata
-    refused = subprocess.run(
-        ['ros2', 'launch', 'actuator_bringup', 'closed_loop.launch.py', 'record_in_process:=true'],
-        env=ros_env,
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
+    refused = ros2(ros_env, *LOOP, 'record_in_process:=true')
     assert refused.returncode != 0
     assert 'record_in_process:=true needs composed:=true' in refused.stdout + refused.stderr
     assert not ours_running()
@@ -166,13 +143,7 @@ def test_sigint_to_ros2_launch_leaves_no_process_behind(ros_env, tmp_path):
 @NEEDS_LAUNCH
 @pytest.mark.parametrize('argument', ['record:=yes', 'plant:=maybe'])
 def test_ros2_launch_refuses_a_boolean_it_cannot_read(ros_env, argument):
-    proc = subprocess.run(
-        ['ros2', 'launch', 'actuator_bringup', 'closed_loop.launch.py', argument],
-        env=ros_env,
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
+    proc = ros2(ros_env, *LOOP, argument)
     assert proc.returncode != 0
     assert 'yes' in proc.stdout + proc.stderr or 'maybe' in proc.stdout + proc.stderr
     assert not ours_running()
