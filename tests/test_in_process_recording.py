@@ -118,15 +118,24 @@ def test_a_message_of_a_topic_never_announced_is_refused(tmp_path):
 def test_the_spool_says_how_many_messages_the_gone_writer_did_not_get():
     """Reader closed: SpoolError with the count; the batch stays for nothing to be hidden."""
     read_fd, write_fd = os.pipe()
-    os.close(read_fd)
     spool = FrameSpool(write_fd, batch_bytes=1 << 30)
-    spool.add_topic(0, '/current_command', COMMAND, [QosProfile()])
+    spool.add_topic(0, '/current_command', COMMAND, [QosProfile()])  # handed over at once
+    assert not spool.batch and os.read(read_fd, 1 << 16)
+    os.close(read_fd)
     for k in range(25):
         spool.add(0, k, _command(k))
     with pytest.raises(SpoolError, match='25 messages not recorded'):
         spool.flush()
     assert spool.sent == 0 and spool.batch
     os.close(write_fd)
+
+
+def test_a_stream_without_a_frame_leaves_no_bag(tmp_path):
+    """The loop's process ended before its first frame (bad arguments): nothing is created."""
+    import io
+
+    assert write_bag(io.BytesIO(b''), tmp_path / 'bag') is None
+    assert not (tmp_path / 'bag').exists()
 
 
 def test_frames_split_across_reads_come_out_whole():
@@ -240,14 +249,14 @@ def test_a_node_in_real_time_stops_the_in_process_recording_with_one_line(
 
 
 # ------------------------------------------------------------------------------ whole runs
-def _sim_run(name: str, root: Path, **kwargs):
-    """Run a 2 s composed lockstep of the paper's case under ``root``; return its RunResult."""
+def _sim_run(name: str, root: Path, duration_s: float = 2.0, **kwargs):
+    """Run a composed lockstep of the paper's case under ``root``; return its RunResult."""
     from actuator_tools.bringup import run_closed_loop
 
     return run_closed_loop(
         'case2_pp_nftsmc_eso',
         'sim',
-        2.0,
+        duration_s,
         bag_root=root / 'bags' / name,
         results_root=root / 'runs' / name,
         quiet=True,
@@ -286,13 +295,15 @@ def test_a_full_disk_stops_the_in_process_recording_not_the_loop(isolated, monke
     from actuator_bag.repair import repair_bag
     from actuator_tools.supervisor import process_log
 
-    monkeypatch.setenv(FULL_AFTER_ENV, '300000')
-    result = _sim_run('full', isolated, record_in_process=True)
+    # past the first chunk (1 MiB before compression, about 430 kB), in the second of about five
+    monkeypatch.setenv(FULL_AFTER_ENV, '600000')
+    result = _sim_run('full', isolated, 5.0, record_in_process=True)
     monkeypatch.delenv(FULL_AFTER_ENV)
     log = process_log(result.run_dir, 'loop')
     assert result.exit_codes == {'loop': 1}, log[-2000:]
-    assert 'run of 2.0 s complete' in log, log[-2000:]
+    assert 'run of 5.0 s complete' in log, log[-2000:]
     assert 'No space left on device' in log and f'run bag_repair {result.bag}' in log
+    assert 'messages are on disk' in log and 'received ones were lost' in log
     assert 'in-process recording stopped: the bag writer took no more' in log
     assert 'Traceback' not in log
     repaired = repair_bag(result.bag, isolated / 'fixed', quiet=True)

@@ -71,13 +71,14 @@ class FrameSpool:
         self.topics = 0
 
     def add_topic(self, index: int, name: str, msgtype: str, qos: Sequence[QosProfile]) -> None:
-        """Announce topic ``index`` before its first message."""
+        """Announce topic ``index`` before its first message, at once (the bag opens then)."""
         payload = json.dumps(
             {'index': index, 'name': name, 'type': msgtype, 'qos': [q.as_dict() for q in qos]}
         ).encode()
         self.batch += (HEADER.pack(TOPIC_FRAME, 0, len(payload)), payload)
         self.pending += HEADER.size + len(payload)
         self.topics += 1
+        self.flush()
 
     def add(self, index: int, log_ns: int, data: bytes) -> None:
         """One serialized message of topic ``index``, logged at ``log_ns``."""
@@ -146,25 +147,29 @@ def write_bag(
     output: Path,
     chunk_size: int = DEFAULT_CHUNK_SIZE,
     flush_interval_s: float = DEFAULT_FLUSH_INTERVAL_S,
-) -> BagWriter:
+) -> Optional[BagWriter]:
     """Write the frames of ``stream`` into the bag folder ``output``; return the closed writer.
 
-    BagIOError (disk full ...): the file is cut back to its last complete chunk, as the recorder
-    does; BagError: a frame for a topic never announced, or a cut-off stream (what came before
-    is written and the bag closed first).
+    The bag is created at the first frame: a stream that ends with none (the loop's process
+    ended before building its nodes) leaves nothing, and None is returned. BagIOError (disk
+    full ...): the file is cut back to its last complete chunk, as the recorder does; BagError:
+    a frame for a topic never announced, or a cut-off stream (what came before is written and
+    the bag closed first).
     """
-    writer = BagWriter(
-        output,
-        chunk_size=chunk_size,
-        flush_interval_s=flush_interval_s,
-        custom_data=CUSTOM_DATA,
-    )
-    writer.open()
+    writer: Optional[BagWriter] = None
     source = DefinitionSource()
     specs: dict[int, object] = {}
     handles: dict[int, int] = {}
     try:
         for index, log_ns, payload in read_frames(stream):
+            if writer is None:
+                writer = BagWriter(
+                    output,
+                    chunk_size=chunk_size,
+                    flush_interval_s=flush_interval_s,
+                    custom_data=CUSTOM_DATA,
+                )
+                writer.open()
             if index == TOPIC_FRAME:
                 topic = json.loads(payload)
                 specs[topic['index']] = topic_spec(
@@ -180,12 +185,18 @@ def write_bag(
                     raise BagError(f'a message of topic {index}, which was never announced')
                 handle = handles[index] = writer.add_topic(specs[index])
             writer.write(handle, log_ns, payload)
-    except BagIOError:
-        raise
+        if writer is not None:
+            writer.close()
+    except BagIOError as err:  # the writer is closed, its file cut back to a complete chunk
+        lost = sum(writer.counts) - writer.durable
+        raise BagIOError(
+            f'{err}; {writer.durable} messages are on disk, {lost} received ones were lost',
+            err.errno,
+        ) from None
     except BagError:
-        writer.close()
+        if writer is not None and writer.is_open:
+            writer.close()
         raise
-    writer.close()
     return writer
 
 
@@ -215,7 +226,13 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     except BagError as err:
         print(f'recorder: {err}', file=sys.stderr, flush=True)
         return 1
-    print(f'recorder: wrote {writer.summary().line()} (in-process recording)', flush=True)
+    if writer is None:
+        print(
+            "recorder: nothing to record (the loop's process sent nothing): no bag written",
+            flush=True,
+        )
+    else:
+        print(f'recorder: wrote {writer.summary().line()} (in-process recording)', flush=True)
     return 0
 
 
