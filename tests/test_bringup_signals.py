@@ -123,7 +123,7 @@ def test_pin_puts_a_composed_loop_on_its_joints_cpu_and_nothing_pins_it_otherwis
     (realtime.pre_init_settings on the container's own arguments).
     """
     from actuator_ros.realtime import pre_init_settings
-    from actuator_tools.graph import compose
+    from actuator_tools.composition import compose
 
     scenario = scenario_file('case2_pp_nftsmc_eso')
     for cpus, expected in ((PINNING, '0'), (None, '')):

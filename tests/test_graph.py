@@ -18,10 +18,10 @@ from actuator_tools.graph import (
     RECORDER_NICE,
     SYNC_PRODUCER_GRACE_S,
     closed_loop,
-    compose,
     default_scenario,
     ros_arguments,
 )
+from actuator_tools.composition import compose
 
 
 def _rates(specs) -> dict:

@@ -313,7 +313,8 @@ def test_a_full_disk_stops_the_in_process_recording_not_the_loop(isolated, monke
 # ---------------------------------------------------------------------- where it is offered
 def test_compose_moves_the_recording_into_the_container_in_sim_time_only(tmp_path):
     """The recorder's bag goes to the container's --record; refused where it cannot hold."""
-    from actuator_tools.graph import closed_loop, compose, ros_arguments
+    from actuator_tools.composition import compose
+    from actuator_tools.graph import closed_loop, ros_arguments
 
     bag = tmp_path / 'bag'
     specs = compose(closed_loop('sim', 5.0, bag=bag), record_in_process=True)

@@ -13,7 +13,7 @@ parameters thread_priority, cpu_affinity, executor). The managed nodes are drive
 configure and activate by launch_ros's lifecycle events. The run ends when the joint process
 ends (``duration`` elapsed, or it failed): every other process is then stopped with SIGINT and
 the joint's exit code is reported. ``composed:=true`` runs the joint, the ESO and the controller
-in one process (actuator_tools loop_container, graph.compose): the nodes then configure and
+in one process (actuator_tools loop_container, composition.compose): the nodes then configure and
 activate themselves (autostart), and ``ros2 lifecycle`` still reaches each by its name.
 ``pin:=true`` pins the processes as ``bringup --pin`` does (graph.PINNING; a composed loop on its
 joint's CPU). Booleans are launch conditions: true/false/1/0, anything else is refused.
@@ -48,10 +48,10 @@ from actuator_tools.graph import (
     MAX_JOINTS_ON_BUS,
     PINNING,
     closed_loop,
-    compose,
     default_scenario,
     ros_arguments,
 )
+from actuator_tools.composition import compose
 
 
 def _flag(context, name):

@@ -36,7 +36,7 @@ PUBLICATION_MODES = tuple(sorted(set(realtime.PUBLICATION_MODES.values()), rever
 #: actuator_ros.middleware), or Fast DDS's default with shared memory, which the runner keeps.
 TRANSPORTS = ('udp', 'shared-memory')
 #: ROS modes: real time; sim time across processes; sim time with the three nodes in one
-#: process; the same with that process recording the bag itself (graph.compose).
+#: process; the same with that process recording the bag itself (composition.compose).
 MODES = ('realtime', 'sim', 'sim-composed', 'sim-composed-in-process')
 
 
@@ -48,7 +48,7 @@ class Variant:
     rt_priority: int = 0
     pinned: bool = False
     launched: bool = False  # started by ros2 launch instead of the runner
-    composed: bool = False  # joint, ESO and controller in one process (graph.compose)
+    composed: bool = False  # joint, ESO and controller in one process (composition.compose)
     diagnostics_rate_hz: Optional[float] = None  # controller/state, plant/truth (None: default)
     publication_mode: str = ''  # RMW_FASTRTPS_PUBLICATION_MODE ('': the runner's)
     transport: str = ''  # one of TRANSPORTS ('': the runner's, not named)

@@ -34,11 +34,11 @@ from actuator_tools.graph import (
     MAX_JOINTS_ON_BUS,
     PINNING,
     closed_loop,
-    compose,
     default_scenario,
     node_kind,
     ros_arguments,
 )
+from actuator_tools.composition import compose
 from actuator_tools.supervisor import ProcessFigures, RosProcess
 
 MODES = ('realtime', 'sim')
@@ -108,10 +108,11 @@ def run_closed_loop(
     Return the result. ``duration_s`` None runs the scenario's own length (10 s for the paper's
     cases), never forever. ``thread_priority`` > 0: SCHED_FIFO for the ESO and controller, one
     level above for the joint (graph.closed_loop). ``cpus`` pins by key ('joint', 'eso',
-    'controller'). ``composed``: the joint, ESO and controller in one process (graph.compose).
+    'controller'). ``composed``: the joint, ESO and controller in one process
+    (composition.compose).
     ``diagnostics_rate_hz``: controller/state and plant/truth; ``joints``: CiA 402 drives on
     one bus, each loop under its namespace (graph.closed_loop). ``record_in_process``: the
-    composed loop's process writes the bag itself (graph.compose).
+    composed loop's process writes the bag itself (composition.compose).
     """
     if duration_s is None:
         duration_s = scenario_duration(scenario)
@@ -417,7 +418,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not 0 <= args.thread_priority <= 99:
         parser.error('--thread-priority must be in [0, 99]')
     if args.record_in_process and not (args.composed and args.mode == 'sim'):
-        parser.error('--record-in-process needs --composed and --mode sim (graph.compose)')
+        parser.error('--record-in-process needs --composed and --mode sim (composition.compose)')
     if args.record_in_process and args.no_record:
         parser.error('--record-in-process records the run: not with --no-record')
     if args.joint in ('cia402_sim', 'cia402') and args.thread_priority == 0:

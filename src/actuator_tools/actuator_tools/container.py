@@ -15,7 +15,7 @@ settings (``thread_priority`` ...) are those of the first node named.
 
 ``--record BAG``: the container records what its nodes publish itself (actuator_bag.tap: a
 writer process gets the bytes over a pipe; no DDS subscriber, no recorder process), for a
-lockstep in sim time (graph.compose says why not in real time).
+lockstep in sim time (composition.compose says why not in real time).
 """
 
 from __future__ import annotations
@@ -54,7 +54,7 @@ def _arguments(parser: argparse.ArgumentParser) -> None:
         choices=sorted(KINDS),
         default=['plant', 'controller', 'eso'],
         help='the nodes to run in this process, built in this order (default: plant controller '
-        'eso; graph.COMPOSABLE says why)',
+        'eso; composition.COMPOSABLE says why)',
     )
     parser.add_argument(
         '--record',

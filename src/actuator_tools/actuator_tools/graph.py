@@ -5,8 +5,9 @@
 
 Which nodes, with which parameters and real-time settings. Both the runner (``bringup``,
 actuator_tools.bringup) and the launch file (``actuator_bringup closed_loop.launch.py``) build
-their processes from ``closed_loop``, so the two cannot drift apart. Pure data, no launch import:
-the runner has no launch here.
+their processes from ``closed_loop``, so the two cannot drift apart (and ``composition.compose``
+puts each joint's loop into one process). Pure data, no launch import: the runner has no launch
+here.
 
 Real-time settings are node parameters (actuator_ros.realtime), as ros2_control makes them:
 ``thread_priority`` (the ESO and controller at the given SCHED_FIFO priority, the plant or
@@ -78,87 +79,6 @@ class NodeSpec:
     arguments: tuple = ()  # a plain process (no ROS node): its command line, e.g. the sim drive
     namespace: str = ''  # the node's namespace (several joints: joint1, joint2, ...)
     record_to: str = ''  # a container recording in-process (compose): its bag folder
-
-
-#: The nodes a composed loop runs in one process, in the order they are built (the joint first:
-#: its real-time settings are the process's), and the container's executable. The controller
-#: before the ESO: one executor takes a sample's deliveries in that order, and the controller's
-#: law needs y(k) at once while the ESO needs it only for x_hat(k+1) (measured, composed under
-#: SCHED_FIFO, no recorder, 2 x 8 s each way: latency p50 284 / 277 us against 323 / 330 us).
-COMPOSABLE = ('plant', 'driver', 'controller', 'eso')
-#: The joints a composed loop can hold (the CiA 402 drive itself stays a process: hardware).
-COMPOSABLE_JOINTS = ('plant', 'driver')
-CONTAINER = ('actuator_tools', 'loop_container')
-
-
-def compose(specs: list[NodeSpec], record_in_process: bool = False) -> list[NodeSpec]:
-    """Put each joint's joint, ESO and controller of ``specs`` into one process.
-
-    The same nodes with the same parameters, on one executor (actuator_tools.container); the
-    recorder and the simulated drive (hardware) keep their own processes. Several joints: one
-    container per joint, in its namespace, in the joints' order (the SYNC producer's first, so
-    it is stopped last). Start order: the others, then the containers (each holds its joint,
-    which starts sampling when all are there). ``record_in_process``: the container records
-    the recorder's bag itself instead of the recorder process (``_in_process_bag`` says what
-    that gives and keeps); a sim-time run of one joint only.
-    """
-    loops: dict[str, dict[str, NodeSpec]] = {}
-    for spec in specs:
-        if node_kind(spec) in COMPOSABLE:
-            loops.setdefault(spec.namespace, {})[node_kind(spec)] = spec
-    if not loops or any(not set(COMPOSABLE_JOINTS) & set(inside) for inside in loops.values()):
-        raise ValueError(
-            'a composed loop needs a joint of its own: the simulated plant or a CiA 402 driver'
-        )
-    bag = _in_process_bag(specs, loops) if record_in_process else ''
-    if record_in_process:
-        specs = [s for s in specs if s.key != 'recorder']
-    containers = []
-    for ns, inside in loops.items():
-        members = tuple(inside[k] for k in COMPOSABLE if k in inside)
-        containers.append(
-            NodeSpec(
-                f'loop{ns.removeprefix("joint")}',
-                *CONTAINER,
-                'loop_container',
-                {},
-                leader=any(m.leader for m in members),
-                members=members,
-                namespace=ns,
-                record_to=bag,
-            )
-        )
-    inside_keys = {m.key for c in containers for m in c.members}
-    return [s for s in specs if s.key not in inside_keys] + containers
-
-
-# Why a composed lockstep may record in-process (``compose(record_in_process=True)``,
-# actuator_bag.tap): with the recorder process, each of the loop's synchronous publishes also
-#: goes to another process (shared memory, a RELIABLE writer's bookkeeping per message), and the
-# lockstep ran at 2.3-2.7x real time against 4.4x unrecorded; handed over a pipe in batches it
-# runs at 3.6x (README "Performance"). It records what the container's nodes publish, not what
-# other processes do; sim time only, since a full pipe holds up the loop, which in real time
-# has a deadline (the recorder process then records, with its own queue).
-
-
-def _in_process_bag(specs: list[NodeSpec], loops: dict) -> str:
-    """Return the bag folder a container records in-process, from the recorder's spec.
-
-    ValueError when the run cannot record in-process (the comment above says why).
-    """
-    recorder = next((s for s in specs if s.key == 'recorder'), None)
-    if recorder is None:
-        raise ValueError('in-process recording records the run: it needs the recorder')
-    if recorder.parameters.get('use_sim_time') is not True:
-        raise ValueError(
-            'in-process recording is for sim time: in real time a full pipe would hold up the '
-            'loop; the recorder process records a real-time run'
-        )
-    if len(loops) != 1:
-        raise ValueError('in-process recording records one joint')
-    from actuator_bag.recording import default_output
-
-    return str(recorder.parameters.get('output') or default_output())
 
 
 def node_kind(spec: NodeSpec) -> str:
