@@ -66,9 +66,7 @@ class FrameSpool:
         self.batch: list[bytes] = []
         self.pending = 0
         self.frames = 0  # message frames accepted
-        self.sent = 0  # message frames handed to the writer
-        self._pending_frames = 0
-        self.topics = 0
+        self.sent = 0  # message frames handed to the writer (all but the batch in hand)
 
     def add_topic(self, index: int, name: str, msgtype: str, qos: Sequence[QosProfile]) -> None:
         """Announce topic ``index`` before its first message, at once (the bag opens then)."""
@@ -77,7 +75,6 @@ class FrameSpool:
         ).encode()
         self.batch += (HEADER.pack(TOPIC_FRAME, 0, len(payload)), payload)
         self.pending += HEADER.size + len(payload)
-        self.topics += 1
         self.flush()
 
     def add(self, index: int, log_ns: int, data: bytes) -> None:
@@ -85,7 +82,6 @@ class FrameSpool:
         self.batch += (HEADER.pack(index, log_ns, len(data)), data)
         self.pending += HEADER.size + len(data)
         self.frames += 1
-        self._pending_frames += 1
         if self.pending >= self.batch_bytes:
             self.flush()
 
@@ -104,8 +100,7 @@ class FrameSpool:
             ) from None
         self.batch.clear()
         self.pending = 0
-        self.sent += self._pending_frames
-        self._pending_frames = 0
+        self.sent = self.frames
 
 
 def grow_pipe(fd: int, size: int = PIPE_BYTES) -> int:
