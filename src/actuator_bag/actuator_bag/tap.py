@@ -22,7 +22,6 @@ time a full pipe would hold up a loop that has a deadline.
 
 from __future__ import annotations
 
-import struct
 import subprocess
 import sys
 import time
@@ -31,6 +30,10 @@ from typing import Any, Optional, Sequence
 
 from rclpy.lifecycle import LifecyclePublisher
 from rclpy.serialization import serialize_message
+from rosgraph_msgs.msg import Clock
+
+from actuator_core.timing import stamp_to_ns
+from actuator_ros.wire_io import codec
 
 from .recording import DEFAULT_TOPICS, parse_topic
 from .ros_common import to_bag_qos
@@ -40,8 +43,6 @@ from .spool import FrameSpool, SpoolError, grow_pipe
 #: /diagnostics, as graph.closed_loop has the recorder process record.
 IN_PROCESS_TOPICS = (*DEFAULT_TOPICS, '/diagnostics')
 CLOCK_TOPIC = '/clock'
-#: rosgraph_msgs/Clock in CDR: 4 bytes of encapsulation, then int32 sec, uint32 nanosec.
-_CLOCK = struct.Struct('<iI')
 #: Seconds the writer process may take to write what is queued after the loop has ended.
 WRITER_EXIT_TIMEOUT_S = 120.0
 
@@ -93,6 +94,7 @@ class InProcessRecording:
         self.clock_index = -1  # /clock's index when it is recorded
         self.sim = False  # a /clock publisher in this process: log times on that clock
         self.now_ns = 0
+        self.decode_clock = codec(Clock).decode  # the joint encodes /clock with the same codec
         self.error: Optional[str] = None
         self.not_recorded = 0
 
@@ -133,8 +135,7 @@ class InProcessRecording:
         if len(data) % 4:  # as Fast DDS delivers it to a recorder: a bag is the same either way
             data = bytes(data) + bytes(-len(data) % 4)
         if index is None or index == self.clock_index:
-            sec, nanosec = _CLOCK.unpack_from(data, 4)
-            self.now_ns = sec * 1_000_000_000 + nanosec
+            self.now_ns = stamp_to_ns(self.decode_clock(data).clock)
             if index is None:
                 return
         if self.error is not None:
