@@ -96,6 +96,18 @@ def test_sim_speed_from_plant_span():
     assert f['plant_interval_p50_us'] == pytest.approx(250.0)
 
 
+def test_the_joints_gaps_are_counted_in_the_steady_window_only():
+    stamps = np.arange(10_001, dtype=np.int64) * PERIOD_NS  # 10 s
+    wall = stamps.copy()
+    wall[2_000:] += 20 * PERIOD_NS  # a 21 ms gap at 2 s: before the steady window
+    wall[6_000:] += 7 * PERIOD_NS  # 8 ms at 6 s: beyond the 7 ms measurement timeout
+    wall[8_000:] += 6 * PERIOD_NS  # 7 ms at 8 s: not beyond it
+    f = bench_figures.plant_figures(stamps, wall, PERIOD_NS)
+    assert f['steady_gap_max_ms'] == pytest.approx(8.0)
+    assert f['steady_gaps_beyond_timeout'] == 1
+    assert f['plant_interval_max_us'] == pytest.approx(21_000.0)  # the whole run's
+
+
 def test_latency_breakdown_joins_by_stamp():
     stamps = np.arange(5, dtype=np.int64) * PERIOD_NS
     published = stamps + 20_000  # plant 20 us late
@@ -372,6 +384,11 @@ def test_short_sim_run_end_to_end(ros_env, tmp_path):
     (hops,) = summary['floor_runs']
     assert hops['floor_hop_p50_us'] > 0 and hops['floor_lost_pct'] < 50.0
     assert hops['cpu_echo_pct'] > 0
+    # The host floor: a lone grid thread on CPU 0 and on any CPU, each for the floor's length.
+    for label in ('host_cpu0', 'host_any'):
+        assert hops[f'{label}_wakeups'] == 2000  # the whole grid: 2 s at 1 kHz
+        assert {f'{label}_stall_max_ms', f'{label}_beyond_timeout_per_min'} <= set(hops)
+    assert 'grid thread on CPU 0' in proc.stdout
     assert 'middleware floor' in proc.stdout
 
 

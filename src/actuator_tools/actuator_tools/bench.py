@@ -274,7 +274,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             for repeat in range(1, args.repeats + 1):
                 say(
                     f'middleware floor {repeat}/{args.repeats}: echo at 1 kHz for '
-                    f'{args.floor_s:g} s'
+                    f'{args.floor_s:g} s, then a lone grid thread on CPU 0 and on any CPU'
                 )
                 try:
                     floor.append(floor_run(args, base, repeat, floor_priority))

@@ -17,6 +17,7 @@ from typing import Optional
 
 import numpy as np
 
+from actuator_core.limits import MEASUREMENT_TIMEOUT_S, STEADY_STATE_START_S
 from actuator_core.stats import missed_samples, percentiles
 from actuator_tools.supervisor import process_log
 
@@ -158,7 +159,30 @@ def plant_figures(stamp_ns: np.ndarray, published_wall_ns: np.ndarray, period_ns
     figures['plant_samples'] = float(stamp.size)
     wall_span = int(wall[-1] - wall[0]) if wall.size > 1 else 0
     figures['speed_x'] = float((stamp[-1] - stamp[0]) / wall_span) if wall_span > 0 else None
+    figures.update(steady_gap_figures(stamp, wall))
     return figures
+
+
+def steady_gap_figures(stamp_ns: np.ndarray, published_wall_ns: np.ndarray) -> Figures:
+    """Measure the joint's stalls in the tracking error's steady window (STEADY_STATE_START_S on).
+
+    The longest wall interval between two published samples [ms], and how many exceed the
+    controller's measurement timeout (a stale input there: the error's usual outliers).
+    """
+    stamp = np.asarray(stamp_ns, dtype=np.int64)
+    wall = np.asarray(published_wall_ns, dtype=np.int64)
+    if stamp.size < 2:
+        return {}
+    steady = (stamp[1:] - stamp[0]) >= int(STEADY_STATE_START_S * 1e9)
+    gaps = np.diff(wall)[steady]
+    if not gaps.size:
+        return {}
+    return {
+        'steady_gap_max_ms': float(gaps.max()) * 1e-6,
+        'steady_gaps_beyond_timeout': float(
+            np.count_nonzero(gaps > int(round(MEASUREMENT_TIMEOUT_S * 1e9)))
+        ),
+    }
 
 
 def coverage_figures(ctrl_stamp_ns: np.ndarray, plant_stamp_ns: np.ndarray) -> Figures:

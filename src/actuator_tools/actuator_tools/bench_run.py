@@ -286,7 +286,29 @@ def floor_run(args: argparse.Namespace, base: Path, repeat: int, rt_priority: in
         figures = hop_figures(rtt['rtt_ns'], int(rtt['sent']))
     figures.update({f'cpu_{role}_pct': f.cpu_percent() for role, f in figures_of.items()})
     figures['steal_pct'] = steal_percent(times_before, cpu_times())
+    for cpu, label in HOST_PROBES:
+        figures.update(host_stall_run(args.floor_s, rt_priority, cpu, label, run_dir))
     return figures
+
+
+#: The host floor's runs (actuator_tools.host_stalls): on CPU 0, where a pinned composed loop
+#: runs, and on any CPU, as separate processes do; (cpu, the figures' prefix).
+HOST_PROBES = ((0, 'host_cpu0'), (None, 'host_any'))
+
+
+def host_stall_run(
+    duration_s: float, rt_priority: int, cpu: Optional[int], label: str, run_dir: Path
+) -> Figures:
+    """One host-floor run: a lone grid thread's late wake-ups, figures prefixed ``label``."""
+    cmd = [sys.executable, '-m', 'actuator_tools.host_stalls', '--duration', f'{duration_s:g}']
+    cmd += ['--priority', str(rt_priority)] + ([] if cpu is None else ['--cpu', str(cpu)])
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=duration_s + 60.0)
+    (run_dir / f'{label}.stderr').write_text(done.stderr)
+    if done.returncode != 0:
+        print(f'bench: host floor {label} failed: {done.stderr.strip()}', file=sys.stderr)
+        return {}
+    figures = json.loads(done.stdout)
+    return {key.replace('host', label, 1): value for key, value in figures.items()}
 
 
 # --- output --------------------------------------------------------------------------------------

@@ -141,6 +141,15 @@ def realtime_rows(period_us: float) -> list[Row]:
         rows
         + eso_rows()
         + error_rows(ratio)
+        + [
+            Row('steady_gap_max_ms', '  plant: longest gap in the steady window', 'ms'),
+            Row(
+                'steady_gaps_beyond_timeout',
+                '  ... gaps beyond the measurement timeout',
+                'count',
+                '.6g',
+            ),
+        ]
         + node_rows(Target('<= 25', high=25.0), Target('<= 80', high=80.0))
         + [
             Row('fifo_nodes', 'nodes granted SCHED_FIFO', 'count', '.6g'),
@@ -228,7 +237,7 @@ def node_rows(cpu: Optional[Target], rss: Optional[Target]) -> list[Row]:
 
 
 def floor_rows() -> list[Row]:
-    """Middleware floor lines (floor.py): one hop and the CPU of a node doing nothing but echo."""
+    """Floor lines: one hop, an echo's CPU (floor.py); a lone grid thread's stalls (host)."""
     return [
         Row('floor_hop_p50_us', 'one hop (round trip / 2) p50', 'us'),
         Row('floor_hop_p99_us', 'one hop p99', 'us'),
@@ -237,6 +246,14 @@ def floor_rows() -> list[Row]:
         Row('cpu_echo_pct', 'CPU echo (1 sub + 1 pub per sample)', '% core'),
         Row('cpu_source_pct', 'CPU source (1 pub + 1 sub per sample)', '% core'),
         Row('steal_pct', 'CPU steal by the hypervisor', '%', '.2f'),
+    ] + [
+        row
+        for label, where in (('host_cpu0', 'on CPU 0'), ('host_any', 'on any CPU'))
+        for row in (
+            Row(f'{label}_stalls_per_min', f'host: grid thread {where} woke > 2 ms late', '/min'),
+            Row(f'{label}_beyond_timeout_per_min', '  ... beyond the measurement timeout', '/min'),
+            Row(f'{label}_stall_max_ms', '  ... the latest wake-up', 'ms'),
+        )
     ]
 
 
