@@ -252,7 +252,7 @@ def floor_rows() -> list[Row]:
         for row in (
             Row(f'{label}_stalls_per_min', f'host: grid thread {where} woke > 2 ms late', '/min'),
             Row(f'{label}_beyond_timeout_per_min', '  ... beyond the measurement timeout', '/min'),
-            Row(f'{label}_stall_max_ms', '  ... the latest wake-up', 'ms'),
+            Row(f'{label}_stall_max_ms', '  ... the longest stall', 'ms'),
         )
     ]
 
