@@ -83,6 +83,8 @@ class SyntheticRun:
     latency_ns: np.ndarray
     joint_stamps_ns: np.ndarray
     counts: dict[str, int] = field(default_factory=dict)
+    #: The current the observer integrated per sample (None: the one held, ``current``).
+    observer_input: Optional[np.ndarray] = None
 
 
 def synthetic_run(
@@ -147,6 +149,7 @@ def run_messages(run: SyntheticRun, store, topics=tuple(TOPICS), controller='pp_
 
     nan = float('nan')
     joint_stamps = set(run.joint_stamps_ns.tolist())
+    observer_input = run.current if run.observer_input is None else run.observer_input
     for k, ns in enumerate(run.stamps_ns.tolist()):
         if ns in joint_stamps and 'joint' in topics:
             yield (
@@ -171,7 +174,7 @@ def run_messages(run: SyntheticRun, store, topics=tuple(TOPICS), controller='pp_
                     disturbance_rad_s2=run.est_disturbance[k],
                     input_stamp=time_t(sec=0, nanosec=0),
                     input_position_rad=0.0,
-                    input_current_a=0.0,
+                    input_current_a=observer_input[k],
                     input_current_gain=0.0,
                     initial=k == 0,
                     current_substituted=False,

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from actuator_bag.analyze import analyze_run, load_run, main
+from actuator_bag.analyze import analyze_run, format_table, load_run, main
 from actuator_bag.bag_format import mcap_name
 from bag_helpers import REPO, synthetic_run, write_run_bag
 
@@ -103,6 +103,26 @@ def test_without_truth_estimation_is_not_reported(tmp_path: Path) -> None:
     report = analyze_run(load_run(path, quiet=True))
     assert report.metrics.rms_velocity_estimate_error_rad_s is None
     assert report.run.velocity_error is None
+    assert report.as_dict()['observer_input'] is None
+    assert 'n/a (no truth)' in format_table([report])
+
+
+def test_the_samples_whose_observer_input_was_not_the_current_held(tmp_path: Path) -> None:
+    """eso/estimate's input current against plant/truth's held current, sample by sample."""
+    run = synthetic_run(duration_s=1.0)
+    same = analyze_run(load_run(write_run_bag(tmp_path / 'same', run), quiet=True))
+    assert same.as_dict()['observer_input'] == {
+        'samples': run.t.size,
+        'differing': 0,
+        'max_abs_a': 0.0,
+    }
+    late = run.current.copy()
+    late[[100, 101, 500]] += (2.5, -0.5, 40.0)  # commands that reached the observer only
+    run.observer_input = late
+    report = analyze_run(load_run(write_run_bag(tmp_path / 'late', run), quiet=True))
+    figures = report.as_dict()['observer_input']
+    assert figures['differing'] == 3 and figures['max_abs_a'] == pytest.approx(40.0)
+    assert '3 of 1000 samples differ, max 40 A' in format_table([report])
 
 
 def test_cli_case2_table_json_and_figures(

@@ -375,6 +375,7 @@ def test_short_sim_run_end_to_end(ros_env, tmp_path):
     assert unrecorded['variant'] == 'sim_unrecorded' and unrecorded['figures']['speed_x'] > 0
     assert unrecorded['figures']['eso_steps'] == 2000
     assert 'max_steady_error_rad' in run['figures']
+    assert run['figures']['observer_input_differing'] == 0  # the lockstep: always the held one
     assert 'max_steady_error_rad' not in unrecorded['figures']
     assert summary['sections']['sim']['figures']['speed_x']['n'] == 1
     assert (base / 'runs.csv').read_text().startswith('variant,')

@@ -57,6 +57,9 @@ JOINT_STATE = 'sensor_msgs/msg/JointState'
 DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
 #: Stamps and log times before this are on a sim clock (2000-01-01T00:00:00Z) [ns].
 WALL_CLOCK_START_NS = 946_684_800 * 1_000_000_000
+#: The observer's input current and the one the joint held are the same float when the command
+#: reached both in time; a difference beyond this is a sample the observer integrated wrong [A].
+OBSERVER_INPUT_TOLERANCE_A = 1e-9
 #: diagnostic_msgs/DiagnosticStatus level names, by value.
 DIAGNOSTIC_LEVELS = ('OK', 'WARN', 'ERROR', 'STALE')
 
@@ -85,6 +88,10 @@ class RunData:
     truth_velocity: np.ndarray = field(default_factory=lambda: np.empty(0))
     truth_disturbance: np.ndarray = field(default_factory=lambda: np.empty(0))
     velocity_error: Optional[np.ndarray] = None
+    #: Per sample both topics cover: the current the observer integrated over the interval before
+    #: it (eso/estimate input_current_a) minus the current the joint held there (plant/truth
+    #: current_a) [A]; nonzero where a command reached the observer but not the joint in time.
+    observer_input_error_a: Optional[np.ndarray] = None
     disturbance_error: Optional[np.ndarray] = None
     sample_period_s: np.ndarray = field(default_factory=lambda: np.empty(0))
     command_latency_s: np.ndarray = field(default_factory=lambda: np.empty(0))
@@ -130,7 +137,24 @@ class RunReport:
             'clock': {'stamps': self.run.stamp_clock, 'log_times': self.run.log_clock},
             'steady_window_empty': _steady_empty(self.metrics),
             'diagnostics': self.run.diagnostics,
+            'observer_input': observer_input(self.run),
         }
+
+
+def observer_input(run: RunData) -> Optional[dict[str, float]]:
+    """How often and how far the observer's input current left the one the joint held.
+
+    None without both eso/estimate and plant/truth (a hardware bag).
+    """
+    diff = run.observer_input_error_a
+    if diff is None or not diff.size:
+        return None
+    off = np.abs(diff) > OBSERVER_INPUT_TOLERANCE_A
+    return {
+        'samples': int(diff.size),
+        'differing': int(np.count_nonzero(off)),
+        'max_abs_a': float(np.max(np.abs(diff))),
+    }
 
 
 def load_run(
@@ -228,9 +252,19 @@ def _extract(kind: str, msg: Any, log_ns: int) -> tuple:
             bool(msg.saturated),
         )
     if kind == 'estimate':
-        return (stamp_to_ns(msg.header.stamp), msg.velocity_rad_s, msg.disturbance_rad_s2)
+        return (
+            stamp_to_ns(msg.header.stamp),
+            msg.velocity_rad_s,
+            msg.disturbance_rad_s2,
+            msg.input_current_a,
+        )
     if kind == 'truth':
-        return (stamp_to_ns(msg.header.stamp), msg.velocity_rad_s, msg.disturbance_rad_s2)
+        return (
+            stamp_to_ns(msg.header.stamp),
+            msg.velocity_rad_s,
+            msg.disturbance_rad_s2,
+            msg.current_a,
+        )
     if kind == 'diagnostics':
         return tuple((s.name, _level(s.level), s.message) for s in msg.status)
     return (stamp_to_ns(msg.header.stamp), int(log_ns))
@@ -280,6 +314,9 @@ def _assemble(path: Path, rows: dict[str, list[tuple]]) -> RunData:
         )
         run.disturbance_error = np.array(
             [estimates[s][2] - truths[s][2] for s in common], dtype=float
+        )
+        run.observer_input_error_a = np.array(
+            [estimates[s][3] - truths[s][3] for s in common], dtype=float
         )
     joint = sorted({r[0] for r in rows.get('joint', [])})
     if len(joint) > 1:
@@ -390,6 +427,17 @@ def _diagnostics(r: RunReport) -> str:
     return '\n'.join(parts)
 
 
+def _observer_input(r: RunReport) -> str:
+    """``k of n samples differ, max x A``, or n/a without the truth."""
+    figures = observer_input(r.run)
+    if figures is None:
+        return 'n/a (no truth)'
+    return (
+        f'{figures["differing"]} of {figures["samples"]} samples differ, '
+        f'max {figures["max_abs_a"]:.3g} A'
+    )
+
+
 def _num(value: Optional[float], unit: str, fmt: str = '.3e') -> str:
     """Format a number with its unit, or n/a."""
     if value is None or (isinstance(value, float) and math.isnan(value)):
@@ -469,6 +517,7 @@ def format_table(reports: Sequence[RunReport]) -> str:
             for r in reports
         ],
     )
+    add('observer input vs current held', [_observer_input(r) for r in reports])
     add('sample period p50/p99/max', [_timing(r.timing['sample_period']) for r in reports])
     add(
         'missed samples',

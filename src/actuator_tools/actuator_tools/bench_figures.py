@@ -318,16 +318,22 @@ def run_dir_figures(run_dir: Path, mode: str, period_ns: int) -> Figures:
 def bag_figures(bag: Path) -> Figures:
     """Tracking error of a recorded run (actuator_bag.analyze).
 
-    Max steady-state and RMS error, diverged.
+    Max steady-state and RMS error, diverged; the samples whose observer input current was not
+    the one the joint held (with plant/truth).
     """
-    from actuator_bag.analyze import analyze_run, load_run
+    from actuator_bag.analyze import analyze_run, load_run, observer_input
 
-    metrics = analyze_run(load_run(bag, quiet=True)).metrics
-    return {
+    report = analyze_run(load_run(bag, quiet=True))
+    metrics = report.metrics
+    figures = {
         'max_steady_error_rad': metrics.max_steady_error_rad,
         'rms_error_rad': metrics.rms_error_rad,
         'diverged': float(metrics.diverged),
     }
+    inputs = observer_input(report.run)
+    if inputs is not None:
+        figures['observer_input_differing'] = float(inputs['differing'])
+    return figures
 
 
 def hop_figures(rtt_ns: np.ndarray, sent: int) -> dict[str, float | None]:

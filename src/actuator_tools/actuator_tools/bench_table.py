@@ -149,6 +149,12 @@ def realtime_rows(period_us: float) -> list[Row]:
                 'count',
                 '.6g',
             ),
+            Row(
+                'observer_input_differing',
+                '  ESO input current not the one the joint held',
+                'samples',
+                '.6g',
+            ),
         ]
         + node_rows(Target('<= 25', high=25.0), Target('<= 80', high=80.0))
         + [
