@@ -16,7 +16,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from actuator_bag.analyze import analyze_run, format_table, load_run, main
+from actuator_bag.analyze import analyze_run, load_run, main
+from actuator_bag.analyze_table import format_table
 from actuator_bag.bag_format import mcap_name
 from bag_helpers import REPO, synthetic_run, write_run_bag
 

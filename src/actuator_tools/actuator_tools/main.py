@@ -23,7 +23,8 @@ from actuator_core import limits
 from actuator_core.stats import missed_samples, percentiles
 from actuator_core.timing import period_ns
 
-from actuator_bag.analyze import analyze_run, draw_figures, format_table, load_run
+from actuator_bag.analyze import analyze_run, draw_figures, load_run
+from actuator_bag.analyze_table import format_table
 from actuator_tools.bringup import RunResult, run_closed_loop
 from actuator_sim.loop import ClosedLoop
 from actuator_sim.offline import trace_metrics
