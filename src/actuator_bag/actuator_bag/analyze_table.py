@@ -65,6 +65,11 @@ def _observer_input(r: RunReport) -> str:
     )
 
 
+def _against_truth(errors: Optional[np.ndarray], value: Optional[float], unit: str) -> str:
+    """Format an estimation figure, or n/a when the bag has no plant/truth to pair with."""
+    return 'n/a (no truth)' if errors is None else _num(value, unit)
+
+
 def _num(value: Optional[float], unit: str, fmt: str = '.3e') -> str:
     """Format a number with its unit, or n/a."""
     if value is None or (isinstance(value, float) and math.isnan(value)):
@@ -129,18 +134,18 @@ def format_table(reports: Sequence[RunReport]) -> str:
     add(
         'RMS velocity est. error',
         [
-            _num(r.metrics.rms_velocity_estimate_error_rad_s, 'rad/s')
-            if r.run.velocity_error is not None
-            else 'n/a (no truth)'
+            _against_truth(
+                r.run.velocity_error, r.metrics.rms_velocity_estimate_error_rad_s, 'rad/s'
+            )
             for r in reports
         ],
     )
     add(
         'RMS disturbance est. error',
         [
-            _num(r.metrics.rms_disturbance_estimate_error_rad_s2, 'rad/s^2')
-            if r.run.disturbance_error is not None
-            else 'n/a (no truth)'
+            _against_truth(
+                r.run.disturbance_error, r.metrics.rms_disturbance_estimate_error_rad_s2, 'rad/s^2'
+            )
             for r in reports
         ],
     )
