@@ -17,8 +17,9 @@ from typing import Optional
 
 import numpy as np
 
-from actuator_core.limits import MEASUREMENT_TIMEOUT_S, STEADY_STATE_START_S
+from actuator_core.limits import STEADY_STATE_START_S
 from actuator_core.stats import missed_samples, percentiles
+from actuator_tools.host_stalls import TIMEOUT_NS
 from actuator_tools.supervisor import process_log
 
 #: The processes whose CPU and memory a run reports.
@@ -167,7 +168,8 @@ def steady_gap_figures(stamp_ns: np.ndarray, published_wall_ns: np.ndarray) -> F
     """Measure the joint's stalls in the tracking error's steady window (STEADY_STATE_START_S on).
 
     The longest wall interval between two published samples [ms], and how many exceed the
-    controller's measurement timeout (a stale input there: the error's usual outliers).
+    controller's measurement timeout (host_stalls.TIMEOUT_NS; a stale input there: the error's
+    usual outliers).
     """
     stamp = np.asarray(stamp_ns, dtype=np.int64)
     wall = np.asarray(published_wall_ns, dtype=np.int64)
@@ -179,9 +181,7 @@ def steady_gap_figures(stamp_ns: np.ndarray, published_wall_ns: np.ndarray) -> F
         return {}
     return {
         'steady_gap_max_ms': float(gaps.max()) * 1e-6,
-        'steady_gaps_beyond_timeout': float(
-            np.count_nonzero(gaps > int(round(MEASUREMENT_TIMEOUT_S * 1e9)))
-        ),
+        'steady_gaps_beyond_timeout': float(np.count_nonzero(gaps > TIMEOUT_NS)),
     }
 
 

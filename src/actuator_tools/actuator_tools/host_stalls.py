@@ -31,6 +31,8 @@ from actuator_core.limits import MEASUREMENT_TIMEOUT_S
 STALL_THRESHOLD_NS = 2_000_000
 #: The grid's period [ns]: the joint's 1 kHz.
 GRID_PERIOD_NS = 1_000_000
+#: A stall longer than the controller's measurement timeout is a stale input there [ns].
+TIMEOUT_NS = int(round(MEASUREMENT_TIMEOUT_S * 1e9))
 
 
 @dataclass
@@ -38,7 +40,7 @@ class StallCount:
     """Wake-ups of a grid thread later than ``threshold_ns``: how many, how late, when."""
 
     threshold_ns: int = STALL_THRESHOLD_NS
-    timeout_ns: int = int(round(MEASUREMENT_TIMEOUT_S * 1e9))
+    timeout_ns: int = TIMEOUT_NS
     wakeups: int = 0
     stalls: list = field(default_factory=list)  # (grid instant since start [ns], lateness [ns])
 
