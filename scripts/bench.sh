@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Benchmarks: set-up, build, then `python -m actuator_tools.bench [arguments]`.
-# (The module actuator_tools.bench is written by the performance work.)
+# Benchmarks: set-up, build, then `python -m actuator_bench.bench [arguments]`.
+# (The module actuator_bench.bench is written by the performance work.)
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -9,4 +9,4 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 # shellcheck source=scripts/env.sh
 source "$ROOT/scripts/env.sh"
 cd "$ROOT"
-exec python -m actuator_tools.bench "$@"
+exec python -m actuator_bench.bench "$@"

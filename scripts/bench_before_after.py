@@ -9,7 +9,7 @@
 The commit ``REV`` (default: the last one before the one joint node, issue 20) is extracted to
 ``build/before/<sha>/``, built there by its own ``scripts/build.sh`` with this tree's
 virtual environment (its lock files pin a subset of today's), and each round runs the
-benchmark of both versions, each its own ``python -m actuator_tools.bench`` (the same
+benchmark of both versions, each its own ``python -m actuator_bench.bench`` (the same
 figures: CPU per node from /proc, sensor-to-command latency from the controller's timing log,
 the lockstep's speed), one after the other, the order swapped every round so that a drift of
 the machine's load falls on both. Prints the medians over the rounds side by side with the
@@ -97,7 +97,7 @@ def run_bench(tree: Path, out: Path, duration_s: float, rt_variant: str = 'fifo'
     """One benchmark of the version in ``tree`` (sim, and real time as ``rt_variant`` says)."""
     out.mkdir(parents=True, exist_ok=True)
     command = (
-        'source scripts/env.sh && exec python -m actuator_tools.bench --modes realtime sim '
+        'source scripts/env.sh && exec python -m actuator_bench.bench --modes realtime sim '
         f'--rt-variants {rt_variant} --repeats 1 --duration {duration_s:g} --skip-offline '
         f'--floor-s 0 --quiet --out {out}'
     )

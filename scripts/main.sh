@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# The main job: set-up, build, then `python -m actuator_tools.main [arguments]`.
-# (The module actuator_tools.main is written by the bring-up work.)
+# The main job: set-up, build, then `python -m actuator_bringup.main [arguments]`.
+# (The module actuator_bringup.main is written by the bring-up work.)
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -9,4 +9,4 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 # shellcheck source=scripts/env.sh
 source "$ROOT/scripts/env.sh"
 cd "$ROOT"
-exec python -m actuator_tools.main "$@"
+exec python -m actuator_bringup.main "$@"

@@ -19,9 +19,9 @@ import pytest
 
 from actuator_core import limits
 from actuator_core.timing import stamp_to_ns
-from actuator_tools.bringup import scenario_file
-from actuator_tools.graph import closed_loop, default_scenario
-from actuator_tools.supervisor import RosProcess, process_log
+from actuator_bringup.runner import scenario_file
+from actuator_bringup.run_description import closed_loop, default_scenario
+from actuator_bringup.supervisor import RosProcess, process_log
 from ros_helpers import TestNode, start_closed_loop
 
 #: The joint kinds every attack runs against (graph.closed_loop's ``joint``).

@@ -16,8 +16,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from actuator_bag.analyze import analyze_run, load_run, main
-from actuator_bag.analyze_table import format_table
+from actuator_analysis.analyze import analyze_run, load_run
+from actuator_analysis.cli import main
+from actuator_analysis.analyze_table import format_table
 from actuator_bag.bag_format import mcap_name
 from bag_helpers import REPO, synthetic_run, write_run_bag
 
@@ -172,7 +173,7 @@ def test_cli_case2_table_json_and_figures(
 def _cli(*args: str) -> subprocess.CompletedProcess:
     """Run bag_analyze as a separate process."""
     return subprocess.run(
-        [sys.executable, '-m', 'actuator_bag.analyze', '-q', *args],
+        [sys.executable, '-m', 'actuator_analysis.cli', '-q', *args],
         capture_output=True,
         text=True,
         timeout=120,

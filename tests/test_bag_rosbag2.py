@@ -24,8 +24,8 @@ from bag_helpers import SOURCE, TOPICS, run_messages, synthetic_run
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 from rosbags.rosbag2.enums import CompressionFormat, CompressionMode
 
-from actuator_bag.analyze import analyze_run, load_run
-from actuator_bag.analyze_table import format_table
+from actuator_analysis.analyze import analyze_run, load_run
+from actuator_analysis.analyze_table import format_table
 from actuator_bag.repair import repair_bag
 from actuator_bag.scan import ScanReport, scan_mcap
 

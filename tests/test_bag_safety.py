@@ -42,9 +42,10 @@ def _tree(root: Path) -> dict[str, str]:
 
 
 def _run(module: str, *args: str, env: dict | None = None) -> subprocess.CompletedProcess:
-    """Run a bag tool (python -m actuator_bag.<module>) as a separate process."""
+    """Run a bag tool (python -m <module>, ``analyze`` the analysis) as a separate process."""
+    module = 'actuator_analysis.cli' if module == 'analyze' else f'actuator_bag.{module}'
     return subprocess.run(
-        [sys.executable, '-m', f'actuator_bag.{module}', *args],
+        [sys.executable, '-m', module, *args],
         capture_output=True,
         text=True,
         timeout=120,

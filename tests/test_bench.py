@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from actuator_tools import bench, bench_figures, bench_run, bench_table, bench_variants
+from actuator_bench import bench, bench_figures, bench_run, bench_table, bench_variants
 
 PERIOD_NS = 1_000_000
 
@@ -343,7 +343,7 @@ def test_short_sim_run_end_to_end(ros_env, tmp_path):
         [
             sys.executable,
             '-m',
-            'actuator_tools.bench',
+            'actuator_bench.bench',
             '--duration',
             '2',
             '--repeats',
@@ -440,7 +440,7 @@ def test_missing_tool_skips_its_variant_with_one_line_and_each_run_is_saved_as_i
 
 def test_a_run_that_raises_is_that_runs_error(monkeypatch, tmp_path):
     """An unexpected exception in one run (a tool that vanished) is recorded, not raised."""
-    import actuator_tools.bringup as bringup
+    import actuator_bringup.runner as bringup
 
     def boom(*args, **kwargs):
         raise FileNotFoundError(2, 'No such file or directory', 'ros2')

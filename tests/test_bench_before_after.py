@@ -20,7 +20,7 @@ def _module():
 
 
 def _summary(folder: Path, cpu_plant: float, speed: float) -> None:
-    """One benchmark's summary.json, as actuator_tools.bench writes it, in ``folder``/<stamp>/."""
+    """One benchmark's summary.json, as actuator_bench.bench writes it, in ``folder``/<stamp>/."""
     out = folder / '20261204T000000Z'
     out.mkdir(parents=True)
     runs = [

@@ -21,8 +21,8 @@ import pytest
 import yaml
 
 from ros_helpers import start_closed_loop, wait_until
-from actuator_tools.bringup import scenario_file
-from actuator_tools.graph import PINNING, closed_loop, ros_arguments
+from actuator_bringup.runner import scenario_file
+from actuator_bringup.run_description import PINNING, closed_loop, ros_arguments
 
 SCENARIO = 'case2_pp_nftsmc_eso'
 #: README, Safety: "every node answers SIGINT within 0.1 s".
@@ -60,7 +60,7 @@ def test_bringup_ends_with_exit_0_on_a_signal_and_stops_every_node(
     pin = signame == 'SIGTERM' and len(os.sched_getaffinity(0)) >= 2
     args = ['--scenario', SCENARIO, '--mode', 'realtime', '--duration', '60', '--no-record']
     proc = ros_process(
-        'actuator_tools', 'bringup', args + (['--pin'] if pin else []), cwd=tmp_path
+        'actuator_bringup', 'bringup', args + (['--pin'] if pin else []), cwd=tmp_path
     )
     assert wait_until(lambda: _sampling(tmp_path / 'results' / 'runs'), 60), proc.describe()
     nodes = _node_children(proc.pid)
@@ -84,7 +84,7 @@ def test_joint_none_runs_the_nodes_for_the_duration_and_ends_cleanly(
     """--joint none: only ESO and controller, waiting for a driver elsewhere; 2 s, then exit 0."""
     args = ['--scenario', SCENARIO, '--mode', 'realtime', '--duration', '2', '--no-record']
     start = time.monotonic()
-    proc = ros_process('actuator_tools', 'bringup', args + ['--joint', 'none'], cwd=tmp_path)
+    proc = ros_process('actuator_bringup', 'bringup', args + ['--joint', 'none'], cwd=tmp_path)
     assert proc.wait(60) == 0, proc.describe()
     elapsed = time.monotonic() - start
     codes = json.loads(proc.stdout[proc.stdout.index('{') :])['exit_codes']
@@ -123,7 +123,7 @@ def test_pin_puts_a_composed_loop_on_its_joints_cpu_and_nothing_pins_it_otherwis
     (realtime.pre_init_settings on the container's own arguments).
     """
     from actuator_ros.realtime import pre_init_settings
-    from actuator_tools.composition import compose
+    from actuator_bringup.composition import compose
 
     scenario = scenario_file('case2_pp_nftsmc_eso')
     for cpus, expected in ((PINNING, '0'), (None, '')):

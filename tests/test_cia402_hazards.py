@@ -30,7 +30,7 @@ from actuator_cia402.hub import HubBus
 from actuator_cia402.joint import Cia402Joint
 from actuator_cia402.sim_drive_main import default_eds
 from actuator_cia402.torque_test import run_on_grid
-from actuator_tools.supervisor import RosProcess
+from actuator_bringup.supervisor import RosProcess
 
 pytestmark = pytest.mark.ros  # processes: the simulated drive (and a killed master)
 PERIOD_S = 0.002

@@ -60,8 +60,8 @@ def _closed_loop(ros_process, tmp_path, driver_params, record=True):
 
     What bringup --joint cia402_sim starts.
     """
-    from actuator_tools.bringup import scenario_file
-    from actuator_tools.graph import closed_loop, default_scenario
+    from actuator_bringup.runner import scenario_file
+    from actuator_bringup.run_description import closed_loop, default_scenario
 
     params = dict(driver_params)
     specs = closed_loop(
@@ -175,7 +175,7 @@ def test_end_to_end_fast_deep_sea_case_tracks_within_a_factor_of_the_offline_cor
 
     The drive adds quantisation, a torque loop and one SYNC of delay.
     """
-    from actuator_bag.analyze import analyze_run, load_run
+    from actuator_analysis.analyze import analyze_run, load_run
     from actuator_cia402.offline import DRIVE_SCENARIO, run as offline_drive, window_errors
     from actuator_sim.loop import ClosedLoop
     from actuator_sim.params_yaml import all_scenarios
@@ -341,9 +341,9 @@ def test_two_joints_on_one_bus_close_two_loops_under_namespaces(isolated):
     """
     from rosbags.highlevel import AnyReader
 
-    from actuator_tools.bringup import run_closed_loop
-    from actuator_tools.graph import JOINT_TOPICS
-    from actuator_tools.supervisor import process_log
+    from actuator_bringup.runner import run_closed_loop
+    from actuator_bringup.run_description import JOINT_TOPICS
+    from actuator_bringup.supervisor import process_log
 
     result = run_closed_loop(
         'case2_pp_nftsmc_eso',
@@ -397,8 +397,8 @@ def test_a_composed_cia402_loop_runs_driver_eso_and_controller_in_one_process(is
     container to the run's end, on the SYNC grid, without a latch. Tracking is the end-to-end
     test's; here the share of samples commanded is judged only on a host that kept the loop.
     """
-    from actuator_tools.bringup import run_closed_loop
-    from actuator_tools.supervisor import process_log
+    from actuator_bringup.runner import run_closed_loop
+    from actuator_bringup.supervisor import process_log
 
     result = run_closed_loop(
         'drive_pp_nftsmc_eso',

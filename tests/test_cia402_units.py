@@ -230,7 +230,7 @@ def test_the_simulated_drive_runs_one_priority_above_its_driver(priority, driver
     # Under normal scheduling the drive process answered SYNC with p90 0.9-2.4 ms and the loop
     # through it ran away; the simulated hardware must keep its cycle above the driver it serves.
     from actuator_cia402.sim_drive_main import parser
-    from actuator_tools.graph import closed_loop
+    from actuator_bringup.run_description import closed_loop
 
     specs = {
         s.key: s

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 import yaml
 
-from actuator_tools.supervisor import executable_path
+from actuator_bringup.supervisor import executable_path
 
 
 @pytest.mark.parametrize(
@@ -33,10 +33,10 @@ from actuator_tools.supervisor import executable_path
 )
 def test_sim_mode_across_three_processes_equals_the_offline_core(isolated, controller, composed):
     """Separate processes, or the three nodes composed in one (``composed``): bit for bit."""
-    from actuator_bag.analyze import load_run
-    from actuator_tools.bringup import run_closed_loop
+    from actuator_analysis.analyze import load_run
+    from actuator_bringup.runner import run_closed_loop
     from actuator_sim.loop import ClosedLoop
-    from actuator_tools.main import compare_with_offline
+    from actuator_bringup.main import compare_with_offline
     from actuator_sim.params_yaml import all_scenarios
 
     scenario_name = f'case2_{controller}'
@@ -69,9 +69,9 @@ def test_sim_mode_equals_the_offline_core_through_a_latch_safe_stop_and_brake(is
     The joint's true velocity and angle (plant/truth) and every command equal the offline
     loop's sample by sample, after the latch too: both hold the same joint, gate and brake.
     """
-    from actuator_bag.analyze import load_run
+    from actuator_analysis.analyze import load_run
     from actuator_core.status import Status
-    from actuator_tools.bringup import run_closed_loop
+    from actuator_bringup.runner import run_closed_loop
     from actuator_sim.loop import ClosedLoop
     from actuator_sim.params_yaml import all_scenarios
 
@@ -120,7 +120,7 @@ def test_main_job_prints_the_report_and_writes_figures(ros_env, tmp_path):
         [
             sys.executable,
             '-m',
-            'actuator_tools.main',
+            'actuator_bringup.main',
             '--duration',
             '6',
             '--modes',
@@ -174,7 +174,7 @@ def test_closed_loop_description_is_one_for_runner_and_launch():
 
     The processes, their parameters and real-time settings, as both starters use them.
     """
-    from actuator_tools.graph import closed_loop, ros_arguments
+    from actuator_bringup.run_description import closed_loop, ros_arguments
 
     specs = closed_loop('realtime', 5.0, record=True, thread_priority=50, cpus={'joint': '0'})
     by_key = {s.key: s for s in specs}
@@ -236,7 +236,7 @@ def test_launch_description_builds_the_processes_of_the_description():
     from launch.launch_description_sources import PythonLaunchDescriptionSource
     from launch_ros.actions import Node
 
-    from actuator_tools.graph import closed_loop
+    from actuator_bringup.run_description import closed_loop
 
     path = (
         Path(get_package_share_directory('actuator_bringup')) / 'launch' / 'closed_loop.launch.py'
@@ -279,7 +279,7 @@ def test_launch_description_builds_the_processes_of_the_description():
         )
         started = [(n.node_package, n.node_executable) for n in nodes]
         assert started == [(s.package, s.executable) for s in expected], (joint, plant)
-        assert (('actuator_tools', 'live_view') in started) is live_view
+        assert (('actuator_live_view', 'live_view') in started) is live_view
         assert (('actuator_plant', 'plant_node') in started) is not without_joint, started
 
 

@@ -13,11 +13,11 @@ def test_a_composed_loop_keeps_lifecycle_and_the_publisher_guard(rclpy_context, 
     """Each node is driven through its own lifecycle services; a second publisher is refused."""
     from actuator_msgs.msg import CurrentCommand
     from actuator_ros.qos import control_qos
-    from actuator_tools.bringup import scenario_file
+    from actuator_bringup.runner import scenario_file
     from sensor_msgs.msg import JointState
 
     loop = ros_process(
-        'actuator_tools',
+        'actuator_bringup',
         'loop_container',
         ['--ros-args', '--params-file', str(scenario_file('case2_pp_nftsmc_eso'))],
     )
@@ -99,11 +99,11 @@ def test_sim_time_nodes_of_one_process_follow_clock_through_one_subscription(rcl
 
 @pytest.mark.parametrize('listened', [True, False])
 def test_the_callback_cost_tool_runs_the_nodes_path_bit_for_bit(listened, monkeypatch):
-    """actuator_tools.callback_cost: the nodes wired in-process command what the offline loop does.
+    """actuator_bench.callback_cost: the nodes wired in-process command what the offline loop does.
 
     With and without a subscriber on the diagnostic topics (the recorded and the quiet path).
     """
-    from actuator_tools import callback_cost
+    from actuator_bench import callback_cost
 
     figures = callback_cost.measure(300, listened=listened)
     assert figures['samples'] == 300 and figures['identical_to_offline']

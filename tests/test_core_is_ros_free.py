@@ -22,7 +22,7 @@ ROS_FREE_MODULES = (
     'actuator_controller.laws',
     'actuator_controller.ppf',
     'actuator_controller.reference',
-    'actuator_tools.host_stalls',
+    'actuator_bench.host_stalls',
 )
 
 

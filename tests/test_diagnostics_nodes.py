@@ -6,7 +6,7 @@
 from __future__ import annotations
 
 
-from actuator_bag.analyze import load_run
+from actuator_analysis.analyze import load_run
 from rosbags.highlevel import AnyReader
 
 
@@ -42,8 +42,8 @@ def test_a_sim_run_records_every_nodes_health_and_the_stop_of_its_inputs(
     the controller has reported the plant's silence (an event, not a sleep), then stopped, so the
     bag holds that report whatever the host's speed.
     """
-    from actuator_tools.bringup import scenario_file
-    from actuator_tools.graph import closed_loop
+    from actuator_bringup.runner import scenario_file
+    from actuator_bringup.run_description import closed_loop
     from ros_helpers import TestNode, start_closed_loop
 
     listener = TestNode(rclpy_context, 'diagnostics_listener')

@@ -1,7 +1,7 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""The closed-loop description (actuator_tools.graph) and the runner's options that shape it."""
+"""The closed-loop run description (actuator_bringup.run_description), and the runner options."""
 
 from __future__ import annotations
 
@@ -11,8 +11,8 @@ from pathlib import Path
 import pytest
 
 from actuator_sim.params_yaml import node_parameters
-from actuator_tools import bringup
-from actuator_tools.graph import (
+from actuator_bringup import runner as bringup
+from actuator_bringup.run_description import (
     JOINTS,
     LIVE_DIAGNOSTICS_RATE_HZ,
     RECORDER_NICE,
@@ -21,7 +21,7 @@ from actuator_tools.graph import (
     default_scenario,
     ros_arguments,
 )
-from actuator_tools.composition import compose
+from actuator_bringup.composition import compose
 
 
 def _rates(specs) -> dict:

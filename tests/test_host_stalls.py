@@ -1,7 +1,7 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""The host floor (actuator_tools.host_stalls): late wake-ups of a lone grid thread, counted."""
+"""The host floor (actuator_bench.host_stalls): late wake-ups of a lone grid thread, counted."""
 
 import json
 import subprocess
@@ -9,7 +9,7 @@ import sys
 
 import pytest
 
-from actuator_tools.host_stalls import StallCount, run_grid
+from actuator_bench.host_stalls import StallCount, run_grid
 
 MS = 1_000_000
 
@@ -60,7 +60,7 @@ def test_a_second_stall_right_after_the_catch_up_is_a_new_one():
 
 def test_the_command_line_prints_its_figures_and_refuses_a_bad_duration():
     done = subprocess.run(
-        [sys.executable, '-m', 'actuator_tools.host_stalls', '--duration', '0.2'],
+        [sys.executable, '-m', 'actuator_bench.host_stalls', '--duration', '0.2'],
         capture_output=True,
         text=True,
         timeout=60,
@@ -70,7 +70,7 @@ def test_the_command_line_prints_its_figures_and_refuses_a_bad_duration():
     assert figures['host_wakeups'] == 200
     assert set(figures) >= {'host_stalls_per_min', 'host_stall_max_ms'}
     bad = subprocess.run(
-        [sys.executable, '-m', 'actuator_tools.host_stalls', '--duration', '0'],
+        [sys.executable, '-m', 'actuator_bench.host_stalls', '--duration', '0'],
         capture_output=True,
         text=True,
         timeout=60,

@@ -251,7 +251,7 @@ def test_a_node_in_real_time_stops_the_in_process_recording_with_one_line(
 # ------------------------------------------------------------------------------ whole runs
 def _sim_run(name: str, root: Path, duration_s: float = 2.0, **kwargs):
     """Run a composed lockstep of the paper's case under ``root``; return its RunResult."""
-    from actuator_tools.bringup import run_closed_loop
+    from actuator_bringup.runner import run_closed_loop
 
     return run_closed_loop(
         'case2_pp_nftsmc_eso',
@@ -293,7 +293,7 @@ def test_a_full_disk_stops_the_in_process_recording_not_the_loop(isolated, monke
     bag_repair recovers what reached the disk.
     """
     from actuator_bag.repair import repair_bag
-    from actuator_tools.supervisor import process_log
+    from actuator_bringup.supervisor import process_log
 
     # past the first chunk (1 MiB before compression, about 430 kB), in the second of about five
     monkeypatch.setenv(FULL_AFTER_ENV, '600000')
@@ -313,8 +313,8 @@ def test_a_full_disk_stops_the_in_process_recording_not_the_loop(isolated, monke
 # ---------------------------------------------------------------------- where it is offered
 def test_compose_moves_the_recording_into_the_container_in_sim_time_only(tmp_path):
     """The recorder's bag goes to the container's --record; refused where it cannot hold."""
-    from actuator_tools.composition import compose
-    from actuator_tools.graph import closed_loop, ros_arguments
+    from actuator_bringup.composition import compose
+    from actuator_bringup.run_description import closed_loop, ros_arguments
 
     bag = tmp_path / 'bag'
     specs = compose(closed_loop('sim', 5.0, bag=bag), record_in_process=True)
@@ -350,7 +350,7 @@ def test_compose_moves_the_recording_into_the_container_in_sim_time_only(tmp_pat
 )
 def test_bringup_refuses_record_in_process_where_it_cannot_hold(args, why, capsys):
     """One usage line, exit 2, before anything starts."""
-    from actuator_tools.bringup import main
+    from actuator_bringup.runner import main
 
     with pytest.raises(SystemExit) as stop:
         main([*args, '--record-in-process'])
@@ -361,7 +361,7 @@ def test_bringup_refuses_record_in_process_where_it_cannot_hold(args, why, capsy
 def test_the_container_refuses_a_bag_folder_that_exists(tmp_path, ros_env):
     """No overwrite: one line and exit 2 before any node is built."""
     proc = subprocess.run(
-        [sys.executable, '-m', 'actuator_tools.container', '--record', str(tmp_path)],
+        [sys.executable, '-m', 'actuator_bringup.container', '--record', str(tmp_path)],
         capture_output=True,
         text=True,
         env=ros_env,

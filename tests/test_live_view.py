@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 
 
-from actuator_tools import live_core, live_layout
+from actuator_live_view import live_core, live_layout
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -41,9 +41,9 @@ def test_outbox_watch_counts_the_sdks_reports_per_client():
 
 
 def test_shipped_layout_is_the_built_one_and_reads_only_existing_fields():
-    shipped = REPO / 'src' / 'actuator_tools' / live_layout.LAYOUT_FILE
+    shipped = REPO / 'src' / 'actuator_live_view' / live_layout.LAYOUT_FILE
     assert shipped.read_text() == live_layout.layout_json(), (
-        'run python -m actuator_tools.live_layout'
+        'run python -m actuator_live_view.live_layout'
     )
     text = json.loads(shipped.read_text())
     panels = re.findall(r'"panelType": "(\w+)"', json.dumps(text))
@@ -73,14 +73,14 @@ def _start_view(ros_process, *params):
     args = ['--ros-args', '-p', 'port:=0', '-p', f'rate_hz:={RATE_HZ}']
     for p in params:
         args += ['-p', p]
-    view = ros_process('actuator_tools', 'live_view', args)
+    view = ros_process('actuator_live_view', 'live_view', args)
     port = int(view.wait_for_output(r'ws://127\.0\.0\.1:(\d+)', timeout=60).group(1))
     return view, port
 
 
 def _run_loop(ros_process, seconds: float):
     return ros_process(
-        'actuator_tools',
+        'actuator_bringup',
         'bringup',
         # sim (lockstep): every sample is controlled whatever the host's load, so what is judged
         # is the view; in real time a loaded 2-core host can keep the loop in RESYNC/STALE most of
@@ -234,14 +234,15 @@ def test_a_stuck_client_fills_only_its_own_outbox_and_it_is_counted():
 
 
 def test_the_closed_loop_description_starts_the_viewer_before_the_joint_on_request():
-    from actuator_tools.graph import closed_loop
+    from actuator_bringup.run_description import closed_loop
 
     assert 'live_view' not in [s.key for s in closed_loop('realtime', 5.0)]
     specs = closed_loop('sim', 5.0, live_view=True, live_view_parameters={'port': 9000})
     keys = [s.key for s in specs]
     assert keys.index('live_view') < keys.index('plant')  # subscribed before sampling starts
     view = specs[keys.index('live_view')]
-    assert (view.package, view.executable, view.managed) == ('actuator_tools', 'live_view', False)
+    assert (view.package, view.executable) == ('actuator_live_view', 'live_view')
+    assert not view.managed
     assert view.parameters['port'] == 9000 and 'host' not in view.parameters  # 127.0.0.1
     plant = specs[keys.index('plant')]
     assert plant.parameters['wait_for_subscribers'] == 4  # ESO, controller, recorder, viewer
@@ -249,7 +250,7 @@ def test_the_closed_loop_description_starts_the_viewer_before_the_joint_on_reque
 
 def test_a_taken_port_is_one_line_and_exit_2(ros_process):
     view, port = _start_view(ros_process)
-    second = ros_process('actuator_tools', 'live_view', ['--ros-args', '-p', f'port:={port}'])
+    second = ros_process('actuator_live_view', 'live_view', ['--ros-args', '-p', f'port:={port}'])
     assert second.wait(60) == 2, second.describe()
     assert f'cannot listen on 127.0.0.1:{port}' in second.stderr
     assert 'Traceback' not in second.stderr and view.running

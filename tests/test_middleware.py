@@ -94,7 +94,7 @@ def test_a_real_time_node_talks_over_udp_to_a_localhost_peer_and_maps_no_shared_
     ping = probe.node.create_publisher(CurrentCommand, 'floor/ping', qos)
     probe.node.create_subscription(CurrentCommand, 'floor/pong', pongs.append, qos)
     echo = subprocess.Popen(
-        [sys.executable, '-m', 'actuator_tools.floor', 'echo'],
+        [sys.executable, '-m', 'actuator_bench.floor', 'echo'],
         env=ros_env,
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,

@@ -272,10 +272,10 @@ def test_sigterm_to_bringup_stops_every_node_it_started(ros_env, tmp_path):
 
     import psutil
 
-    from actuator_tools.supervisor import RosProcess
+    from actuator_bringup.supervisor import RosProcess
 
     runner = RosProcess.installed(
-        'actuator_tools',
+        'actuator_bringup',
         'bringup',
         ['--duration', '30', '--bags', str(tmp_path / 'b')],
         env=ros_env,

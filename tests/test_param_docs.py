@@ -12,7 +12,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def test_parameter_tables_are_current(ros_env):
     done = subprocess.run(
-        [sys.executable, '-m', 'actuator_tools.param_docs', '--check'],
+        [sys.executable, '-m', 'actuator_bringup.reference_docs', '--check'],
         cwd=ROOT,
         env=ros_env,
         capture_output=True,
@@ -26,7 +26,7 @@ def test_a_changed_table_is_caught(ros_env, tmp_path):
     stale = tmp_path / 'parameters.md'
     stale.write_text((ROOT / 'docs/parameters.md').read_text().replace('0.05', '0.06', 1))
     done = subprocess.run(
-        [sys.executable, '-m', 'actuator_tools.param_docs', '--check', '--path', str(stale)],
+        [sys.executable, '-m', 'actuator_bringup.reference_docs', '--check', '--path', str(stale)],
         cwd=ROOT,
         env=ros_env,
         capture_output=True,

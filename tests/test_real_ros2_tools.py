@@ -18,7 +18,7 @@ import time
 import psutil
 import pytest
 
-from actuator_tools.supervisor import RosProcess
+from actuator_bringup.supervisor import RosProcess
 
 pytestmark = pytest.mark.ros
 
@@ -217,7 +217,7 @@ HAVE_BAG = HAVE_CLI and (
     reason='rosbag2 (ros2 bag) is not installed: 6-45 min of C++ on 2 cores (real-ros2-tools.md)',
 )
 def test_ros2_bag_info_reads_a_fresh_bag(ros_env, tmp_path):
-    from actuator_tools.bringup import run_closed_loop
+    from actuator_bringup.runner import run_closed_loop
 
     result = run_closed_loop(
         'case2_pp_nftsmc_eso',

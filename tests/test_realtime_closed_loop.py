@@ -15,7 +15,7 @@ import pytest
 from actuator_controller.ppf import PrescribedPerformance
 from actuator_core import limits
 from actuator_core.status import CONTROLLED, Status
-from actuator_tools.supervisor import process_log
+from actuator_bringup.supervisor import process_log
 
 #: Share of commands later than one period beyond which the observer's pairing is not judged.
 LATE_SHARE_MAX = 0.05
@@ -77,9 +77,9 @@ def test_realtime_loop_stays_stable_for_the_whole_fast_deep_sea_run(isolated):
 
     The loop closes and, under SCHED_FIFO, stays stable.
     """
-    from actuator_bag.analyze import analyze_run, load_run
-    from actuator_tools.bringup import run_closed_loop
-    from actuator_tools.main import timing_figures
+    from actuator_analysis.analyze import analyze_run, load_run
+    from actuator_bringup.runner import run_closed_loop
+    from actuator_bringup.main import timing_figures
 
     result = run_closed_loop(
         'case2_pp_nftsmc_eso',
@@ -155,8 +155,8 @@ def test_realtime_loop_stays_stable_for_the_whole_fast_deep_sea_run(isolated):
 @pytest.mark.realtime
 def test_controller_on_a_1_khz_timer_closes_the_loop_with_the_newest_measurement(isolated):
     """Tick on a timer (trigger:=timer) with the newest measurement: the loop closes and tracks."""
-    from actuator_bag.analyze import load_run
-    from actuator_tools.bringup import run_closed_loop
+    from actuator_analysis.analyze import load_run
+    from actuator_bringup.runner import run_closed_loop
 
     duration_s = 6.0
     result = run_closed_loop(

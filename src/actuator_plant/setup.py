@@ -1,43 +1,8 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""Set-up of the ament_python package actuator_plant."""
+"""Set-up of an ament_python package of the suite: its metadata is in setup.cfg."""
 
-import os
-from glob import glob
+from setuptools import setup
 
-from setuptools import find_packages, setup
-
-package_name = 'actuator_plant'
-
-
-def share_files(folder, pattern):
-    """Install folder/pattern into share/<package>/folder when the folder has such files."""
-    files = sorted(glob(os.path.join(folder, pattern)))
-    return [(os.path.join('share', package_name, folder), files)] if files else []
-
-
-setup(
-    name=package_name,
-    version='0.1.0',
-    packages=find_packages(exclude=['test', 'test.*']),
-    data_files=[
-        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
-        ('share/' + package_name, ['package.xml']),
-        *share_files('launch', '*.launch.py'),
-        *share_files('config', '*.yaml'),
-    ],
-    install_requires=['setuptools'],
-    zip_safe=True,
-    maintainer='Actuator control team',
-    maintainer_email='actuator@example.com',
-    description='Simulated deep-sea oil-filled joint actuator: ROS-free joint and oil model and '
-    'the plant node.',
-    license='Apache-2.0',
-    extras_require={'test': ['pytest']},
-    entry_points={
-        'console_scripts': [
-            'plant_node = actuator_plant.entry:main',
-        ],
-    },
-)
+setup()

@@ -15,7 +15,7 @@ definitions, offered QoS and every message the nodes of this process published (
 a full pipe holds the loop up); the log time is the publish time on the process's sim clock
 (the newest /clock it published) instead of the receive time on the recorder's. It does not
 see what other processes publish (a second publisher on a topic, or a node outside the
-container): those the recorder process records. Sim time only (actuator_tools.composition
+container): those the recorder process records. Sim time only (actuator_bringup.composition
 refuses a real-time run, and a node in real time stops the recording with one line): in real
 time a full pipe would hold up a loop that has a deadline.
 """

@@ -7,16 +7,16 @@
         [duration:=S] ...
 
 One closed-loop run: the joint (simulated plant, or the CiA 402 driver), the ESO, the controller
-and the recorder as separate processes, built from ``actuator_tools.graph.closed_loop``, the
-same description the ``bringup`` runner uses, with the same real-time settings (node
-parameters thread_priority, cpu_affinity, executor). The managed nodes are driven through
-configure and activate by launch_ros's lifecycle events. The run ends when the joint process
-ends (``duration`` elapsed, or it failed): every other process is then stopped with SIGINT and
-the joint's exit code is reported. ``composed:=true`` runs the joint, the ESO and the controller
-in one process (actuator_tools loop_container, composition.compose): the nodes then configure and
-activate themselves (autostart), and ``ros2 lifecycle`` still reaches each by its name.
-``pin:=true`` pins the processes as ``bringup --pin`` does (graph.PINNING; a composed loop on its
-joint's CPU). Booleans are launch conditions: true/false/1/0, anything else is refused.
+and the recorder as separate processes, built from
+``actuator_bringup.run_description.closed_loop``, the same description the ``bringup`` runner uses,
+with the same real-time settings (node parameters thread_priority, cpu_affinity, executor). The
+managed nodes are driven through configure and activate by launch_ros's lifecycle events. The run
+ends when the joint process ends (``duration`` elapsed, or it failed): every other process is then
+stopped with SIGINT and the joint's exit code is reported. ``composed:=true`` runs the joint, the
+ESO and the controller in one process (actuator_bringup loop_container, composition.compose): the
+nodes then configure and activate themselves (autostart), and ``ros2 lifecycle`` still reaches each
+by its name. ``pin:=true`` pins the processes as ``bringup --pin`` does (graph.PINNING; a composed
+loop on its joint's CPU). Booleans are launch conditions: true/false/1/0, anything else is refused.
 """
 
 import os
@@ -42,7 +42,7 @@ from launch_ros.events.lifecycle import ChangeState
 from lifecycle_msgs.msg import Transition
 
 from actuator_sim.params_yaml import node_parameters
-from actuator_tools.graph import (
+from actuator_bringup.run_description import (
     JOINTS,
     LIVE_DIAGNOSTICS_RATE_HZ,
     MAX_JOINTS_ON_BUS,
@@ -51,7 +51,7 @@ from actuator_tools.graph import (
     default_scenario,
     ros_arguments,
 )
-from actuator_tools.composition import compose
+from actuator_bringup.composition import compose
 
 
 def _flag(context, name):
@@ -257,7 +257,7 @@ def generate_launch_description():
             DeclareLaunchArgument(
                 'live_view',
                 default_value='false',
-                description='also serve the loop to Foxglove (actuator_tools live_view on '
+                description='also serve the loop to Foxglove (actuator_live_view live_view on '
                 'ws://127.0.0.1:8765)',
             ),
             DeclareLaunchArgument(

@@ -6,7 +6,7 @@
 ``GraphGuard`` gives each control subscription ``SubscriptionEventCallbacks(matched=...)``
 (rclpy 7.1): the middleware calls it when a publisher is connected or disconnected, in
 discovery, before that publisher's first message is delivered (measured with
-``actuator_ros.guard_probe``). On every change it counts the matched publishers of each
+``actuator_bench.guard_probe``). On every change it counts the matched publishers of each
 watched topic and, when one has more than one, tells the node at once (``on_change``) with the
 publishers' node names and GIDs from the graph, so the log says who joined. A topic the node
 does not subscribe (the controller's own output) is counted by ``poll``.

@@ -11,9 +11,9 @@ so ``pre_init_settings`` reads them all from the same sources rcl will (``-p nam
 ``--params-file`` sections for this node or ``/**``), and the node declares them again afterwards
 so that ``ros2 param`` shows them. ``nice`` is the process's niceness under normal scheduling
 (``setpriority``): a process outside the loop (the recorder) is started at
-``actuator_tools.graph.RECORDER_NICE``, so that the kernel's fair scheduler gives the loop's
-processes a contended core first; below 0 needs CAP_SYS_NICE, as SCHED_FIFO does. Memory is not
-locked (ros2_control's lock_memory): mlockall made 300-400 MB resident per node.
+``actuator_bringup.run_description.RECORDER_NICE``, so that the kernel's fair scheduler gives the
+loop's processes a contended core first; below 0 needs CAP_SYS_NICE, as SCHED_FIFO does. Memory is
+not locked (ros2_control's lock_memory): mlockall made 300-400 MB resident per node.
 """
 
 from __future__ import annotations

@@ -1,0 +1,435 @@
+# Copyright 2026 Actuator control team
+# SPDX-License-Identifier: Apache-2.0
+
+"""The one description of a closed-loop run.
+
+Which nodes, with which parameters and real-time settings. Both the runner (``bringup``,
+actuator_bringup.runner) and the launch file (``actuator_bringup closed_loop.launch.py``) build
+their processes from ``closed_loop``, so the two cannot drift apart (and ``composition.compose``
+puts each joint's loop into one process). Pure data, no launch import: the runner has no launch
+here.
+
+Real-time settings are node parameters (actuator_ros.realtime), as ros2_control makes them:
+``thread_priority`` (the ESO and controller at the given SCHED_FIFO priority, the plant or
+driver one level above: it is the sampling hardware, and below them its tick queued behind
+their callbacks: latency p99 1.51 -> 0.94 ms, 3 runs each way; the simulated CiA 402 drive one
+above the driver, as hardware keeps its cycle), ``cpu_affinity`` and
+``executor``. The recorder keeps normal scheduling: under SCHED_FIFO the real-time threads
+exceeded the kernel's RT budget (sched_rt_runtime_us) and were stopped for 27-63 ms.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Optional
+
+import yaml
+
+from actuator_sim.params_yaml import node_parameters
+from actuator_sim.scenarios import DRIVE_SCENARIO, PAPER_SCENARIO
+
+#: What plays the joint: the simulated plant, the CiA 402 driver with its simulated drive on
+#: a virtual CAN bus, the driver on a real bus, or nothing (a driver started elsewhere).
+JOINTS = ('plant', 'cia402_sim', 'cia402', 'none')
+#: The scenario each joint runs unless one is named: the paper's Case 2 for the simulated plant;
+#: for a CiA 402 drive, whose RPDO acts one SYNC later, the same case tuned for that delay
+#: (``actuator_sim.scenarios.through_a_drive``).
+DEFAULT_SCENARIOS = {
+    'plant': PAPER_SCENARIO,
+    'cia402_sim': DRIVE_SCENARIO,
+    'cia402': DRIVE_SCENARIO,
+    'none': PAPER_SCENARIO,
+}
+#: ``bringup --pin`` on a 2-core machine: the ESO and the controller work in strict sequence
+#: each sample (command -> estimate -> command), so they share a core; the joint uses the other.
+#: A composed loop's process takes its joint's CPU (the first member's settings are the
+#: process's): all its threads on one core, which under SCHED_FIFO cost 42-46 % of a core
+#: against 57-60 % unpinned, latency p50 240-258 against 283-297 us (3 alternating pairs of 22 s
+#: runs, 2026-12-05; README "Performance" has the benchmark's figures).
+PINNING = {'joint': '0', 'eso': '1', 'controller': '1'}
+#: Rate of the diagnostic topics (plant/truth, controller/state) in a real-time run that records
+#: nothing [Hz]: enough for a live plot; a recorded or sim run keeps every sample for the analysis.
+LIVE_DIAGNOSTICS_RATE_HZ = 100.0
+#: Joints one run can put on one CAN bus (each its driver, ESO and controller under a namespace).
+MAX_JOINTS_ON_BUS = 4
+#: Seconds a bounded run's SYNC producer runs on past the others (see closed_loop).
+SYNC_PRODUCER_GRACE_S = 2.0
+#: Node id of the first joint's master (its heartbeat on 0x700 + id); joint i's is this - i + 1.
+MASTER_NODE_ID = 127
+#: The loop's topics of one joint (relative names: under a joint's namespace when there are more).
+JOINT_TOPICS = ('joint_states', 'current_command', 'eso/estimate', 'controller/state')
+
+
+@dataclass(frozen=True)
+class NodeSpec:
+    """One process of the run."""
+
+    key: str  # plant | driver | eso | controller | recorder
+    package: str
+    executable: str
+    name: str  # node name (parameter file sections are keyed by it)
+    parameters: dict = field(default_factory=dict)
+    scenario_file: bool = True  # gets the scenario's parameter file
+    leader: bool = False  # the run ends when this process ends
+    managed: bool = True  # a lifecycle node
+    members: tuple = ()  # a container (``compose``): the nodes it runs, each a NodeSpec
+    arguments: tuple = ()  # a plain process (no ROS node): its command line, e.g. the sim drive
+    namespace: str = ''  # the node's namespace (several joints: joint1, joint2, ...)
+    record_to: str = ''  # a container recording in-process (compose): its bag folder
+
+
+def node_kind(spec: NodeSpec) -> str:
+    """Return a spec's node kind: its key without a joint's number (controller2: controller)."""
+    return spec.key.rstrip('0123456789')
+
+
+def default_scenario(joint: str) -> str:
+    """Return the scenario a run with ``joint`` gets when none is named (DEFAULT_SCENARIOS)."""
+    if joint not in DEFAULT_SCENARIOS:
+        raise ValueError(f'joint must be one of {", ".join(JOINTS)}, got {joint!r}')
+    return DEFAULT_SCENARIOS[joint]
+
+
+#: The recorder's niceness in real time (actuator_ros.realtime): under normal scheduling the
+#: recorder (23-26 % of a core, 2026-12-05) competes with the loop's processes for two cores,
+#: and the loop's samples wait for it; it has a queue of seconds, the loop a period.
+RECORDER_NICE = 10
+
+
+def recorder_parameters(mode: str) -> dict:
+    """Return the recorder's queue for a closed-loop run in ``mode``.
+
+    realtime: BEST_EFFORT, 5 s of queue per topic, at ``RECORDER_NICE``: the recorder keeps
+    normal scheduling, and the queue rides out the bursts in which the SCHED_FIFO loop leaves it
+    no CPU (measured, 3 runs each way: longest plant gap 17-43 ms -> 5-18 ms; a 1 s queue
+    overflowed once, 8 % lost).
+    sim: RELIABLE like the publishers, and 10 s of queue: the lockstep runs as fast as the CPU
+    allows and does not wait for the recorder (2 s PI runs lost 68-669 of 2000 samples in 12
+    of 94 runs with 1 s; 0 of 32 with 10 s).
+    """
+    if mode == 'sim':
+        return {'reliability': 'reliable', 'queue_depth': 10000}
+    return {'reliability': 'best_effort', 'queue_depth': 5000, 'nice': RECORDER_NICE}
+
+
+def closed_loop(
+    mode: str,
+    duration_s: float,
+    *,
+    record: bool = True,
+    bag: Optional[Path] = None,
+    joint: str = 'plant',
+    thread_priority: int = 0,
+    cpus: Optional[dict] = None,
+    executor: str = 'events',
+    logs: Optional[Path] = None,
+    joint_parameters: Optional[dict] = None,
+    autostart: bool = True,
+    live_view: bool = False,
+    live_view_parameters: Optional[dict] = None,
+    diagnostics_rate_hz: Optional[float] = None,
+    joints: int = 1,
+) -> list[NodeSpec]:
+    """Return the processes of one run in start order.
+
+    The joint is last: it starts sampling when all are there. ``logs``: folder for the per-node
+    timing files the benchmark reads (controller_timing.npz, eso_stats.json, plant_samples.npz).
+    ``autostart``: the nodes configure and activate themselves (the runner); the launch file drives
+    the transitions instead. ``live_view``: also the Foxglove live view
+    (actuator_live_view.live_view, ws://127.0.0.1:8765 unless ``live_view_parameters`` say
+    otherwise), started before the joint so the joint waits for its subscription too.
+    ``diagnostics_rate_hz``: the rate of controller/state and plant/truth (0: every sample); None:
+    every sample when recording or in sim (the bag analysis needs them),
+    ``LIVE_DIAGNOSTICS_RATE_HZ`` otherwise. ``joints`` > 1 (CiA 402 only): that many drives on one
+    bus, node ids 1..n, each with its driver, ESO and controller under the namespace ``joint<i>``
+    (keys ``driver<i>``, ``eso<i>``, ``controller<i>``); drive 1's driver produces the one SYNC,
+    and every driver checks the bus load of all n.
+    """
+    if joint not in JOINTS:
+        raise ValueError(f'joint must be one of {", ".join(JOINTS)}, got {joint!r}')
+    if not 1 <= joints <= MAX_JOINTS_ON_BUS:
+        raise ValueError(f'joints must be in [1, {MAX_JOINTS_ON_BUS}], got {joints}')
+    if joints > 1 and joint not in ('cia402_sim', 'cia402'):
+        raise ValueError(
+            f'several joints share a CAN bus: joint cia402_sim or cia402, not {joint}'
+        )
+    if joints > 1 and live_view:
+        raise ValueError('the live view shows one joint: run it with joints = 1')
+    cpus = cpus or {}
+    sim = mode == 'sim'
+    namespaces = [''] if joints == 1 else [f'joint{i}' for i in range(1, joints + 1)]
+
+    def settings(key: str, priority: int) -> dict:
+        out = {'executor': executor, 'autostart': autostart}
+        if priority:
+            out['thread_priority'] = priority
+        if key in cpus:
+            out['cpu_affinity'] = cpus[key]
+        return out
+
+    def logged(name, ns=''):
+        if logs is None:
+            return {}
+        stem, _, ext = name[1].rpartition('.')
+        return {name[0]: str(logs / (f'{stem}_{ns}.{ext}' if ns else name[1]))}
+
+    def keyed(key, ns):
+        return f'{key}{ns.removeprefix("joint")}'
+
+    loop_params = {'mode': mode, 'use_sim_time': sim}
+    if diagnostics_rate_hz is None:
+        diagnostics_rate_hz = 0.0 if record or sim else LIVE_DIAGNOSTICS_RATE_HZ
+    specs = []
+    if record:
+        topics = (
+            {}
+            if joints == 1
+            else {
+                'topics': [f'/{ns}/{topic}' for ns in namespaces for topic in JOINT_TOPICS],
+            }
+        )
+        specs.append(
+            NodeSpec(
+                'recorder',
+                'actuator_bag',
+                'recorder',
+                'recorder',
+                {
+                    'use_sim_time': sim,
+                    'record_diagnostics': True,
+                    **recorder_parameters(mode),
+                    **({'output': str(bag)} if bag else {}),
+                    **topics,
+                },
+                scenario_file=False,
+                managed=False,
+            )
+        )
+
+    def named(ns):  # several joints: each its own name in its joint_states, as in a URDF
+        return {'joint_name': ns} if ns else {}
+
+    for ns in namespaces:
+        specs.append(
+            NodeSpec(
+                keyed('controller', ns),
+                'actuator_controller',
+                'controller_node',
+                'actuator_controller',
+                {
+                    **loop_params,
+                    'state_rate_hz': float(diagnostics_rate_hz),
+                    **named(ns),
+                    **settings('controller', thread_priority),
+                    **logged(('timing_log', 'controller_timing.npz'), ns),
+                },
+                namespace=ns,
+            )
+        )
+        specs.append(
+            NodeSpec(
+                keyed('eso', ns),
+                'actuator_eso',
+                'eso_node',
+                'actuator_eso',
+                {
+                    **loop_params,
+                    **named(ns),
+                    **settings('eso', thread_priority),
+                    **logged(('stats_log', 'eso_stats.json'), ns),
+                },
+                namespace=ns,
+            )
+        )
+    if live_view:
+        specs.append(
+            NodeSpec(
+                'live_view',
+                'actuator_live_view',
+                'live_view',
+                'live_view',
+                {'executor': executor, **(live_view_parameters or {})},
+                scenario_file=False,
+                managed=False,
+            )
+        )
+    joint_priority = min(thread_priority + 1, 99) if thread_priority else 0
+    subscribers = 2 + int(record) + int(live_view)
+    if joint == 'plant':
+        specs.append(
+            NodeSpec(
+                'plant',
+                'actuator_plant',
+                'plant_node',
+                'actuator_plant',
+                {
+                    'mode': mode,
+                    'stop_after_s': float(duration_s),
+                    'wait_for_subscribers': subscribers,
+                    'truth_rate_hz': float(diagnostics_rate_hz),
+                    **settings('joint', joint_priority),
+                    **logged(('timing_log', 'plant_samples.npz')),
+                },
+                leader=True,
+            )
+        )
+    elif joint in ('cia402_sim', 'cia402'):
+        if sim:
+            raise ValueError('the CiA 402 driver runs in real time only (mode realtime)')
+        from actuator_cia402.launch_spec import (
+            DRIVER_EXECUTABLE,
+            DRIVER_NODE_NAME,
+            DRIVER_PACKAGE,
+            SIM_DRIVE_EXECUTABLE,
+            SIM_DRIVE_PACKAGE,
+            driver_parameters,
+            free_port,
+            sim_drive_command,
+        )
+
+        simulated = joint == 'cia402_sim'
+        overrides = dict(joint_parameters or {})
+        sim_settings = {k: overrides.pop(k) for k in list(overrides) if k.startswith('sim.')}
+        port = free_port() if simulated else 0
+        drivers = []
+        for node_id, ns in enumerate(namespaces, start=1):
+            producer = node_id == 1
+            params = driver_parameters(
+                simulated=simulated,
+                hub_port=port,
+                node_id=node_id,
+                # a bounded run: the SYNC producer outlives the consumers, so that none of them
+                # loses its SYNC before its own end (the first to end ends the run)
+                stop_after_s=float(duration_s)
+                + (SYNC_PRODUCER_GRACE_S if joints > 1 and duration_s and producer else 0.0),
+                wait_for_subscribers=subscribers,
+                autostart=autostart,
+                **(
+                    {}
+                    if joints == 1
+                    else {
+                        'master_node_id': MASTER_NODE_ID - node_id + 1,
+                        **named(ns),
+                        'sync_producer': producer,
+                        'joints_on_bus': joints,
+                    }
+                ),
+                **overrides,
+            )
+            params.update(logged(('timing_log', 'plant_samples.npz'), ns))
+            drivers.append(
+                NodeSpec(
+                    keyed('driver', ns),
+                    DRIVER_PACKAGE,
+                    DRIVER_EXECUTABLE,
+                    DRIVER_NODE_NAME,
+                    {**params, **settings('joint', joint_priority)},
+                    leader=True,
+                    namespace=ns,
+                )
+            )
+        if simulated:  # the drive in a process of its own, as hardware: it outlives the driver
+            specs.append(
+                NodeSpec(
+                    'drive',
+                    SIM_DRIVE_PACKAGE,
+                    SIM_DRIVE_EXECUTABLE,
+                    SIM_DRIVE_EXECUTABLE,
+                    scenario_file=False,
+                    managed=False,
+                    arguments=tuple(
+                        sim_drive_command(
+                            port,
+                            node_ids=tuple(range(1, joints + 1)),
+                            sync_period_s=drivers[0].parameters['sample_time_s'],
+                            # the simulated hardware above the software it serves
+                            thread_priority=min(joint_priority + 1, 99) if joint_priority else 0,
+                            **sim_settings,
+                        )
+                    ),
+                )
+            )
+        # The SYNC producer first, so it is stopped last (the runner stops in reverse order):
+        # a consumer that lost its SYNC would end control with an error.
+        specs += drivers
+    return specs
+
+
+def ros_arguments(
+    spec: NodeSpec, scenario_file: Optional[Path], workdir: Optional[Path] = None
+) -> list[str]:
+    """``--ros-args`` of a process started directly (the runner).
+
+    The file, then the node's parameters. rcl reads a ``-p`` value as YAML, so a string that
+    YAML would read as something else (cpu_affinity '0' is an integer there) is quoted. A node
+    in a namespace gets ``-r __ns:=`` and the file's sections for it as ``-p`` (rcl applies a
+    file's ``actuator_controller:`` section to /actuator_controller only, not to
+    /joint1/actuator_controller).
+    """
+    if spec.arguments:
+        return list(spec.arguments)
+    if spec.members:
+        args = ['--nodes', *(node_kind(m) for m in spec.members)]
+        args += ['--record', spec.record_to] if spec.record_to else []
+        args.append('--ros-args')
+        if spec.namespace:
+            # rcl's -p rules name a node without its namespace and then match /name only; a
+            # parameter file's sections may name the node fully (/joint1/actuator_controller)
+            args += ['-r', f'__ns:=/{spec.namespace}']
+            return args + ['--params-file', str(_namespaced_file(spec, scenario_file, workdir))]
+        if scenario_file is not None:
+            args += ['--params-file', str(scenario_file)]
+        for member in spec.members:
+            args += _parameter_arguments(member.parameters, f'{member.name}:')
+        return args
+    args = ['--ros-args']
+    if spec.namespace:
+        args += ['-r', f'__ns:=/{spec.namespace}']
+        if spec.scenario_file and scenario_file is not None:
+            args += _parameter_arguments(node_parameters(scenario_file, spec.name))
+    elif spec.scenario_file and scenario_file is not None:
+        args += ['--params-file', str(scenario_file)]
+    return args + _parameter_arguments(spec.parameters)
+
+
+def _namespaced_file(
+    spec: NodeSpec, scenario_file: Optional[Path], workdir: Optional[Path]
+) -> Path:
+    """Write a container's parameters, each member's section under its full name; return it.
+
+    Into ``workdir`` (the run's folder; default the temporary one), named by its content.
+    """
+    sections = {}
+    for member in spec.members:
+        own = {}
+        if member.scenario_file and scenario_file is not None:
+            own = node_parameters(scenario_file, member.name)
+        own.update(member.parameters)
+        sections[f'/{spec.namespace}/{member.name}'] = {'ros__parameters': own}
+    text = yaml.safe_dump(sections, sort_keys=True)
+    folder = Path(tempfile.gettempdir()) if workdir is None else Path(workdir)
+    path = folder / f'{spec.key}_{hashlib.sha1(text.encode()).hexdigest()[:12]}.yaml'
+    path.write_text(text)
+    return path
+
+
+def _parameter_arguments(parameters: dict, target: str = '') -> list[str]:
+    """``-p [node:]name:=value`` for each parameter (``target`` names one node of a process)."""
+    args = []
+    for name, value in parameters.items():
+        text = ('true' if value else 'false') if isinstance(value, bool) else str(value)
+        if isinstance(value, str) and _yaml_scalar(value) != value:
+            text = "'" + value.replace("'", "''") + "'"
+        args += ['-p', f'{target}{name}:={text}']
+    return args
+
+
+def _yaml_scalar(text: str):
+    """Return what rcl makes of a ``-p`` value (a YAML scalar), or None if it is not one."""
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError:
+        return None
