@@ -29,7 +29,7 @@ for pkg in actuator_core actuator_controller actuator_eso actuator_plant actuato
 done
 ln -sfn "$ROOT/tests" tests
 ln -sfn "$ROOT/pytest.ini" pytest.ini
-ln -sfn "$ROOT/docs" docs  # tests/test_joint.py holds docs/parameters.md against the specs
+ln -sfn "$ROOT/docs" docs  # tests/test_joint.py holds docs/reference/parameters.md against the specs
 cp "$ROOT/scripts/mutation/pyproject.toml" pyproject.toml
 
 # Quick tests first in each mutant's run (scripts/mutation/mutation_order.py).

@@ -111,9 +111,9 @@ def test_the_simulated_joints_drive_effects_delay_smooth_and_quantise():
 
 
 def _documented_rows(title_start: str) -> dict[str, tuple[str, str]]:
-    """Parameter -> (default cell, description cell) of one node's table in docs/parameters.md."""
+    """Parameter -> (default cell, description cell) of a node's table in docs/reference/parameters.md."""
     rows, inside = {}, False
-    for line in (ROOT / 'docs' / 'parameters.md').read_text().splitlines():
+    for line in (ROOT / 'docs' / 'reference' / 'parameters.md').read_text().splitlines():
         if line.startswith('## '):
             inside = line.startswith(title_start)
         elif inside and line.startswith('| `'):
@@ -126,7 +126,7 @@ def _documented_rows(title_start: str) -> dict[str, tuple[str, str]]:
 def test_every_joint_setting_is_documented_as_specified(title):
     """Each node of a joint declares the common settings with their default, unit and range.
 
-    docs/parameters.md is generated from what the nodes declare (tests/test_param_docs.py
+    docs/reference/parameters.md is generated from what the nodes declare (tests/test_param_docs.py
     keeps it current); here each row is held against the specification itself.
     """
     rows = _documented_rows(title)

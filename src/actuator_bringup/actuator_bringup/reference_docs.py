@@ -1,9 +1,9 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""The parameter tables of docs/parameters.md, generated from what each node declares.
+"""The parameter tables of docs/reference/parameters.md, generated from what each node declares.
 
-    python -m actuator_bringup.reference_docs            # rewrite docs/parameters.md
+    python -m actuator_bringup.reference_docs            # rewrite docs/reference/parameters.md
     python -m actuator_bringup.reference_docs --check    # exit 1 when the file is not current
 
 Each node is built in this process with its defaults and its declared parameters are read
@@ -38,7 +38,7 @@ NODES = (
 )
 #: Declared by rclpy itself, not by the project.
 SKIPPED = ('use_sim_time', 'start_type_description_service')
-DEFAULT_PATH = Path('docs/parameters.md')
+DEFAULT_PATH = Path('docs/reference/parameters.md')
 
 
 def _cell(text: str) -> str:
@@ -60,7 +60,7 @@ def node_table(node) -> list[str]:
 
 
 def render() -> str:
-    """Return the whole of docs/parameters.md."""
+    """Return the whole of docs/reference/parameters.md."""
     import rclpy
 
     lines = [
@@ -85,7 +85,7 @@ def render() -> str:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Write docs/parameters.md, or check that it is current."""
+    """Write docs/reference/parameters.md, or check that it is current."""
     parser = argparse.ArgumentParser(prog='param_docs', description=__doc__.splitlines()[0])
     parser.add_argument('--check', action='store_true', help='exit 1 if the file is not current')
     parser.add_argument('--path', type=Path, default=DEFAULT_PATH)
