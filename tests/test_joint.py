@@ -111,7 +111,7 @@ def test_the_simulated_joints_drive_effects_delay_smooth_and_quantise():
 
 
 def _documented_rows(title_start: str) -> dict[str, tuple[str, str]]:
-    """Parameter -> (default cell, description cell) of a node's table in docs/reference/parameters.md."""
+    """Parameter -> (default cell, description cell) of a node's table in the reference."""
     rows, inside = {}, False
     for line in (ROOT / 'docs' / 'reference' / 'parameters.md').read_text().splitlines():
         if line.startswith('## '):
