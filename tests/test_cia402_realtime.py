@@ -10,6 +10,7 @@ deep-sea case; and a second publisher on current_command against the driver. The
 tests: tests/test_cia402_nodes.py; the shared pieces in tests/cia402_helpers.py.
 """
 
+import os
 import re
 import signal
 import time
@@ -17,9 +18,11 @@ import time
 import numpy as np
 import pytest
 
+from actuator_cia402.config import DriverParameters
 from actuator_core import limits
 
 from cia402_helpers import DRIVER, driver_args, wait_for_output
+from host_probe import fifo_granted, skip_or_fail
 from ros_helpers import start_closed_loop
 from cia402_helpers import harness_fixture, sim_drive_fixture  # noqa: F401 - fixtures by name
 
@@ -169,7 +172,7 @@ def test_kill_9_of_the_driver_in_closed_loop_leaves_the_drive_to_stop_itself(
 
 @pytest.mark.realtime
 def test_end_to_end_fast_deep_sea_case_tracks_within_a_factor_of_the_offline_core(
-    ros_process, tmp_path
+    ros_process, tmp_path, host_window
 ):
     """Real time, separate processes.
 
@@ -186,13 +189,15 @@ def test_end_to_end_fast_deep_sea_case_tracks_within_a_factor_of_the_offline_cor
     log = procs['driver'].output
     late = _late_commands(log)
     if code != 0 and late is not None and late > LATE_COMMANDS_MAX:
-        # The controller could not keep up (a machine short of CPU: 5 processes at 1 kHz);
-        # the driver's safe end is what must hold then, not the tracking.
+        # The commands came too late and the driver ended control: its safe end must hold
+        # whatever the cause; the tracking is excused only by the host's stalls.
         assert 'control ended:' in procs['driver'].output, procs['driver'].describe()
-        pytest.skip(
-            f'the machine did not keep the loop on time: {late:.1%} of the commands came too '
-            'late and were refused; the driver ended control safely: '
-            + re.search(r'control ended: [^\n]*', procs['driver'].output).group(0)
+        skip_or_fail(
+            host_window,
+            f'{late:.1%} of the commands came too late and were refused; the driver ended '
+            'control safely: '
+            + re.search(r'control ended: [^\n]*', procs['driver'].output).group(0),
+            samples=late * duration * 1000,
         )
     assert code == 0, procs['driver'].describe()
     for key in ('eso', 'controller', 'recorder'):
@@ -219,11 +224,13 @@ def test_end_to_end_fast_deep_sea_case_tracks_within_a_factor_of_the_offline_cor
             log,
         )
         assert lost, procs['driver'].describe()  # the driver says where its cycles went
-        pytest.skip(
-            f"the machine did not keep the loop: the driver's log holds {kept:.0%} of the "
-            f'cycles ({lost.group(0)}), {answered_share:.0%} of them with a command applied, '
-            f'{late or 0.0:.1%} of the commands refused as late; safety held (no latch, '
-            'currents within 20 A, samples on the SYNC grid)'
+        skip_or_fail(
+            host_window,
+            f"the driver's log holds {kept:.0%} of the cycles ({lost.group(0)}), "
+            f'{answered_share:.0%} of them with a command applied, {late or 0.0:.1%} of the '
+            'commands refused as late; safety held (no latch, currents within 20 A, samples on '
+            'the SYNC grid)',
+            samples=duration * 1000 * (1.0 - kept * answered_share),
         )
     # the command applied over [t_k-1, t_k) answers a sample a few SYNCs older
     # (one SYNC of bus delay)
@@ -231,18 +238,22 @@ def test_end_to_end_fast_deep_sea_case_tracks_within_a_factor_of_the_offline_cor
     assert np.median(lag_ms) <= 3.0, np.median(lag_ms)
     delayed = float(np.mean(lag_ms > 1.5))  # applied a SYNC or more later than the design's one
     if delayed > DELAYED_COMMANDS_MAX:
-        pytest.skip(
-            f'the host delayed {delayed:.0%} of the commands by a SYNC or more (the drive tuning '
-            'is designed for one SYNC of delay): tracking not judged; safety held (no latch, '
-            'currents within 20 A, samples on the SYNC grid)'
+        skip_or_fail(
+            host_window,
+            f'{delayed:.0%} of the commands applied a SYNC or more later than designed (the '
+            'drive tuning is for one SYNC of delay); safety held (no latch, currents within '
+            '20 A, samples on the SYNC grid)',
+            samples=delayed * answered.sum(),
         )
     controlled = run.status == 0  # the rest: the stale stop after the run ended
     if controlled.sum() <= 0.5 * duration * 1000:
         # The recorder runs at normal scheduling beside four SCHED_FIFO processes on 2 cores: it
         # kept 840-2061 of the 5000 controlled states on runs here; the driver's log passed above.
-        pytest.skip(
-            f'the recorder kept {controlled.sum()} controlled states of {duration * 1000:g}: '
-            "too few to judge tracking (the driver's own log passed)"
+        skip_or_fail(
+            host_window,
+            f'the recorder kept {controlled.sum()} controlled states of {duration * 1000:g}, '
+            "too few to judge tracking (the driver's own log passed)",
+            samples=duration * 1000 - controlled.sum(),
         )
     grid_ms = run.t[controlled] * 1e3
     assert np.allclose(
@@ -273,14 +284,20 @@ def test_end_to_end_fast_deep_sea_case_tracks_within_a_factor_of_the_offline_cor
     )
     assert max_run < 0.5  # the following-error limit: no latch
     stall_ms = limits.MEASUREMENT_TIMEOUT_S * 1e3
-    if not all('running under SCHED_FIFO' in procs[key].output for key in ('driver', 'drive')):
-        pytest.skip('SCHED_FIFO refused: tracking through the drive is claimed only under it')
-    if longest_gap_ms >= stall_ms:
-        # The controller's 5 ms measurement timeout safe-stops and costs a transient (a run with
-        # one 8 ms gap reached 5.7e-2 rad); such a run shows the machine, not the loop.
+    if not fifo_granted():
         pytest.skip(
-            f'the machine stalled the loop {longest_gap_ms:.0f} ms (>= the {stall_ms:.0f} ms '
-            f'measurement timeout): max |e| {max_run:.2e} rad, not judged'
+            'this machine refuses SCHED_FIFO: tracking through the drive is claimed only under it'
+        )
+    for key in ('driver', 'drive'):
+        assert 'running under SCHED_FIFO' in procs[key].output, procs[key].describe()
+    if longest_gap_ms >= stall_ms:
+        # The controller's measurement timeout safe-stops and costs a transient (a run with one
+        # 8 ms gap reached 5.7e-2 rad): excused only by a stall of the host that long.
+        skip_or_fail(
+            host_window,
+            f'a gap of {longest_gap_ms:.0f} ms between samples (>= the {stall_ms:.0f} ms '
+            f'measurement timeout): max |e| {max_run:.2e} rad',
+            stall_ms=stall_ms,
         )
     # Measured under SCHED_FIFO on a 2-core VM (src/actuator_cia402/README.md, 2026-12-05, the
     # drive's tuning drive_pp_nftsmc_eso): max |e| 2.26e-3 to 2.28e-3 rad, RMS 7.52e-4 to
@@ -325,6 +342,10 @@ def test_a_second_publisher_on_current_command_keeps_the_drive_braked(
 #: The ends of control a 2-core host causes when it cannot run eight 1 kHz processes (the
 #: drive process silent for 50 ms, then its consumer without SYNC): safe, with their reason.
 HOST_ENDS = ('no TPDO from the drive in', "no SYNC from the bus's producer in")
+#: The stall that ends control for one of HOST_ENDS: the driver's feedback timeout [ms].
+SYNC_WATCHDOG_MS = 1e3 * DriverParameters.__dataclass_fields__['feedback_timeout_s'].default
+#: CPUs two loops through the drive (eight 1 kHz processes) need to be judged on their timing.
+CPUS_FOR_TWO_LOOPS = 4
 
 
 @pytest.mark.realtime
@@ -381,16 +402,23 @@ def test_two_joints_on_one_bus_close_two_loops_under_namespaces(isolated):
     for key in ended:  # a safe end, with the host's reason
         assert any(f'control ended: {why}' in logs[key] for why in HOST_ENDS), logs[key]
         assert '0 A, brake engaged' in logs[key]
-    if ended or min(answered.values()) < 0.8:
+    if len(os.sched_getaffinity(0)) < CPUS_FOR_TWO_LOOPS:
+        # Eight 1 kHz processes on fewer CPUs than this do not keep their loops (measured on 2
+        # cores: 1-8 % of joint 2's samples commanded): a property of the machine known before
+        # the run, so the commanded share is judged on a machine with the CPUs only.
         pytest.skip(
-            f'the host did not keep eight 1 kHz processes: ended {ended or "none"}, samples '
-            f'commanded by their own controller {answered}'
+            f'{len(os.sched_getaffinity(0))} CPUs: two loops through the drive are judged on '
+            f'{CPUS_FOR_TWO_LOOPS} or more (ended {ended or "none"}, samples commanded by '
+            f'their own controller {answered}; safety and namespaces judged above)'
         )
+    assert not ended and min(answered.values()) >= 0.8, (ended, answered)
     assert topics == {'/diagnostics'} | {f'/joint{i}/{t}' for i in (1, 2) for t in JOINT_TOPICS}
 
 
 @pytest.mark.realtime
-def test_a_composed_cia402_loop_runs_driver_eso_and_controller_in_one_process(isolated):
+def test_a_composed_cia402_loop_runs_driver_eso_and_controller_in_one_process(
+    isolated, host_window
+):
     """--composed with the CiA 402 joint: driver, ESO and controller on one executor.
 
     The simulated drive stays a process of its own (hardware). Hard: the three nodes ran in the
@@ -417,7 +445,11 @@ def test_a_composed_cia402_loop_runs_driver_eso_and_controller_in_one_process(is
         ended = re.search(r'control ended: [^\n]*', log)
         assert ended and any(why in ended.group(0) for why in HOST_ENDS), log[-2000:]
         assert '0 A, brake engaged' in log
-        pytest.skip(f'the host ended the run early, safely: {ended.group(0)}')
+        skip_or_fail(
+            host_window,
+            f'the run ended early, safely: {ended.group(0)}',
+            stall_ms=SYNC_WATCHDOG_MS,
+        )
     for node in ('actuator_cia402_driver', 'actuator_eso', 'actuator_controller'):
         assert f'[{node}]: active' in log, log[-2000:]
     assert 'stopped at sample 3000' in log and 'safe stop latched' not in log

@@ -16,9 +16,8 @@ from actuator_controller.ppf import PrescribedPerformance
 from actuator_core import limits
 from actuator_core.status import CONTROLLED, Status
 from actuator_bringup.supervisor import process_log
+from host_probe import fifo_granted, skip_or_fail
 
-#: Share of commands later than one period beyond which the observer's pairing is not judged.
-LATE_SHARE_MAX = 0.05
 #: The paper's initial envelope half-width rho0 [rad] (Table 4): the error of the whole run,
 #: its start included, stays inside it.
 RHO0_RAD = PrescribedPerformance().rho0_rad
@@ -32,9 +31,6 @@ TRACKING_MAX_RAD = 3 * README_REALTIME_ERROR_RAD
 #: A stall answer (stale input, resync) lasts the stall plus the resync policy's 50 samples of
 #: 0 A and brake: longer than this is no calm recovery (the worst seen here: 47 samples).
 STALL_EPISODE_MAX = 120
-#: A host that stalls the loop more often than this in a run measures itself, not the loop (a
-#: 6 s run on a loaded host here: 25 stalls, 88 % of the samples controlled).
-STALL_EPISODES_ON_TIME = 5
 
 
 def _lag_report(result) -> str:
@@ -71,8 +67,18 @@ def _episode_lengths(flags: np.ndarray) -> np.ndarray:
     return np.flatnonzero(edges == -1) - np.flatnonzero(edges == 1)
 
 
+def _require_fifo(logs: dict) -> None:
+    """Skip on a machine that refuses SCHED_FIFO; fail when it grants it and a node lacks it."""
+    if not fifo_granted():
+        pytest.skip(
+            'this machine refuses SCHED_FIFO: real-time stability is claimed only under it'
+        )
+    lacking = [key for key, text in logs.items() if 'running under SCHED_FIFO' not in text]
+    assert not lacking, f'the machine grants SCHED_FIFO but {lacking} did not run under it'
+
+
 @pytest.mark.realtime
-def test_realtime_loop_stays_stable_for_the_whole_fast_deep_sea_run(isolated):
+def test_realtime_loop_stays_stable_for_the_whole_fast_deep_sea_run(isolated, host_window):
     """The paper's 10 s fast deep-sea run, PP-NFTSMC-ESO, in real time.
 
     The loop closes and, under SCHED_FIFO, stays stable.
@@ -94,22 +100,20 @@ def test_realtime_loop_stays_stable_for_the_whole_fast_deep_sea_run(isolated):
     assert all(code == 0 for code in result.exit_codes.values()), result.exit_codes
     timing = timing_figures(result)
     assert timing['updates'] > 500  # the loop closed
-    assert 100.0 < timing['latency_us']['p50'] < 5000.0, _lag_report(result)  # 0.37 ms here
+    # a command answers its sample within that sample's period (0.37 ms here)
+    assert 100.0 < timing['latency_us']['p50'] < 1e6 * limits.SAMPLE_TIME_S, _lag_report(result)
     run = load_run(result.bag, quiet=True)
     assert np.all(np.isfinite(run.current)) and np.max(np.abs(run.current)) <= 20.0 + 1e-9
     assert analyze_run(run).metrics.samples > 0  # recorded and readable
     plant = np.load(result.run_dir / 'plant_samples.npz')
     assert plant['stamp_ns'].size > 9000 and np.all(np.diff(plant['stamp_ns']) % 1_000_000 == 0)
-    assert all(
-        v is not None and 5.0 < v < 100.0 for v in result.cpu_percent.values()
-    )  # 18-40 % here
-    assert all(40.0 < v < 150.0 for v in result.peak_rss_mb.values())  # 72-82 MB here
+    # 18-40 % of a core and 72-82 MB per node here; twice and 1.5 times that are faults
+    assert all(v is not None and 5.0 < v < 80.0 for v in result.cpu_percent.values()), (
+        result.cpu_percent
+    )
+    assert all(40.0 < v < 125.0 for v in result.peak_rss_mb.values()), result.peak_rss_mb
     logs = {key: process_log(result.run_dir, key) for key in ('plant', 'eso', 'controller')}
-    if not all('running under SCHED_FIFO' in text for text in logs.values()):
-        pytest.skip(
-            'SCHED_FIFO refused on this machine: real-time stability is only claimed under it '
-            '(normal scheduling latches; see README, Performance)'
-        )
+    _require_fifo(logs)
     # Stable for the whole run: never latched (|e| under the following-error limit), the error
     # stays inside the paper's initial envelope (rho0 = 0.25 rad; 9 runs here: at most 4.6e-2
     # rad), and the observer integrated the commanded current on time or by repair for nearly
@@ -123,24 +127,24 @@ def test_realtime_loop_stays_stable_for_the_whole_fast_deep_sea_run(isolated):
     eso = json.loads((result.run_dir / 'eso_stats.json').read_text())
     paired = (eso['exact_pairs'] + eso['repaired_pairs']) / eso['steps']
     latency_ns = np.load(result.timing_log)['latency_ns']
-    late = float(np.mean(latency_ns > 1_000_000)) if latency_ns.size else 0.0
+    late = int(np.sum(latency_ns > 1_000_000))
     outside = (
         paired < 0.9,
         controlled.mean() <= 0.9,
         max_error >= RHO0_RAD,
         tracking >= TRACKING_MAX_RAD,
     )
-    if any(outside) and late > LATE_SHARE_MAX:
-        # Each stall of the host past the command timeout is a resync (50 samples of 0 A and
-        # brake by the policy), so the controlled share measures the host too.
-        # A command later than the next sample reaches the observer after it stepped: such a
-        # run measures the host (a fresh-clone CI run here: 44 % substituted), not the pairing,
-        # which tests/test_pairing_boundaries.py checks sample by sample.
-        pytest.skip(
-            f'the host kept the loop late: {late:.0%} of the commands after the next sample, '
-            f'the observer paired {paired:.0%} on time or by repair, {controlled.mean():.0%} of '
-            f'the samples controlled; max |e| {max_error:.2e} rad, from {TRACKING_FROM_S:g} s '
-            f'{tracking:.2e} rad, no latch'
+    if any(outside):
+        # A stall of the host past the command timeout is a resync (50 samples of 0 A and brake
+        # by the policy), and a command later than the next sample reaches the observer after
+        # it stepped (the pairing itself is tests/test_pairing_boundaries.py's, sample by
+        # sample): the host may explain the late and uncontrolled samples, a quiet host not.
+        skip_or_fail(
+            host_window,
+            f'{late} commands after the next sample, the observer paired {paired:.0%} on time '
+            f'or by repair, {controlled.mean():.0%} of the samples controlled; max |e| '
+            f'{max_error:.2e} rad, from {TRACKING_FROM_S:g} s {tracking:.2e} rad, no latch',
+            samples=late + int(np.sum(~controlled)),
         )
     assert max_error < RHO0_RAD, max_error
     assert tracking < TRACKING_MAX_RAD, (
@@ -153,7 +157,9 @@ def test_realtime_loop_stays_stable_for_the_whole_fast_deep_sea_run(isolated):
 
 
 @pytest.mark.realtime
-def test_controller_on_a_1_khz_timer_closes_the_loop_with_the_newest_measurement(isolated):
+def test_controller_on_a_1_khz_timer_closes_the_loop_with_the_newest_measurement(
+    isolated, host_window
+):
     """Tick on a timer (trigger:=timer) with the newest measurement: the loop closes and tracks."""
     from actuator_analysis.analyze import load_run
     from actuator_bringup.runner import run_closed_loop
@@ -193,12 +199,14 @@ def test_controller_on_a_1_khz_timer_closes_the_loop_with_the_newest_measurement
     assert episodes.size == 0 or episodes.max() <= STALL_EPISODE_MAX, episodes.max()
     tracking = _max_error_from(run, controlled, TRACKING_FROM_S)
     outside = controlled.mean() <= 0.9 or max_error >= RHO0_RAD or tracking >= TRACKING_MAX_RAD
-    if outside and episodes.size > STALL_EPISODES_ON_TIME:
-        pytest.skip(
-            f'the host stalled the loop {episodes.size} times in {duration_s:g} s: '
-            f'{controlled.mean():.0%} of the samples controlled, the longest stall answer '
-            f'{episodes.max()} samples; max |e| {max_error:.2e} rad, from '
-            f'{TRACKING_FROM_S:g} s {tracking:.2e} rad, no latch'
+    if outside:
+        skip_or_fail(
+            host_window,
+            f'{episodes.size} stall answers in {duration_s:g} s: {controlled.mean():.0%} of the '
+            f'samples controlled, the longest answer {episodes.max() if episodes.size else 0} '
+            f'samples; max |e| {max_error:.2e} rad, from {TRACKING_FROM_S:g} s '
+            f'{tracking:.2e} rad, no latch',
+            samples=int(np.sum(~np.isin(after, CONTROLLED))),
         )
     assert max_error < RHO0_RAD, max_error
     assert tracking < TRACKING_MAX_RAD, (
@@ -207,6 +215,5 @@ def test_controller_on_a_1_khz_timer_closes_the_loop_with_the_newest_measurement
         f'{controlled.mean():.1%} controlled'
     )
     assert controlled.mean() > 0.9, (controlled.mean(), episodes)
-    # the law ran for most of the 6000 samples (a clean-clone CI run that stalled the loop into
-    # resyncs: 3195; such a run ends in the skip above)
+    # the law ran for most of the 6000 samples (a run the host stalled into resyncs ends above)
     assert log['stamp_ns'].size > 4000, log['stamp_ns'].size

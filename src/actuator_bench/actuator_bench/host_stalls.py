@@ -13,12 +13,19 @@ CPU away), not the loop's; the benchmark (``bench``) runs it beside the middlewa
 real-time run's tracking can be read against it.
 
     python -m actuator_bench.host_stalls --duration 10 [--priority 51] [--cpu 0]
+    python -m actuator_bench.host_stalls --until-stopped --priority 60 --cpu 1   # until SIGTERM
+
+The second form is the tests' host probe (tests/host_probe.py): it runs beside a real-time test
+and, when stopped, prints the stalls with their monotonic instants, so a test can tell a stall of
+the host inside its own window from a fault of the loop.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
+import signal
 import sys
 import time
 from dataclasses import dataclass, field
@@ -43,6 +50,8 @@ class StallCount:
     timeout_ns: int = TIMEOUT_NS
     wakeups: int = 0
     stalls: list = field(default_factory=list)  # (grid instant since start [ns], lateness [ns])
+    start_ns: int = 0  # the grid's start on its clock (run_grid)
+    end_ns: int = 0  # when the grid ended on its clock (run_grid)
 
     def update(self, instant_ns: int, late_ns: int) -> None:
         """Count one wake-up at grid ``instant_ns`` that came ``late_ns`` after it.
@@ -77,19 +86,22 @@ def run_grid(
     period_ns: int = GRID_PERIOD_NS,
     clock: Callable[[], int] = time.monotonic_ns,
     sleep: Callable[[float], None] = time.sleep,
+    stopped: Callable[[], bool] = lambda: False,
 ) -> StallCount:
     """Sleep to each instant of a ``period_ns`` grid for ``duration_s``; count late wake-ups.
 
     As the joint's sampling thread does (actuator_ros.joint_node): absolute instants from one
-    start, a late wake-up runs the instants it missed at once.
+    start, a late wake-up runs the instants it missed at once. ``stopped`` ends the grid early
+    (checked at every instant); ``count.start_ns`` keeps the start on ``clock``.
     """
-    start = clock()
+    start = count.start_ns = clock()
     end = start + int(duration_s * 1e9)
     k = 0
     while True:
         k += 1
         instant = start + k * period_ns
-        if instant > end:
+        if instant > end or stopped():
+            count.end_ns = clock()
             return count
         wait = instant - clock()
         if wait > 0:
@@ -117,6 +129,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument('--duration', type=float, default=10.0, help='seconds to run')
     parser.add_argument(
+        '--until-stopped',
+        action='store_true',
+        help='run until SIGTERM or SIGINT (at most --duration), then print the figures and '
+        'each stall with its monotonic instant',
+    )
+    parser.add_argument(
         '--priority', type=int, default=0, help='SCHED_FIFO priority (0: normal scheduling)'
     )
     parser.add_argument('--cpu', type=int, default=None, help='run on this CPU only')
@@ -125,8 +143,6 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Run the grid and print one line of figures (JSON), the stalls after it."""
-    import json
-
     args = build_parser().parse_args(argv)
     if not 0.1 <= args.duration <= 3600.0:
         print('host_stalls: --duration must be in [0.1, 3600] s', file=sys.stderr)
@@ -137,10 +153,20 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     refused = apply_scheduling(args.priority, args.cpu)
     if refused:
         print(f'host_stalls: {refused}', file=sys.stderr)
-    count = run_grid(args.duration, StallCount())
-    figures = count.figures(args.duration, 'host')
+    stop = []
+    if args.until_stopped:
+        for sig in (signal.SIGTERM, signal.SIGINT):
+            signal.signal(sig, lambda *_: stop.append(True))
+        print('host_stalls: running', file=sys.stderr, flush=True)  # the probe waits for it
+    count = run_grid(args.duration, StallCount(), stopped=lambda: bool(stop))
+    seconds = max((count.end_ns - count.start_ns) * 1e-9, 1e-3)
+    figures = count.figures(seconds, 'host')
     figures['host_wakeups'] = float(count.wakeups)
-    print(json.dumps(figures))
+    if args.until_stopped:
+        figures['host_seconds'] = seconds
+        figures['host_fifo'] = bool(args.priority) and not refused
+        figures['host_stalls_ns'] = [[count.start_ns + i, late] for i, late in count.stalls]
+    print(json.dumps(figures), flush=True)
     for instant, late in count.stalls:
         print(f'stall at {instant * 1e-9:.3f} s: {late * 1e-6:.1f} ms late', file=sys.stderr)
     return 0
