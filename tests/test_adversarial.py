@@ -39,11 +39,12 @@ from adversarial_loop import (
     Attacker,
     Loop,
     assert_recovered,
+    judge,
     log_time_s,
     logged_after,
     logged_between,
-    skip_unjudged,
 )
+from host_probe import skip_or_fail
 
 pytestmark = [pytest.mark.realtime, pytest.mark.slow]
 
@@ -133,26 +134,44 @@ def _held_offsets(stretches: list) -> list:
     return out
 
 
-def test_stamp_attacks_are_refused_with_their_reasons_and_tracking_goes_on(loop):
+def test_stamp_attacks_are_refused_with_their_reasons_and_tracking_goes_on(loop, host_window):
+    """Estimates stamped ahead, in the past and twice, from the one publisher of the topic.
+
+    The genuine observer is stopped first, so no second publisher stands and the conflict guard
+    has no part in it: each refusal is the stamp rules' own. The observer then restarts and the
+    loop tracks again.
+    """
     running, attacker = loop
+    assert running.procs['eso'].stop() == 0
+    attacker.spin(0.3)  # the controller answers the missing estimates: 0 A and the brake
+    attack_start, attack_start_s = len(attacker.states), time.time()
     est = attacker.publisher('eso/estimate')
     now = attacker.newest_stamp_ns()
-    ahead = [now + (1000 + k) * 10**9 for k in range(100)]  # 100 estimates far ahead
-    near = [now + k * 10**6 for k in range(5, 55)]  # a burst 5-54 ms ahead, for -20 A
-    past = [now - 2 * 10**9, now - 10**6, now]  # 2 s back, one sample back, a duplicate
-    for stamp in ahead + near + past:
+
+    def send(stamp, velocity):
         e = attacker.types['eso/estimate'](
-            velocity_rad_s=7.77, disturbance_rad_s2=2000.0, input_current_gain=0.03
+            velocity_rad_s=velocity, disturbance_rad_s2=2000.0, input_current_gain=0.03
         )
         e.header.stamp = ns_to_stamp(stamp)
         est.publish(e)
         attacker.spin(0.0005)
+
+    send(now, 0.0)  # a well-stamped estimate for the newest measurement: the genuine one
+    ahead = [now + (1000 + k) * 10**9 for k in range(100)]  # 100 estimates far ahead
+    near = [now + k * 10**6 for k in range(5, 55)]  # a burst 5-54 ms ahead, for -20 A
+    past = [now - 2 * 10**9, now - 10**6, now]  # 2 s back, one sample back, a duplicate
+    for stamp in ahead + near + past:
+        send(stamp, ROGUE_VELOCITY_RAD_S)
+    attacker.spin(0.2)
     attacker.node.destroy_publisher(est)
-    unjudged = assert_recovered(running, attacker)
+    during = attacker.states[attack_start:]
     log = running.log('controller')
+    # No second publisher stood: the guard neither logged one nor answered CONFLICT.
+    assert not logged_after(log, '2 publishers on eso/estimate', attack_start_s)
+    assert not any(s.status == STATUS_CONFLICT for s in during)
     # The first refusal line names one of the far-ahead stamps (the rate-limited log keeps the
     # first of each kind; a genuine estimate a lagging controller refused is another kind).
-    far = {str(t) for t in ahead}
+    far = {str(s) for s in ahead}
     first = next(
         (
             m
@@ -165,13 +184,18 @@ def test_stamp_attacks_are_refused_with_their_reasons_and_tracking_goes_on(loop)
     )
     assert first and float(first.group(2)) > 999_000.0, 'the far-ahead estimate was not refused'
     assert 'ms ahead of the newest measurement seen (at most 1 sample)' in log
-    # None of the rogue's estimates was used: no state carries its velocity.
-    assert not any(s.estimated_velocity_rad_s == 7.77 for s in attacker.states)
-    assert '2 publishers on eso/estimate (' in log and '/attacker gid ' in log
-    skip_unjudged(unjudged)
+    # None of the attack's estimates was used: no state carries its velocity.
+    assert not any(s.estimated_velocity_rad_s == ROGUE_VELOCITY_RAD_S for s in attacker.states)
+    running.start('eso')
+    unjudged = assert_recovered(running, attacker)
+    judge(host_window, unjudged)
 
 
-def test_nan_and_absurd_values_in_each_field_are_refused(loop):
+#: The velocity the attacks' estimates carry [rad/s]: no state may ever show it.
+ROGUE_VELOCITY_RAD_S = 7.77
+
+
+def test_nan_and_absurd_values_in_each_field_are_refused(loop, host_window):
     running, attacker = loop
     est = attacker.publisher('eso/estimate')
     now = attacker.newest_stamp_ns()
@@ -197,7 +221,7 @@ def test_nan_and_absurd_values_in_each_field_are_refused(loop):
             f'estimate for {stamp} ns refused: {field} = {value} is not finite or beyond '
             f'+-{bound:g}'
         ) in log
-    skip_unjudged(unjudged)
+    judge(host_window, unjudged)
 
 
 @pytest.mark.parametrize(
@@ -205,13 +229,13 @@ def test_nan_and_absurd_values_in_each_field_are_refused(loop):
     # watchers: the nodes that subscribe to the topic and name both publishers; guards: those
     # that see the second one when it matches (the controller polls its output at 10 Hz)
     [
-        ('current_command', ('eso', 'controller'), ('eso',)),
+        ('current_command', ('eso', 'controller', 'joint'), ('eso', 'joint')),
         ('joint_states', ('eso', 'controller'), ('eso', 'controller')),
         ('eso/estimate', ('controller',), ('controller',)),
     ],
 )
 def test_a_second_publisher_is_seen_when_it_matches_and_control_stops_safely(
-    loop, topic, watchers, guards
+    loop, topic, watchers, guards, host_window
 ):
     running, attacker = loop
     rogue = attacker.publisher(topic)  # matched everywhere before its first message
@@ -232,12 +256,12 @@ def test_a_second_publisher_is_seen_when_it_matches_and_control_stops_safely(
         sent.append(time.time())
         attacker.spin(0.002)
     conflict = [s for s in attacker.states[-1000:] if s.status == STATUS_CONFLICT]
-    assert conflict or topic == 'current_command', 'the controller never reported the conflict'
+    assert conflict, 'the controller never reported the conflict'
     attacker.node.destroy_publisher(rogue)
     unjudged = assert_recovered(running, attacker)
     text = f'2 publishers on {topic} ('
     for guard in watchers:
-        log = running.log(guard)
+        log = running.log(running.joint_key if guard == 'joint' else guard)
         # The log names both publishers by GID (and by node once discovery knows the name:
         # at match time the attacker's is often still _NODE_NAME_UNKNOWN_).
         line = next(x for x in log.splitlines() if text in x)
@@ -246,6 +270,10 @@ def test_a_second_publisher_is_seen_when_it_matches_and_control_stops_safely(
             assert log_time_s(log, text) < sent[1], (log_time_s(log, text) - sent[0], guard)
     if topic == 'eso/estimate':  # none of the rogue's estimates reached the law
         assert not any(s.estimated_velocity_rad_s == 5.0 for s in attacker.states)
+    if topic == 'current_command':  # the joint refused the rogue's 5 A, and said so
+        joint_log = running.log(running.joint_key)
+        assert f'{text}' in joint_log and 'refusing every command (0 A, brake)' in joint_log
+        assert 'command refused: more than one publisher on current_command' in joint_log
     if conflict:
         # The brake holds over the conflict, from 20 ms after the first of the joint's own samples
         # answered CONFLICT (a rogue measurement's state carries the rogue's stamp, the newest
@@ -260,7 +288,7 @@ def test_a_second_publisher_is_seen_when_it_matches_and_control_stops_safely(
             m.effort[0] for m in attacker.measured if first <= stamp_to_ns(m.header.stamp) <= last
         ]
         assert effort and not any(effort), max(effort, key=abs)
-    skip_unjudged(unjudged)
+    judge(host_window, unjudged)
 
 
 @pytest.mark.parametrize(
@@ -273,7 +301,7 @@ def test_a_second_publisher_is_seen_when_it_matches_and_control_stops_safely(
         ('controller', ''),
     ],
 )
-def test_a_restarted_node_resumes_control(loop, restarted_node, what):
+def test_a_restarted_node_resumes_control(loop, restarted_node, what, host_window):
     running, attacker = loop
     key = running.joint_key if restarted_node == 'joint' else restarted_node
     restarted = time.time()  # real-time stamps are wall-clock time
@@ -317,7 +345,7 @@ def test_a_restarted_node_resumes_control(loop, restarted_node, what):
         # released it: 85 % held on one run). (The 10-deep best-effort listener of a loaded
         # test process may miss a whole episode.)
         assert not held or np.mean(held) > BRAKE_HELD_MIN, (sorted(resync), held)
-    skip_unjudged(unjudged)
+    judge(host_window, unjudged)
 
 
 #: Stall lengths [s] (issue 21): each node is stopped (SIGSTOP) this long, in turn.
@@ -335,11 +363,8 @@ RECOVER_S = 0.3
 #: Received controlled samples in a row under RECOVERED_RAD that make the recovery (the 10-deep
 #: best-effort listener of the test keeps a third or more of the 1 kHz states).
 RECOVERED_SAMPLES = 30
-#: Late commands (the controller's ``late_samples``) around one stall, beyond those the stall
-#: itself delays, above which the host set the figures (7 % of the 1.5 s after it).
-HOST_LATE_MAX = 100
-#: Resyncs one stall makes at most (its gap and the observer's restart); a run with more had the
-#: host stall it again meanwhile (seen here on a loaded run: 4 within 150 ms of a 5 ms stall).
+#: Resyncs one stall makes at most (its gap and the observer's restart); more are a trouble the
+#: host probe must account for (seen here on a loaded run: 4 within 150 ms of a 5 ms stall).
 RESYNCS_PER_STALL = 2
 #: Both resync warnings end so (a gap, the node's own stall, or an observer restart).
 RESYNC_LINE = 'resync, 0 A and brake while the observer converges'
@@ -366,7 +391,7 @@ def _at_limit(states: list) -> int:
 
 
 @pytest.mark.parametrize('key', ['eso', 'controller'])
-def test_a_stalled_node_ends_in_a_calm_recovery(loop, key):
+def test_a_stalled_node_ends_in_a_calm_recovery(loop, key, host_window):
     running, attacker = loop
     proc = running.procs[key]
     table, unjudged = [], []
@@ -405,14 +430,14 @@ def test_a_stalled_node_ends_in_a_calm_recovery(loop, key):
         statuses = collections.Counter(s.status for s in after)
         detail = (table, dict(statuses), running.log('controller').splitlines()[-6:])
         assert not statuses[STATUS_LATCHED], detail
-        if host_late > HOST_LATE_MAX or resyncs > RESYNCS_PER_STALL:  # the host set the figures
-            unjudged.append((stall_s, 'host'))
+        if calm > AT_LIMIT_MAX or at_limit > AT_LIMIT_MAX or recover_s > RECOVER_S:
+            # Excused at the end only by the host probe: its stalls must account for the
+            # samples of trouble around this stall (late commands in the second before it and
+            # beyond the stall's own after it, samples at the limit, the resyncs beyond the
+            # stall's own at 50 samples each).
+            trouble = max(late_before, 0) + max(host_late, 0) + calm + at_limit
+            unjudged.append((stall_s, trouble + 50 * max(resyncs - RESYNCS_PER_STALL, 0)))
             continue
-        if calm > AT_LIMIT_MAX and late_before > HOST_LATE_MAX:  # the host, before the stall
-            unjudged.append((stall_s, 'at the limit before, the host late'))
-            continue
-        assert calm <= AT_LIMIT_MAX, ('at the limit before the stall, commands on time', detail)
-        assert at_limit <= AT_LIMIT_MAX and recover_s <= RECOVER_S, detail
         if stall_s > limits.COMMAND_TIMEOUT_S:  # the joint was braked: a resync, logged
             assert logged_after(running.log('controller'), RESYNC_LINE, stopped), detail
     log = running.log('controller')
@@ -426,10 +451,9 @@ def test_a_stalled_node_ends_in_a_calm_recovery(loop, key):
     for row in table:
         print('  %-10s %5.3f %4d %9.2e %6.3f %5d %3d %4d' % row)
     if unjudged:
-        pytest.skip(
-            f'not judged (no latch): stalls {unjudged}, where "host" = the host kept more than '
-            f'{HOST_LATE_MAX} commands late or stalled the loop into more than '
-            f'{RESYNCS_PER_STALL} resyncs, "at the limit before, the host late" = the loop was at '
-            f'the current limit more than {AT_LIMIT_MAX} times in the second before the stall '
-            f'while the host kept more than {HOST_LATE_MAX} commands late: {table}'
+        skip_or_fail(
+            host_window,
+            f'stalls not recovered calmly (no latch): {unjudged} (stall s, samples of trouble); '
+            f'the table: {table}',
+            samples=sum(samples for _, samples in unjudged),
         )
