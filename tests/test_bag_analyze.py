@@ -49,6 +49,7 @@ def case2(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[Path, obj
     return bags
 
 
+@pytest.mark.slow
 def test_figures_match_the_recorded_arrays(case2) -> None:
     """Every figure equals what the arrays the bag was written from give."""
     path, run = case2['pp_nftsmc_eso']
@@ -78,6 +79,7 @@ def test_figures_match_the_recorded_arrays(case2) -> None:
     assert report.as_dict()['status_not_ok_fraction'] == 0.0
 
 
+@pytest.mark.slow
 def test_gaps_violations_and_missing_envelope(case2, tmp_path: Path) -> None:
     """Dropped samples are counted; a bound violation is found.
 
@@ -92,6 +94,7 @@ def test_gaps_violations_and_missing_envelope(case2, tmp_path: Path) -> None:
     assert not bad.metrics.bounds_kept and bad.metrics.bounds_violations == 1
 
 
+@pytest.mark.slow
 def test_without_truth_estimation_is_not_reported(tmp_path: Path) -> None:
     """A hardware bag (no plant/truth) is analysed.
 
@@ -109,6 +112,7 @@ def test_without_truth_estimation_is_not_reported(tmp_path: Path) -> None:
     assert 'n/a (no truth)' in format_table([report])
 
 
+@pytest.mark.slow
 def test_the_samples_whose_observer_input_was_not_the_current_held(tmp_path: Path) -> None:
     """eso/estimate's input current against plant/truth's held current, sample by sample."""
     run = synthetic_run(duration_s=1.0)
@@ -127,6 +131,7 @@ def test_the_samples_whose_observer_input_was_not_the_current_held(tmp_path: Pat
     assert '3 of 1000 samples differ, max 40 A' in format_table([report])
 
 
+@pytest.mark.slow
 def test_cli_case2_table_json_and_figures(
     case2, tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:
@@ -180,6 +185,7 @@ def _cli(*args: str) -> subprocess.CompletedProcess:
     )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     'case', ['missing', 'not_a_bag', 'text_file', 'truncated', 'no_topics', 'interrupted']
 )

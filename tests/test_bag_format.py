@@ -62,6 +62,7 @@ QOS_KEYS = {
 }
 
 
+@pytest.mark.slow
 def test_layout_and_metadata_v9(run_bag) -> None:
     """Folder holds metadata.yaml and <name>_0.mcap.
 

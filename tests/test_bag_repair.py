@@ -147,6 +147,7 @@ def _cli(*args: str) -> subprocess.CompletedProcess:
     )
 
 
+@pytest.mark.slow
 def test_cli_reports_progress_and_result(tmp_path: Path) -> None:
     """Progress lines go to stderr, a one-line result to stdout, exit code 0."""
     bag = tmp_path / 'run'
@@ -159,6 +160,7 @@ def test_cli_reports_progress_and_result(tmp_path: Path) -> None:
     assert (tmp_path / 'r.json').is_file()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     'case', ['missing', 'not_mcap', 'empty_dir', 'output_exists', 'header_only', 'empty_file']
 )
@@ -263,6 +265,7 @@ def _damaged(
     return bag, payloads, records, per_chunk
 
 
+@pytest.mark.slow
 def test_resyncs_after_a_chunk_failing_its_crc(tmp_path: Path) -> None:
     """Chunk 3 fails its CRC: exactly it is skipped, later chunks recovered.
 

@@ -181,6 +181,7 @@ KINDS = [
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('storage,compression,split', KINDS)
 def test_analysis_reads_a_sim_time_run_that_ros2_bag_record_stored(
     tmp_path, storage, compression, split
@@ -210,6 +211,7 @@ def test_analysis_reads_a_sim_time_run_that_ros2_bag_record_stored(
     assert 'actuator_controller WARN (OK 11 WARN 1): 2 late samples' in table
 
 
+@pytest.mark.slow
 def test_wall_clock_stamps_give_the_recorder_delay(tmp_path):
     run = synthetic_run(duration_s=2.0)
     bag = write_rosbag2(tmp_path / 'rec', run, sim_stamps=False)
@@ -220,6 +222,7 @@ def test_wall_clock_stamps_give_the_recorder_delay(tmp_path):
     )
 
 
+@pytest.mark.slow
 def test_a_run_shorter_than_the_steady_window_says_so(tmp_path):
     run = synthetic_run(duration_s=4.0)
     report = analyze_run(load_run(write_rosbag2(tmp_path / 'short', run), SOURCE, quiet=True))
@@ -231,6 +234,7 @@ def test_a_run_shorter_than_the_steady_window_says_so(tmp_path):
     assert report.as_dict()['steady_window_empty'] is True
 
 
+@pytest.mark.slow
 def test_repair_keeps_topics_that_have_no_message(tmp_path):
     run = synthetic_run(duration_s=1.0)
     bag = write_rosbag2(tmp_path / 'rec', run, 'mcap')

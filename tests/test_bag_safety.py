@@ -84,6 +84,7 @@ def _interrupted(path: Path, count: int = 300) -> Path:
 
 
 # ------------------------------------------------------------------------------ bag_analyze
+@pytest.mark.slow
 @pytest.mark.parametrize(
     'case',
     [
@@ -138,6 +139,7 @@ def test_analyze_refuses_output_locations_before_work(
     assert _tree(bag) == before
 
 
+@pytest.mark.slow
 def test_analyze_writes_next_to_a_bag(bag: Path, tmp_path: Path) -> None:
     """Outputs beside the bag (a sibling folder, a file in the bag's parent) are accepted."""
     proc = _run(
@@ -154,6 +156,7 @@ def test_analyze_writes_next_to_a_bag(bag: Path, tmp_path: Path) -> None:
 
 
 # ------------------------------------------------------------------------------- bag_repair
+@pytest.mark.slow
 @pytest.mark.parametrize(
     'case', ['out_inside', 'out_is_bag', 'json_inside', 'out_under_a_file', 'json_is_mcap']
 )
@@ -183,6 +186,7 @@ def test_repair_refuses_output_locations_before_work(tmp_path: Path, case: str) 
     assert not (tmp_path / 'run_repaired').exists()
 
 
+@pytest.mark.slow
 def test_repair_report_may_go_into_the_new_output(tmp_path: Path) -> None:
     """--json inside the -o folder repair creates is accepted.
 
@@ -202,6 +206,7 @@ def test_repair_report_may_go_into_the_new_output(tmp_path: Path) -> None:
     assert json.loads((tmp_path / 'fixed' / 'r.json').read_text())['messages_lost'] == 0
 
 
+@pytest.mark.slow
 def test_repair_refuses_existing_non_empty_output(tmp_path: Path) -> None:
     """An -o folder that exists and holds files is refused (its files stay as they were)."""
     src = _interrupted(tmp_path / 'run')
@@ -268,6 +273,7 @@ def test_writer_that_cannot_start_leaves_nothing(
     assert not (tmp_path / 'a').exists()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('limit', ['0', '3000', '30000'])
 def test_repair_onto_a_full_disk(tmp_path: Path, limit: str) -> None:
     """bag_repair onto a full disk: exit 1, one ENOSPC line, no traceback.

@@ -294,11 +294,13 @@ def test_a_publication_mode_reaches_the_processes_and_is_restored(monkeypatch):
     assert bench_run.publication_mode_environment('') == {}  # the runner's own mode
 
 
+@pytest.mark.slow
 def test_offline_speed_is_positive():
     assert math.isfinite(bench_run.offline_speed('case2_pp_nftsmc_eso', None, 0.02))
     assert bench_run.offline_speed('case2_pp_nftsmc_eso', 10, 0.02) > 0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     'argv',
     [
@@ -393,6 +395,7 @@ def test_short_sim_run_end_to_end(ros_env, tmp_path):
     assert 'middleware floor' in proc.stdout
 
 
+@pytest.mark.slow
 def test_missing_tool_skips_its_variant_with_one_line_and_each_run_is_saved_as_it_ends(
     monkeypatch, capsys, tmp_path
 ):

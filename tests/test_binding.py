@@ -288,6 +288,7 @@ def test_a_step_that_persists_becomes_the_baseline():
     assert m.check(8 * P, 1.0) == '' and m.rebases == 1
 
 
+@pytest.mark.slow
 def test_the_paper_runs_pass_the_plausibility_check():
     from actuator_sim.scenarios import case2
 

@@ -323,6 +323,7 @@ def test_pdo_codec_packs_the_eds_tpdo1_layout_like_canopen_and_refuses_unaligned
 
 
 # --- offline drive model ---------------------------------------------------------------------
+@pytest.mark.slow
 def test_offline_drive_model_without_effects_is_the_offline_core_and_the_sync_delay_costs_most():
     """The drive model reduces to the offline core.
 
@@ -348,6 +349,7 @@ def test_offline_drive_model_without_effects_is_the_offline_core_and_the_sync_de
     assert late[0] > 5 * drive[0]  # two SYNCs of delay: a limit cycle
 
 
+@pytest.mark.slow
 def test_one_sync_of_delay_leaves_the_papers_observer_bandwidth_a_narrow_window():
     """With the drive's one SYNC, w0 = 60 rad/s (Table 4) holds 16 s; 50 rad/s chatters.
 
@@ -365,6 +367,7 @@ def test_one_sync_of_delay_leaves_the_papers_observer_bandwidth_a_narrow_window(
     assert chatter > 500, rows  # a sustained limit cycle sets in after about 8 s
 
 
+@pytest.mark.slow
 def test_the_drive_tuning_is_stable_where_the_papers_gains_are_not_and_keeps_a_lag_margin():
     """drive_pp_nftsmc_eso: linearised loop with one SYNC stable at every drift vertex.
 
@@ -400,6 +403,7 @@ def test_the_drive_tuning_is_stable_where_the_papers_gains_are_not_and_keeps_a_l
     assert paper[0][2] == 0 and paper[1][2] > 500, paper
 
 
+@pytest.mark.slow
 def test_offline_drive_effects_are_the_parts_of_the_one_simulated_joint():
     """The drive scenario sets delay, torque loop and encoder of the loop's SimulatedJoint."""
     from actuator_cia402.offline import drive_scenario

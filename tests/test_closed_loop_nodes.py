@@ -154,6 +154,7 @@ def test_main_job_prints_the_report_and_writes_figures(ros_env, tmp_path):
     assert list((tmp_path / 'bags').iterdir())  # the run was recorded under bags/
 
 
+@pytest.mark.slow
 def test_installed_scenario_files_match_the_scenarios():
     from ament_index_python.packages import get_package_share_directory
 

@@ -225,6 +225,7 @@ def test_stability_check_reproduces_the_known_facts():
     assert slow_loop < 1.0
 
 
+@pytest.mark.slow
 def test_late_eso_current_diverges_in_the_closed_loop_too():
     """The linearised verdict holds in the nonlinear loop.
 
@@ -260,6 +261,7 @@ def case2_metrics():
     }
 
 
+@pytest.mark.slow
 def test_case2_ordering_with_margins(case2_metrics):
     pp, nft, pi = (
         case2_metrics[c].max_steady_error_rad for c in ('pp_nftsmc_eso', 'nftsmc_eso', 'pi')
@@ -278,6 +280,7 @@ def test_case1_pp_stays_inside_its_bounds_and_near_table5():
         assert 0.5 * paper < metrics.max_steady_error_rad < 1.5 * paper, scenario.name
 
 
+@pytest.mark.slow
 def test_batch_run_matches_single_runs():
     scenario = paper_scenario('b', 'pp_nftsmc_eso', 'fast', 'deep_sea', duration_s=1.0)
     single = ClosedLoop(scenario).run()
@@ -287,6 +290,7 @@ def test_batch_run_matches_single_runs():
         assert np.allclose(batch['error_rad'][:, i], single['error_rad'], rtol=1e-9, atol=1e-12)
 
 
+@pytest.mark.slow
 def test_four_substeps_are_enough_in_closed_loop():
     coarse = run_scenario(
         paper_scenario('c', 'pp_nftsmc_eso', 'fast', 'deep_sea', duration_s=6.0)
@@ -374,6 +378,7 @@ def test_any_positive_restart_margin_restarts_the_envelope():
     assert out.rho_rad == pytest.approx(0.25)  # restarted at t: rho(0) = rho0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('restart_margin, recovers', [(2.0, True), (0.0, False)])
 def test_loop_recovers_from_a_40_ms_current_dropout_only_with_envelope_restarts(
     restart_margin, recovers

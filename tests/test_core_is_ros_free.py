@@ -51,6 +51,7 @@ def without_ros(monkeypatch):
         del sys.modules[name]
 
 
+@pytest.mark.slow
 def test_core_and_sim_import_and_run_without_rclpy_or_launch(without_ros):
     with pytest.raises(ImportError):
         importlib.import_module('rclpy')

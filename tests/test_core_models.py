@@ -134,6 +134,7 @@ def test_ideal_plant_matches_closed_form_with_current_held():
     assert plant.time_s == pytest.approx(0.5)
 
 
+@pytest.mark.slow
 def test_full_plant_converges_with_substeps():
     coarse, fine = (
         JointPlant(PlantParameters(substeps=4), 1e-3),
@@ -232,6 +233,7 @@ def test_ppf_clamps_outside_the_bounds_and_reports_it():
         PrescribedPerformance(rho0_rad=0.01, rho_inf_rad=0.05)
 
 
+@pytest.mark.slow
 def test_holding_brake_stops_the_joint_and_holds_it_against_the_external_torque():
     from actuator_plant.model import JointPlant, PlantParameters
 

@@ -30,6 +30,7 @@ def test_case_reproduces_its_golden_figures(case: str) -> None:
     assert not rows, golden_offline.report(case, rows)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('case', sorted(golden_offline.CASES))
 def test_first_second_of_each_run_reproduces_its_checksum(case: str) -> None:
     """Quick set: the first second of every run of the case, bit for bit as stored."""

@@ -189,6 +189,7 @@ def test_the_bus_load_of_every_joint_is_checked():
         check_bus_load(500_000, 1e-3, joints=2)
 
 
+@pytest.mark.slow
 def test_a_cia402_joint_runs_the_drive_tuning_and_the_plant_the_papers_unless_named():
     """graph.default_scenario: what bringup --joint and launch joint:= run by default."""
     from actuator_sim.params_yaml import all_scenarios

@@ -67,6 +67,7 @@ def test_skip_or_fail_skips_with_both_figures_or_fails_naming_the_quiet_host():
         skip_or_fail(_window(49.0), 'ended early', stall_ms=50.0)
 
 
+@pytest.mark.slow
 def test_the_probe_sees_a_stall_of_its_own_process_with_its_length():
     """The probe's process stopped for 40 ms: a stall that long, seen on that CPU only."""
     probe = HostProbe(cpus=[0])

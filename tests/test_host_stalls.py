@@ -58,6 +58,7 @@ def test_a_second_stall_right_after_the_catch_up_is_a_new_one():
     assert count.stalls == [(1 * MS, 3 * MS), (4 * MS, 5 * MS)]
 
 
+@pytest.mark.slow
 def test_the_command_line_prints_its_figures_and_refuses_a_bad_duration():
     done = subprocess.run(
         [sys.executable, '-m', 'actuator_bench.host_stalls', '--duration', '0.2'],

@@ -147,6 +147,7 @@ def test_frames_split_across_reads_come_out_whole():
     assert list(read_frames(stream, read_size=13)) == frames
 
 
+@pytest.mark.slow
 def test_the_writer_process_on_a_full_disk_exits_1_with_one_line_and_a_repairable_bag(tmp_path):
     """ENOSPC mid-run: exit 1, one line naming bag_repair; the repair has the durable messages."""
     from actuator_bag.repair import repair_bag

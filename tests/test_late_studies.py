@@ -6,11 +6,13 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from actuator_sim.late_answers import lag_profile, run_lagged
 from actuator_sim.late_commands import late_mask, max_steady_error
 
 
+@pytest.mark.slow
 def test_late_commands_bursts_and_the_eso_integrating_the_commanded_current():
     """Late bursts have the asked length.
 
@@ -35,6 +37,7 @@ def test_lag_bursts_have_the_asked_shape():
     assert not lag_profile(1000, 0.0, seed=3).any()
 
 
+@pytest.mark.slow
 def test_a_joint_that_takes_late_answers_keeps_a_lagging_loop_off_the_limit():
     """The observer and controller 2-10 samples behind in bursts (actuator_sim.late_answers).
 

@@ -16,6 +16,7 @@ import re
 import time
 from pathlib import Path
 
+import pytest
 
 from actuator_live_view import live_core, live_layout
 
@@ -188,6 +189,7 @@ def view_node_topics(ros_env):
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+@pytest.mark.slow
 def test_a_stuck_client_fills_only_its_own_outbox_and_it_is_counted():
     """The SDK's per-client outbox: a client that never reads loses data, the others do not."""
     import logging

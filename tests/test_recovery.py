@@ -185,6 +185,7 @@ def summary(m: RealTimeModel, at_ms: int, stall_ms: int):
     return at_limit, float(np.nanmax(np.abs(errors))), recovered[0] - end, latched
 
 
+@pytest.mark.slow
 def test_the_model_tracks_as_the_offline_loop_without_a_stall():
     m = stall_run('eso', 0, at_ms=1500, after_ms=0)
     errors = np.array([r[4] for r in m.rows[500:]])
@@ -192,6 +193,7 @@ def test_the_model_tracks_as_the_offline_loop_without_a_stall():
     assert all(r[3] is Status.OK for r in m.rows[1:])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize('node', ['eso', 'ctl', 'joint'])
 @pytest.mark.parametrize('stall_ms', [5, 8, 20, 60, 300])
 def test_a_stall_ends_in_a_calm_recovery_never_a_chase(node, stall_ms):

@@ -287,6 +287,7 @@ def test_tables_identical_takes_nan_as_equal_and_finds_a_one_ulp_difference():
     assert not tables_identical(a, b)
 
 
+@pytest.mark.slow
 def test_task_size_is_separate_from_the_batch_and_study_json_records_its_provenance(tmp_path):
     common = dict(
         vary=['depth_m=0:2000:5', 'encoder.noise_std_rad=1e-4'],
@@ -323,6 +324,7 @@ def test_task_size_is_separate_from_the_batch_and_study_json_records_its_provena
     assert again['chunks_resumed'] == 2
 
 
+@pytest.mark.slow
 def test_repeat_runs_each_point_with_its_own_noise_seed(tmp_path):
     req = SweepRequest(
         vary=['depth_m=0,1000'],
@@ -338,6 +340,7 @@ def test_repeat_runs_each_point_with_its_own_noise_seed(tmp_path):
     assert len(set(rows['max_steady_error_rad'][:3])) == 3  # the noise differs, so do the runs
 
 
+@pytest.mark.slow
 def test_sweep_compare_tells_identical_studies_from_one_changed_cell(tmp_path, capsys):
     """``sweep-compare A B``: 0 for identical studies, 1 after one cell changed.
 

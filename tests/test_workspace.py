@@ -271,6 +271,7 @@ def test_ros_process_escalates_and_leaves_no_orphans(tmp_path):
     assert (tmp_path / 'quick.stdout').read_text().strip() == 'hello'
 
 
+@pytest.mark.slow
 def test_ros_process_asks_a_hung_process_for_its_stacks_before_sigkill(tmp_path):
     """A node that ignores SIGINT and SIGTERM leaves every thread's stack in its stderr."""
     hung = (
