@@ -129,9 +129,13 @@ def test_sim_time_log_times_follow_clock(ros_env, ros_process, tmp_path: Path) -
 
 
 def test_sigterm_closes_the_bag(ros_env, ros_process, tmp_path: Path) -> None:
-    """SIGTERM ends the recorder like SIGINT: exit 0, metadata.yaml written, summary printed."""
+    """SIGTERM ends the recorder like SIGINT: exit 0, metadata.yaml written, summary printed.
+
+    Reliable subscriptions (the default is best effort), so that every message sent is owed to
+    the bag and the count is exact.
+    """
     bag = tmp_path / 'term'
-    recorder = _start_recorder(ros_process, bag)
+    recorder = _start_recorder(ros_process, bag, '--reliability', 'reliable')
     pub = _publisher(ros_env, tmp_path, 300)
     assert pub.wait(60) == 0, pub.describe()
     recorder.popen.send_signal(signal.SIGTERM)
@@ -159,7 +163,7 @@ def test_sigkill_mid_run_then_repair(ros_env, ros_process, tmp_path: Path) -> No
     assert not (bag / 'metadata.yaml').exists()
     mcap = next(bag.glob('*.mcap'))
     before = hashlib.sha256(mcap.read_bytes()).hexdigest()
-    with pytest.raises(Exception):
+    with pytest.raises(FileNotFoundError, match='metadata'):
         Reader(bag).open()
     repair = RosProcess.installed(
         'actuator_bag',

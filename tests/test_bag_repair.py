@@ -72,7 +72,7 @@ def test_repairs_interrupted_bag_without_touching_it(tmp_path: Path) -> None:
     bag = tmp_path / 'run'
     payloads = _interrupted_bag(bag, flushed=700, unflushed=50)
     original = _digest(bag / mcap_name(bag))
-    with pytest.raises(Exception):
+    with pytest.raises(FileNotFoundError, match='metadata'):
         Reader(bag).open()  # no metadata.yaml: unreadable as a bag before repair
     result = repair_bag(bag, quiet=True)
     assert result.summary.path == tmp_path / 'run_repaired'

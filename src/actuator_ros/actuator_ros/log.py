@@ -19,9 +19,12 @@ class RateLimitedLog:
     suppressed message is counted and the count is added to the next one of its key.
     """
 
-    def __init__(self, logger, period_s: float = 1.0):
-        """Wrap ``logger`` (a node's get_logger())."""
+    def __init__(
+        self, logger, period_s: float = 1.0, clock: Callable[[], int] = time.monotonic_ns
+    ):
+        """Wrap ``logger`` (a node's get_logger()); ``clock`` gives monotonic ns."""
         self.logger = logger
+        self.clock = clock
         self.period_ns = int(period_s * 1e9)
         self.last_ns: dict[str, int] = {}
         self.suppressed: dict[str, int] = {}
@@ -30,7 +33,7 @@ class RateLimitedLog:
     def _emit(self, level: str, key: str, message: Callable[[], str]) -> None:
         """Log now if this key's period has passed, else count it."""
         self.counts[key] = self.counts.get(key, 0) + 1
-        now = time.monotonic_ns()
+        now = self.clock()
         if now - self.last_ns.get(key, -self.period_ns) < self.period_ns:
             self.suppressed[key] = self.suppressed.get(key, 0) + 1
             return
