@@ -446,7 +446,7 @@ def test_every_corrected_estimate_is_counted() -> None:
     """Two estimates integrated with a substitute: two corrections."""
     a = assembly()
     for k in range(2):
-        a.add_estimate(k * P, 0.0, 0.0, input_ns=(k - 1) * P)
+        a.add_estimate(k * P, 0.0, 0.0, input_ns=max(k - 1, 0) * P)
         commanded = a.add_measurement(k * P, 0.0).current_a
     before = a.corrected
     for k in (2, 3):
@@ -766,3 +766,22 @@ def test_first_rest_of_a_batch_is_0() -> None:
             return ReferenceSample(np.zeros(2), np.array([-0.35, 0.2]) * (1.0 - t), np.zeros(2))
 
     assert first_rest_s(Batch(), P) == 0.0
+
+
+def test_an_estimate_whose_input_stamp_is_no_sample_before_it_is_refused() -> None:
+    """input_stamp names the pair x_hat(k) integrated: a negative one or one after k is not it.
+
+    A sentinel-looking stamp with a current (-1 ns, 5 A) never reaches the correction: it is
+    refused with its reason before, and the estimate is not used.
+    """
+    a = assembly()
+    control(a, 0)
+    for bad in (-1, 2 * P, limits.STAMP_MAX_NS + 1):
+        assert a.add_estimate(P, 0.0, 0.0, input_ns=bad, input_current_a=5.0) is None
+        assert a.refusal == (
+            f'estimate for {P} ns refused: its input stamp {bad} ns is not a sample at or '
+            'before it'
+        )
+    assert a.refused == 3 and P not in a.estimates
+    assert a.add_estimate(P, 0.0, 0.0, input_ns=0, input_current_a=5.0) is None  # waits for y
+    assert a.refusal == '' and P in a.estimates

@@ -125,7 +125,7 @@ class ControlSampleAssembly:
         self.brake_after_ns = int(round(brake_after_s * 1e9))
         self.gap_limit_ns = gap_limit_samples(period_ns) * period_ns
         self.estimates: dict[int, tuple] = {}
-        self.commanded: tuple = (-1, 0.0)  # (stamp, current) of the newest command
+        self.commanded: Optional[tuple] = None  # (stamp, current) of the newest command
         self.pending: Optional[tuple] = None  # (stamp, y) waiting for its estimate
         self.start_ns: Optional[int] = None  # reference t = 0
         self.newest_measurement_ns: Optional[int] = None
@@ -171,6 +171,10 @@ class ControlSampleAssembly:
         resync (PI uses none).
         """
         entry = (x2_hat, x3_hat, input_ns, input_current_a, input_current_gain)
+        self.refusal = input_stamp_refusal(stamp_ns, input_ns)
+        if self.refusal:  # not the observer's own: no restart is kept aside either
+            self.refused += 1
+            return None
         self.refusal = self.estimate_refusal(stamp_ns)
         if self.refusal:
             self.refused += 1
@@ -314,6 +318,8 @@ class ControlSampleAssembly:
 
     def _exact_estimate(self, x2, x3, input_ns, input_current, gain) -> tuple:
         """x_hat(k) as if the observer had integrated the current commanded for sample k-1."""
+        if self.commanded is None:  # no command yet: nothing to correct for
+            return x2, x3
         stamp, current = self.commanded
         if input_ns != stamp or xm.all_true(current == input_current):
             return x2, x3
@@ -466,6 +472,20 @@ def first_rest_s(reference, period_ns: int, horizon_s: float = REST_HORIZON_S) -
             return k * dt if abs(v) <= abs(before) else (k - 1) * dt
         before = v
     return 0.0
+
+
+def input_stamp_refusal(stamp_ns: int, input_ns: Optional[int]) -> str:
+    """Why x_hat(k)'s input stamp names no sample at or before k (eq. (15)); '' when it does.
+
+    The pair an estimate integrated is y(k-1), u(k-1): its stamp lies before the estimate's own
+    (0 for an initial estimate, which integrated none). Anything else is not the observer's.
+    """
+    if input_ns is None or 0 <= input_ns <= min(stamp_ns, limits.STAMP_MAX_NS):
+        return ''
+    return (
+        f'estimate for {stamp_ns} ns refused: its input stamp {input_ns} ns is not a sample '
+        'at or before it'
+    )
 
 
 def _same(a: tuple, b: tuple) -> bool:
