@@ -30,7 +30,20 @@ done
 ln -sfn "$ROOT/tests" tests
 ln -sfn "$ROOT/pytest.ini" pytest.ini
 ln -sfn "$ROOT/docs" docs  # tests/test_joint.py holds docs/reference/parameters.md against the specs
-cp "$ROOT/scripts/mutation/pyproject.toml" pyproject.toml
+# The configuration with its test files filled in from the imports (test_selection.py).
+python - "$ROOT/scripts/mutation/pyproject.toml" >pyproject.toml <<'PYSEL'
+import subprocess
+import sys
+
+files = subprocess.run(
+    [sys.executable, sys.argv[1].replace('pyproject.toml', 'test_selection.py')],
+    check=True, capture_output=True, text=True,
+).stdout.split()
+text = open(sys.argv[1]).read()
+listed = ',\n'.join(f'    "{f}"' for f in files)
+print(text.replace('pytest_add_cli_args_test_selection = []',
+                   f'pytest_add_cli_args_test_selection = [\n{listed},\n]'), end='')
+PYSEL
 
 # Quick tests first in each mutant's run (scripts/mutation/mutation_order.py).
 export PYTHONPATH="$ROOT/scripts/mutation${PYTHONPATH:+:$PYTHONPATH}"

@@ -3,16 +3,19 @@
 
 """Write docs/mutation-report.md from mutmut's results in build/mutation (scripts/mutation.sh).
 
-Per module: killed, survived, timeout, no tests, not checked, and the score killed / (killed +
-survived + no tests), timeouts counted as killed (the test run did not pass). Every survivor is
-listed with its diff; those explained in scripts/mutation/equivalent.toml carry the reason and
-are left out of the "score without equivalents".
+Per module: the SHA-256 of its source when it was mutated (first 12 hex digits; a unit test,
+tests/test_mutation_report.py, fails when a module's source no longer matches its row, so a
+stale score cannot be quoted), killed, survived, timeout, no tests, not checked, and the score
+killed / (killed + survived + no tests), timeouts counted as killed (the test run did not pass).
+Every survivor is listed with its diff; those explained in scripts/mutation/equivalent.toml
+carry the reason and are left out of the "score without equivalents".
 """
 
 from __future__ import annotations
 
 import argparse
 import datetime
+import hashlib
 import json
 import os
 import re
@@ -34,6 +37,15 @@ TARGETS = {
 }
 CORE_TARGET = 0.85
 EQUIVALENT = Path(__file__).resolve().parent / 'equivalent.toml'
+ROOT = Path(__file__).resolve().parents[2]
+#: The columns before the counts: the module and its source's hash.
+LEAD = 2
+
+
+def source_hash(module: str, root: Path = ROOT) -> str:
+    """Return the first 12 hex digits of the SHA-256 of a module's source (e.g. a/gate.py)."""
+    package = module.split('/')[0]
+    return hashlib.sha256((root / 'src' / package / module).read_bytes()).hexdigest()[:12]
 
 
 def status(code) -> str:
@@ -152,7 +164,7 @@ def earlier_report(text: str) -> tuple[list[str], dict[str, str], dict[str, list
 def _judged(row: str) -> int:
     """Return how many mutants a report row says were judged (killed, timeout, survived, none)."""
     cells = [c.strip() for c in row.strip('|').split('|')]
-    return sum(int(c) for c in cells[2:6])
+    return sum(int(c) for c in cells[LEAD + 1 : LEAD + 5])
 
 
 def render(
@@ -207,9 +219,9 @@ def render(
             else []
         ),
         '',
-        '| module | mutants | killed | timeout | survived | no tests | not checked | score |'
-        ' w/o eq. | target |',
-        '|---|---|---|---|---|---|---|---|---|---|',
+        '| module | source | mutants | killed | timeout | survived | no tests | not checked |'
+        ' score | w/o eq. | target |',
+        '|---|---|---|---|---|---|---|---|---|---|---|',
     ]
     if kept:
         lines[-2:-2] = [
@@ -227,7 +239,7 @@ def render(
             cells = [c.strip() for c in kept_rows[module].strip('|').split('|')]
             lines.append(kept_rows[module].replace(f'| {module} |', f'| {module} (earlier) |', 1))
             keys = ('mutants', 'killed', 'timeout', 'survived', 'no tests', 'not checked')
-            total += Counter(dict(zip(keys[1:], (int(c) for c in cells[2:7]))))
+            total += Counter(dict(zip(keys[1:], (int(c) for c in cells[LEAD + 1 : LEAD + 6]))))
             kept_blocks += kept_sections.get(module, [])
             continue
         counts = Counter(by_name.values())
@@ -237,13 +249,14 @@ def render(
         adjusted['survived'] -= eq
         target = TARGETS.get(module, CORE_TARGET)
         lines.append(
-            f'| {module} | {len(by_name)} | {counts["killed"]} | {counts["timeout"]} | '
+            f'| {module} | {source_hash(module)} | {len(by_name)} | {counts["killed"]} | '
+            f'{counts["timeout"]} | '
             f'{counts["survived"]} | {counts["no tests"]} | {counts["not checked"]} | '
             f'{_pct(score(counts))} | {_pct(score(adjusted))} | {target:.0%} |'
         )
         survivors += [(module, n) for n, s in by_name.items() if s in ('survived', 'no tests')]
     lines.append(
-        f'| **all** | {sum(total.values())} | {total["killed"]} | {total["timeout"]} | '
+        f'| **all** | | {sum(total.values())} | {total["killed"]} | {total["timeout"]} | '
         f'{total["survived"]} | {total["no tests"]} | {total["not checked"]} | '
         f'{_pct(score(total))} | | |'
     )
