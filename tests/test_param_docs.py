@@ -1,7 +1,7 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""docs/reference/parameters.md says what every node declares (generated from the specifications)."""
+"""docs/reference/parameters.md says what every node declares (generated from the specs)."""
 
 import subprocess
 import sys
@@ -24,7 +24,8 @@ def test_parameter_tables_are_current(ros_env):
 
 def test_a_changed_table_is_caught(ros_env, tmp_path):
     stale = tmp_path / 'parameters.md'
-    stale.write_text((ROOT / 'docs/reference/parameters.md').read_text().replace('0.05', '0.06', 1))
+    current = (ROOT / 'docs/reference/parameters.md').read_text()
+    stale.write_text(current.replace('0.05', '0.06', 1))
     done = subprocess.run(
         [sys.executable, '-m', 'actuator_bringup.reference_docs', '--check', '--path', str(stale)],
         cwd=ROOT,
