@@ -4,7 +4,7 @@
 """The running loop attacked as an adversarial user would.
 
 The loop keeps tracking, or stops safely with the reason logged and resumes as the policy says
-(README "Safety").
+(docs/safety.md).
 
 Each test runs the joint, ESO, controller and recorder in real time (SCHED_FIFO where the kernel
 allows) on an isolated domain, attacks the loop from this process at about 3 s, and judges the
@@ -92,9 +92,9 @@ def _brake_in_resync(samples: list, resync: set) -> list:
 
 
 #: Once at rest under the brake the joint stays where it stopped [rad]: the brake holds 50 N m,
-#: above the external torque's 30 N m peak (README "Holding brake"), so the simulated joint does
-#: not move at all. Before it is at rest it slides: from the fast trajectory's 8.8 rad/s peak,
-#: up to 0.26 rad at the brake's 150 rad/s^2.
+#: above the external torque's 30 N m peak (docs/safety.md#command-gate-and-holding-brake), so the
+#: simulated joint does not move at all. Before it is at rest it slides: from the fast trajectory's
+#: 8.8 rad/s peak, up to 0.26 rad at the brake's 150 rad/s^2.
 HELD_RAD = 1e-6
 #: Braked samples at rest the listener gets after a restart, at least. A stopped ESO or
 #: controller leaves the joint braked for the restart's pause and start-up (over 1 s: 700-4200
@@ -354,7 +354,7 @@ STALLS_S = (0.005, 0.02, 0.06, 0.3)
 #: second before a stall means the loop, not the stall, was at the limit: seen through the
 #: simulated drive with Table 4's gains (a growing 12 ms oscillation to +-20 A, status OK
 #: inside the envelope), before the CiA joints got the tuning for the drive's delay
-#: (drive_pp_nftsmc_eso, src/actuator_cia402/README.md "Tuned for the drive's delay").
+#: (drive_pp_nftsmc_eso, docs/cia402.md#tuned-for-the-drives-delay).
 AT_LIMIT_MAX = 5
 #: After a stall |e| is back under this [rad] within RECOVER_S: the resync hold (50 ms) plus
 #: the RECOVERING window (50 ms) plus the stall's own backlog, with margin for a loaded host.

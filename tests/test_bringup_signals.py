@@ -3,7 +3,8 @@
 
 """The runner and the nodes under signals: exit codes, answer times, --pin, --joint none.
 
-Real-time runs on an isolated domain, a few seconds each. The README's claims checked here:
+Real-time runs on an isolated domain, a few seconds each. What docs/safety.md#signals claims,
+checked here:
 SIGINT and SIGTERM end ``bringup`` with exit 0 and every node it started; every node answers
 SIGINT within ``SIGINT_ANSWER_S`` (measured from the signal to the process's exit).
 """
@@ -25,7 +26,7 @@ from actuator_bringup.runner import scenario_file
 from actuator_bringup.run_description import PINNING, closed_loop, ros_arguments
 
 SCENARIO = 'case2_pp_nftsmc_eso'
-#: README, Safety: "every node answers SIGINT within 0.1 s".
+#: docs/safety.md#signals: "every node answers SIGINT within 0.1 s".
 SIGINT_ANSWER_S = 0.1
 #: Executable name -> the key bringup and graph.PINNING use.
 KEYS = {'plant_node': 'joint', 'eso_node': 'eso', 'controller_node': 'controller'}

@@ -30,10 +30,11 @@ from cia402_helpers import harness_fixture, sim_drive_fixture  # noqa: F401 - fi
 #: one above, simulated drive one above that: graph.closed_loop), as in test_adversarial. Under
 #: normal scheduling on a 2-core VM the loop through the drive kept 43-96 % of the 1 kHz grid and
 #: ran away to the 20 rad/s soft limit in 0.2-1.6 s (issue 20); under SCHED_FIFO 99.6-99.9 % of
-#: SYNCs had a command, median lag 1 ms (README "CiA 402 drive").
+#: SYNCs had a command, median lag 1 ms.
 CLOSED_LOOP_PRIORITY = 50
-#: Tracking of the 5 s end-to-end run through the drive on [1, 5) s, as measured (README of
-#: actuator_cia402): the largest max |e| and RMS [rad] of three runs without a stall.
+#: Tracking of the 5 s end-to-end run through the drive on [1, 5) s, as measured
+#: (docs/cia402.md#tuned-for-the-drives-delay): the largest max |e| and RMS [rad] of three runs
+#: without a stall.
 END_TO_END_MAX_RAD, END_TO_END_RMS_RAD = 2.28e-3, 7.62e-4
 
 
@@ -299,10 +300,10 @@ def test_end_to_end_fast_deep_sea_case_tracks_within_a_factor_of_the_offline_cor
             f'measurement timeout): max |e| {max_run:.2e} rad',
             stall_ms=stall_ms,
         )
-    # Measured under SCHED_FIFO on a 2-core VM (src/actuator_cia402/README.md, 2026-12-05, the
-    # drive's tuning drive_pp_nftsmc_eso): max |e| 2.26e-3 to 2.28e-3 rad, RMS 7.52e-4 to
-    # 7.62e-4 in three runs; the offline core with the drive model (quantisation, torque loop,
-    # one SYNC of command delay) 1.86e-3 and 7.71e-4. Bounds: 3x the measured figures. (With
+    # Measured under SCHED_FIFO on a 2-core VM (docs/cia402.md#tuned-for-the-drives-delay;
+    # 2026-12-05, the drive's tuning drive_pp_nftsmc_eso): max |e| 2.26e-3 to 2.28e-3 rad, RMS
+    # 7.52e-4 to 7.62e-4 in three runs; the offline core with the drive model (quantisation, torque
+    # loop, one SYNC of command delay) 1.86e-3 and 7.71e-4. Bounds: 3x the measured figures. (With
     # Table 4's gains, 2026-12-02: max |e| 8.1e-3 and 9.3e-3, RMS 4.8e-4 and 5.6e-4.)
     assert analyze_run(run).metrics.bounds_kept
     assert rms_run < 3.0 * END_TO_END_RMS_RAD, rms_run

@@ -353,8 +353,9 @@ def test_offline_drive_model_without_effects_is_the_offline_core_and_the_sync_de
 def test_one_sync_of_delay_leaves_the_papers_observer_bandwidth_a_narrow_window():
     """With the drive's one SYNC, w0 = 60 rad/s (Table 4) holds 16 s; 50 rad/s chatters.
 
-    The margin table of ``python -m actuator_cia402.offline --margin`` (README "Attacked as the
-    plant is"): a lower observer bandwidth is not the cure for the drive's delay.
+    The margin table of ``python -m actuator_cia402.offline --margin``
+    (docs/cia402.md#tuned-for-the-drives-delay): a lower observer bandwidth is not the cure for
+    the drive's delay.
     """
     from actuator_cia402.offline import margin_table
 

@@ -348,7 +348,9 @@ BRAKED = dataclasses.replace(
 
 
 def _braked_by_hand(t, q, v, u, dt):
-    """Semi-implicit Euler of the brake (README "Safety") with (1), (40), (41) written out.
+    """Semi-implicit Euler of the brake with (1), (40), (41) written out.
+
+    The brake: docs/safety.md#command-gate-and-holding-brake.
 
     Moving: the brake's T_h opposes the motion; a sub-interval whose velocity would change
     sign ends at rest. At rest: held while the other torques stay within T_h, else T_h

@@ -3,9 +3,10 @@
 
 """Nodes started with the designed gains (actuator_studies' parameter file) run with them.
 
-The designed file is loaded after the scenario file (bringup --params-file), as the studies
-README says; in deterministic sim time the three processes then equal the offline core with
-the designed gains bit for bit, and differ from the loop with Table 4's.
+The designed file is loaded after the scenario file (bringup --params-file), as
+docs/how-to/change-gains.md#the-designed-gains-of-the-studies says; in deterministic sim time the
+three processes then equal the offline core with the designed gains bit for bit, and differ from
+the loop with Table 4's.
 """
 
 from __future__ import annotations

@@ -62,7 +62,7 @@ def test_the_plant_steps_only_for_a_command_that_answers_its_newest_sample(rclpy
 
 
 def test_a_bad_current_brakes_the_joint_whatever_sample_it_claims(rclpy_context):
-    """Values before stamps (README "Safety"): NaN for a sample already applied still gives 0 A."""
+    """NaN for a sample already applied still gives 0 A (docs/safety.md#values-before-stamps)."""
     from actuator_plant.plant_node import PlantNode
 
     node = make(PlantNode, rclpy_context)

@@ -291,6 +291,7 @@ def test_sigterm_to_bringup_stops_every_node_it_started(ros_env, tmp_path):
     assert len(children) >= 4, runner.describe()
     time.sleep(2.0)
     os.kill(runner.pid, signal.SIGTERM)  # to the runner alone, not its group
-    assert runner.wait(60.0) == 0, runner.describe()  # README: exit 0 after a signal
+    # docs/safety.md#signals: exit 0 after a signal
+    assert runner.wait(60.0) == 0, runner.describe()
     assert not [c for c in children if c.is_running() and c.status() != psutil.STATUS_ZOMBIE]
     assert 'stopped by a signal: stopping every node' in runner.output

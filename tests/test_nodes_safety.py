@@ -194,7 +194,7 @@ def test_controller_latches_safe_stop_beyond_following_error(harness, ros_proces
         (c.current_a, c.safe_stop) for c in after
     ]
     assert 'following_error_limit_rad' in ctrl.output
-    # The latch holds until cleanup and configure (README "Safety"): deactivate and activate
+    # The latch holds until cleanup and configure (docs/safety.md#latch): deactivate and activate
     # alone keep it (fresh samples answered LATCHED, 0 A with the brake); deactivate, cleanup,
     # configure, activate through the lifecycle services release it: fresh samples are
     # controlled again, commands without safe_stop, no LATCHED state.

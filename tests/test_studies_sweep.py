@@ -302,7 +302,8 @@ def test_task_size_is_separate_from_the_batch_and_study_json_records_its_provena
     assert summary['chunks'] == 2 and summary['chunk_runs'] == 3  # 3 + 2 runs, batches of 2
     a, b = (table_arrays(tmp_path / d) for d in ('one', 'split'))
     # Same runs, same seeds, same verdicts; numpy's SIMD loops may round an element differently
-    # by its position in the array, so another batching can move the last bits (README).
+    # by its position in the array, so another batching can move the last bits
+    # (docs/studies.md#how-a-sweep-runs).
     for key in ('run', 'seed', 'depth_m', 'diverged', 'saturated_samples', 'bounds_violations'):
         assert np.array_equal(a[key], b[key])
     for key in ('max_steady_error_rad', 'rms_error_rad', 'rms_current_a'):

@@ -9,7 +9,7 @@ the file whole groups of records (the header, a chunk, its message indexes, the 
 failed write (ENOSPC, EIO, any OSError) the partial group can be cut off and the file ends on a
 record boundary: bag_repair then recovers every chunk before it.
 
-Test hook (documented in bags/README.md): with the environment variable
+Test hook (documented in docs/bags.md#full-disk): with the environment variable
 ``ACTUATOR_BAG_TEST_FULL_AFTER_BYTES=N`` set, every data file opened behaves as a disk that is
 full after N bytes: the bytes beyond are written to ``/dev/full``, so the failure is the
 kernel's own ENOSPC. Only tests set it.

@@ -8,7 +8,8 @@ in real time (normal scheduling and/or SCHED_FIFO) and in deterministic sim time
 ``--repeats`` times, plus the offline core's speed (scalar and batched ``ClosedLoop``). Every
 figure is printed as the median over repeats with its min/max spread, next to the issue's
 target and PASS/MISS; nothing is asserted. Raw per-run files, summary.json and runs.csv are
-kept under ``--out/<UTC timestamp>/``. See benchmarks/README.md for each figure's formula.
+kept under ``--out/<UTC timestamp>/``. Each figure's formula:
+docs/performance.md#figures-and-their-formulas.
 
 The ROS domain is the caller's environment (ROS_DOMAIN_ID); this module never changes it.
 

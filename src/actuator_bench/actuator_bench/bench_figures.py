@@ -4,8 +4,8 @@
 """Figures of one benchmark run: pure functions of the files a run left (``bench``).
 
 Each reads the controller's timing log, the plant's sample log, the observer's pairing counts,
-the node logs or the bag, and returns a flat dict of figures; benchmarks/README.md gives each
-figure's formula.
+the node logs or the bag, and returns a flat dict of figures; each figure's formula is in
+docs/performance.md#figures-and-their-formulas.
 """
 
 from __future__ import annotations

@@ -70,8 +70,9 @@ def _in_process_bag(specs: list[NodeSpec], loops: dict) -> str:
     Why a composed lockstep may record in-process (actuator_bag.tap): with the recorder process
     each of the loop's synchronous publishes also goes to another process (shared memory, a
     RELIABLE writer's bookkeeping per message), and the lockstep ran at 2.5-2.8x real time
-    against 4.4x unrecorded; handed over a pipe in batches it runs at 3.8-4.3x (README
-    "Performance"). It records what the container's nodes publish, not what other processes do.
+    against 4.4x unrecorded; handed over a pipe in batches it runs at 3.8-4.3x
+    (docs/performance.md#current-figures). It records what the container's nodes publish, not
+    what other processes do.
     ValueError when the run cannot: without the recorder, more than one joint, or in real time,
     where a full pipe would hold up a loop that has a deadline (the recorder process records).
     """

@@ -8,8 +8,8 @@ r"""The loop's nodes composed in one process on one executor, as ROS 2 component
 
 Each node stays the node it is when run alone (its name, parameters, lifecycle, checks and
 guards); only the process is shared. Messages between nodes of one process stay in one DDS
-participant, so Fast DDS hands them over without the network path (measured in the README's
-performance section). Parameters go to one node by the ``node:name:=value`` form of
+participant, so Fast DDS hands them over without the network path (measured:
+docs/performance.md#current-figures). Parameters go to one node by the ``node:name:=value`` form of
 ``--ros-args -p``, or by the node's section of a parameter file; the process's real-time
 settings (``thread_priority`` ...) are those of the first node named.
 

@@ -48,7 +48,7 @@ DEFAULT_SCENARIOS = {
 #: A composed loop's process takes its joint's CPU (the first member's settings are the
 #: process's): all its threads on one core, which under SCHED_FIFO cost 42-46 % of a core
 #: against 57-60 % unpinned, latency p50 240-258 against 283-297 us (3 alternating pairs of 22 s
-#: runs, 2026-12-05; README "Performance" has the benchmark's figures).
+#: runs, 2026-12-05; docs/performance.md#current-figures has the benchmark's).
 PINNING = {'joint': '0', 'eso': '1', 'controller': '1'}
 #: Rate of the diagnostic topics (plant/truth, controller/state) in a real-time run that records
 #: nothing [Hz]: enough for a live plot; a recorded or sim run keeps every sample for the analysis.

@@ -387,7 +387,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument(
         '--live-view',
         action='store_true',
-        help='also serve the loop to Foxglove (live_view on ws://127.0.0.1:8765; README)',
+        help='also serve the loop to Foxglove (live_view on ws://127.0.0.1:8765; '
+        'docs/how-to/live-view.md)',
     )
     parser.add_argument(
         '--diagnostics-rate',
@@ -425,7 +426,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(
             '[bringup] warning: the loop through the CiA 402 driver keeps its 1 kHz SYNC grid '
             'only under SCHED_FIFO (--thread-priority 50); with normal scheduling on 2 cores it '
-            'ran away to the joint soft limit (README "CiA 402 drive")',
+            'ran away to the joint soft limit (docs/cia402.md#running-it)',
             file=sys.stderr,
             flush=True,
         )

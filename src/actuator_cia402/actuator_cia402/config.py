@@ -4,8 +4,8 @@
 """The driver's parameters as specs (unit, valid range, description).
 
 One declaration for ROS and docs. ROS-free: the driver node declares them with
-actuator_ros.parameters.declare_spec_parameters, launch_spec builds them for a closed-loop run, the
-README lists them.
+actuator_ros.parameters.declare_spec_parameters, launch_spec builds them for a closed-loop run, and
+docs/reference/parameters.md lists them (generated).
 """
 
 from __future__ import annotations

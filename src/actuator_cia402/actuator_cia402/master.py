@@ -4,7 +4,7 @@
 """The CiA 402 master's SDO side for one drive: configure, enable, stop, fault acknowledgement.
 
 ROS-free; called by ``Cia402Joint`` (joint.py) in its lifecycle transitions, never in the cycle.
-Every object it reads or writes, and why, is in the README's object table.
+Every object it reads or writes, and why: docs/cia402.md#every-object-the-driver-reads-or-writes.
 
   configure   NMT reset communication and boot-up; device type, identity 0x1018 against the
               EDS; a drive left enabled is stopped (quick stop, ramp, brake, disable voltage);
@@ -46,7 +46,7 @@ SYNCHRONOUS = 1
 QUICK_STOP_OPTION = 6
 DISABLE_OPERATION_OPTION = 1
 ABORT_CONNECTION_QUICK_STOP = 3
-#: Cycle PDO layout: RPDO1, TPDO1, TPDO2 (README bus load: 4, 8, 5 bytes).
+#: Cycle PDO layout: RPDO1, TPDO1, TPDO2 (docs/cia402.md#bus-load: 4, 8, 5 bytes).
 RPDO1 = (p.CONTROLWORD, p.TARGET_TORQUE)
 TPDO1 = (p.STATUSWORD, p.POSITION_ACTUAL, p.TORQUE_ACTUAL)
 TPDO2 = (p.CURRENT_ACTUAL, p.ERROR_CODE, p.MODES_OF_OPERATION_DISPLAY)

@@ -15,7 +15,7 @@ the one the CiA 402 joints run, ``drive_pp_nftsmc_eso`` (Case 2 tuned for the dr
 
 ``--margin`` shows how little the drive leaves the paper's design: samples at the current limit
 over a long run for observer bandwidths around the paper's 60 rad/s and slower torque loops
-(README "Tuned for the drive's delay").
+(docs/cia402.md#tuned-for-the-drives-delay).
 """
 
 from __future__ import annotations

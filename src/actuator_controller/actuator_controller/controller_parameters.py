@@ -21,13 +21,13 @@ from actuator_ros.parameters import (
 )
 from actuator_ros.qos import MODES
 
-#: What clocks the control update (README "Nodes and topic contract").
+#: What clocks the control update (docs/concepts/architecture.md#what-clocks-the-controller).
 TRIGGERS = ('measurement', 'timer')
 
 
 @dataclass(frozen=True)
 class ControllerParameters:
-    """What one configure of the controller node read (docs/parameters.md)."""
+    """What one configure of the controller node read (docs/reference/parameters.md)."""
 
     mode: str  #: realtime or sim
     name: str  #: the control law (parameter 'controller')

@@ -25,16 +25,16 @@ measurement received or the next one (x_hat(k+1) is made before y(k+1) exists); 
 further ahead is refused with its reason and moves nothing. Two different estimates for one
 sample (a second publisher racing the observer) are both dropped: that sample gets 0 A.
 
-Recovery policy (README "Safety"), every gap alike: a stale input is answered in grades by
-``watchdog``: up to its timeout nothing (the drive holds the last command), then 0 A without
-the brake, and 0 A with the brake once the input is ``brake_after`` old; a brake a safe stop
-engaged (a resync, the watchdog's own) stays until the law commands again. When the law is to
-run again after more than ``gap_limit_samples`` (the drive's command timeout: the joint was
-braked by its gate or by this watchdog) without a law sample, after the node itself sent
-no command that long (``command_gap``: a stalled node sees no gap in the stamps it then reads),
-or after the watchdog braked the joint (an input that old: the stamps the law runs on next may
-show no gap, e.g. a stalled joint replaying its samples), the resync path runs instead: no
-chase of the error the reference accumulated meanwhile.
+Recovery policy (docs/safety.md#recovery-policy), every gap alike: a stale input is answered in
+grades by ``watchdog``: up to its timeout nothing (the drive holds the last command), then 0 A
+without the brake, and 0 A with the brake once the input is ``brake_after`` old; a brake a safe
+stop engaged (a resync, the watchdog's own) stays until the law commands again. When the law is to
+run again after more than ``gap_limit_samples`` (the drive's command timeout: the joint was braked
+by its gate or by this watchdog) without a law sample, after the node itself sent no command that
+long (``command_gap``: a stalled node sees no gap in the stamps it then reads), or after the
+watchdog braked the joint (an input that old: the stamps the law runs on next may show no gap, e.g.
+a stalled joint replaying its samples), the resync path runs instead: no chase of the error the
+reference accumulated meanwhile.
 After a resync, and after a shorter gap the watchdog answered, the law's samples say
 RECOVERING for ``RECOVERY_SAMPLES``, and always while |e| is outside the prescribed envelope:
 a state never says OK there. Ages are measured on the receiver's monotonic clock

@@ -4,7 +4,7 @@
 """Bind every stamp to a sample the receiver has seen; refuse measurements no joint can make.
 
 A command or estimate is an answer to one measurement sample. It counts only for a sample the
-receiver saw happen (README "Safety", the windows):
+receiver saw happen (docs/safety.md#stamp-windows):
   ``SeenSamples``         the stamps a receiver has seen (the ESO and the controller: the
                           measurements they received) or produced (the joint: its own samples);
   ``CommandBinding``      the joint's rule: a current command only for one of its samples within
@@ -35,12 +35,12 @@ SEEN_DEPTH = 1000
 def late_window_samples(period_ns: int, timeout_s: float = limits.COMMAND_TIMEOUT_S) -> int:
     """Joint: how many samples before the newest a current command may answer (its late window).
 
-    Those the drive's command timeout still covers: a command valid for the timeout from the
-    sample it answers (the joint node offers it to the gate that much earlier) would otherwise
-    be refused while the gate holds an older one for up to the timeout. Under normal scheduling
-    the controller answers 2-11 samples late for tens of ms at a time (README "Performance"), and
-    a joint that refused those answers held commands 2-16 ms old instead: the newest answer is
-    never older than the command held. One sample of validity is kept, so at least one before.
+    Those the drive's command timeout still covers: a command valid for the timeout from the sample
+    it answers (the joint node offers it to the gate that much earlier) would otherwise be refused
+    while the gate holds an older one for up to the timeout. Under normal scheduling the controller
+    answers 2-11 samples late for tens of ms at a time (docs/safety.md#late-answers), and a joint
+    that refused those answers held commands 2-16 ms old instead: the newest answer is never older
+    than the command held. One sample of validity is kept, so at least one before.
     """
     return max(1, int(round(timeout_s * 1e9)) // period_ns - 1)
 

@@ -60,7 +60,7 @@ VELOCITY_LIMIT_RAD_S = 20.0
 #: (lag + 1) times the true speed in that sample, 66-143 rad/s at 5 rad/s, and ended control
 #: of a joint that never exceeded 9 rad/s. A real overspeed is judged at most one window late.
 SOFT_VELOCITY_WINDOW_S = 0.02
-#: Loop health on the joint side (README "Safety"): the share of the samples of the last
+#: Loop health on the joint side (docs/safety.md#loop-health): the share of the samples of the last
 #: window [s] whose applied command answered one of the two newest samples (the window the
 #: command binding accepts). Below the share, /diagnostics warns (or control ends, parameter
 #: stop_on_stale_loop). Measured with bringup on a 2-core VM (stop 34 note): under SCHED_FIFO
@@ -110,7 +110,7 @@ BRAKE_DELAY_RANGE_S = (0.0, 10.0)
 MEASUREMENT_TIMEOUT_S = 0.007
 ESTIMATE_TIMEOUT_S = 0.007
 TIMEOUT_RANGE_S = (1.0e-3, 10.0)
-#: The controller's graded answer to a stale input (README "Safety", recovery policy): up to
+#: The controller's graded answer to a stale input (docs/safety.md#recovery-policy): up to
 #: the measurement/estimate timeout it sends nothing and the drive holds the last command;
 #: then 0 A without the brake; once the input is older than this [s], 0 A with the brake
 #: (safe_stop). Equal to the drive's command timeout: a joint that has not been commanded

@@ -6,8 +6,9 @@
 Pair each measurement y(k) with the current u(k) commanded for it. Held by the ESO node and by the
 offline loop (``actuator_sim.loop``). The observer holds x_hat(k); once y(k) and u(k) with the same
 stamp t_k are both in, one step of (15) gives x_hat(k+1) (stamped t_k + dt), before y(k+1) exists
-(docs/architecture.md). Pairing is by stamp, never "the latest message": with the paper's gains the
-loop diverges when the observer integrates u(k-1) (docs/paper-resolutions.md, 16).
+(docs/concepts/architecture.md#sample-timing). Pairing is by stamp, never "the latest message":
+with the paper's gains the loop diverges when the observer integrates u(k-1)
+(docs/paper-resolutions.md, 16).
 
 A half of a pair that does not come in time is replaced: the step uses the last known current
 (or, without a measurement, no correction) and says so. "In time" is ``patience_samples``:

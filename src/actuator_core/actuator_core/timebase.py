@@ -13,7 +13,7 @@ Every stamp is checked against the receiver's clock and the sample grid. Held by
   JUMP     a discontinuity (a restarted sensor or driver): off the grid, or back in time (by
            more than ``jump_samples`` in real time, by any amount in sim, where nothing comes
            late), or ahead by more than ``jump_samples``. The stamp becomes the new grid
-           origin and the receiver applies its restart policy (README "Safety");
+           origin and the receiver applies its restart policy (docs/safety.md#recovery-policy);
   INVALID  negative, or beyond ``limits.STAMP_MAX_NS`` (builtin_interfaces/Time's int32 seconds
            would overflow on the stamps a node derives from it): refused.
 A caller may pass ``limit_ns``, the newest stamp it may accept (the newest measurement it has

@@ -11,7 +11,7 @@ publishes  eso/estimate (actuator_msgs/StateEstimate)
 The node holds an ``ExtendedStateObserver`` and its ``ObserverInputPairing`` (actuator_core),
 the same objects as the offline loop: the pairing steps the observer once per (y(k), u(k))
 pair by stamp and says what it did (substituted, repaired, restarted); the node only checks
-what comes in and publishes what comes out (docs/architecture.md).
+what comes in and publishes what comes out (docs/concepts/sample-protocol.md).
 
 Inputs: values are checked before stamps (a refused value never moves a stream's newest
 stamp); a measurement whose implied velocity no joint can make is refused

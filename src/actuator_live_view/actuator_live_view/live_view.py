@@ -10,7 +10,8 @@ The server is foxglove-sdk's.
     bringup --live-view
 
 Then in the Foxglove app: Open connection -> Foxglove WebSocket -> ws://127.0.0.1:8765, and
-import the layout share/actuator_live_view/foxglove/closed_loop_layout.json (README "Live view").
+import the layout share/actuator_live_view/foxglove/closed_loop_layout.json
+(docs/how-to/live-view.md).
 
 Each topic is subscribed raw (rclpy ``raw=True``: the serialized CDR bytes, never decoded) and
 forwarded as a ``cdr`` channel whose ``ros2msg`` schema is the full definition text the recorder

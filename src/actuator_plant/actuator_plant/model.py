@@ -459,10 +459,11 @@ def rk4_step(t: float, position_rad, velocity_rad_s, current_a, dt: float, c: Pl
 def braked_step(t: float, position_rad, velocity_rad_s, current_a, dt: float, c: PlantConstants):
     """Advance (q, q') by ``dt`` with the holding brake engaged.
 
-    Beyond the paper; README "Safety". The brake is a friction torque of up to T_h at the output
-    shaft: it opposes motion with T_h until the joint stops, and holds it at rest while the other
-    torques stay below T_h. Semi-implicit Euler on ``substeps`` sub-intervals; a sub-interval in
-    which the velocity would change sign ends at rest. Elementwise on arrays.
+    Beyond the paper; docs/safety.md#command-gate-and-holding-brake. The brake is a friction torque
+    of up to T_h at the output shaft: it opposes motion with T_h until the joint stops, and holds
+    it at rest while the other torques stay below T_h. Semi-implicit Euler on ``substeps``
+    sub-intervals; a sub-interval in which the velocity would change sign ends at rest. Elementwise
+    on arrays.
     """
     n_sub = c.params.substeps
     h = dt / n_sub

@@ -14,7 +14,8 @@ does not subscribe (the controller's own output) is counted by ``poll``.
 Per-message identity: rclpy 7.1.6's message info carries timestamps and the publication
 sequence number, not the publisher's GID, under either executor, so a node cannot tell which
 publisher one message came from; binding to the one peer is therefore done on the graph: the
-node acts on an input only while exactly one publisher is matched on it (README "Safety").
+node acts on an input only while exactly one publisher is matched on it
+(docs/safety.md#one-publisher-per-input).
 """
 
 from __future__ import annotations

@@ -3,13 +3,13 @@
 
 """ROS parameters declared from specifications: description, unit, range; refusals as one line.
 
-Policy (README "Parameters"): every parameter is declared with a description; a value of the
-wrong type, out of range, or a name no node declares (a typo in a parameter file or on the
-command line) is refused with one line naming it and the nearest declared name, and the
-node exits 2. ``allow_unknown_parameters:=true`` turns unknown names into a warning, for
-parameter files shared by several nodes (``/**`` sections). Parameters are read at configure:
-``ros2 param set`` is accepted only while the node is unconfigured (cleanup first), so what
-``ros2 param get`` says is always what the node runs with.
+Policy (docs/concepts/architecture.md#parameters): every parameter is declared with a description;
+a value of the wrong type, out of range, or a name no node declares (a typo in a parameter file or
+on the command line) is refused with one line naming it and the nearest declared name, and the node
+exits 2. ``allow_unknown_parameters:=true`` turns unknown names into a warning, for parameter files
+shared by several nodes (``/**`` sections). Parameters are read at configure: ``ros2 param set`` is
+accepted only while the node is unconfigured (cleanup first), so what ``ros2 param get`` says is
+always what the node runs with.
 """
 
 from __future__ import annotations

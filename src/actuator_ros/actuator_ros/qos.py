@@ -10,7 +10,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 #: Run modes: wall-clock 1 kHz sampling, or lockstep on the plant's /clock.
 MODES = ('realtime', 'sim')
 
-#: KEEP_LAST depth per mode (README "Nodes and topic contract" quotes these).
+#: KEEP_LAST depth per mode (docs/concepts/architecture.md#topics quotes these).
 REALTIME_DEPTH = 10
 SIM_DEPTH = 10000
 

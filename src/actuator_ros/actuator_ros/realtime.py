@@ -35,7 +35,7 @@ PUBLICATION_MODE_VARIABLE = 'RMW_FASTRTPS_PUBLICATION_MODE'
 #: by how its threads are scheduled. ASYNCHRONOUS (a sending thread per writer) only where that
 #: thread runs at once, under SCHED_FIFO; SYNCHRONOUS (a publish sends in the caller's thread)
 #: under normal scheduling and in sim time. Measured in two benchmark invocations of 2026-12-05
-#: (2 x 20 s per variant, real time over UDP, README "Performance"): under normal scheduling
+#: (2 x 20 s per variant, real time over UDP; docs/performance.md): under normal scheduling
 #: every hand-off to a sending thread is a chance to wait a time slice, asynchronous lost
 #: 1596-1853 samples of 20000 against 132-147 synchronous (composed 842-1067 against 141-222);
 #: under SCHED_FIFO, composed, asynchronous keeps the latency p50 at 264 us against 362 us

@@ -5,7 +5,7 @@
 
 Under normal scheduling the observer and the controller sometimes take a measurement several
 samples after the joint made it, for tens of ms at a time, without a gap that would start the
-recovery policy (README "Performance": 2-11 ms for 20-200 ms). Their answers then reach the
+recovery policy (2-11 ms for 20-200 ms; docs/safety.md#late-answers). Their answers then reach the
 joint late, and its command binding decides what it applies: a window of one sample (the newest
 or the one before) refuses them, and the gate holds an older command for up to its timeout; the
 timeout's window (``binding.late_window_samples``) applies the newest answer. This runs the

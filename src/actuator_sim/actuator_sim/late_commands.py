@@ -3,11 +3,11 @@
 
 """What late commands do to the loop, offline: ``python -m actuator_sim.late_commands``.
 
-In real time a command sometimes misses its sample, and the plant holds the previous current
-over it. The ESO can then integrate the current the controller commanded (what the ESO node
-and controller achieve by repairing the estimate, docs/architecture.md) or the one the plant
-held. This runs the offline core (``ClosedLoop``) with the plant one sample late on random
-samples, in bursts, both ways, and prints the max steady-state error; a run beyond the
+In real time a command sometimes misses its sample, and the plant holds the previous current over
+it. The ESO can then integrate the current the controller commanded (what the ESO node and
+controller achieve by repairing the estimate, docs/concepts/architecture.md#sample-timing) or the
+one the plant held. This runs the offline core (``ClosedLoop``) with the plant one sample late on
+random samples, in bursts, both ways, and prints the max steady-state error; a run beyond the
 controller's following-error limit (0.5 rad) is reported as latched.
 """
 

@@ -3,7 +3,7 @@
 
 """The closed loop: the objects the three nodes hold, called in the order the nodes call them.
 
-Sample k (see docs/architecture.md), each step the same call a node makes:
+Sample k (see docs/concepts/architecture.md#sample-timing), each step the same call a node makes:
   1. the joint integrates [t_k-1, t_k) and samples y(k)   (joint node: ``SimulatedJoint``);
   2. the observer pairing takes y(k)                      (ESO node: ``ObserverInputPairing``);
   3. the controller assembly takes x_hat(k) and y(k) and

@@ -47,7 +47,7 @@ DRIVE_DELAY_SAMPLES = 1
 #: of the drift (41) (``stability.drift_extremes``), and through the simulated drive it chatters
 #: at the current limit while the drift passes it; with these, 0.987 at every vertex (as the
 #: paper's loop without delay), and 40 s offline runs with 0.8 ms more torque lag stay off the
-#: limit (src/actuator_cia402/README.md "Tuned for the drive's delay").
+#: limit (docs/cia402.md#tuned-for-the-drives-delay).
 DRIVE_ESO_POLE_MULTIPLE = 4.0
 DRIVE_K3_PER_S = 100.0
 #: Name of that scenario (its parameter file share/actuator_bringup/config/<name>.yaml).

@@ -78,9 +78,10 @@ SEARCH_SPACE = (
     ('pp_nftsmc_eso.k3_per_s', 20.0, 2000.0),
     ('eso.omega0_rad_s', 20.0, 150.0),
 )
-#: Default corners: the depth range the joint can drive at all (README, section 1: beyond about
-#: 2500 m the seal friction of eq. (42) takes the motor's torque at the current limit), both
-#: ends of the temperature range, and no and two samples of command delay.
+#: Default corners: the depth range the joint can drive at all
+#: (docs/studies.md#depth-and-temperature-where-it-breaks: beyond about 2500 m the seal friction of
+#: eq. (42) takes the motor's torque at the current limit), both ends of the temperature range, and
+#: no and two samples of command delay.
 DEFAULT_CORNERS = (
     'depth_m=0,1000,2000',
     'condition.temperature_c=-2,30',

@@ -172,7 +172,7 @@ def tables_identical(a: pa.Table, b: pa.Table) -> bool:
 def group_table(out: Path, by: str) -> list[dict]:
     """Per value of ``by`` (comma-separated names): runs, failed, diverged, errors, saturation.
 
-    The figures the README's tables quote, from a study's runs.parquet.
+    The figures the tables of docs/studies.md#what-the-studies-found quote, from runs.parquet.
     """
     table = pq.read_table(out / 'runs.parquet')
     names = [n for n in by.split(',') if n]
