@@ -3,7 +3,7 @@
 
 """Write docs/mutation-report.md from mutmut's results in build/mutation (scripts/mutation.sh).
 
-Per module: the SHA-256 of its source when it was mutated (first 12 hex digits; a unit test,
+Per module: the SHA-256 of its code when it was mutated (first 12 hex digits; a unit test,
 tests/test_mutation_report.py, fails when a module's source no longer matches its row, so a
 stale score cannot be quoted), killed, survived, timeout, no tests, not checked, and the score
 killed / (killed + survived + no tests), timeouts counted as killed (the test run did not pass).
@@ -14,6 +14,7 @@ carry the reason and are left out of the "score without equivalents".
 from __future__ import annotations
 
 import argparse
+import ast
 import datetime
 import hashlib
 import json
@@ -40,12 +41,29 @@ EQUIVALENT = Path(__file__).resolve().parent / 'equivalent.toml'
 ROOT = Path(__file__).resolve().parents[2]
 #: The columns before the counts: the module and its source's hash.
 LEAD = 2
+#: The source cell of a row whose module changed since its run (its score is withheld).
+STALE = 'stale'
 
 
 def source_hash(module: str, root: Path = ROOT) -> str:
-    """Return the first 12 hex digits of the SHA-256 of a module's source (e.g. a/gate.py)."""
+    """Return the first 12 hex digits of the SHA-256 of a module's code (e.g. a/gate.py).
+
+    Of its syntax tree without docstrings: what mutmut mutates, so an edit of a comment or a
+    docstring leaves the score standing and any change of the code does not.
+    """
     package = module.split('/')[0]
-    return hashlib.sha256((root / 'src' / package / module).read_bytes()).hexdigest()[:12]
+    tree = ast.parse((root / 'src' / package / module).read_text())
+    for node in ast.walk(tree):
+        body = getattr(node, 'body', None)
+        if (
+            isinstance(body, list)
+            and body
+            and isinstance(body[0], ast.Expr)
+            and isinstance(body[0].value, ast.Constant)
+            and isinstance(body[0].value.value, str)
+        ):
+            node.body = body[1:] or [ast.Pass()]
+    return hashlib.sha256(ast.dump(tree).encode()).hexdigest()[:12]
 
 
 def status(code) -> str:
@@ -234,10 +252,15 @@ def render(
     survivors = []
     kept_blocks = []
     total = Counter()
+    stale = 0
     for module, by_name in results.items():
         if module in kept:
             cells = [c.strip() for c in kept_rows[module].strip('|').split('|')]
-            lines.append(kept_rows[module].replace(f'| {module} |', f'| {module} (earlier) |', 1))
+            if cells[1] != source_hash(module):  # changed since that run: its score is withheld
+                cells[1], cells[LEAD + 6], cells[LEAD + 7] = STALE, '—', '—'
+            stale += cells[1] == STALE
+            cells[0] = f'{module} (earlier)'
+            lines.append('| ' + ' | '.join(cells) + ' |')
             keys = ('mutants', 'killed', 'timeout', 'survived', 'no tests', 'not checked')
             total += Counter(dict(zip(keys[1:], (int(c) for c in cells[LEAD + 1 : LEAD + 6]))))
             kept_blocks += kept_sections.get(module, [])
@@ -258,7 +281,7 @@ def render(
     lines.append(
         f'| **all** | | {sum(total.values())} | {total["killed"]} | {total["timeout"]} | '
         f'{total["survived"]} | {total["no tests"]} | {total["not checked"]} | '
-        f'{_pct(score(total))} | | |'
+        f'{"—" if stale else _pct(score(total))} | | |'
     )
     lines += ['', f'## Surviving mutants ({len(survivors) + len(kept_blocks)})', '']
     lines += kept_blocks
