@@ -207,7 +207,13 @@ def test_analysis_reads_a_sim_time_run_that_ros2_bag_record_stored(
     assert diag['actuator_controller']['worst'] == 'WARN'
     assert diag['actuator_controller']['levels'] == {'OK': 11, 'WARN': 1}
     assert diag['actuator_controller']['reasons'] == ['2 late samples since the last report']
-    assert diag['actuator_eso'] == {'levels': {'OK': 12}, 'worst': 'OK', 'reasons': []}
+    assert diag['actuator_eso'] == {
+        'levels': {'OK': 12},
+        'worst': 'OK',
+        'reasons': [],
+        'before_run': {},
+        'after_run': {},
+    }
     assert 'actuator_controller WARN (OK 11 WARN 1): 2 late samples' in table
 
 

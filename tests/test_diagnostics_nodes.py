@@ -38,6 +38,8 @@ def test_a_sim_run_records_every_nodes_health_and_the_stop_of_its_inputs(
 ):
     """Each node's /diagnostics in the bag: OK while the loop runs, STALE once the plant stopped.
 
+    The analysis judges the run by what was reported inside it.
+
     The loop is the one bringup starts (graph.closed_loop, sim); the other nodes are kept until
     the controller has reported the plant's silence (an event, not a sleep), then stopped, so the
     bag holds that report whatever the host's speed.
@@ -86,10 +88,12 @@ def test_a_sim_run_records_every_nodes_health_and_the_stop_of_its_inputs(
     assert controller[-1][2]['lifecycle_state'] == 'active'
     assert int(reports['actuator_eso'][-1][2]['steps']) >= 1900
     assert all(level != 2 for level, _, _ in reports['recorder'])
-    # The analysis reads them.
-    summary = load_run(bag_dir, quiet=True).diagnostics
-    assert summary['actuator_controller']['worst'] == 'STALE'
-    assert summary['actuator_controller']['levels']['STALE'] == len(stale)
+    # The analysis reads them, and judges the run by the reports stamped inside it: the
+    # controller was OK while the plant sampled; its STALE reports of the plant's end come after
+    # the last sample (sim time stopped there) and are counted apart.
+    summary = load_run(bag_dir, quiet=True).diagnostics['actuator_controller']
+    assert summary['worst'] == 'OK', summary
+    assert summary['after_run']['STALE'] == len(stale)
 
 
 def test_the_controller_reports_refusals_by_reason_and_a_latch_as_error(

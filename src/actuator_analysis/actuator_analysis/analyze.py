@@ -92,7 +92,8 @@ class RunData:
     #: 'sim' or 'wall', told from the stamps; the log times' clock likewise.
     stamp_clock: str = 'wall'
     log_clock: str = ''
-    #: Per /diagnostics component: {'levels': {level: reports}, 'worst': level, 'reasons': [..]}.
+    #: Per /diagnostics component, over the run (the joint's first to last sample): {'levels':
+    #: {level: reports}, 'worst': level, 'reasons': [..], 'before_run': {..}, 'after_run': {..}}.
     diagnostics: dict[str, dict[str, Any]] = field(default_factory=dict)
 
     @property
@@ -212,13 +213,27 @@ def clock_of(ns: np.ndarray) -> str:
     return 'sim' if float(np.median(ns)) < WALL_CLOCK_START_NS else 'wall'
 
 
-def summarize_diagnostics(reports: Sequence[tuple]) -> dict[str, dict[str, Any]]:
-    """Per component: reports per level, the worst level, its distinct reasons (first 5)."""
+def summarize_diagnostics(
+    reports: Sequence[tuple], window_ns: Optional[tuple[int, int]] = None
+) -> dict[str, dict[str, Any]]:
+    """Per component: reports per level, the worst level, its distinct reasons (first 5).
+
+    ``reports``: (stamp ns, name, level, message). With ``window_ns`` (the run: the joint's first
+    and last sample) only the reports stamped inside it are judged; those after it (the nodes
+    report their inputs' end as stale while the run shuts down) are counted per level under
+    'after_run', those before it (start-up) under 'before_run'.
+    """
     out: dict[str, dict[str, Any]] = {}
     severity = ('OK', 'WARN', 'STALE', 'ERROR')
-    for name, level, message in reports:
-        entry = out.setdefault(name, {'levels': {}, 'worst': 'OK', 'reasons': []})
+    for stamp, name, level, message in reports:
+        entry = out.setdefault(
+            name, {'levels': {}, 'worst': 'OK', 'reasons': [], 'before_run': {}, 'after_run': {}}
+        )
         label = DIAGNOSTIC_LEVELS[level] if 0 <= level < len(DIAGNOSTIC_LEVELS) else str(level)
+        if window_ns is not None and not window_ns[0] <= stamp < window_ns[1]:
+            side = entry['before_run' if stamp < window_ns[0] else 'after_run']
+            side[label] = side.get(label, 0) + 1
+            continue
         entry['levels'][label] = entry['levels'].get(label, 0) + 1
         rank = severity.index(label) if label in severity else len(severity)
         worst = severity.index(entry['worst']) if entry['worst'] in severity else len(severity)
@@ -260,7 +275,8 @@ def _extract(kind: str, msg: Any, log_ns: int) -> tuple:
             msg.current_a,
         )
     if kind == 'diagnostics':
-        return tuple((s.name, _level(s.level), s.message) for s in msg.status)
+        stamp = stamp_to_ns(msg.header.stamp)
+        return tuple((stamp, s.name, _level(s.level), s.message) for s in msg.status)
     return (stamp_to_ns(msg.header.stamp), int(log_ns))
 
 
@@ -321,8 +337,9 @@ def _assemble(path: Path, rows: dict[str, list[tuple]]) -> RunData:
         run.log_clock = clock_of(logs)
         if run.log_clock == 'wall' and clock_of(stamps) == 'wall':
             run.command_latency_s = (logs - stamps) * 1e-9
+    window = (joint[0], joint[-1]) if len(joint) > 1 else None
     run.diagnostics = summarize_diagnostics(
-        [status for statuses in rows.get('diagnostics', []) for status in statuses]
+        [status for statuses in rows.get('diagnostics', []) for status in statuses], window
     )
     return run
 

@@ -158,7 +158,7 @@ def format_table(reports: Sequence[RunReport]) -> str:
     # The recorder's receive time minus the stamp: the recorder's own delay (it runs at normal
     # scheduling), not the loop's latency, which the controller measures (timing log).
     add('recorder delay (log - stamp) p50/p99/max', [_latency(r) for r in reports])
-    add('/diagnostics (worst level)', [_diagnostics(r) for r in reports])
+    add('/diagnostics during the run (worst level)', [_diagnostics(r) for r in reports])
     (_, names), body = rows[0], rows[1:]
     return tabulate(
         [(label, *cells) for label, cells in body],
