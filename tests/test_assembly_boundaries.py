@@ -785,3 +785,33 @@ def test_an_estimate_whose_input_stamp_is_no_sample_before_it_is_refused() -> No
     assert a.refused == 3 and P not in a.estimates
     assert a.add_estimate(P, 0.0, 0.0, input_ns=0, input_current_a=5.0) is None  # waits for y
     assert a.refusal == '' and P in a.estimates
+
+
+def test_the_watchdog_sends_no_second_command_for_a_sample_the_joint_already_holds() -> None:
+    """A stale measurement after sample 0 was commanded: the 0 A answer is the state's only.
+
+    The joint takes one command per sample, and a safe stop in any one's place: a 0 A without
+    the brake for sample 0 would be refused as a replay (an ERROR at the end of every run). An
+    unanswered sample still gets its 0 A, and the brake grade always goes out.
+    """
+    a = assembly()
+    control(a, 0)  # the law commanded sample 0
+    s = a.watchdog(8 * P, 7 * P, 7 * P)
+    assert (s.status, s.stamp_ns, s.safe_stop, s.command) == (
+        Status.STALE_MEASUREMENT,
+        0,
+        False,
+        False,
+    )
+    s = a.watchdog(11 * P, 7 * P, 7 * P)  # past BRAKE_AFTER_S: the safe stop is sent
+    assert (s.stamp_ns, s.safe_stop, s.command) == (0, True, True)
+    b = assembly()
+    control(b, 0)
+    b.add_measurement(P, 0.0, received_ns=8 * P)  # y(1) came late, its estimate never does
+    s = b.watchdog(9 * P, 7 * P, 7 * P)
+    assert (s.status, s.stamp_ns, s.safe_stop, s.command) == (
+        Status.STALE_ESTIMATE,
+        P,
+        False,
+        True,
+    )

@@ -178,10 +178,14 @@ class ControllerNode(ControllerReport, ManagedNode):
 
     # --- inputs ----------------------------------------------------------------------------------
     def _refuse(self, key: str, stamp: int, why) -> None:
-        """Count and log a refused input; answer its sample with 0 A (no brake: one sample)."""
+        """Count and log a refused input; answer its sample with 0 A (no brake: one sample).
+
+        An error, but for an estimate merely ahead of this node's newest measurement: that is
+        this node lagging the observer (a warning), not an input that is wrong.
+        """
         self.refused += 1
         self.refusals[key] = self.refusals.get(key, 0) + 1
-        self.log.error(key, why)
+        (self.log.warn if key == 'estimate_ahead' else self.log.error)(key, why)
         if stamp is not None:
             self._publish(
                 self.assembly.safe_sample(stamp, Status.INVALID_INPUT, safe_stop=False), None
@@ -371,8 +375,15 @@ class ControllerNode(ControllerReport, ManagedNode):
         self.log.warn(
             'stale',
             lambda: (
-                f'{status.name.lower().replace("_", " ")}: commanding 0 A'
-                + (' with the brake' if sample.safe_stop else ' (no brake yet)')
+                f'{status.name.lower().replace("_", " ")}: '
+                + (
+                    (
+                        'commanding 0 A'
+                        + (' with the brake' if sample.safe_stop else ' (no brake yet)')
+                    )
+                    if sample.command
+                    else 'the joint holds the last command until its timeout'
+                )
             ),
         )
         self._publish(sample, None)
@@ -424,16 +435,17 @@ class ControllerNode(ControllerReport, ManagedNode):
         """current_command and controller/state for one sample (NaN where the law did not run)."""
         changed = sample.status != self.status
         self.status = Status(sample.status)
-        self.cmd_pub.publish(
-            self.encode_command(
-                {
-                    'header.stamp': sample.stamp_ns,
-                    'header.frame_id': '',
-                    'current_a': float(sample.current_a),
-                    'safe_stop': bool(sample.safe_stop),
-                }
+        if sample.command:  # (a sample the joint already has a command for: the state only)
+            self.cmd_pub.publish(
+                self.encode_command(
+                    {
+                        'header.stamp': sample.stamp_ns,
+                        'header.frame_id': '',
+                        'current_a': float(sample.current_a),
+                        'safe_stop': bool(sample.safe_stop),
+                    }
+                )
             )
-        )
         self.command_done_ns, self.command_wall_ns = time.perf_counter_ns(), self.clock.stamp_ns()
         if not (
             state

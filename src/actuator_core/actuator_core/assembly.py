@@ -95,6 +95,9 @@ class ControlSample(NamedTuple):
     reference: object  # ReferenceSample or None
     output: object  # ControlOutput or None
     safe_stop: bool = False  # the command asks the drive for 0 A and the brake
+    #: False: the joint already applies a command for this sample and takes only a safe stop in
+    #: its place (actuator_core.binding.CommandBinding), so no command is sent, only the state
+    command: bool = True
 
 
 class ControlSampleAssembly:
@@ -438,7 +441,9 @@ class ControlSampleAssembly:
 
         Up to the timeout: None (the drive holds the last command); then 0 A without the
         brake; once the input is ``brake_after`` old, 0 A with the brake. The sample is
-        answered: its estimate, should it come, is not used any more.
+        answered: its estimate, should it come, is not used any more. A 0 A without the brake
+        for a sample already commanded is not to be sent (``command`` False): the joint holds
+        that command and would refuse a second one as a replay; the state still says it.
         """
         stale = self.stale(now_ns, measurement_timeout_ns, estimate_timeout_ns)
         if stale is None or self.newest_measurement_ns is None:
@@ -450,8 +455,11 @@ class ControlSampleAssembly:
             self.pending = None
             self.unanswered += 1
         self.stale_answered = True
+        answered = self.commanded is not None and self.commanded[0] == stamp
         sample = self.safe_sample(stamp, status, y, safe_stop=age > self.brake_after_ns)
         self.brake_answered = self.brake_answered or sample.safe_stop
+        if answered and not sample.safe_stop:  # the joint would refuse it as a replay
+            return sample._replace(command=False)
         return sample
 
 
