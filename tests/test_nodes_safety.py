@@ -590,3 +590,34 @@ def test_a_decimated_controller_state_keeps_every_command_and_every_change_of_st
     assert len(law) >= samples // 8, f'{len(law)} states for {samples} samples at 1/4'
     assert 'controller/state at 50 Hz' in ctrl.output
     assert ctrl.stop() == 0 and 'Traceback' not in ctrl.output
+
+
+def test_a_sim_lockstep_without_commands_ends_the_run_with_its_reason(ros_process):
+    """No node answers the sim plant's samples: the run ends, exit 1, the reason on stderr.
+
+    Stepping on without commands ran the plant open loop one step per timeout: a 3 s run would
+    have taken hours (a launch whose controller missed its activation).
+    """
+    plant = ros_process(
+        'actuator_plant',
+        'plant_node',
+        [
+            '--ros-args',
+            '-p',
+            'autostart:=true',
+            '-p',
+            'mode:=sim',
+            '-p',
+            'stop_after_s:=3.0',
+            '-p',
+            'wait_for_subscribers:=0',
+            '-p',
+            'lockstep_timeout_s:=0.3',
+        ],
+    )
+    assert plant.wait(60) == 1, plant.describe()
+    assert (
+        'control ended: sim: no command for sample 0 within 0.3 s of wall time '
+        '(lockstep_timeout_s); 0 A, brake engaged'
+    ) in plant.output, plant.output[-1500:]
+    assert 'the run of 3 s ended early: sim: no command for sample 0' in plant.output

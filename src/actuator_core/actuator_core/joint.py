@@ -136,7 +136,12 @@ class JointSettings:
         100,
     )
     lockstep_timeout_s: float = spec(
-        2.0, 'sim: wall time to wait for a command before stepping without it', 's', 0.01, 600.0
+        2.0,
+        'sim: wall time without the command for the newest sample after which control ends '
+        '(a bounded run then exits 1 with that reason)',
+        's',
+        0.01,
+        600.0,
     )
     position_min_rad: float = spec(
         -limits.POSITION_LIMIT_RAD,

@@ -264,15 +264,15 @@ class JointNode(JointReport, ManagedNode):
             and self.wall.now().nanoseconds - self.waiting_since_ns
             > self.cfg.lockstep_timeout_s * 1e9
         ):
+            # The lockstep is broken (a node that never answers: a missed activation, a crash):
+            # stepping without commands would run the plant open loop at a step per timeout.
             self.lockstep_timeouts += 1
-            self.log.warn(
-                'lockstep_timeout',
-                lambda: (
-                    f'sim: no command for sample {self.sample_index} within '
-                    f'{self.cfg.lockstep_timeout_s} s; stepping without one'
-                ),
+            self.waiting_since_ns = None
+            self._end_control(
+                f'sim: no command for sample {self.sample_index} within '
+                f'{self.cfg.lockstep_timeout_s:g} s of wall time (lockstep_timeout_s)',
+                fault=False,
             )
-            self._sim_step()
 
     def on_conflict(self, conflict: str) -> None:
         """Take a change of matched publishers: more than one on current_command, 0 A, brake."""

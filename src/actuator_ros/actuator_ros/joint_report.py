@@ -36,7 +36,7 @@ class JointReport:
                 'refused_by_stamp': 'commands refused by stamp',
                 'refused_by_value': 'commands refused by value',
                 'command_timeouts': 'command timeouts (0 A, then the brake)',
-                'lockstep_timeouts': 'sim steps without a command',
+                'lockstep_timeouts': 'sim lockstep timeouts (control ended)',
             },
             hardware_id=self.joint.kind,
         )
