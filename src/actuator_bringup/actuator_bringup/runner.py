@@ -26,12 +26,8 @@ from typing import Optional, Sequence
 
 from ament_index_python.packages import get_package_share_directory
 
-from actuator_core import limits
 from actuator_sim.params_yaml import all_scenarios
 from actuator_bringup.run_description import (
-    JOINTS,
-    LIVE_DIAGNOSTICS_RATE_HZ,
-    MAX_JOINTS_ON_BUS,
     PINNING,
     closed_loop,
     default_scenario,
@@ -39,9 +35,15 @@ from actuator_bringup.run_description import (
     ros_arguments,
 )
 from actuator_bringup.composition import compose
+from actuator_bringup.run_options import (
+    MODES,
+    RUN_OPTIONS,
+    OptionError,
+    check_parameter_files,
+    node_names,
+    parse,
+)
 from actuator_bringup.supervisor import ProcessFigures, RosProcess
-
-MODES = ('realtime', 'sim')
 
 
 def scenario_file(scenario: str) -> Path:
@@ -102,6 +104,7 @@ def run_closed_loop(
     diagnostics_rate_hz: float | None = None,
     joints: int = 1,
     record_in_process: bool = False,
+    params_files: Sequence[Path] = (),
 ) -> RunResult:
     """Start the nodes of ``scenario`` in ``mode``, run to the end, stop everything.
 
@@ -112,7 +115,9 @@ def run_closed_loop(
     (composition.compose).
     ``diagnostics_rate_hz``: controller/state and plant/truth; ``joints``: CiA 402 drives on
     one bus, each loop under its namespace (graph.closed_loop). ``record_in_process``: the
-    composed loop's process writes the bag itself (composition.compose).
+    composed loop's process writes the bag itself (composition.compose). ``params_files``: ROS 2
+    parameter files every node process loads after the scenario's, each section for a node of
+    this run (run_options.check_parameter_files; refused with one line otherwise).
     """
     if duration_s is None:
         duration_s = scenario_duration(scenario)
@@ -144,6 +149,11 @@ def run_closed_loop(
     )
     if composed:
         specs = compose(specs, record_in_process)
+    try:
+        check_parameter_files(tuple(params_files), node_names(specs))
+    except OptionError as exc:
+        raise SystemExit(f'bringup: {exc}') from None
+    files = [a for f in params_files for a in ('--params-file', str(Path(f).resolve()))]
     procs: dict[str, RosProcess] = {}
     figures: dict[str, ProcessFigures] = {}
     previous = {s: signal.signal(s, _raise_stopped) for s in (signal.SIGTERM, signal.SIGINT)}
@@ -153,6 +163,8 @@ def run_closed_loop(
         for spec in specs:
             extra = _extra_arguments(spec, extra_params)
             args = ros_arguments(spec, params, run_dir)
+            if not spec.arguments:  # a ROS process: the user's files after the scenario's
+                extra = files + extra
             procs[spec.key] = RosProcess.installed(
                 spec.package, spec.executable, args + extra, log_dir=run_dir, name=spec.key
             )
@@ -281,6 +293,21 @@ def run_launched(
     )
 
 
+def eds_parameters(joint: str, eds_file: str) -> dict:
+    """Return the driver's ``eds_file`` for a CiA 402 joint; refuse a misplaced or missing one.
+
+    A real drive's EDS must be named (its identity is checked against it at configure); the
+    simulated drive ships its own.
+    """
+    if eds_file and joint not in ('cia402_sim', 'cia402'):
+        raise OptionError(f'eds_file is for a CiA 402 joint, not joint {joint}')
+    if joint == 'cia402' and not eds_file:
+        raise OptionError("joint cia402 (a real drive) needs its drive's EDS file: eds_file")
+    if eds_file and not Path(eds_file).is_file():
+        raise OptionError(f'eds_file {eds_file}: no such file')
+    return {'eds_file': str(Path(eds_file).resolve())} if eds_file else {}
+
+
 def wait_for_leader(
     procs: dict[str, RosProcess],
     figures: dict[str, ProcessFigures],
@@ -322,136 +349,80 @@ def wait_for_leader(
         time.sleep(0.2)
 
 
+def build_parser() -> argparse.ArgumentParser:
+    """Return the runner's command line, built from the run's options (RUN_OPTIONS)."""
+    parser = argparse.ArgumentParser(prog='bringup', description=__doc__.splitlines()[0])
+    for option in RUN_OPTIONS:
+        if not option.runner:
+            continue
+        dest = {'dest': option.name}
+        help_text = f'{option.description} ({option.range_text()})'
+        if option.kind is bool:
+            action = 'store_false' if option.default else 'store_true'
+            what = f'not: {option.description}' if option.default else option.description
+            parser.add_argument(option.cli, action=action, help=what, **dest)
+        elif option.kind is list:
+            parser.add_argument(
+                option.cli, action='append', default=[], metavar='PATH', help=help_text, **dest
+            )
+        else:
+            parser.add_argument(
+                option.cli,
+                default=None,
+                metavar=option.unit.upper() or option.name.split('_')[-1].upper(),
+                help=help_text,
+                **dest,
+            )
+    return parser
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """CLI: one closed-loop run of a scenario, optionally recorded to bags/."""
-    parser = argparse.ArgumentParser(prog='bringup', description=__doc__.splitlines()[0])
-    parser.add_argument(
-        '--scenario',
-        default=None,
-        help='installed scenario (share/actuator_bringup/config/<name>.yaml; default: '
-        "case2_pp_nftsmc_eso for the plant, drive_pp_nftsmc_eso, tuned for the drive's delay, "
-        'for a CiA 402 joint)',
-    )
-    parser.add_argument('--mode', choices=MODES, default='realtime')
-    parser.add_argument(
-        '--duration',
-        type=float,
-        default=None,
-        help="run length [s] (default: the paper scenario's, 10 s)",
-    )
-    parser.add_argument(
-        '--joint',
-        choices=JOINTS,
-        default='plant',
-        help='plant (simulated joint), cia402_sim (CANopen driver + simulated drive), cia402 '
-        '(driver on a real bus), none (a driver started elsewhere)',
-    )
-    parser.add_argument('--no-record', action='store_true', help='do not start the recorder')
-    parser.add_argument(
-        '--bags', type=Path, default=Path('bags'), help='folder for bags (default bags/)'
-    )
-    parser.add_argument('--executor', choices=('events', 'single_threaded'), default='events')
-    parser.add_argument(
-        '--thread-priority',
-        type=int,
-        default=0,
-        metavar='N',
-        help='SCHED_FIFO priority of the ESO and controller, the joint one above (0 = normal)',
-    )
-    parser.add_argument(
-        '--composed',
-        action='store_true',
-        help='run the joint, the ESO and the controller in one process on one executor',
-    )
-    parser.add_argument(
-        '--record-in-process',
-        action='store_true',
-        help="with --composed in sim mode: the loop's process writes the bag itself, no "
-        'recorder process (a faster lockstep; records only what its nodes publish)',
-    )
-    parser.add_argument(
-        '--pin',
-        action='store_true',
-        help='pin the joint to CPU 0 and the ESO and controller (which run in sequence) to CPU '
-        "1; with --composed the loop's process on CPU 0 (graph.PINNING)",
-    )
-    parser.add_argument(
-        '--params-file',
-        type=Path,
-        action='append',
-        default=[],
-        metavar='YAML',
-        help='a ROS 2 parameter file for the ESO and the controller, loaded after the '
-        "scenario's (e.g. share/actuator_studies/config/pp_nftsmc_eso_designed.yaml); repeatable",
-    )
-    parser.add_argument(
-        '--live-view',
-        action='store_true',
-        help='also serve the loop to Foxglove (live_view on ws://127.0.0.1:8765; '
-        'docs/how-to/live-view.md)',
-    )
-    parser.add_argument(
-        '--diagnostics-rate',
-        type=float,
-        default=None,
-        metavar='HZ',
-        help='rate of controller/state and plant/truth (0: every sample; default: every sample '
-        f'when recording or in sim, {LIVE_DIAGNOSTICS_RATE_HZ:g} Hz otherwise)',
-    )
-    parser.add_argument(
-        '--joints',
-        type=int,
-        default=1,
-        metavar='N',
-        help=f'CiA 402 drives on one bus (1-{MAX_JOINTS_ON_BUS}; with --joint cia402_sim or '
-        'cia402): node ids 1..N, each with its driver, ESO and controller under /joint<i>',
-    )
-    args = parser.parse_args(argv)
-    if not 1 <= args.joints <= MAX_JOINTS_ON_BUS:
-        parser.error(f'--joints must be in [1, {MAX_JOINTS_ON_BUS}]')
-    if args.joints > 1 and args.joint not in ('cia402_sim', 'cia402'):
+    parser = build_parser()
+    raw = vars(parser.parse_args(argv))
+    try:
+        args = {
+            o.name: o.default if raw[o.name] is None else parse(o, raw[o.name], o.cli)
+            for o in RUN_OPTIONS
+            if o.runner
+        }
+        joint_parameters = eds_parameters(args['joint'], args['eds_file'])
+    except OptionError as exc:
+        parser.error(str(exc))
+    if args['joints'] > 1 and args['joint'] not in ('cia402_sim', 'cia402'):
         parser.error('--joints above 1 needs --joint cia402_sim or cia402 (drives on one bus)')
-    low, high = limits.DIAGNOSTICS_RATE_RANGE_HZ
-    if args.diagnostics_rate is not None and not low <= args.diagnostics_rate <= high:
-        parser.error(f'--diagnostics-rate must be in [{low:g}, {high:g}] Hz')
-    if args.duration is not None and not 0.0 < args.duration <= 3600.0:
-        parser.error('--duration must be in (0, 3600] s')
-    if not 0 <= args.thread_priority <= 99:
-        parser.error('--thread-priority must be in [0, 99]')
-    if args.record_in_process and not (args.composed and args.mode == 'sim'):
+    if args['record_in_process'] and not (args['composed'] and args['mode'] == 'sim'):
         parser.error('--record-in-process needs --composed and --mode sim (composition.compose)')
-    if args.record_in_process and args.no_record:
+    if args['record_in_process'] and not args['record']:
         parser.error('--record-in-process records the run: not with --no-record')
-    if args.joint in ('cia402_sim', 'cia402') and args.thread_priority == 0:
+    if args['joint'] in ('cia402_sim', 'cia402') and args['thread_priority'] == 0:
         print(
             '[bringup] warning: the loop through the CiA 402 driver keeps its 1 kHz SYNC grid '
             'only under SCHED_FIFO (--thread-priority 50); with normal scheduling on 2 cores it '
-            'ran away to the joint soft limit (docs/cia402.md#running-it)',
+            'ran away to the joint soft limit (docs/cia402.md)',
             file=sys.stderr,
             flush=True,
         )
-    for path in args.params_file:
-        if not path.is_file():
-            parser.error(f'--params-file {path}: no such file')
-    if args.scenario is None:
-        args.scenario = default_scenario(args.joint)
-    duration = args.duration if args.duration is not None else scenario_duration(args.scenario)
+    scenario = args['scenario'] or default_scenario(args['joint'])
+    duration = args['duration'] or scenario_duration(scenario)
+    rate = args['diagnostics_rate_hz']
     result = run_closed_loop(
-        args.scenario,
-        args.mode,
+        scenario,
+        args['mode'],
         duration,
-        not args.no_record,
-        args.bags,
-        executor=args.executor,
-        thread_priority=args.thread_priority,
-        extra_params=[a for f in args.params_file for a in ('--params-file', str(f.resolve()))],
-        cpus=PINNING if args.pin else None,
-        joint=args.joint,
-        composed=args.composed,
-        live_view=args.live_view,
-        diagnostics_rate_hz=args.diagnostics_rate,
-        joints=args.joints,
-        record_in_process=args.record_in_process,
+        args['record'],
+        Path(args['bags']),
+        executor=args['executor'],
+        thread_priority=args['thread_priority'],
+        params_files=[Path(f) for f in args['params_file']],
+        cpus=PINNING if args['pin'] else None,
+        joint=args['joint'],
+        joint_parameters=joint_parameters,
+        composed=args['composed'],
+        live_view=args['live_view'],
+        diagnostics_rate_hz=None if rate != rate else rate,
+        joints=args['joints'],
+        record_in_process=args['record_in_process'],
     )
     print(
         json.dumps(
