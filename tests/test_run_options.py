@@ -22,6 +22,7 @@ from actuator_bringup.run_options import (
     RUN_OPTIONS,
     OptionError,
     check_parameter_files,
+    eds_parameters,
     node_names,
     parse,
 )
@@ -101,12 +102,12 @@ def test_a_file_that_is_no_parameter_file_is_refused(tmp_path, text, why):
 def test_the_eds_file_goes_to_a_cia402_driver_and_a_real_bus_needs_one(tmp_path):
     eds = tmp_path / 'drive.eds'
     eds.write_text('[FileInfo]\n')
-    assert bringup.eds_parameters('cia402', str(eds)) == {'eds_file': str(eds.resolve())}
-    assert bringup.eds_parameters('cia402_sim', '') == {}
+    assert eds_parameters('cia402', str(eds)) == {'eds_file': str(eds.resolve())}
+    assert eds_parameters('cia402_sim', '') == {}
     with pytest.raises(OptionError, match="^joint cia402 .* needs its drive's EDS file"):
-        bringup.eds_parameters('cia402', '')
+        eds_parameters('cia402', '')
     with pytest.raises(OptionError, match='^eds_file is for a CiA 402 joint, not joint plant$'):
-        bringup.eds_parameters('plant', str(eds))
+        eds_parameters('plant', str(eds))
     with pytest.raises(SystemExit) as stop:
         bringup.main(['--joint', 'cia402', '--duration', '1'])
     assert stop.value.code == 2

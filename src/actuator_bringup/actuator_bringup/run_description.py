@@ -24,7 +24,7 @@ import hashlib
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Optional
+from typing import Optional, Sequence
 
 import yaml
 
@@ -359,18 +359,24 @@ def closed_loop(
 
 
 def ros_arguments(
-    spec: NodeSpec, scenario_file: Optional[Path], workdir: Optional[Path] = None
+    spec: NodeSpec,
+    scenario_file: Optional[Path],
+    workdir: Optional[Path] = None,
+    params_files: Sequence[Path] = (),
 ) -> list[str]:
     """``--ros-args`` of a process started directly (the runner).
 
-    The file, then the node's parameters. rcl reads a ``-p`` value as YAML, so a string that
-    YAML would read as something else (cpu_affinity '0' is an integer there) is quoted. A node
-    in a namespace gets ``-r __ns:=`` and the file's sections for it as ``-p`` (rcl applies a
-    file's ``actuator_controller:`` section to /actuator_controller only, not to
+    The scenario's file, the user's ``params_files`` (over the scenario's values), then the
+    node's parameters from this description (over both: what the run needs, such as its mode).
+    rcl reads a ``-p`` value as YAML, so a string that YAML would read as something else
+    (cpu_affinity '0' is an integer there) is quoted. A node in a namespace gets ``-r __ns:=``
+    and the scenario file's sections for it as ``-p`` (rcl applies a file's
+    ``actuator_controller:`` section to /actuator_controller only, not to
     /joint1/actuator_controller).
     """
     if spec.arguments:
         return list(spec.arguments)
+    files = [a for f in params_files for a in ('--params-file', str(f))]
     if spec.members:
         args = ['--nodes', *(node_kind(m) for m in spec.members)]
         args += ['--record', spec.record_to] if spec.record_to else []
@@ -379,9 +385,11 @@ def ros_arguments(
             # rcl's -p rules name a node without its namespace and then match /name only; a
             # parameter file's sections may name the node fully (/joint1/actuator_controller)
             args += ['-r', f'__ns:=/{spec.namespace}']
-            return args + ['--params-file', str(_namespaced_file(spec, scenario_file, workdir))]
+            namespaced = _namespaced_file(spec, scenario_file, workdir, params_files)
+            return args + ['--params-file', str(namespaced)]
         if scenario_file is not None:
             args += ['--params-file', str(scenario_file)]
+        args += files
         for member in spec.members:
             args += _parameter_arguments(member.parameters, f'{member.name}:')
         return args
@@ -392,21 +400,29 @@ def ros_arguments(
             args += _parameter_arguments(node_parameters(scenario_file, spec.name))
     elif spec.scenario_file and scenario_file is not None:
         args += ['--params-file', str(scenario_file)]
-    return args + _parameter_arguments(spec.parameters)
+    return args + files + _parameter_arguments(spec.parameters)
 
 
 def _namespaced_file(
-    spec: NodeSpec, scenario_file: Optional[Path], workdir: Optional[Path]
+    spec: NodeSpec,
+    scenario_file: Optional[Path],
+    workdir: Optional[Path],
+    params_files: Sequence[Path] = (),
 ) -> Path:
     """Write a container's parameters, each member's section under its full name; return it.
 
-    Into ``workdir`` (the run's folder; default the temporary one), named by its content.
+    The scenario's values, the user's files' sections for the member (its full name or /**),
+    then the description's. Into ``workdir`` (the run's folder; default the temporary one),
+    named by its content.
     """
     sections = {}
     for member in spec.members:
         own = {}
         if member.scenario_file and scenario_file is not None:
             own = node_parameters(scenario_file, member.name)
+        full = f'/{spec.namespace}/{member.name}'
+        for path in params_files:  # its '/**' section and its own
+            own.update(node_parameters(Path(path), full))
         own.update(member.parameters)
         sections[f'/{spec.namespace}/{member.name}'] = {'ros__parameters': own}
     text = yaml.safe_dump(sections, sort_keys=True)

@@ -266,6 +266,21 @@ def node_names(specs) -> set[str]:
     return names
 
 
+def eds_parameters(joint: str, eds_file: str) -> dict:
+    """Return the driver's ``eds_file`` for a CiA 402 joint; refuse a misplaced or missing one.
+
+    A real drive's EDS must be named (its identity is checked against it at configure); the
+    simulated drive ships its own.
+    """
+    if eds_file and joint not in ('cia402_sim', 'cia402'):
+        raise OptionError(f'eds_file is for a CiA 402 joint, not joint {joint}')
+    if joint == 'cia402' and not eds_file:
+        raise OptionError("joint cia402 (a real drive) needs its drive's EDS file: eds_file")
+    if eds_file and not Path(eds_file).is_file():
+        raise OptionError(f'eds_file {eds_file}: no such file')
+    return {'eds_file': str(Path(eds_file).resolve())} if eds_file else {}
+
+
 def default_for(option: RunOption) -> Optional[str]:
     """Return an option's default as a launch argument's text."""
     if option.kind is bool:

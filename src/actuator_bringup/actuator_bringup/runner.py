@@ -40,6 +40,7 @@ from actuator_bringup.run_options import (
     RUN_OPTIONS,
     OptionError,
     check_parameter_files,
+    eds_parameters,
     node_names,
     parse,
 )
@@ -153,7 +154,7 @@ def run_closed_loop(
         check_parameter_files(tuple(params_files), node_names(specs))
     except OptionError as exc:
         raise SystemExit(f'bringup: {exc}') from None
-    files = [a for f in params_files for a in ('--params-file', str(Path(f).resolve()))]
+    files = [Path(f).resolve() for f in params_files]
     procs: dict[str, RosProcess] = {}
     figures: dict[str, ProcessFigures] = {}
     previous = {s: signal.signal(s, _raise_stopped) for s in (signal.SIGTERM, signal.SIGINT)}
@@ -162,9 +163,7 @@ def run_closed_loop(
     try:
         for spec in specs:
             extra = _extra_arguments(spec, extra_params)
-            args = ros_arguments(spec, params, run_dir)
-            if not spec.arguments:  # a ROS process: the user's files after the scenario's
-                extra = files + extra
+            args = ros_arguments(spec, params, run_dir, files)
             procs[spec.key] = RosProcess.installed(
                 spec.package, spec.executable, args + extra, log_dir=run_dir, name=spec.key
             )
@@ -291,21 +290,6 @@ def run_launched(
         {k: f.peak_rss_mb for k, f in figures.items()},
         time.monotonic() - start,
     )
-
-
-def eds_parameters(joint: str, eds_file: str) -> dict:
-    """Return the driver's ``eds_file`` for a CiA 402 joint; refuse a misplaced or missing one.
-
-    A real drive's EDS must be named (its identity is checked against it at configure); the
-    simulated drive ships its own.
-    """
-    if eds_file and joint not in ('cia402_sim', 'cia402'):
-        raise OptionError(f'eds_file is for a CiA 402 joint, not joint {joint}')
-    if joint == 'cia402' and not eds_file:
-        raise OptionError("joint cia402 (a real drive) needs its drive's EDS file: eds_file")
-    if eds_file and not Path(eds_file).is_file():
-        raise OptionError(f'eds_file {eds_file}: no such file')
-    return {'eds_file': str(Path(eds_file).resolve())} if eds_file else {}
 
 
 def wait_for_leader(

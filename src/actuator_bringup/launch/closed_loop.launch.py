@@ -4,19 +4,21 @@
 """Launch file of one closed-loop run.
 
     ros2 launch actuator_bringup closed_loop.launch.py [scenario:=...] [mode:=realtime|sim]
-        [duration:=S] ...
+        [duration:=S] [params_file:=FILE[,FILE]] [eds_file:=FILE] ...
 
 One closed-loop run: the joint (simulated plant, or the CiA 402 driver), the ESO, the controller
 and the recorder as separate processes, built from
-``actuator_bringup.run_description.closed_loop``, the same description the ``bringup`` runner uses,
-with the same real-time settings (node parameters thread_priority, cpu_affinity, executor). The
-managed nodes are driven through configure and activate by launch_ros's lifecycle events. The run
-ends when the joint process ends (``duration`` elapsed, or it failed): every other process is then
-stopped with SIGINT and the joint's exit code is reported. ``composed:=true`` runs the joint, the
-ESO and the controller in one process (actuator_bringup loop_container, composition.compose): the
-nodes then configure and activate themselves (autostart), and ``ros2 lifecycle`` still reaches each
-by its name. ``pin:=true`` pins the processes as ``bringup --pin`` does (graph.PINNING; a composed
-loop on its joint's CPU). Booleans are launch conditions: true/false/1/0, anything else is refused.
+``actuator_bringup.run_description.closed_loop``, the same description the ``bringup`` runner
+uses; the launch arguments are the run's options (``actuator_bringup.run_options.RUN_OPTIONS``),
+the runner's flags under their launch names, read back and refused in one line the same way. The
+managed nodes configure and activate themselves (``autostart:=true``, the default): a node whose
+transition event launch missed would otherwise never be activated (ros2/rcl#1166), and a sim
+lockstep then waited for a command that never came. ``autostart:=false`` leaves them unconfigured
+for ``ros2 lifecycle set`` or a lifecycle manager. The run ends when the joint process ends
+(``duration`` elapsed, or it failed): every other process is then stopped with SIGINT and the
+joint's exit code is reported. ``composed:=true`` runs the joint, the ESO and the controller in
+one process (actuator_bringup loop_container, composition.compose); ``ros2 lifecycle`` still
+reaches each by its name. ``pin:=true`` pins the processes as ``bringup --pin`` does.
 """
 
 import os
@@ -31,57 +33,42 @@ from launch.actions import (
     OpaqueFunction,
     RegisterEventHandler,
 )
-from launch.conditions import evaluate_condition_expression
 from launch.event_handlers import OnProcessExit
 from launch.events import Shutdown, matches_action
 from launch.events.process import ShutdownProcess
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import LifecycleNode, Node
-from launch_ros.event_handlers import OnStateTransition
-from launch_ros.events.lifecycle import ChangeState
-from lifecycle_msgs.msg import Transition
 
 from actuator_sim.params_yaml import node_parameters
+from actuator_bringup.composition import compose
 from actuator_bringup.run_description import (
-    JOINTS,
-    LIVE_DIAGNOSTICS_RATE_HZ,
-    MAX_JOINTS_ON_BUS,
     PINNING,
     closed_loop,
     default_scenario,
     ros_arguments,
 )
-from actuator_bringup.composition import compose
+from actuator_bringup.run_options import (
+    RUN_OPTIONS,
+    OptionError,
+    check_parameter_files,
+    default_for,
+    eds_parameters,
+    node_names,
+    parse,
+)
 
 
-def _flag(context, name):
-    """Return a boolean launch argument through launch's own condition parser."""
-    return evaluate_condition_expression(context, [LaunchConfiguration(name)])
-
-
-def _drive_lifecycle(action):
-    """Configure at start, activate once inactive (launch_ros lifecycle events)."""
-    configure = EmitEvent(
-        event=ChangeState(
-            lifecycle_node_matcher=matches_action(action),
-            transition_id=Transition.TRANSITION_CONFIGURE,
-        )
-    )
-    activate = RegisterEventHandler(
-        OnStateTransition(
-            target_lifecycle_node=action,
-            goal_state='inactive',
-            entities=[
-                EmitEvent(
-                    event=ChangeState(
-                        lifecycle_node_matcher=matches_action(action),
-                        transition_id=Transition.TRANSITION_ACTIVATE,
-                    )
-                )
-            ],
-        )
-    )
-    return [activate, configure]
+def _options(context) -> dict:
+    """Return every launch argument's typed value (run_options.parse: one line when refused)."""
+    values = {}
+    for option in RUN_OPTIONS:
+        if option.launch:
+            text = LaunchConfiguration(option.name).perform(context)
+            try:
+                values[option.name] = parse(option, text)
+            except OptionError as exc:
+                raise RuntimeError(str(exc)) from None
+    return values
 
 
 def _leader_exits(leaders, producer=None, drive=None):
@@ -119,43 +106,44 @@ def _leader_exits(leaders, producer=None, drive=None):
 
 
 def _processes(context):
-    scenario = LaunchConfiguration('scenario').perform(context)
-    mode = LaunchConfiguration('mode').perform(context)
-    joint = LaunchConfiguration('joint').perform(context)
-    duration = float(LaunchConfiguration('duration').perform(context))
-    priority = int(LaunchConfiguration('thread_priority').perform(context))
-    if not _flag(context, 'plant'):
-        joint = 'none'
-    if not scenario:  # none named: the joint's own (the drive's is tuned for its SYNC delay)
-        scenario = default_scenario(joint)
+    options = _options(context)
+    joint = options['joint']
+    scenario = options['scenario'] or default_scenario(joint)  # the drive's is tuned for it
     params = os.path.join(
         get_package_share_directory('actuator_bringup'), 'config', f'{scenario}.yaml'
     )
     if not os.path.isfile(params):
         raise RuntimeError(f'no scenario {scenario!r}: {params} does not exist')
-    bag = LaunchConfiguration('bag').perform(context)
-    logs = LaunchConfiguration('logs').perform(context)
-    composed = _flag(context, 'composed')
-    rate = LaunchConfiguration('diagnostics_rate_hz').perform(context)
-    joints = int(LaunchConfiguration('joints').perform(context))
+    rate = options['diagnostics_rate_hz']
+    try:
+        joint_parameters = eds_parameters(joint, options['eds_file'])
+    except OptionError as exc:
+        raise RuntimeError(str(exc)) from None
     specs = closed_loop(
-        mode,
-        duration,
-        record=_flag(context, 'record'),
-        bag=bag or None,
+        options['mode'],
+        options['duration'],
+        record=options['record'],
+        bag=options['bag'] or None,
         joint=joint,
-        thread_priority=priority,
-        cpus=PINNING if _flag(context, 'pin') else None,
-        logs=Path(logs) if logs else None,
-        autostart=composed,  # launch drives the lifecycle of a node that has a process alone
-        live_view=_flag(context, 'live_view'),
-        diagnostics_rate_hz=float(rate) if rate else None,
-        joints=joints,
+        thread_priority=options['thread_priority'],
+        cpus=PINNING if options['pin'] else None,
+        executor=options['executor'],
+        logs=Path(options['logs']) if options['logs'] else None,
+        joint_parameters=joint_parameters,
+        autostart=options['autostart'],
+        live_view=options['live_view'],
+        diagnostics_rate_hz=None if rate != rate else rate,
+        joints=options['joints'],
     )
-    if composed:
-        specs = compose(specs, _flag(context, 'record_in_process'))
-    elif _flag(context, 'record_in_process'):
+    if options['composed']:
+        specs = compose(specs, options['record_in_process'])
+    elif options['record_in_process']:
         raise RuntimeError('record_in_process:=true needs composed:=true (and mode:=sim)')
+    files = [Path(f).resolve() for f in options['params_file']]
+    try:
+        check_parameter_files(tuple(files), node_names(specs))
+    except OptionError as exc:
+        raise RuntimeError(str(exc)) from None
     actions, leaders, producer, drive = [], [], None, None
     for spec in specs:
         if spec.arguments:  # a plain process (the simulated drive): its own command line
@@ -168,7 +156,7 @@ def _processes(context):
             actions.append(drive)
             continue
         if spec.members:  # the container: per-node parameters as node:name:=value
-            arguments = ros_arguments(spec, Path(params))
+            arguments = ros_arguments(spec, Path(params), params_files=files)
             split = arguments.index('--ros-args')
             action = Node(  # no name=: a __node remap would rename every node of the process
                 package=spec.package,
@@ -194,13 +182,11 @@ def _processes(context):
             executable=spec.executable,
             name=spec.name,
             namespace=spec.namespace,
-            parameters=from_file + [spec.parameters],
+            parameters=from_file + [str(f) for f in files] + [spec.parameters],
             output='screen',
         )
         action = LifecycleNode(**common) if spec.managed else Node(**common)
         actions.append(action)
-        if spec.managed:
-            actions += _drive_lifecycle(action)
         if spec.leader:
             leaders.append(action)
             if spec.parameters.get('sync_producer'):
@@ -214,94 +200,15 @@ def _processes(context):
 
 
 def generate_launch_description():
-    """Launch arguments and the processes of one closed-loop run."""
-    return LaunchDescription(
-        [
-            DeclareLaunchArgument(
-                'scenario',
-                default_value='',
-                description='parameter file share/actuator_bringup/config/<scenario>.yaml; empty: '
-                'case2_pp_nftsmc_eso for the plant, drive_pp_nftsmc_eso for a CiA 402 joint',
-            ),
-            DeclareLaunchArgument(
-                'mode',
-                default_value='realtime',
-                choices=['realtime', 'sim'],
-                description="realtime: wall-clock 1 kHz; sim: lockstep on the plant's /clock",
-            ),
-            DeclareLaunchArgument(
-                'duration',
-                default_value='0.0',
-                description='run length [s] of the whole run; 0 runs until Ctrl-C',
-            ),
-            DeclareLaunchArgument(
-                'joint',
-                default_value='plant',
-                choices=list(JOINTS),
-                description='plant: simulated joint; cia402_sim: CANopen driver and its '
-                'simulated drive (a process of its own); cia402: the driver on a real bus; '
-                'none: a driver started '
-                'elsewhere',
-            ),
-            DeclareLaunchArgument(
-                'plant',
-                default_value='true',
-                description='false: start no joint (same as joint:=none)',
-            ),
-            DeclareLaunchArgument(
-                'record', default_value='true', description='record all topics to a bag'
-            ),
-            DeclareLaunchArgument(
-                'bag', default_value='', description='bag folder (default bags/<UTC time>)'
-            ),
-            DeclareLaunchArgument(
-                'live_view',
-                default_value='false',
-                description='also serve the loop to Foxglove (actuator_live_view live_view on '
-                'ws://127.0.0.1:8765)',
-            ),
-            DeclareLaunchArgument(
-                'logs',
-                default_value='',
-                description='folder for the per-node timing files of the benchmark (default none)',
-            ),
-            DeclareLaunchArgument(
-                'composed',
-                default_value='false',
-                description='true: the joint, ESO and controller in one process on one executor',
-            ),
-            DeclareLaunchArgument(
-                'pin',
-                default_value='false',
-                description='true: the joint on CPU 0, the ESO and controller on CPU 1; a '
-                "composed loop's process on CPU 0 (as bringup --pin)",
-            ),
-            DeclareLaunchArgument(
-                'record_in_process',
-                default_value='false',
-                description="true (composed:=true, mode:=sim): the loop's process writes the bag "
-                'itself, no recorder process (as bringup --record-in-process)',
-            ),
-            DeclareLaunchArgument(
-                'joints',
-                default_value='1',
-                description=f'CiA 402 drives on one bus (1-{MAX_JOINTS_ON_BUS}; joint:=cia402_sim '
-                'or cia402): node ids 1..N, each with its driver, ESO and controller under '
-                '/joint<i>',
-            ),
-            DeclareLaunchArgument(
-                'diagnostics_rate_hz',
-                default_value='',
-                description='rate of controller/state and plant/truth [Hz] (0: every sample; '
-                f'empty: every sample when recording or in sim, {LIVE_DIAGNOSTICS_RATE_HZ:g} Hz '
-                'otherwise)',
-            ),
-            DeclareLaunchArgument(
-                'thread_priority',
-                default_value='0',
-                description='SCHED_FIFO priority of the ESO and controller, the joint one above '
-                '(0: normal scheduling; the runner and the benchmark use 50)',
-            ),
-            OpaqueFunction(function=_processes),
-        ]
-    )
+    """Launch arguments (the run's options) and the processes of one closed-loop run."""
+    arguments = [
+        DeclareLaunchArgument(
+            option.name,
+            default_value=default_for(option),
+            description=f'{option.description} ({option.range_text()})',
+            **({'choices': list(option.choices)} if option.choices else {}),
+        )
+        for option in RUN_OPTIONS
+        if option.launch
+    ]
+    return LaunchDescription([*arguments, OpaqueFunction(function=_processes)])
