@@ -181,3 +181,18 @@ def test_unchecked_lists_the_unjudged_and_the_unexplained_survivors_of_the_globs
         'actuator_core.gate.x_a__mutmut_2',
     ]
     assert len(module.unchecked(stage, [], explained)) == 3
+
+
+def test_mark_stale_withholds_the_score_of_a_row_whose_module_changed_and_keeps_the_rest():
+    report = _report_module()
+    gate_hash = report.source_hash('actuator_core/gate.py')
+    text = EARLIER.replace('GATE_HASH', gate_hash)  # laws: a hash that is not its code's
+    marked = report.mark_stale(text)
+    rows = {
+        line.split('|')[1].strip(): line for line in marked.splitlines() if line.startswith('| ')
+    }
+    assert rows['actuator_controller/laws.py'] == (
+        '| actuator_controller/laws.py | stale | 2 | 0 | 0 | 0 | 0 | 2 | — | — | 85% |'
+    )
+    assert rows['actuator_core/gate.py'].startswith(f'| actuator_core/gate.py | {gate_hash} |')
+    assert rows['**all**'] == '| **all** |  | 5 | 2 | 0 | 1 | 0 | 2 | — |  |  |'

@@ -294,11 +294,44 @@ def render(
     return '\n'.join(lines) + '\n'
 
 
+def mark_stale(text: str, root: Path = ROOT) -> str:
+    """Return a report with every row whose module's code changed since its run marked stale.
+
+    Its score and score without equivalents are withheld ('—'), and so is the total's: a code
+    change since the run makes a quoted score untrue until the module is mutated again.
+    """
+    lines, stale = [], False
+    for line in text.split('\n'):
+        cells = [c.strip() for c in line.strip('|').split('|')]
+        module = cells[0].removesuffix(' (earlier)') if line.startswith('| ') else ''
+        if module.endswith('.py') and cells[1] not in (STALE, source_hash(module, root)):
+            cells[1], cells[LEAD + 6], cells[LEAD + 7] = STALE, '—', '—'
+            line = '| ' + ' | '.join(cells) + ' |'
+        stale = stale or (module.endswith('.py') and cells[1] == STALE)
+        lines.append(line)
+    if stale:
+        lines = [_withhold_total(line) if line.startswith('| **all**') else line for line in lines]
+    return '\n'.join(lines)
+
+
+def _withhold_total(line: str) -> str:
+    """Return the total's row with its score withheld."""
+    cells = [c.strip() for c in line.strip('|').split('|')]
+    cells[LEAD + 6] = '—'
+    return '| ' + ' | '.join(cells) + ' |'
+
+
 def main() -> int:
-    """Write the report of the mutmut results in --stage to --out."""
+    """Write the report of the mutmut results in --stage to --out (or mark its stale rows)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument('--stage', type=Path, required=True)
-    parser.add_argument('--out', type=Path, required=True)
+    parser.add_argument(
+        '--mark-stale',
+        type=Path,
+        metavar='REPORT',
+        help='only mark the rows of REPORT whose module changed since its run stale, in place',
+    )
+    parser.add_argument('--stage', type=Path)
+    parser.add_argument('--out', type=Path)
     parser.add_argument('--command', default='make mutation')
     parser.add_argument(
         '--recheck',
@@ -313,6 +346,11 @@ def main() -> int:
         help='keep the rows of --out for the modules this run did not reach (a partial run)',
     )
     args = parser.parse_args()
+    if args.mark_stale:
+        args.mark_stale.write_text(mark_stale(args.mark_stale.read_text()))
+        return 0
+    if args.stage is None or args.out is None:
+        parser.error('--stage and --out are required (or --mark-stale REPORT)')
     equivalent = tomllib.loads(EQUIVALENT.read_text()) if EQUIVALENT.exists() else {}
     tests = [str(Path(t).resolve()) for t in args.recheck]
     earlier = args.out.read_text() if args.keep_earlier and args.out.exists() else ''

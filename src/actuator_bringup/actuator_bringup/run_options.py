@@ -19,10 +19,9 @@ from typing import Any, Optional
 import yaml
 
 from actuator_core import limits
+from actuator_core.loop_params import MODES
 from actuator_bringup.run_description import JOINTS, LIVE_DIAGNOSTICS_RATE_HZ, MAX_JOINTS_ON_BUS
 
-#: The run's modes.
-MODES = ('realtime', 'sim')
 #: The executors a node can run (actuator_ros.runner).
 EXECUTORS = ('events', 'single_threaded')
 

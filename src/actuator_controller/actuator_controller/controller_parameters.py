@@ -12,14 +12,14 @@ from actuator_core import limits
 from actuator_controller.laws import CONTROLLER_NAMES, GAINS_BY_NAME, CommonConfig
 from actuator_controller.reference import REFERENCE_KINDS, SineReference, StepReference
 from actuator_ros.parameters import (
+    TIMING_LOG_DESCRIPTION,
     ParameterError,
     declare_choice,
     declare_number,
     declare_output_path,
+    declare_shared,
     declare_spec_parameters,
-    declare_text,
 )
-from actuator_ros.qos import MODES
 
 #: What clocks the control update (docs/concepts/architecture.md#what-clocks-the-controller).
 TRIGGERS = ('measurement', 'timer')
@@ -48,27 +48,11 @@ class ControllerParameters:
 
 def declare_controller_parameters(node) -> ControllerParameters:
     """Declare (or read again at configure) and check every parameter of ``node``."""
-    mode = declare_choice(
-        node, 'mode', 'realtime', MODES, 'realtime: wall clock; sim: /clock lockstep'
-    )
+    mode = declare_shared(node, 'mode')
     name = declare_choice(node, 'controller', 'pp_nftsmc_eso', CONTROLLER_NAMES, 'control law')
     gains = declare_spec_parameters(node, GAINS_BY_NAME[name], prefix=f'{name}.')
-    dt_s = declare_number(
-        node,
-        'sample_time_s',
-        limits.SAMPLE_TIME_S,
-        *limits.SAMPLE_TIME_RANGE_S,
-        's',
-        'sample period of the sensor and of the control law',
-    )
-    limit = declare_number(
-        node,
-        'current_limit_a',
-        limits.CURRENT_LIMIT_A,
-        *limits.CURRENT_LIMIT_RANGE_A,
-        'A',
-        'the commanded current is limited to +-this value',
-    )
+    dt_s = declare_shared(node, 'sample_time_s')
+    limit = declare_shared(node, 'current_limit_a')
     common = declare_spec_parameters(
         node,
         CommonConfig,
@@ -141,19 +125,9 @@ def declare_controller_parameters(node) -> ControllerParameters:
             "parameter 'trigger' = 'timer' refused in sim mode: the lockstep advances "
             'only when a command answers its sample'
         )
-    future_tolerance_s = declare_number(
-        node,
-        'future_stamp_tolerance_s',
-        limits.FUTURE_STAMP_TOLERANCE_S,
-        *limits.FUTURE_STAMP_TOLERANCE_RANGE_S,
-        's',
-        'realtime: inputs stamped later than now plus this are refused (clock offset '
-        'between hosts)',
-    )
-    joint_name = declare_text(node, 'joint_name', 'joint', 'name of the joint in joint_states')
-    timing_log = declare_output_path(
-        node, 'timing_log', 'per-update timing (.npz) written at shutdown'
-    )
+    future_tolerance_s = declare_shared(node, 'future_stamp_tolerance_s')
+    joint_name = declare_shared(node, 'joint_name')
+    timing_log = declare_output_path(node, 'timing_log', TIMING_LOG_DESCRIPTION)
     state_rate_hz = declare_number(
         node,
         'state_rate_hz',

@@ -39,6 +39,7 @@ from typing import NamedTuple
 
 from actuator_core import limits
 from actuator_core import xmath as xm
+from actuator_core.loop_params import shared
 from actuator_core.params import spec, validate
 from actuator_controller.ppf import PrescribedPerformance, inside_band, transform_error
 from actuator_controller.reference import ReferenceSample
@@ -55,10 +56,8 @@ class CommonConfig:
     The nominal model (3), the sample time and the current limit.
     """
 
-    theta1n: float = spec(
-        limits.THETA1N, 'theta_1n = k_tn/(J_n N), eq. (3)', 'rad/s^2/A', 0.0, 1.0e6, low_open=True
-    )
-    theta2n: float = spec(limits.THETA2N, 'theta_2n = -k_bn/J_n, eq. (3)', '1/s', -1.0e4, 1.0e4)
+    theta1n: float = shared('theta1n')
+    theta2n: float = shared('theta2n')
     dt_s: float = spec(
         limits.SAMPLE_TIME_S, 'sample time of the control loop', 's', *limits.SAMPLE_TIME_RANGE_S
     )

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 from typing import NamedTuple, Optional
 
 from actuator_core import limits
+from actuator_core.loop_params import shared
 from actuator_core.params import spec, validate
 
 
@@ -94,19 +95,8 @@ class Joint(ABC):
 class JointSettings:
     """What every joint node has, whatever the joint: the loop's common settings (one source)."""
 
-    sample_time_s: float = spec(
-        limits.SAMPLE_TIME_S,
-        'sensor sample period (the SYNC period of a drive)',
-        's',
-        *limits.SAMPLE_TIME_RANGE_S,
-    )
-    current_limit_a: float = spec(
-        limits.CURRENT_LIMIT_A,
-        'commands beyond +-this are refused (0 A applied)',
-        'A',
-        *limits.CURRENT_LIMIT_RANGE_A,
-        low_open=True,
-    )
+    sample_time_s: float = shared('sample_time_s')
+    current_limit_a: float = shared('current_limit_a')
     command_timeout_s: float = spec(
         limits.COMMAND_TIMEOUT_S,
         'the joint applies 0 A when the newest command is older',
@@ -119,7 +109,7 @@ class JointSettings:
         's',
         *limits.BRAKE_DELAY_RANGE_S,
     )
-    joint_name: str = spec('joint', 'name of the joint in joint_states')
+    joint_name: str = shared('joint_name')
     stop_after_s: float = spec(
         0.0,
         'end the run (exit 0) after this much sample time; 0 runs until stopped',

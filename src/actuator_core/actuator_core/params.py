@@ -24,10 +24,12 @@ def spec(
     high: float = math.inf,
     *,
     low_open: bool = False,
+    choices: tuple = (),
 ) -> Any:
-    """Return a dataclass field with a valid range and a description.
+    """Return a dataclass field with a valid range (or choices) and a description.
 
-    The range is [low, high], or (low, high] when ``low_open``.
+    The range is [low, high], or (low, high] when ``low_open``; ``choices``: the values a text
+    parameter may take.
     """
     return dataclasses.field(
         default=default,
@@ -37,12 +39,15 @@ def spec(
             'low': low,
             'high': high,
             'low_open': low_open,
+            'choices': tuple(choices),
         },
     )
 
 
 def range_text(meta: dict) -> str:
-    """Human-readable valid range of a spec'd field, e.g. '(0, inf] rad/s'."""
+    """Human-readable valid range of a spec'd field, e.g. '(0, inf] rad/s', or its choices."""
+    if meta.get('choices'):
+        return 'one of ' + ', '.join(meta['choices'])
     left = '(' if meta['low_open'] else '['
     unit = f' {meta["unit"]}' if meta['unit'] else ''
     return f'{left}{meta["low"]:g}, {meta["high"]:g}]{unit}'
@@ -53,6 +58,9 @@ def check_value(name: str, value: Any, meta: dict) -> None:
 
     Its value and its valid range when ``value`` is outside it.
     """
+    choices = meta.get('choices', ())
+    if choices and value not in choices:
+        raise ValueError(f'{name} = {value!r} is not one of {", ".join(choices)}')
     if isinstance(value, (bool, str)) or value is None:
         return
     v = np.asarray(value, dtype=float)

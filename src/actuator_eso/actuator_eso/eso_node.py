@@ -53,14 +53,8 @@ from actuator_ros.conversions import joint_position
 from actuator_ros.diagnostics import NodeDiagnostics
 from actuator_ros.guard import GraphGuard
 from actuator_ros.node import ManagedNode
-from actuator_ros.parameters import (
-    declare_choice,
-    declare_number,
-    declare_output_path,
-    declare_spec_parameters,
-    declare_text,
-)
-from actuator_ros.qos import MODES, control_qos
+from actuator_ros.parameters import declare_output_path, declare_shared, declare_spec_parameters
+from actuator_ros.qos import control_qos
 from actuator_ros.runner import run_node
 from actuator_ros.wire_io import codec, subscribe_views
 from sensor_msgs.msg import JointState
@@ -79,38 +73,12 @@ class EsoNode(ManagedNode):
 
     def load_parameters(self) -> None:
         """Declare (or read again at configure) and check every parameter."""
-        self.mode = declare_choice(
-            self, 'mode', 'realtime', MODES, 'selects the QoS of the 1 kHz streams'
-        )
+        self.mode = declare_shared(self, 'mode')
         self.gains = declare_spec_parameters(self, EsoGains)
-        self.dt_s = declare_number(
-            self,
-            'sample_time_s',
-            limits.SAMPLE_TIME_S,
-            *limits.SAMPLE_TIME_RANGE_S,
-            's',
-            'sensor sample period',
-        )
-        self.current_limit_a = declare_number(
-            self,
-            'current_limit_a',
-            limits.CURRENT_LIMIT_A,
-            *limits.CURRENT_LIMIT_RANGE_A,
-            'A',
-            'commands beyond +-this are refused (the controller never sends them)',
-        )
-        self.future_tolerance_s = declare_number(
-            self,
-            'future_stamp_tolerance_s',
-            limits.FUTURE_STAMP_TOLERANCE_S,
-            *limits.FUTURE_STAMP_TOLERANCE_RANGE_S,
-            's',
-            'realtime: measurements stamped later than now plus this are refused (clock offset '
-            'between hosts)',
-        )
-        self.joint_name = declare_text(
-            self, 'joint_name', 'joint', 'name of the joint in joint_states'
-        )
+        self.dt_s = declare_shared(self, 'sample_time_s')
+        self.current_limit_a = declare_shared(self, 'current_limit_a')
+        self.future_tolerance_s = declare_shared(self, 'future_stamp_tolerance_s')
+        self.joint_name = declare_shared(self, 'joint_name')
         self.stats_log = declare_output_path(
             self, 'stats_log', 'pairing counts (.json) written at shutdown'
         )

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from actuator_core import limits
+from actuator_core.loop_params import shared
 from actuator_core.params import spec, validate
 
 
@@ -45,10 +45,8 @@ class EsoGains:
     l1: float = spec(15.0, 'l1 of (15)-(16) (Table 4)', '', 0.0, 1.0e4, low_open=True)
     l2: float = spec(75.0, 'l2 of (15)-(16) (Table 4)', '', 0.0, 1.0e6, low_open=True)
     l3: float = spec(125.0, 'l3 of (15)-(16) (Table 4)', '', 0.0, 1.0e9, low_open=True)
-    theta1n: float = spec(
-        limits.THETA1N, 'theta_1n = k_tn/(J_n N), eq. (3)', 'rad/s^2/A', 0.0, 1.0e6, low_open=True
-    )
-    theta2n: float = spec(limits.THETA2N, 'theta_2n = -k_bn/J_n, eq. (3)', '1/s', -1.0e4, 1.0e4)
+    theta1n: float = shared('theta1n')
+    theta2n: float = shared('theta2n')
 
     def __post_init__(self) -> None:
         """Refuse gains that make (16) non-Hurwitz: all > 0 and l1*l2 > l3 (Routh)."""

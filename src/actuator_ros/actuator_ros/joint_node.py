@@ -57,12 +57,13 @@ from actuator_ros.guard import GraphGuard
 from actuator_ros.joint_report import JointReport
 from actuator_ros.node import ManagedNode
 from actuator_ros.parameters import (
+    TIMING_LOG_DESCRIPTION,
     ParameterError,
-    declare_choice,
     declare_output_path,
+    declare_shared,
     declare_spec_parameters,
 )
-from actuator_ros.qos import MODES, control_qos
+from actuator_ros.qos import control_qos
 from actuator_ros.wire_io import codec, subscribe_views
 
 #: Stamp of sample 0 in sim mode [ns] (the plant's /clock starts here).
@@ -102,18 +103,14 @@ class JointNode(JointReport, ManagedNode):
     # --- parameters ----------------------------------------------------------------------------
     def load_parameters(self) -> None:
         """Declare the common settings (JointSettings), mode, timing log, then the joint's own."""
-        self.mode = declare_choice(
-            self, 'mode', 'realtime', MODES, 'realtime: wall-clock 1 kHz; sim: lockstep /clock'
-        )
+        self.mode = declare_shared(self, 'mode')
         if self.get_parameter('use_sim_time').value:
             raise ParameterError(
                 "parameter 'use_sim_time' must be false for a joint: it is the time source "
                 '(system clock in realtime, /clock in sim)'
             )
         self.cfg: JointSettings = declare_spec_parameters(self, JointSettings)
-        self.timing_log = declare_output_path(
-            self, 'timing_log', 'per-sample log (.npz) written when sampling stops'
-        )
+        self.timing_log = declare_output_path(self, 'timing_log', TIMING_LOG_DESCRIPTION)
         self.load_joint_parameters()
 
     # --- lifecycle -------------------------------------------------------------------------------

@@ -17,6 +17,7 @@ from __future__ import annotations
 import difflib
 import math
 import os
+from dataclasses import make_dataclass
 from typing import Any, Iterable, Sequence
 
 from rcl_interfaces.msg import (
@@ -27,7 +28,14 @@ from rcl_interfaces.msg import (
 )
 from rclpy.node import Node
 
-from actuator_core.params import build, iter_specs, range_text
+from actuator_core.loop_params import shared
+from actuator_core.params import build, iter_specs, range_text, validate
+
+
+#: The one description of the ``timing_log`` parameter every node of the loop declares.
+TIMING_LOG_DESCRIPTION = (
+    "the node's per-sample timing log (.npz: stamps, arrival and send times) written when it stops"
+)
 
 
 class ParameterError(ValueError):
@@ -39,7 +47,9 @@ def _descriptor(
 ) -> ParameterDescriptor:
     """Descriptor with description, unit, valid range and, where finite, an enforced range."""
     text = meta['description']
-    if not isinstance(default, (bool, str)):
+    if meta.get('choices'):
+        text += f'; {range_text(meta)}'
+    elif not isinstance(default, (bool, str)):
         text += f' [{meta["unit"] or "-"}], valid {range_text(meta)}'
     descriptor = ParameterDescriptor(name=name, description=text, read_only=read_only)
     low, high = meta['low'], meta['high']
@@ -84,6 +94,14 @@ def _declare(
     return float(value) if isinstance(default, float) else value
 
 
+def declare_shared(node: Node, name: str) -> Any:
+    """Declare one of the loop's shared parameters (actuator_core.loop_params) by its name."""
+    one = make_dataclass(
+        'Shared', [(name, Any, shared(name))], namespace={'__post_init__': validate}
+    )
+    return getattr(declare_spec_parameters(node, one), name)
+
+
 def declare_spec_parameters(
     node: Node,
     cls: type,
@@ -111,6 +129,8 @@ def declare_spec_parameters(
             _descriptor(full, f.metadata, f.default, read_only),
             f'in {range_text(f.metadata)}',
         )
+        if f.metadata.get('choices'):
+            _check_choice(full, values[name], f.metadata['choices'])
     try:
         return build(cls, values)
     except (ValueError, TypeError) as exc:
@@ -128,13 +148,18 @@ def declare_choice(
         ParameterDescriptor(name=name, description=f'{description}; one of {", ".join(choices)}'),
         f'one of {", ".join(choices)}',
     )
+    _check_choice(name, value, choices)
+    return value
+
+
+def _check_choice(name: str, value: str, choices: Sequence[str]) -> None:
+    """Refuse a value outside ``choices`` in one line, with the nearest choice."""
     if value not in choices:
         near = difflib.get_close_matches(str(value), choices, n=1)
         hint = f' (did you mean {near[0]!r}?)' if near else ''
         raise ParameterError(
             f'parameter {name!r} = {value!r} refused: must be one of {", ".join(choices)}{hint}'
         )
-    return value
 
 
 def declare_number(

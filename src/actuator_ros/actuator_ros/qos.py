@@ -7,9 +7,6 @@ from __future__ import annotations
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-#: Run modes: wall-clock 1 kHz sampling, or lockstep on the plant's /clock.
-MODES = ('realtime', 'sim')
-
 #: KEEP_LAST depth per mode (docs/concepts/architecture.md#topics quotes these).
 REALTIME_DEPTH = 10
 SIM_DEPTH = 10000
