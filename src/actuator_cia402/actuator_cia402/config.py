@@ -16,7 +16,7 @@ from actuator_core import limits
 from actuator_core.params import spec, validate
 from actuator_cia402.busload import DEFAULT_LIMIT, MAX_JOINTS_ON_BUS, check_bus_load
 from actuator_cia402.scaling import Scaling
-from actuator_cia402.sim_faults import FAULT_CODES
+from actuator_cia402.sim_faults import FAULT_CODES, Quirks, mapping_entry
 
 INTERFACES = ('hub', 'socketcan')
 CONDITIONS = ('deep_sea', 'lab')
@@ -79,10 +79,51 @@ class SimDriveSettings:
         1.0e6,
     )
     seed: int = spec(1, 'seed of the dropped- and late-TPDO draws', '', 0, 2**31 - 1)
+    emcy_register: int = spec(
+        0,
+        'error register of the extra EMCY frame (nonzero: a fault the drive reports while it '
+        'stays enabled)',
+        '',
+        0,
+        0xFF,
+    )
+    transition_16: bool = spec(
+        False,
+        'quick stop active returns to operation enabled on an enable-operation command under '
+        'quick stop option codes 5-8 (CiA 402 transition 16)',
+    )
+    halted_bit: bool = spec(
+        True, 'statusword bit 10 is set in quick stop active once the drive has halted'
+    )
+    velocity_quick_stop: bool = spec(
+        False,
+        'quick stop decelerates the motor at 0x6085 (rpm/s) instead of ramping the torque at '
+        '0x6087',
+    )
+    produces_sync: bool = spec(
+        False, 'the drive produces SYNC itself at power-on (0x1005 bit 30 saved in the drive)'
+    )
+    fixed_mapping_entry: str = spec(
+        '',
+        'a PDO mapping entry INDEX:SUB (hex, e.g. 1A01:3) the drive keeps at its EDS default: '
+        'written without an error, never taken',
+    )
+    encoder_sign: int = spec(
+        1,
+        'direction of the encoder against the motor torque: -1 counts against a positive '
+        'torque (a wiring error)',
+        '',
+        -1,
+        1,
+    )
 
     def __post_init__(self) -> None:
-        """Refuse an unknown condition or fault kind."""
+        """Refuse an unknown condition, fault kind, mapping entry or encoder sign."""
         validate(self)
+        try:
+            self.quirks
+        except ValueError as exc:
+            raise ValueError(f'sim.{exc}') from None
         if self.working_condition not in CONDITIONS:
             raise ValueError(
                 f'sim.working_condition = {self.working_condition!r} refused: one of '
@@ -121,7 +162,39 @@ class SimDriveSettings:
             repr(self.silent_at_s),
             '--seed',
             str(self.seed),
+            '--emcy-register',
+            str(self.emcy_register),
+            '--encoder-sign',
+            str(self.encoder_sign),
+        ] + self._quirk_flags()
+
+    def _quirk_flags(self) -> list[str]:
+        """Return the command-line flags of the quirks that depart from the kind drive."""
+        flags = [
+            flag
+            for flag, on in (
+                ('--transition-16', self.transition_16),
+                ('--no-halted-bit', not self.halted_bit),
+                ('--velocity-quick-stop', self.velocity_quick_stop),
+                ('--produces-sync', self.produces_sync),
+            )
+            if on
         ]
+        if self.fixed_mapping_entry:
+            flags += ['--fixed-mapping-entry', self.fixed_mapping_entry]
+        return flags
+
+    @property
+    def quirks(self) -> Quirks:
+        """The simulated drive's departures from a kind drive (ValueError when malformed)."""
+        return Quirks(
+            transition_16=self.transition_16,
+            halted_bit=self.halted_bit,
+            velocity_quick_stop=self.velocity_quick_stop,
+            sync_producer=self.produces_sync,
+            fixed_mapping_entry=mapping_entry(self.fixed_mapping_entry),
+            encoder_sign=self.encoder_sign,
+        )
 
 
 @dataclass(frozen=True)
