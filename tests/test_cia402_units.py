@@ -13,8 +13,9 @@ import pytest
 from actuator_core import limits
 from actuator_cia402 import profile as p
 from actuator_cia402.busload import BusLoadError, check_bus_load, cycle_load, frame_bits
-from actuator_cia402.config import DriverParameters, SimDriveSettings
-from actuator_cia402.joint import PositionUnwrap, torque_fault
+from actuator_cia402.config import DriverParameters
+from actuator_cia402.sim_settings import SimDriveSettings
+from actuator_cia402.supervision import PositionUnwrap, torque_fault
 from actuator_cia402.launch_spec import driver_arguments, driver_parameters, sim_drive_command
 from actuator_cia402.scaling import Scaling
 
@@ -210,7 +211,21 @@ def test_launch_spec_gives_checked_parameters_for_a_closed_loop_run():
     assert params['channel'] == '127.0.0.1:4321' and params['autostart'] is True
     with pytest.raises(ValueError, match='eds_file'):
         driver_parameters(simulated=False)
-    hardware = driver_parameters(simulated=False, eds_file='drive.eds')
+    with pytest.raises(ValueError) as refused:  # no simulated default reaches a real drive
+        driver_parameters(simulated=False, eds_file='drive.eds', brake_status_index=0x2000)
+    assert str(refused.value) == (
+        'a real drive needs brake_status_mask, quick_stop_deceleration_rad_s2 (0x6085), '
+        "position_min_rad and position_max_rad (the joint's travel) set: the defaults are the "
+        "simulated drive's and plant's"
+    )
+    hardware = driver_parameters(
+        simulated=False,
+        eds_file='drive.eds',
+        brake_status_index=0,
+        quick_stop_deceleration_rad_s2=20.0,
+        position_min_rad=-1.0,
+        position_max_rad=1.0,
+    )
     assert hardware['interface'] == 'socketcan' and hardware['channel'] == 'can0'
     args = driver_arguments(params)
     assert args[0] == '--ros-args' and '-p' in args and 'simulated_drive:=true' in args

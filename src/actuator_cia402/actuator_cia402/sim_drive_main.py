@@ -25,7 +25,8 @@ from typing import Sequence
 import canopen
 
 from actuator_cia402.busload import frame_bits
-from actuator_cia402.config import RATED_CURRENT_A, RATED_TORQUE_NM, SimDriveSettings
+from actuator_cia402.config import RATED_CURRENT_A, RATED_TORQUE_NM
+from actuator_cia402.sim_settings import SimDriveSettings
 from actuator_cia402.hub import Hub, error_frame
 from actuator_cia402.scaling import Scaling
 from actuator_cia402.sim_drive import SimulatedDrive

@@ -37,6 +37,7 @@ class JointReport:
                 'refused_by_value': 'commands refused by value',
                 'command_timeouts': 'command timeouts (0 A, then the brake)',
                 'lockstep_timeouts': 'sim steps without a command',
+                'joint_warnings': 'warnings of the joint (logged)',
             },
             hardware_id=self.joint.kind,
         )
@@ -59,6 +60,7 @@ class JointReport:
                 'refused_by_value': self.gate.refused,
                 'command_timeouts': self.gate.timeouts,
                 'lockstep_timeouts': self.lockstep_timeouts,
+                'joint_warnings': self.joint_warnings,
             },
             {
                 'mode': self.mode,
