@@ -204,7 +204,7 @@ def test_kill_9_of_the_master_under_torque_stops_the_drive_by_its_heartbeat_cons
 ):
     # Old driver: no heartbeat consumer on the drive, no master heartbeat; after SIGKILL the
     # drive kept its target torque (the test above), so 'quick stop active' never came.
-    drive = sim_drive()
+    drive = sim_drive('--no-load')  # a free joint: the tool's sign check needs one
     master = RosProcess(
         [
             sys.executable,
@@ -217,6 +217,8 @@ def test_kill_9_of_the_master_under_torque_stops_the_drive_by_its_heartbeat_cons
             '--simulated',
             '--current',
             '1.0',
+            '--velocity-limit',
+            '20',  # 1 A runs the joint beyond the tool's default 1 rad/s within the minute
             '--duration',
             '60',
             '--sync-period',

@@ -189,7 +189,8 @@ class Cia402Master:
         self.configured = {}
         self.reset_communication()
         self.identity = self.check_identity()
-        notes = self.make_safe()
+        notes = self._stop_ramps()  # first: a drive found enabled stops on these
+        notes += self.make_safe()
         notes += self._one_sync_producer()
         self._write_verified(p.TARGET_TORQUE, None, 0, 'target torque', kept=False)
         self._check_equal(
@@ -226,20 +227,6 @@ class Cia402Master:
         )
         rpm = math.ceil(cfg.velocity_limit_rad_s * s.gear_ratio * 60.0 / (2.0 * math.pi))
         self._write_verified(p.MAX_MOTOR_SPEED, None, rpm, 'max motor speed')
-        self._write_verified(p.TORQUE_SLOPE, None, cfg.torque_slope_permille_s, 'torque slope')
-        if p.QUICK_STOP_DECELERATION in self.node.object_dictionary:
-            self._write_verified(
-                p.QUICK_STOP_DECELERATION,
-                None,
-                cfg.quick_stop_deceleration_rpm_s,
-                'quick stop deceleration',
-            )
-        else:
-            notes.append(
-                f'the EDS of node {self.node.id} has no 0x6085: its quick stop decelerates as '
-                'the drive tool set it'
-            )
-        self._write_verified(p.QUICK_STOP_OPTION, None, QUICK_STOP_OPTION, 'quick stop option')
         self._write_verified(
             p.DISABLE_OPERATION_OPTION, None, DISABLE_OPERATION_OPTION, 'disable operation option'
         )
@@ -272,6 +259,25 @@ class Cia402Master:
             'producer heartbeat time',
         )
         self._write_verified(p.MODES_OF_OPERATION, None, p.MODE_CST, 'modes of operation')
+        return notes
+
+    def _stop_ramps(self) -> list[str]:
+        """Write and read back the stop objects: 0x605A, torque slope 0x6087, 0x6085."""
+        cfg, notes = self.cfg, []
+        self._write_verified(p.QUICK_STOP_OPTION, None, QUICK_STOP_OPTION, 'quick stop option')
+        self._write_verified(p.TORQUE_SLOPE, None, cfg.torque_slope_permille_s, 'torque slope')
+        if p.QUICK_STOP_DECELERATION in self.node.object_dictionary:
+            self._write_verified(
+                p.QUICK_STOP_DECELERATION,
+                None,
+                cfg.quick_stop_deceleration_rpm_s,
+                'quick stop deceleration',
+            )
+        else:
+            notes.append(
+                f'the EDS of node {self.node.id} has no 0x6085: its quick stop decelerates as '
+                'the drive tool set it'
+            )
         return notes
 
     def _configure_sync_counter(self) -> list[str]:

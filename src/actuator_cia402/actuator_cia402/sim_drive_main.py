@@ -118,6 +118,7 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument('--silent-at', type=float, default=-1.0)
     ap.add_argument('--drop-tpdo', type=float, default=0.0)
     ap.add_argument('--late-tpdo', type=float, default=0.0)
+    ap.add_argument('--no-load', action='store_true', help='not: ' + _described('load'))
     ap.add_argument('--emcy-register', type=int, default=0, help=_described('emcy_register'))
     ap.add_argument('--transition-16', action='store_true', help=_described('transition_16'))
     ap.add_argument(
@@ -221,7 +222,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             node_id,
             scaling,
             args.sync_period,
-            plant_parameters(args.working_condition),
+            plant_parameters(args.working_condition, load=not args.no_load),
             args.torque_time_constant,
             plan,
             args.over_current,

@@ -102,12 +102,15 @@ def mapping_entry(text: str) -> Optional[tuple[int, int]]:
     return entry
 
 
-def plant_parameters(working_condition: str) -> PlantParameters:
-    """Return the joint model of the paper in 'deep_sea' (10 MPa, 2 degC) or 'lab'."""
+def plant_parameters(working_condition: str, load: bool = True) -> PlantParameters:
+    """Return the joint model of the paper in 'deep_sea' (10 MPa, 2 degC) or 'lab'.
+
+    ``load``: with the external torque of eq. (40); without it the joint is free.
+    """
     conditions = {'deep_sea': WorkingCondition.deep_sea, 'lab': WorkingCondition.lab}
     if working_condition not in conditions:
         raise ValueError(f'working_condition must be deep_sea or lab, got {working_condition!r}')
-    return PlantParameters(condition=conditions[working_condition]())
+    return PlantParameters(condition=conditions[working_condition](), with_external_torque=load)
 
 
 def inject_due(drive, t_s: float) -> None:

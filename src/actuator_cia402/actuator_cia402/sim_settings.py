@@ -29,6 +29,11 @@ class SimDriveSettings:
         2.0e-4, 'time constant of the drive torque loop (first order)', 's', 0.0, 0.01
     )
     initial_position_rad: float = spec(0.0, 'joint angle at start', 'rad', -100.0, 100.0)
+    load: bool = spec(
+        True,
+        "the joint carries the paper's external torque (eq. (40), 10-30 N m); false: a free "
+        'joint, as on a first power-on',
+    )
     fault_kind: str = spec(
         'none', 'fault to inject: none, over_current (0x2310) or following_error (0x8611)'
     )
@@ -165,6 +170,7 @@ class SimDriveSettings:
         flags = [
             flag
             for flag, on in (
+                ('--no-load', not self.load),
                 ('--transition-16', self.transition_16),
                 ('--no-halted-bit', not self.halted_bit),
                 ('--velocity-quick-stop', self.velocity_quick_stop),
