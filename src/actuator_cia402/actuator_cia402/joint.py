@@ -363,7 +363,7 @@ class Cia402Joint(Cia402Stop, Joint):
         with self._arrived:
             while not condition():
                 left = deadline - time.monotonic()
-                if left <= 0.0 or self.health.fault:
+                if left <= 0.0 or not self.health.can_send:  # error-passive: answers come
                     return False
                 self._arrived.wait(left)
             return True

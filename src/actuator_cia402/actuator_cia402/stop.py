@@ -11,11 +11,12 @@ is stopped the same way:
 1. braked cycles: RPDO 'switched on + halt' with 0 A (disable operation, 0x605C = 1), then
    the SYNC (or the bus's) and the TPDOs, each period on the monotonic clock, until the drive
    shows it stopped (``supervision.stopped``: no stop reaction under way, current actual 0);
-   the drive takes 0 A at the first SYNC;
+   the drive takes 0 A at the first SYNC (at the second when the last SYNC is older than
+   the SYNC window, which would discard the RPDO: a lone SYNC goes first);
 2. the stop over SDO (``Cia402Master.stop``) at once when those cycles could not stop it
-   (no answer twice in a row, e.g. a SYNC consumer whose producer is gone, or not within
-   ``state_timeout_s``), else at deactivate: disable voltage whatever failed before, NMT
-   stop for a drive that keeps its voltage;
+   (no answer for ``feedback_timeout_s``, e.g. a SYNC consumer whose producer is gone, or
+   not stopped within ``state_timeout_s``), else at deactivate: disable voltage whatever
+   failed before, NMT stop for a drive that keeps its voltage;
 3. NMT pre-operational for a drive seen disabled; otherwise this master's heartbeat falls
    silent, so the drive's heartbeat consumer (0x1016) stops it, and cleanup leaves 0x1016
    armed. With bus-off or a lost adapter nothing reaches the drive: only (3).
@@ -36,8 +37,6 @@ from actuator_cia402 import profile as p
 from actuator_cia402.master import Cia402Error
 from actuator_cia402.supervision import DISABLED_STATES, describe, stopped
 
-#: Braked cycles in a row without the drive's answer after which the stop goes over SDO.
-UNANSWERED_CYCLES_MAX = 2
 SDO_ERRORS = (Cia402Error, canopen.SdoAbortedError, canopen.SdoCommunicationError, can.CanError)
 
 
@@ -92,10 +91,16 @@ class Cia402Stop:
         """Cycles with the gate closed until the drive has stopped.
 
         Return (the cycle whose answer first showed 0 A, the cycle it showed stopped); 0 for
-        either that did not come within ``state_timeout_s`` or before the drive answered no
-        cycle ``UNANSWERED_CYCLES_MAX`` times in a row.
+        either that did not come within ``state_timeout_s``, or before the drive had answered
+        no cycle for ``feedback_timeout_s`` (the cycle's own rule for a silent drive).
         """
         period_s = self.cfg.sync_period_s
+        unanswered_max = max(1, math.ceil(self.cfg.feedback_timeout_s / period_s))
+        window_s = (self.cfg.sync_window_fraction - 0.5) * period_s
+        if self.cfg.sync_producer and time.monotonic() - self._last_read_mono > window_s:
+            # an RPDO later than the SYNC window 0x1007 after the last SYNC is discarded: a
+            # lone SYNC first (the drive holds its target one period more) opens a new window
+            self.read(self._last_stamp_ns + self.period_ns)
         start = time.monotonic()
         unanswered = first_zero = 0
         for n in range(1, math.ceil(self.cfg.state_timeout_s / period_s) + 1):
@@ -106,7 +111,7 @@ class Cia402Stop:
                 return first_zero, 0
             if self._tpdo1_seq == before:
                 unanswered += 1
-                if unanswered >= UNANSWERED_CYCLES_MAX:
+                if unanswered >= unanswered_max:
                     return first_zero, 0
             else:
                 unanswered = 0
