@@ -309,3 +309,76 @@ def test_a_report_queued_before_cleanup_reports_nothing_and_raises_nothing(rclpy
     assert node.joint is None  # what the snapshot reads is gone
     assert diagnostics.publish() is None
     node.destroy_node()
+
+
+def test_a_soft_limit_stop_says_0_a_and_brake_at_once_then_the_node_deactivates_itself(
+    rclpy_context,
+):
+    # Before (issue 44): /diagnostics kept the last held current and 'brake: false' after a
+    # joint-side stop, and the node stayed active until someone deactivated it.
+    from actuator_plant.plant_node import PlantNode
+
+    node = make(
+        PlantNode,
+        rclpy_context,
+        position_max_rad=0.3,
+        initial_position_rad=0.299,
+        brake_delay_s=0.0,
+    )
+    k = 0
+    while not node.stopped_reason and k < 200:
+        node.on_command(command(node.published_ns, 10.0))
+        k += 1
+    report = node.diagnostics.publish()
+    assert report.value('brake') == 'true' and report.value('held').startswith(
+        'control ended: joint angle'
+    ), report.values
+    node.on_tick()  # supervision: the node's own deactivation (no fault: no error processing)
+    assert node._state_machine.current_state[1] == 'inactive' and node.configured
+    report = node.diagnostics.publish()
+    assert report.value('held') == 'inactive' and report.value('brake') == 'true'
+    node.destroy_node()
+
+
+class EndingJoint(FaultyJoint):
+    """A FaultyJoint that records end_control and has one warning to hand over."""
+
+    def __init__(self):
+        super().__init__()
+        self.ended, self.warnings = [], ['EMCY 0xFF00 (device specific) without error register']
+
+    def end_control(self, reason):
+        self.ended.append(reason)
+        return 'drive stopped'
+
+    def take_warnings(self):
+        taken, self.warnings = self.warnings, []
+        return taken
+
+
+def test_the_node_ends_control_through_the_joint_and_logs_and_counts_its_warnings(rclpy_context):
+    # Before: the node wrote 0 A with the brake once, which a synchronous drive never took
+    # without a further SYNC, and a joint's warnings (EMCY) were never asked for.
+    from actuator_core.health import Level
+    from actuator_ros.joint_node import JointNode
+
+    class EndingNode(JointNode):
+        def __init__(self, **kwargs):
+            super().__init__('ending_joint', **kwargs)
+
+        def make_joint(self):
+            return EndingJoint()
+
+    node = make(EndingNode, rclpy_context)
+    joint = node.joint
+    node.diagnostics.publish()
+    node.on_tick()  # supervision takes the joint's warning: logged and counted
+    report = node.diagnostics.publish()
+    assert report.level == Level.WARN, report.message
+    assert '1 warnings of the joint (logged) since the last report' in report.message
+    for _ in range(5):
+        node.on_command(command(node.published_ns, 2.0))
+    assert joint.ended == ['safe torque off'] and node.fault == 'safe torque off'
+    node.on_tick()  # the fault: deactivation, error processing, unconfigured
+    assert node._state_machine.current_state[1] == 'unconfigured'
+    node.destroy_node()

@@ -63,11 +63,11 @@ class JointReport:
                 'joint_warnings': self.joint_warnings,
             },
             {
+                **self.joint.diagnostics(),  # the node's own keys below win (its 'brake': held)
                 'mode': self.mode,
                 'brake': bool(self.held.brake),
                 'held': self.held.reason or f'{self.held.current_a:.3f} A',
                 'fresh commands [%]': 'not judged yet' if share is None else f'{100 * share:.1f}',
-                **self.joint.diagnostics(),
             },
             problems,
         )
