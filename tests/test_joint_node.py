@@ -81,7 +81,8 @@ def test_a_bad_current_brakes_the_joint_whatever_sample_it_claims(rclpy_context)
     node.destroy_node()
 
 
-def test_a_soft_limit_crossed_ends_control_with_the_brake(rclpy_context):
+def past_the_soft_limit(rclpy_context):
+    """Return a plant node driven up at +10 A, one sample at a time, past its 0.3 rad limit."""
     from actuator_plant.plant_node import PlantNode
 
     node = make(
@@ -92,9 +93,14 @@ def test_a_soft_limit_crossed_ends_control_with_the_brake(rclpy_context):
         brake_delay_s=0.0,
     )
     k = 0
-    while not node.stopped_reason and k < 200:  # drive it up at +10 A, one sample at a time
+    while not node.stopped_reason and k < 200:
         node.on_command(command(node.published_ns, 10.0))
         k += 1
+    return node
+
+
+def test_a_soft_limit_crossed_ends_control_with_the_brake(rclpy_context):
+    node = past_the_soft_limit(rclpy_context)
     assert 'outside the soft limits [-100, 0.3] rad' in node.stopped_reason
     assert_stopped_for_good(node)
 
@@ -316,19 +322,7 @@ def test_a_soft_limit_stop_says_0_a_and_brake_at_once_then_the_node_deactivates_
 ):
     # Before (issue 44): /diagnostics kept the last held current and 'brake: false' after a
     # joint-side stop, and the node stayed active until someone deactivated it.
-    from actuator_plant.plant_node import PlantNode
-
-    node = make(
-        PlantNode,
-        rclpy_context,
-        position_max_rad=0.3,
-        initial_position_rad=0.299,
-        brake_delay_s=0.0,
-    )
-    k = 0
-    while not node.stopped_reason and k < 200:
-        node.on_command(command(node.published_ns, 10.0))
-        k += 1
+    node = past_the_soft_limit(rclpy_context)
     report = node.diagnostics.publish()
     assert report.value('brake') == 'true' and report.value('held').startswith(
         'control ended: joint angle'
