@@ -298,8 +298,9 @@ def test_the_drive_diagnostics_carry_the_bus_load_and_what_the_last_stop_did(rig
     r = rig()
     start(r)
     run_on_grid(r.joint, 2.0, 0.05, 0.2, PERIOD_S)
-    r.joint.end_control('joint speed 21 rad/s over 20 ms beyond the soft limit 20 rad/s')
+    what = r.joint.end_control('joint speed 21 rad/s over 20 ms beyond the soft limit 20 rad/s')
     values = r.joint.diagnostics()
+    assert what == values['stop']  # the line the node logs is the one /diagnostics shows
     assert values['bus_load_percent'] == '20.0'  # one joint at 500 Hz on 1 Mbit/s
     # the first braked SYNC's answer reports the period before it (2 A); answers can be late
     pattern = r"0 A after (\d+) braked cycle\(s\), stopped after \d+: drive 'switched on'"

@@ -50,10 +50,11 @@ class Cia402Stop:
         self.silenced = False  # the master heartbeat is off: a stop failed, 0x1016 must act
         self.brake_seen = None  # the brake's 'closed' as last read over SDO (None: unknown)
 
-    def end_control(self, reason: str) -> None:
-        """Stop the drive now that control ended (``reason``); ``stop_report`` says how."""
+    def end_control(self, reason: str) -> str:
+        """Stop the drive now that control ended (``reason``); return (and keep) what it did."""
         self._no_enable = True
         self.stop_report = self._stop_now()
+        return self.stop_report
 
     def describe(self) -> str:
         """One line: the drive as last read (state, statusword, current actual, brake)."""
