@@ -373,19 +373,6 @@ class JointNode(JointReport, ManagedNode):
             self.error = f'sampling thread failed: {exc!r}'
             self.finished = True
 
-    def _host_stalled(self, skipped: int) -> None:
-        """Count and log the cycles a host stall took (a real joint skips them)."""
-        self.skipped_cycles += skipped
-        self.longest_stall_cycles = max(self.longest_stall_cycles, skipped)
-        self.log.warn(
-            'host_stall',
-            lambda: (
-                f'host stall: {skipped} cycles skipped (the sampling thread woke '
-                f'{skipped * self.period_ns * 1e-6:.0f} ms late; {self.skipped_cycles} in all, '
-                f'the longest {self.longest_stall_cycles})'
-            ),
-        )
-
     def _cycle(self, k: int, write: bool = True) -> bool:
         """Write the gate's hold to the joint, read sample k, publish it; False: control ended."""
         if self.stopped_reason:
@@ -479,14 +466,6 @@ class JointNode(JointReport, ManagedNode):
         self.samples_log.append((sample.stamp_ns, time.time_ns(), self.held.command_stamp_ns))
         self.publish_extras(sample.stamp_ns)
         return True
-
-    def _log_warnings(self) -> None:
-        """Log and count what the joint noticed without ending control (EMCY warnings)."""
-        if self.joint is None:
-            return
-        for text in self.joint.take_warnings():
-            self.joint_warnings += 1
-            self.get_logger().warning(f'{self.summary}: {text}')
 
     def _sim_step(self) -> None:
         """sim: integrate one sample with what the gate holds and publish the next."""
