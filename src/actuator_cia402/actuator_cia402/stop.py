@@ -157,7 +157,7 @@ class Cia402Stop:
         notes, self._stop_notes = self._stop_notes, []
         if not self.health.can_send:
             return notes + [f'deactivate: {self.stop_report}']
-        if not self.master.disabled:
+        if not self.master.disabled and not self.silenced:  # a failed stop is not repeated
             self._sdo_stop()
             notes, self._stop_notes = notes + self._stop_notes, []
         if self.master.disabled:

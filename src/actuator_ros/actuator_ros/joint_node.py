@@ -183,6 +183,7 @@ class JointNode(JointReport, ManagedNode):
         self.settle_until_ns: Optional[int] = None
         self.conflict = bool(self.guard.conflict)  # more than one publisher on current_command
         self.stopped_reason = ''  # why control ended on the joint side (fault, soft limit)
+        self.ending = False  # the joint is stopping (end_control) after control ended
         self.fault = ''  # a joint fault: error processing follows
         self.lockstep_timeouts = 0
         self.skipped_cycles = 0  # realtime, a real joint: cycles the host was too late to run
@@ -272,7 +273,12 @@ class JointNode(JointReport, ManagedNode):
         if not self.active:
             return
         if self.stopped_reason:  # the node's own deactivation (a fault: error processing next)
-            self.trigger_deactivate()
+            if not self.ending:  # once the joint has stopped (and said so)
+                self._internal_transition = True
+                try:
+                    self.trigger_deactivate()
+                finally:
+                    self._internal_transition = False
             return
         if self.start_ns is None:
             self._start_when_ready()
@@ -428,10 +434,13 @@ class JointNode(JointReport, ManagedNode):
         with self.gate_lock:
             self.gate.deactivate()
             self.held = Held(0.0, -1, True, f'control ended: {reason}')
-        self.stopped_reason = reason
+        self.stopped_reason, self.ending = reason, True
         if fault:
             self.fault = reason
-        what = self.joint.end_control(reason)
+        try:
+            what = self.joint.end_control(reason)
+        finally:
+            self.ending = False
         self.get_logger().error(f'control ended: {reason}; {what}')
         if self.cfg.stop_after_s:  # a bounded run cannot reach its end: it failed, and exits
             self.error = f'the run of {self.cfg.stop_after_s:g} s ended early: {reason}'
