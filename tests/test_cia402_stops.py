@@ -90,6 +90,8 @@ def rig():
         tool.sdo.RESPONSE_TIMEOUT = 1.0
         overrides.setdefault('feedback_timeout_s', 0.25)
         overrides.setdefault('sdo_timeout_s', 1.0)  # 0.3 s went unanswered at load 8
+        # this process holds master and drive: a stall of it must not trip the drive's consumer
+        overrides.setdefault('heartbeat_timeout_s', 1.0)
         cfg = DriverParameters(
             interface='hub',
             channel=hub.address,
@@ -160,10 +162,10 @@ def test_every_end_of_control_stops_the_drive_within_two_cycles(rig, why):
     cycles_s = 0.4 if why in ('node', 'deactivate') else 1.0
     result = run_on_grid(r.joint, 3.0, 0.05, cycles_s, PERIOD_S, on_sample=disturb)
     decided = ended[0] if ended else r.drive.syncs
-    assert r.after(decided)[0] == pytest.approx(3.0, abs=0.01)  # 3 A until then
-    if why == 'node':
+    if why == 'node':  # as the node does, in the cycle that found the reason
         r.joint.end_control('joint angle 0.3001 rad outside the soft limits [-1, 0.3] rad')
     r.joint.deactivate()
+    assert r.after(decided)[0] == pytest.approx(3.0, abs=0.01)  # 3 A until then
     # 0 A two drive periods after the one that ended control, however late the stop over SDO
     # (the first may still hold the torque: an RPDO later than the SYNC window is discarded)
     assert [r.after(decided + n)[0] for n in (2, 3)] == [0.0, 0.0]
@@ -182,7 +184,10 @@ def test_a_quick_stop_the_drive_makes_is_not_undone_by_transition_16(rig):
     result = run_on_grid(r.joint, 1.0, 0.05, 0.6, PERIOD_S)
     assert any('injected: quick_stop_input' in e for e in r.drive.events)
     assert not [e for e in r.drive.events if 'transition 16' in e]  # the drive's own account
-    assert 'quick stop active' in result['fault'], result['fault']  # and the master saw it
+    # and the master saw the drive stop (quick stop active, or its end if TPDOs came late)
+    assert re.search(
+        r'quick stop active|left without a fault: switch on disabled', result['fault']
+    )
     r.joint.deactivate()
     assert r.settled() == (DISABLED, True, 0.0)
 
@@ -234,6 +239,7 @@ def test_a_drive_that_lost_its_configuration_is_never_enabled(rig, change):
     start(r)
     assert run_on_grid(r.joint, 1.0, 0.05, 0.1, PERIOD_S)['fault'] == ''
     r.joint.deactivate()
+    time.sleep(0.1)  # one SDO channel, two clients: the joint's answers must be gone first
     if change == 'reboot':
         r.tool.nmt.send_command(0x81)  # NMT reset node: what a power cycle does
     else:
@@ -246,7 +252,7 @@ def test_a_drive_that_lost_its_configuration_is_never_enabled(rig, change):
     except JointError as exc:
         refused = str(exc)
     kill_master(r)
-    time.sleep(0.5)  # beyond the 300 ms heartbeat consumer time
+    time.sleep(1.2)  # beyond the heartbeat consumer time (1 s here), had one been configured
     assert r.settled() == (DISABLED, True, 0.0)
     words = 'the drive rebooted' if change == 'reboot' else 'heartbeat consumer 0x1016:1 reads 0'
     assert words in refused, refused
@@ -258,6 +264,7 @@ def test_a_drive_that_produces_sync_is_turned_off_at_configure(rig):
     assert r.drive.producing_sync
     notes = r.joint.configure()
     assert not r.drive.producing_sync
+    time.sleep(0.1)  # one SDO channel, two clients: the joint's answers must be gone first
     assert r.tool.sdo[p.SYNC_COB_ID].raw == 0x80
     assert any('it produced SYNC itself' in n for n in notes), notes
 

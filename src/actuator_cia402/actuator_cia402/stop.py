@@ -11,8 +11,9 @@ is stopped the same way:
 1. braked cycles: RPDO 'switched on + halt' with 0 A (disable operation, 0x605C = 1), then
    the SYNC (or the bus's) and the TPDOs, each period on the monotonic clock, until the drive
    shows it stopped (``supervision.stopped``: no stop reaction under way, current actual 0);
-   the drive takes 0 A at the first SYNC (at the second when the last SYNC is older than
-   the SYNC window, which would discard the RPDO: a lone SYNC goes first);
+   the drive takes 0 A at the first SYNC, or at the second when the first RPDO came later
+   than the SYNC window after the last SYNC (0x1007 discards it): every later braked RPDO
+   goes out right after a SYNC, deep inside its window;
 2. the stop over SDO (``Cia402Master.stop``) at once when those cycles could not stop it
    (no answer for ``feedback_timeout_s``, e.g. a SYNC consumer whose producer is gone, or
    not stopped within ``state_timeout_s``), else at deactivate: disable voltage whatever
@@ -97,17 +98,14 @@ class Cia402Stop:
         """
         period_s = self.cfg.sync_period_s
         unanswered_max = max(1, math.ceil(self.cfg.feedback_timeout_s / period_s))
-        window_s = (self.cfg.sync_window_fraction - 0.5) * period_s
-        if self.cfg.sync_producer and time.monotonic() - self._last_read_mono > window_s:
-            # an RPDO later than the SYNC window 0x1007 after the last SYNC is discarded: a
-            # lone SYNC first (the drive holds its target one period more) opens a new window
-            self.read(self._last_stamp_ns + self.period_ns)
         start = time.monotonic()
         unanswered = first_zero = 0
+        self.write(0.0, True)  # the next SYNC takes it, unless it is past the SYNC window
         for n in range(1, math.ceil(self.cfg.state_timeout_s / period_s) + 1):
-            self.write(0.0, True)
             before = self._tpdo1_seq
             self.read(self._last_stamp_ns + self.period_ns)
+            # right after the SYNC, deep inside its window 0x1007: the next SYNC takes it
+            self.write(0.0, True)
             if not self.health.can_send:
                 return first_zero, 0
             if self._tpdo1_seq == before:
