@@ -483,18 +483,17 @@ def test_the_sign_check_says_right_wrong_or_unknown_with_its_refusal_line():
         SignCheck(0.0)
 
 
-def test_a_drive_has_stopped_when_no_stop_reaction_is_under_way_and_no_current_flows():
-    """supervision.stopped reads the state and the current, never statusword bit 10."""
+def test_a_drive_has_stopped_when_its_state_shows_no_stop_reaction_under_way():
+    """supervision.stopped reads the state only, never statusword bit 10."""
     from actuator_cia402.supervision import stopped
 
     halted = p.encode_statusword(p.State.QUICK_STOP_ACTIVE) | p.SW_TARGET_REACHED
-    assert not stopped(halted, 0)  # bit 10 says nothing: quick stop active may still ramp
-    assert not stopped(p.encode_statusword(p.State.OPERATION_ENABLED), 0)
-    assert not stopped(p.encode_statusword(p.State.FAULT_REACTION_ACTIVE), 0)
-    assert not stopped(p.encode_statusword(p.State.SWITCHED_ON), 1)
-    assert stopped(p.encode_statusword(p.State.SWITCHED_ON), 0)
-    assert stopped(p.encode_statusword(p.State.SWITCH_ON_DISABLED), 0)
-    assert stopped(p.encode_statusword(p.State.FAULT), 0)
+    assert not stopped(halted)  # bit 10 says nothing: quick stop active may still ramp
+    assert not stopped(p.encode_statusword(p.State.OPERATION_ENABLED))
+    assert not stopped(p.encode_statusword(p.State.FAULT_REACTION_ACTIVE))
+    assert not stopped(0x0001)  # an undefined pattern is not a stop
+    for state in (p.State.SWITCHED_ON, p.State.SWITCH_ON_DISABLED, p.State.FAULT):
+        assert stopped(p.encode_statusword(state)), state
 
 
 def test_the_drive_heartbeat_tells_a_reboot_and_a_silence():

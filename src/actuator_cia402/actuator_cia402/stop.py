@@ -10,7 +10,8 @@ is stopped the same way:
 
 1. braked cycles: RPDO 'switched on + halt' with 0 A (disable operation, 0x605C = 1), then
    the SYNC (or the bus's) and the TPDOs, each period on the monotonic clock, until the drive
-   shows it stopped (``supervision.stopped``: no stop reaction under way, current actual 0);
+   shows it stopped (``supervision.stopped``: no stop reaction under way, read from the
+   statusword's state);
    the drive takes 0 A at the first SYNC, or at the second when the first RPDO came later
    than the SYNC window after the last SYNC (0x1007 discards it): every later braked RPDO
    goes out right after a SYNC, deep inside its window;
@@ -117,7 +118,7 @@ class Cia402Stop:
                 self._wait(lambda: self._tpdo2_seq >= self._tpdo1_seq, self.wait_s)
                 if not first_zero and self._tpdo2[0] == 0:
                     first_zero = n
-                if stopped(self.statusword, self._tpdo2[0]):
+                if stopped(self.statusword):
                     return first_zero, n
             time.sleep(max(0.0, start + n * period_s - time.monotonic()))
         return first_zero, 0

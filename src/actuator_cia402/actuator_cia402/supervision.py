@@ -4,7 +4,7 @@
 """What the CiA 402 master watches besides the cycle's samples, ROS-free.
 
 ``torque_fault``   every statusword that means the drive does not apply the commanded torque;
-``stopped``        whether a statusword and current actual show a drive that has stopped;
+``stopped``        whether a statusword shows a drive that has ended its stop;
 ``PositionUnwrap`` the INTEGER32 position actual unwrapped;
 ``BusHealth``      error frames and a vanished adapter (and whether frames can still be sent);
 ``DriveHeartbeat`` the drive's own heartbeat (0x1017) consumed: a boot-up after configure
@@ -60,13 +60,14 @@ def torque_fault(statusword: int, enable_settled: bool) -> str:
     return ''
 
 
-def stopped(statusword: int, current_permille: int) -> bool:
-    """Whether the drive has ended its stop: no stop reaction under way and no current.
+def stopped(statusword: int) -> bool:
+    """Whether the drive has ended its stop: a known state without a stop reaction under way.
 
-    Read from the state alone, never from bit 10 (not defined for CST on real drives).
+    In each of those states the drive function is disabled (no torque), whatever its current
+    measurement reads; never from bit 10 (not defined for CST on real drives).
     """
     state = p.decode_state(statusword)
-    return state is not None and state not in STOPPING_STATES and current_permille == 0
+    return state is not None and state not in STOPPING_STATES
 
 
 def describe(statusword: int, current_a: float, brake_closed: Optional[bool]) -> str:
