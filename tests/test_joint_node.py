@@ -376,3 +376,52 @@ def test_the_node_ends_control_through_the_joint_and_logs_and_counts_its_warning
     node.on_tick()  # the fault: deactivation, error processing, unconfigured
     assert node._state_machine.current_state[1] == 'unconfigured'
     node.destroy_node()
+
+
+class _Said:
+    """A logger stand-in that keeps what the node says at error level."""
+
+    def __init__(self):
+        self.errors = []
+
+    def error(self, text, **kwargs):
+        self.errors.append(text)
+
+    def __getattr__(self, name):
+        return lambda *args, **kwargs: None
+
+
+def test_a_joint_that_cannot_be_brought_up_is_a_failed_configure_not_a_refused_parameter(
+    rclpy_context,
+):
+    # Before (issue 44): a drive that failed at configure was reported as a ParameterError,
+    # 'configure refused: ...', as if a parameter were wrong.
+    from actuator_core.joint import JointError
+    from actuator_ros.joint_node import JointNode
+
+    class Unreachable(FaultyJoint):
+        def configure(self):
+            raise JointError('configure: node 1 sent no boot-up')
+
+    class UnreachableNode(JointNode):
+        summary = 'unreachable joint'
+
+        def __init__(self, **kwargs):
+            super().__init__('unreachable_joint', **kwargs)
+
+        def make_joint(self):
+            return Unreachable()
+
+    from rclpy.parameter import Parameter
+
+    node = UnreachableNode(
+        context=rclpy_context, parameter_overrides=[Parameter('mode', value='sim')]
+    )
+    said = _Said()
+    node.get_logger = lambda: said
+    node.trigger_configure()
+    assert not node.configured and node.joint is None
+    assert said.errors == [
+        'configure failed: unreachable joint: configure: node 1 sent no boot-up'
+    ]
+    node.destroy_node()
