@@ -44,7 +44,8 @@ class Rig:
     drive: SimulatedDrive
     joint: Cia402Joint
     tool: canopen.RemoteNode
-    periods: dict = field(default_factory=dict)  # drive period -> (current A, state, brake)
+    #: drive period -> (current A, state, brake, SYNC frames taken by then, stepped by a SYNC)
+    periods: dict = field(default_factory=dict)
 
     def after(self, period: int) -> tuple:
         """Return what the drive applied over ``period`` (once drive time got there)."""
@@ -52,6 +53,16 @@ class Rig:
         while period not in self.periods and time.monotonic() < deadline:
             time.sleep(0.01)
         return self.periods[period]
+
+    def period_of_sync(self, frames: int) -> int:
+        """Return the drive period of the SYNC frame number ``frames`` (once it got there)."""
+        deadline = time.monotonic() + 2.0
+        while time.monotonic() < deadline:
+            found = [n for n, v in list(self.periods.items()) if v[3:] == (frames, True)]
+            if found:
+                return found[0]
+            time.sleep(0.01)
+        raise AssertionError(f'the drive never took SYNC number {frames}')
 
     def settled(self) -> tuple:
         """Return the drive's state, brake and current once a stop has had time to end."""
@@ -104,7 +115,13 @@ def rig():
 
         def recorded(cycle: bool) -> None:
             advance(cycle)
-            made_rig.periods[drive.syncs] = (drive.current_a, drive.state, drive.brake_closed)
+            made_rig.periods[drive.syncs] = (
+                drive.current_a,
+                drive.state,
+                drive.brake_closed,
+                drive.sync_frames,
+                cycle,
+            )
 
         drive._advance = recorded
         drive.attach(networks[0])
@@ -152,19 +169,16 @@ def test_every_end_of_control_stops_the_drive_within_two_cycles(rig, why):
             sent.append(r.hub.broadcast(error_frame('error_passive')))
         if k >= 150 and not sent and why == 'second_sync':
             sent.append(r.tool.network.send_message(0x80, b''))
-        if sample.fault and not ended:  # once the drive has taken every SYNC sent so far
-            syncs = r.joint._syncs_sent + (len(sent) if why == 'second_sync' else 0)
-            deadline = time.monotonic() + 1.0
-            while r.drive.sync_frames < syncs and time.monotonic() < deadline:
-                time.sleep(0.0001)
-            ended.append(r.drive.syncs)
+        if sample.fault and not ended:  # the SYNC frames sent when control ended
+            ended.append(r.joint._syncs_sent + (len(sent) if why == 'second_sync' else 0))
 
     cycles_s = 0.4 if why in ('node', 'deactivate') else 1.0
     result = run_on_grid(r.joint, 3.0, 0.05, cycles_s, PERIOD_S, on_sample=disturb)
-    decided = ended[0] if ended else r.drive.syncs
+    frames = ended[0] if ended else r.joint._syncs_sent
     if why == 'node':  # as the node does, in the cycle that found the reason
         r.joint.end_control('joint angle 0.3001 rad outside the soft limits [-1, 0.3] rad')
     r.joint.deactivate()
+    decided = r.period_of_sync(frames)  # the drive period whose answer ended control
     assert r.after(decided)[0] == pytest.approx(3.0, abs=0.01)  # 3 A until then
     # 0 A two drive periods after the one that ended control, however late the stop over SDO
     # (the first may still hold the torque: an RPDO later than the SYNC window is discarded)
