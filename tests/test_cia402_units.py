@@ -13,8 +13,9 @@ import pytest
 from actuator_core import limits
 from actuator_cia402 import profile as p
 from actuator_cia402.busload import BusLoadError, check_bus_load, cycle_load, frame_bits
-from actuator_cia402.config import DriverParameters, SimDriveSettings
-from actuator_cia402.joint import PositionUnwrap, torque_fault
+from actuator_cia402.config import DriverParameters
+from actuator_cia402.sim_settings import SimDriveSettings
+from actuator_cia402.supervision import PositionUnwrap, torque_fault
 from actuator_cia402.launch_spec import driver_arguments, driver_parameters, sim_drive_command
 from actuator_cia402.scaling import Scaling
 
@@ -210,7 +211,21 @@ def test_launch_spec_gives_checked_parameters_for_a_closed_loop_run():
     assert params['channel'] == '127.0.0.1:4321' and params['autostart'] is True
     with pytest.raises(ValueError, match='eds_file'):
         driver_parameters(simulated=False)
-    hardware = driver_parameters(simulated=False, eds_file='drive.eds')
+    with pytest.raises(ValueError) as refused:  # no simulated default reaches a real drive
+        driver_parameters(simulated=False, eds_file='drive.eds', brake_status_index=0x2000)
+    assert str(refused.value) == (
+        'a real drive needs brake_status_mask, quick_stop_deceleration_rad_s2 (0x6085), '
+        "position_min_rad and position_max_rad (the joint's travel) set: the defaults are the "
+        "simulated drive's and plant's"
+    )
+    hardware = driver_parameters(
+        simulated=False,
+        eds_file='drive.eds',
+        brake_status_index=0,
+        quick_stop_deceleration_rad_s2=20.0,
+        position_min_rad=-1.0,
+        position_max_rad=1.0,
+    )
     assert hardware['interface'] == 'socketcan' and hardware['channel'] == 'can0'
     args = driver_arguments(params)
     assert args[0] == '--ros-args' and '-p' in args and 'simulated_drive:=true' in args
@@ -442,3 +457,90 @@ def test_every_driver_parameter_is_a_spec_with_description_and_numeric_range():
         assert f.metadata['description'], name
         if isinstance(f.default, (int, float)) and not isinstance(f.default, bool):
             assert m.isfinite(f.metadata['low']) and m.isfinite(f.metadata['high']), name
+
+
+# --- issue 44: the ROS-free pieces of a stop, the sign check, the drive heartbeat -------------
+def test_the_sign_check_says_right_wrong_or_unknown_with_its_refusal_line():
+    """A positive current must move the joint positive by MIN_TRAVEL_RAD within WINDOW_S."""
+    from actuator_cia402.sign_check import MIN_TRAVEL_RAD, WINDOW_S, SignCheck
+
+    right = SignCheck(0.3)
+    assert right.update(0.0, 1.0) == '' and right.update(0.01, 1.0 + 0.5 * MIN_TRAVEL_RAD) == ''
+    assert right.update(0.02, 1.0 + 1.01 * MIN_TRAVEL_RAD) == 'right'
+    wrong = SignCheck(0.3)
+    wrong.update(0.0, 0.0)
+    assert wrong.update(0.02, -0.00052) == (
+        'sign check failed: +0.3 A moved the joint -0.00052 rad, the other way: polarity '
+        '0x607E, the motor phases or the encoder direction is wrong, or a load outweighs the '
+        'current (free the joint); stopped'
+    )
+    negative = SignCheck(-0.3)  # a negative current must move the joint negative
+    negative.update(0.0, 0.0)
+    assert negative.update(0.02, -MIN_TRAVEL_RAD) == 'right'
+    stuck = SignCheck(0.3)
+    stuck.update(0.0, 0.0)
+    assert stuck.update(WINDOW_S - 0.01, 0.0) == ''
+    assert stuck.update(WINDOW_S, 1e-5) == (
+        'sign check failed: +0.3 A moved the joint +0.00001 rad in 0.50 s (less than 0.0003 '
+        'rad): free the joint or raise --current; stopped'
+    )
+    with pytest.raises(ValueError, match='nonzero current'):
+        SignCheck(0.0)
+
+
+def test_a_drive_has_stopped_when_its_state_shows_no_stop_reaction_under_way():
+    """supervision.stopped reads the state only, never statusword bit 10."""
+    from actuator_cia402.supervision import stopped
+
+    halted = p.encode_statusword(p.State.QUICK_STOP_ACTIVE) | p.SW_TARGET_REACHED
+    assert not stopped(halted)  # bit 10 says nothing: quick stop active may still ramp
+    assert not stopped(p.encode_statusword(p.State.OPERATION_ENABLED))
+    assert not stopped(p.encode_statusword(p.State.FAULT_REACTION_ACTIVE))
+    assert not stopped(0x0001)  # an undefined pattern is not a stop
+    for state in (p.State.SWITCHED_ON, p.State.SWITCH_ON_DISABLED, p.State.FAULT):
+        assert stopped(p.encode_statusword(state)), state
+
+
+def test_the_drive_heartbeat_tells_a_reboot_and_a_silence():
+    """A boot-up after configure is a reboot; three periods without a heartbeat, a silence."""
+    from actuator_cia402.supervision import DriveHeartbeat
+
+    watch = DriveHeartbeat(0.1, now_s=10.0)
+    assert watch.problem(10.29) == ''  # not yet three periods since configure
+    watch.on_heartbeat(0x7F, 10.2)
+    assert watch.problem(10.49) == ''
+    assert watch.problem(10.51).startswith('no heartbeat from the drive for 0.31 s (its 0x1017')
+    watch.on_heartbeat(0, 10.6)  # boot-up
+    assert watch.problem(10.6).startswith('the drive rebooted (boot-up seen 1x since configure)')
+
+
+def test_the_mapping_read_back_names_the_first_entry_the_drive_did_not_take():
+    """pdo_setup.read_back: a COB-ID's RTR bit is the drive's; an entry that differs is not."""
+    from actuator_cia402.pdo_setup import RTR_NOT_ALLOWED, read_back
+
+    wanted = [(0x1801, 1, 0x281, 'TPDO2 COB-ID'), (0x1A01, 3, 0x60610008, 'TPDO2 mapping entry 3')]
+    drive = {(0x1801, 1): 0x281 | RTR_NOT_ALLOWED, (0x1A01, 3): 0x60610008}
+    assert read_back(lambda i, s: drive[(i, s)], wanted) is None
+    drive[(0x1A01, 3)] = 0
+    assert read_back(lambda i, s: drive[(i, s)], wanted).startswith(
+        'TPDO2 mapping entry 3 0x1A01:3 reads 0x00000000 after writing 0x60610008'
+    )
+
+
+def test_a_real_drive_needs_its_own_brake_status_deceleration_and_soft_limits():
+    """check_real_drive: the simulated drive's defaults never reach a real drive."""
+    from actuator_cia402.config import check_real_drive
+
+    simulated = DriverParameters(simulated_drive=True, interface='hub', channel='127.0.0.1:1')
+    check_real_drive(simulated, (-100.0, 100.0))  # the simulated drive keeps its defaults
+    real = DriverParameters(brake_status_index=0, quick_stop_deceleration_rad_s2=20.0)
+    check_real_drive(real, (-1.5, 1.5))
+    with pytest.raises(ValueError) as refused:
+        check_real_drive(DriverParameters(), (-1.5, 100.0))
+    assert str(refused.value) == (
+        'a real drive needs brake_status_index (0: the drive cannot tell), '
+        'quick_stop_deceleration_rad_s2 (0x6085), position_min_rad and position_max_rad (the '
+        "joint's travel) set: the defaults are the simulated drive's and plant's"
+    )
+    assert DriverParameters().brake_status == (0x60FD, 1 << 16)  # the simulated drive's
+    assert real.quick_stop_deceleration_rpm_s == 19099  # 20 rad/s^2 x 100, rpm/s, rounded up

@@ -81,7 +81,8 @@ def test_a_bad_current_brakes_the_joint_whatever_sample_it_claims(rclpy_context)
     node.destroy_node()
 
 
-def test_a_soft_limit_crossed_ends_control_with_the_brake(rclpy_context):
+def past_the_soft_limit(rclpy_context):
+    """Return a plant node driven up at +10 A, one sample at a time, past its 0.3 rad limit."""
     from actuator_plant.plant_node import PlantNode
 
     node = make(
@@ -92,9 +93,14 @@ def test_a_soft_limit_crossed_ends_control_with_the_brake(rclpy_context):
         brake_delay_s=0.0,
     )
     k = 0
-    while not node.stopped_reason and k < 200:  # drive it up at +10 A, one sample at a time
+    while not node.stopped_reason and k < 200:
         node.on_command(command(node.published_ns, 10.0))
         k += 1
+    return node
+
+
+def test_a_soft_limit_crossed_ends_control_with_the_brake(rclpy_context):
+    node = past_the_soft_limit(rclpy_context)
     assert 'outside the soft limits [-100, 0.3] rad' in node.stopped_reason
     assert_stopped_for_good(node)
 
@@ -308,4 +314,114 @@ def test_a_report_queued_before_cleanup_reports_nothing_and_raises_nothing(rclpy
     node.trigger_cleanup()
     assert node.joint is None  # what the snapshot reads is gone
     assert diagnostics.publish() is None
+    node.destroy_node()
+
+
+def test_a_soft_limit_stop_says_0_a_and_brake_at_once_then_the_node_deactivates_itself(
+    rclpy_context,
+):
+    # Before (issue 44): /diagnostics kept the last held current and 'brake: false' after a
+    # joint-side stop, and the node stayed active until someone deactivated it.
+    node = past_the_soft_limit(rclpy_context)
+    report = node.diagnostics.publish()
+    assert report.value('brake') == 'true' and report.value('held').startswith(
+        'control ended: joint angle'
+    ), report.values
+    node.on_tick()  # supervision: the node's own deactivation (no fault: no error processing)
+    assert node._state_machine.current_state[1] == 'inactive' and node.configured
+    report = node.diagnostics.publish()
+    assert report.value('held') == 'inactive' and report.value('brake') == 'true'
+    node.destroy_node()
+
+
+class EndingJoint(FaultyJoint):
+    """A FaultyJoint that records end_control and has one warning to hand over."""
+
+    def __init__(self):
+        super().__init__()
+        self.ended, self.warnings = [], ['EMCY 0xFF00 (device specific) without error register']
+
+    def end_control(self, reason):
+        self.ended.append(reason)
+        return 'drive stopped'
+
+    def take_warnings(self):
+        taken, self.warnings = self.warnings, []
+        return taken
+
+
+def test_the_node_ends_control_through_the_joint_and_logs_and_counts_its_warnings(rclpy_context):
+    # Before: the node wrote 0 A with the brake once, which a synchronous drive never took
+    # without a further SYNC, and a joint's warnings (EMCY) were never asked for.
+    from actuator_core.health import Level
+    from actuator_ros.joint_node import JointNode
+
+    class EndingNode(JointNode):
+        def __init__(self, **kwargs):
+            super().__init__('ending_joint', **kwargs)
+
+        def make_joint(self):
+            return EndingJoint()
+
+    node = make(EndingNode, rclpy_context)
+    joint = node.joint
+    node.diagnostics.publish()
+    node.on_tick()  # supervision takes the joint's warning: logged and counted
+    report = node.diagnostics.publish()
+    assert report.level == Level.WARN, report.message
+    assert '1 warnings of the joint (logged) since the last report' in report.message
+    for _ in range(5):
+        node.on_command(command(node.published_ns, 2.0))
+    assert joint.ended == ['safe torque off'] and node.fault == 'safe torque off'
+    node.on_tick()  # the fault: deactivation, error processing, unconfigured
+    assert node._state_machine.current_state[1] == 'unconfigured'
+    node.destroy_node()
+
+
+class _Said:
+    """A logger stand-in that keeps what the node says at error level."""
+
+    def __init__(self):
+        self.errors = []
+
+    def error(self, text, **kwargs):
+        self.errors.append(text)
+
+    def __getattr__(self, name):
+        return lambda *args, **kwargs: None
+
+
+def test_a_joint_that_cannot_be_brought_up_is_a_failed_configure_not_a_refused_parameter(
+    rclpy_context,
+):
+    # Before (issue 44): a drive that failed at configure was reported as a ParameterError,
+    # 'configure refused: ...', as if a parameter were wrong.
+    from actuator_core.joint import JointError
+    from actuator_ros.joint_node import JointNode
+
+    class Unreachable(FaultyJoint):
+        def configure(self):
+            raise JointError('configure: node 1 sent no boot-up')
+
+    class UnreachableNode(JointNode):
+        summary = 'unreachable joint'
+
+        def __init__(self, **kwargs):
+            super().__init__('unreachable_joint', **kwargs)
+
+        def make_joint(self):
+            return Unreachable()
+
+    from rclpy.parameter import Parameter
+
+    node = UnreachableNode(
+        context=rclpy_context, parameter_overrides=[Parameter('mode', value='sim')]
+    )
+    said = _Said()
+    node.get_logger = lambda: said
+    node.trigger_configure()
+    assert not node.configured and node.joint is None
+    assert said.errors == [
+        'configure failed: unreachable joint: configure: node 1 sent no boot-up'
+    ]
     node.destroy_node()

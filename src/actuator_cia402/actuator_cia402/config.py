@@ -10,118 +10,26 @@ docs/reference/parameters.md lists them (generated).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+from typing import Optional
 
 from actuator_core import limits
 from actuator_core.params import spec, validate
 from actuator_cia402.busload import DEFAULT_LIMIT, MAX_JOINTS_ON_BUS, check_bus_load
 from actuator_cia402.scaling import Scaling
-from actuator_cia402.sim_faults import FAULT_CODES
+from actuator_cia402.supervision import HEARTBEAT_PERIODS_MISSED
 
 INTERFACES = ('hub', 'socketcan')
-CONDITIONS = ('deep_sea', 'lab')
 #: Rated current of the joint motor [A] and its rated torque k_tn * I_rated [N m]
 #: (EDS 0x6075, 0x6076).
 RATED_CURRENT_A = 10.0
 RATED_TORQUE_NM = RATED_CURRENT_A * limits.NOMINAL_TORQUE_CONSTANT_NM_A
-
-
-@dataclass(frozen=True)
-class SimDriveSettings:
-    """The simulated drive (parameters 'sim.*'; used only with simulated_drive true)."""
-
-    working_condition: str = spec(
-        'deep_sea', 'joint model condition: deep_sea (10 MPa, 2 degC) or lab (0 MPa, 25 degC)'
-    )
-    torque_time_constant_s: float = spec(
-        2.0e-4, 'time constant of the drive torque loop (first order)', 's', 0.0, 0.01
-    )
-    initial_position_rad: float = spec(0.0, 'joint angle at start', 'rad', -100.0, 100.0)
-    fault_kind: str = spec(
-        'none', 'fault to inject: none, over_current (0x2310) or following_error (0x8611)'
-    )
-    fault_at_s: float = spec(
-        -1.0, 'time of the injected fault after the first SYNC (negative: never)', 's', -1.0, 1.0e6
-    )
-    emcy_code: int = spec(
-        0xFF00, 'code of an extra EMCY frame (error register 0: a warning)', '', 1, 0xFFFF
-    )
-    emcy_at_s: float = spec(
-        -1.0,
-        'time of the extra EMCY frame after the first SYNC (negative: never)',
-        's',
-        -1.0,
-        1.0e6,
-    )
-    over_current_a: float = spec(
-        1.25 * limits.CURRENT_LIMIT_A,
-        'the drive faults (0x2310) beyond this motor current',
-        'A',
-        0.0,
-        1.0e3,
-        low_open=True,
-    )
-    drop_tpdo_fraction: float = spec(
-        0.0, 'share of SYNCs the drive answers without TPDOs', '', 0.0, 1.0
-    )
-    late_tpdo_fraction: float = spec(
-        0.0,
-        "share of SYNCs the drive answers only just before the next SYNC's TPDOs",
-        '',
-        0.0,
-        1.0,
-    )
-    silent_at_s: float = spec(
-        -1.0,
-        'time after the first SYNC from which the drive is silent (negative: never)',
-        's',
-        -1.0,
-        1.0e6,
-    )
-    seed: int = spec(1, 'seed of the dropped- and late-TPDO draws', '', 0, 2**31 - 1)
-
-    def __post_init__(self) -> None:
-        """Refuse an unknown condition or fault kind."""
-        validate(self)
-        if self.working_condition not in CONDITIONS:
-            raise ValueError(
-                f'sim.working_condition = {self.working_condition!r} refused: one of '
-                f'{", ".join(CONDITIONS)}'
-            )
-        if self.fault_kind not in ('none', *FAULT_CODES):
-            raise ValueError(
-                f'sim.fault_kind = {self.fault_kind!r} refused: one of none, '
-                f'{", ".join(FAULT_CODES)}'
-            )
-
-    def arguments(self) -> list[str]:
-        """Return the command line of cia402_sim_drive for these settings."""
-        return [
-            '--working-condition',
-            self.working_condition,
-            '--torque-time-constant',
-            repr(self.torque_time_constant_s),
-            '--initial-position',
-            repr(self.initial_position_rad),
-            '--fault-kind',
-            self.fault_kind,
-            '--fault-at',
-            repr(self.fault_at_s),
-            '--emcy-code',
-            str(self.emcy_code),
-            '--emcy-at',
-            repr(self.emcy_at_s),
-            '--over-current',
-            repr(self.over_current_a),
-            '--drop-tpdo',
-            repr(self.drop_tpdo_fraction),
-            '--late-tpdo',
-            repr(self.late_tpdo_fraction),
-            '--silent-at',
-            repr(self.silent_at_s),
-            '--seed',
-            str(self.seed),
-        ]
+#: The simulated drive's brake status: 0x60FD bit 16 (manufacturer-specific), brake closed.
+SIM_BRAKE_STATUS = (0x60FD, 1 << 16)
+#: Quick stop deceleration written to the simulated drive when none is set [rad/s^2 at the
+#: joint]: 2 rad/s to rest in 20 ms. A real drive has no default (``check_real_drive``).
+SIM_QUICK_STOP_DECELERATION_RAD_S2 = 100.0
 
 
 @dataclass(frozen=True)
@@ -180,15 +88,38 @@ class DriverParameters:
         10000, 'torque slope 0x6087 of the quick-stop and disable ramps', 'per mille/s', 1, 10**7
     )
     brake_status_index: int = spec(
-        0x60FD,
+        -1,
         'object whose bit (brake_status_mask) reads 1 while the brake is closed; 0: the '
-        'drive cannot tell (deactivate then waits brake_closing_s)',
+        'drive cannot tell (deactivate then waits brake_closing_s); -1: not set (required on '
+        "a real drive; the simulated drive's 0x60FD)",
         '',
-        0,
+        -1,
         0xFFFF,
     )
     brake_status_mask: int = spec(
-        1 << 16, 'bit mask of brake closed in that object', '', 1, 2**32 - 1
+        0,
+        "bit mask of brake closed in that object; 0: not set (the simulated drive's bit 16; "
+        'required with a brake_status_index on a real drive)',
+        '',
+        0,
+        2**32 - 1,
+    )
+    quick_stop_deceleration_rad_s2: float = spec(
+        0.0,
+        'quick stop deceleration of a velocity-based quick stop at the joint, written as 0x6085 '
+        'in motor rpm/s; 0: not set (required on a real drive)',
+        'rad/s^2',
+        0.0,
+        1.0e5,
+    )
+    drive_heartbeat_period_s: float = spec(
+        0.1,
+        "the drive's heartbeat 0x1017, consumed here: a boot-up after configure (a reboot) "
+        f'refuses activation and ends control; {HEARTBEAT_PERIODS_MISSED} periods of silence '
+        'refuse activation',
+        's',
+        0.001,
+        10.0,
     )
     brake_closing_s: float = spec(
         0.1, 'longest wait for the brake to report closed after the ramp', 's', 0.0, 10.0
@@ -343,6 +274,19 @@ class DriverParameters:
         )
 
     @property
+    def brake_status(self) -> tuple[int, int]:
+        """(object, mask) of the brake's 'closed' bit: the simulated drive's where not set."""
+        if self.brake_status_index < 0:
+            return SIM_BRAKE_STATUS
+        return self.brake_status_index, self.brake_status_mask or SIM_BRAKE_STATUS[1]
+
+    @property
+    def quick_stop_deceleration_rpm_s(self) -> int:
+        """0x6085 in motor rpm/s: the joint's deceleration x N (the simulated one if not set)."""
+        joint = self.quick_stop_deceleration_rad_s2 or SIM_QUICK_STOP_DECELERATION_RAD_S2
+        return math.ceil(joint * self.gear_ratio * 60.0 / (2.0 * math.pi))
+
+    @property
     def cob_ids(self) -> tuple[int, int, int]:
         """COB-IDs of RPDO1, TPDO1, TPDO2 (CiA 301 pre-defined connection set where 0)."""
         return (
@@ -366,3 +310,31 @@ class DriverParameters:
         from actuator_cia402.sim_drive_main import default_eds
 
         return default_eds()
+
+
+def check_real_drive(
+    drive: DriverParameters, position_limits_rad: Optional[tuple[float, float]] = None
+) -> None:
+    """Refuse a real drive (not simulated_drive) whose drive-specific settings are not set.
+
+    The brake status object, the quick stop deceleration and (given) the soft position limits
+    have defaults only for the simulated drive and plant; ValueError names every one missing.
+    """
+    if drive.simulated_drive:
+        return
+    missing = []
+    if drive.brake_status_index < 0:
+        missing.append('brake_status_index (0: the drive cannot tell)')
+    elif drive.brake_status_index and not drive.brake_status_mask:
+        missing.append('brake_status_mask')
+    if not drive.quick_stop_deceleration_rad_s2:
+        missing.append('quick_stop_deceleration_rad_s2 (0x6085)')
+    if position_limits_rad is not None:
+        low, high = position_limits_rad
+        if low <= -limits.POSITION_LIMIT_RAD or high >= limits.POSITION_LIMIT_RAD:
+            missing.append("position_min_rad and position_max_rad (the joint's travel)")
+    if missing:
+        raise ValueError(
+            f'a real drive needs {", ".join(missing)} set: the defaults are the simulated '
+            "drive's and plant's"
+        )

@@ -13,8 +13,11 @@ node's, shared with the simulated plant. This node adds the drive's parameters
       cause is found, while the node is inactive (configure reports a drive in fault; activate
       is refused until then). Never automatic.
 
-A drive fault, a statusword that means 'not applying the torque', a bus error or a silent drive
-ends control at once and takes the node through error processing to unconfigured.
+A drive fault, a statusword that means 'not applying the torque', a bus error, a silent or
+rebooted drive or a second SYNC producer ends control at once (the drive stopped through braked
+cycles, then over SDO) and takes the node through error processing to unconfigured. The
+drive's /diagnostics values (state, current actual, EMCY warnings, bus load, how the last stop
+went) are the joint's (``Cia402Joint.diagnostics``).
 """
 
 from __future__ import annotations
@@ -28,7 +31,7 @@ from actuator_ros.joint_node import JointNode
 from actuator_ros.parameters import ParameterError, declare_spec_parameters
 from actuator_ros.runner import run_node
 from actuator_cia402.busload import check_bus_load, cycle_load
-from actuator_cia402.config import DriverParameters
+from actuator_cia402.config import DriverParameters, check_real_drive
 from actuator_cia402.joint import Cia402Joint
 
 NODE_NAME = 'actuator_cia402_driver'
@@ -63,10 +66,15 @@ class Cia402DriverNode(JointNode):
         self.bus_load = cycle_load(cfg.bitrate, cfg.sync_period_s, joints=cfg.joints_on_bus)
 
     def make_joint(self) -> Cia402Joint:
-        """Build the drive on its bus (connected at configure); a real bus needs its EDS named."""
+        """Build the drive on its bus (connected at configure).
+
+        A real drive needs its EDS named, its brake status object, its quick stop deceleration
+        and the joint's soft position limits set (the defaults are the simulated ones).
+        """
         cfg = self.drive_cfg
         try:
             self.eds = cfg.eds_path()
+            check_real_drive(cfg, (self.cfg.position_min_rad, self.cfg.position_max_rad))
         except ValueError as exc:
             raise ParameterError(str(exc)) from None
         if not os.path.isfile(self.eds):
@@ -105,12 +113,6 @@ class Cia402DriverNode(JointNode):
             response.success, response.message = False, str(exc)
         self.get_logger().warning(f'acknowledge_fault: {response.message}')
         return response
-
-    def diagnostics_values(self) -> dict[str, str]:
-        """Return the joint node's values and the bus load."""
-        values = super().diagnostics_values()
-        values['bus_load_percent'] = f'{100 * self.bus_load.fraction:.1f}'
-        return values
 
 
 def main(argv=None) -> int:

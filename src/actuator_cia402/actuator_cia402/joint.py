@@ -6,10 +6,14 @@
 Lifecycle (each step raises JointError with the reason in one line):
   configure   bus up (socketcan, or the simulated drive's hub), bus health watched, master
               heartbeat produced, then ``Cia402Master.configure`` (reset communication,
-              identity, a drive left enabled made safe, limits, watchdog, PDOs, CST);
-  activate    ``Cia402Master.enable``: target 0, CST shown, switched on with the brake closed,
-              NMT operational; operation is enabled by the first write without the brake;
-  deactivate  ``Cia402Master.stop``: quick stop, the ramp, the brake closed, disable voltage;
+              identity, a drive left enabled made safe, limits, watchdog, PDOs read back,
+              CST); the drive's heartbeat consumed from then on (a boot-up: it rebooted);
+  activate    refused after a reboot or a silent drive heartbeat; ``Cia402Master.enable``:
+              the configuration verified, target 0, CST shown, switched on with the brake
+              closed, NMT operational; operation is enabled by the first write without the
+              brake, and never again after a statusword that ended control (until activate);
+  end_control / deactivate / cleanup: ``stop.py`` (braked cycles until the drive has stopped,
+              then the stop over SDO; 0x1016 cleared only for a drive seen disabled);
   acknowledge_fault  the one way to reset a drive fault: a person asks (the node's service).
 Cycle: ``write`` sends RPDO1 (controlword, target torque) at once, for the next SYNC; ``read``
 sends the SYNC (``sync_producer``; with the counter 0x1019 when the drive takes one) or waits
@@ -17,7 +21,8 @@ for the bus's SYNC, then for the TPDO1 that answers it (a producer counts them: 
 never stands in for the next SYNC's) and TPDO2, and returns the angle (32-bit position
 unwrapped, zero offset applied), the torque actual 0x6077 at the joint, and ``fault`` for
 every statusword bit that means the drive does not apply the torque it is told
-(``torque_fault``), for bus-off, error-passive and a vanished adapter.
+(``torque_fault``), for bus-off, error-passive, a vanished adapter, a reboot of the drive and a
+second SYNC producer on the bus.
 The master heartbeat is sent only while the cycle runs (or the joint is not active), so a
 hung, killed or disconnected master stops the drive through its heartbeat consumer.
 """
@@ -34,81 +39,19 @@ import canopen
 from actuator_core.joint import Joint, JointError, JointSample
 from actuator_cia402 import profile as p
 from actuator_cia402.answers import AnswerCount
-from actuator_cia402.hub import HubBus, bus_error
+from actuator_cia402.busload import cycle_load
+from actuator_cia402.hub import HubBus
 from actuator_cia402.master import Cia402Error, Cia402Master
+from actuator_cia402.stop import Cia402Stop
+from actuator_cia402.supervision import BusHealth, DriveHeartbeat, PositionUnwrap, torque_fault
 
 #: NMT state byte of the master's heartbeat: operational.
 HEARTBEAT_OPERATIONAL = 0x05
 #: How long configure tries to reach the simulated drive's hub [s].
 HUB_CONNECT_TIMEOUT_S = 20.0
-ALLOWED_WHILE_RUNNING = (p.State.SWITCHED_ON, p.State.OPERATION_ENABLED)
 
 
-def torque_fault(statusword: int, enable_settled: bool) -> str:
-    """Why a drive with this statusword does not apply the commanded torque ('' when it does).
-
-    ``enable_settled``: operation enabled was commanded long enough ago to be shown.
-    """
-    state = p.decode_state(statusword)
-    if state in (p.State.FAULT, p.State.FAULT_REACTION_ACTIVE):
-        return f'drive fault ({state.value}, statusword 0x{statusword:04X})'
-    if not statusword & p.SW_REMOTE:
-        return 'remote off: the drive is under local control (statusword bit 9 low)'
-    if state is p.State.QUICK_STOP_ACTIVE:
-        return 'quick stop active: a quick-stop input or the drive stopped by itself'
-    if state not in ALLOWED_WHILE_RUNNING or not statusword & p.SW_VOLTAGE_ENABLED:
-        return (
-            f'operation left without a fault: {state.value if state else "undefined"}, '
-            f'voltage {"on" if statusword & p.SW_VOLTAGE_ENABLED else "off"} (STO, enable '
-            'input or DC link lost?)'
-        )
-    if enable_settled:
-        if state is not p.State.OPERATION_ENABLED:
-            return f'operation not enabled ({state.value}) although commanded (STO?)'
-        if not statusword & p.SW_FOLLOWS_TARGET:
-            return 'the drive ignores the target torque (statusword bit 12 low)'
-    return ''
-
-
-class PositionUnwrap:
-    """Unwraps the INTEGER32 position actual into an unbounded count."""
-
-    def __init__(self) -> None:
-        """No reading yet."""
-        self.last: Optional[int] = None
-        self.total = 0
-        self.wraps = 0
-
-    def update(self, raw: int) -> int:
-        """Add the shortest step from the last reading (mod 2^32); return the unwrapped count."""
-        if self.last is None:
-            self.total = raw
-        else:
-            step = (raw - self.last + 2**31) % 2**32 - 2**31
-            if raw - self.last != step:
-                self.wraps += 1
-            self.total += step
-        self.last = raw
-        return self.total
-
-
-class _BusHealth(can.Listener):
-    """Error frames and receive failures of the adapter, as one message."""
-
-    def __init__(self) -> None:
-        self.fault = ''
-
-    def on_message_received(self, msg: can.Message) -> None:
-        text = bus_error(msg)
-        if text and not self.fault:
-            self.fault = f'{text}: control ended'
-
-    def on_error(self, exc: Exception) -> None:
-        if not self.fault:
-            self.fault = f'CAN adapter lost ({exc}): control ended'
-
-
-class Cia402Joint(Joint):
+class Cia402Joint(Cia402Stop, Joint):
     """One CiA 402 drive in CST on a CAN bus; ``cfg`` is a DriverParameters."""
 
     kind = 'cia402'
@@ -124,7 +67,7 @@ class Cia402Joint(Joint):
         self.wait_s = cfg.tpdo_wait_fraction * cfg.sync_period_s
         self.network: Optional[canopen.Network] = None
         self.master: Optional[Cia402Master] = None
-        self.health = _BusHealth()
+        self.health = BusHealth()
         self.unwrap = PositionUnwrap()
         self.active = False
         self._arrived = threading.Condition()
@@ -138,7 +81,14 @@ class Cia402Joint(Joint):
         self._tpdo1_at_sync = 0
         self._tpdo2_seq = 0
         self.emcy_fault = ''
-        self.warnings: list[str] = []
+        self._warnings: list[str] = []  # EMCY warnings not yet taken by the node
+        self.warning_count = 0
+        self.last_warning = ''
+        self.drive_heartbeat: Optional[DriveHeartbeat] = None
+        self.foreign_syncs = 0  # SYNCs a producer did not send: a second producer on the bus
+        self._no_enable = False  # control ended on the drive's state: no enable until activate
+        self._last_stamp_ns = 0
+        self.bus_load = cycle_load(cfg.bitrate, cfg.sync_period_s, joints=cfg.joints_on_bus)
         self._last_read_mono = 0.0
         self._cycling = False
         self._enable_since_ns: Optional[int] = None
@@ -153,6 +103,7 @@ class Cia402Joint(Joint):
         self.cycles = 0
         self.statusword = 0
         self.position_rad = 0.0
+        self.init_stop()
 
     # --- lifecycle --------------------------------------------------------------------------
     def _open_bus(self) -> can.BusABC:
@@ -175,7 +126,8 @@ class Cia402Joint(Joint):
     def configure(self) -> list[str]:
         """Bus up, heartbeat produced, then the master's configure."""
         cfg = self.cfg
-        self.health = _BusHealth()
+        self.health = BusHealth()
+        self.init_stop()
         self.network = canopen.Network(self._open_bus())
         self.network.NOTIFIER_CYCLE = 0.1
         self.network.connect()
@@ -202,10 +154,23 @@ class Cia402Joint(Joint):
         self.network.subscribe(t2, self._on_tpdo2)
         self.network.subscribe(0x80, self._on_sync)
         self.master.node.emcy.add_callback(self._on_emcy)
+        watch = self.drive_heartbeat = DriveHeartbeat(
+            cfg.drive_heartbeat_period_s, time.monotonic()
+        )
+        self.master.node.nmt.add_heartbeat_callback(
+            lambda state: watch.on_heartbeat(state, time.monotonic())
+        )
         return notes
 
     def activate(self) -> list[str]:
-        """Target 0, CST shown, switched on (brake closed), NMT operational; no fault reset."""
+        """Target 0, CST shown, switched on (brake closed), NMT operational; no fault reset.
+
+        Refused when the drive rebooted or fell silent since configure, when the last stop left
+        it powered, or when its configuration no longer reads as written.
+        """
+        problem = self.drive_heartbeat.problem(time.monotonic()) or self.stop_refusal()
+        if problem:
+            raise JointError(f'activate: {problem}')
         try:
             self.master.enable()
         except (Cia402Error, canopen.SdoAbortedError, canopen.SdoCommunicationError) as exc:
@@ -219,49 +184,10 @@ class Cia402Joint(Joint):
             self.answers.restart(self._syncs_sent, self._tpdo1_seq)
         self._synced = False
         self._cycling = False  # the heartbeat watches the cycle from its first read on
+        self.foreign_syncs, self._no_enable = 0, False
+        self.init_stop()
         self.active = True
         return []
-
-    def deactivate(self) -> list[str]:
-        """Quick stop, the drive's ramp, the brake closed, disable voltage; NMT pre-operational."""
-        self.active = False
-        if self.master is None or self.health.fault:
-            return [f'deactivate: {self.health.fault}'] if self.health.fault else []
-        try:
-            notes = self.master.stop()
-            self.master.node.nmt.state = 'PRE-OPERATIONAL'
-            return notes
-        except (
-            Cia402Error,
-            canopen.SdoAbortedError,
-            canopen.SdoCommunicationError,
-            can.CanError,
-        ) as exc:
-            return [f'deactivate: {exc}']
-
-    def cleanup(self) -> None:
-        """Heartbeat and bus down."""
-        self.active = False
-        self._heartbeat_stop.set()
-        if self._heartbeat is not None:
-            self._heartbeat.join(1.0)
-        if self.master is not None and not self.health.fault:
-            try:  # the drive stops watching a master that leaves on purpose
-                self.master.node.sdo[p.HEARTBEAT_CONSUMER][1].raw = 0
-            except (canopen.SdoAbortedError, canopen.SdoCommunicationError, can.CanError):
-                pass
-        if self.network is not None:
-            try:
-                self.network.disconnect()
-            except Exception:  # noqa: BLE001 - a vanished adapter: nothing left to close
-                pass
-        self.network = self.master = None
-
-    def close(self) -> None:
-        """At exit: stop the drive if it answers, then bus down."""
-        if self.active:
-            self.deactivate()
-        self.cleanup()
 
     def acknowledge_fault(self) -> str:
         """Reset a drive fault on a person's request (inactive only); returns what was done."""
@@ -274,8 +200,11 @@ class Cia402Joint(Joint):
 
     # --- cycle ------------------------------------------------------------------------------
     def write(self, current_a: float, brake: bool) -> None:
-        """RPDO1 now: enable operation and the target, or switched on + halt (brake)."""
-        if brake:
+        """RPDO1 now: enable operation and the target, or switched on + halt (brake).
+
+        After a statusword that ended control, never 'enable operation' again until activate.
+        """
+        if brake or self._no_enable:
             controlword = p.Command.SWITCH_ON.value | p.CW_HALT
             self._enable_since_ns, current_a = None, 0.0
         else:
@@ -298,6 +227,7 @@ class Cia402Joint(Joint):
     def read(self, stamp_ns: int) -> Optional[JointSample]:
         """SYNC (or the bus's), TPDO1 of that SYNC; the sample or the reason control ends."""
         self._last_read_mono = time.monotonic()
+        self._last_stamp_ns = stamp_ns
         self._cycling = True
         self.cycles += 1
         if self.cfg.sync_producer:
@@ -321,8 +251,16 @@ class Cia402Joint(Joint):
             got = self._wait(lambda: self._tpdo1_seq >= seq + need, self.wait_s)
             got = got or self._tpdo1_seq > seq
             self._missed_last = not got
-        if self.health.fault:
-            return JointSample(stamp_ns, self.position_rad, 0.0, self.health.fault)
+        if got:  # taken first: a stop's braked cycles read the drive whatever ended control
+            self._missed_in_row = 0
+            statusword, counts, torque_permille = self._tpdo1
+            self.statusword = statusword
+            self.position_rad = (
+                self.unwrap.update(counts) * self.scaling.rad_per_count - self.cfg.zero_offset_rad
+            )
+        problem = self.health.fault or self._bus_problem()
+        if problem:
+            return JointSample(stamp_ns, self.position_rad, 0.0, problem)
         if not got:  # silence counts in cycles the master ran: its own stalls are not the drive's
             self.missed += 1
             self._missed_in_row += 1
@@ -335,14 +273,23 @@ class Cia402Joint(Joint):
                     '(silent bus or drive): control ended',
                 )
             return None
-        self._missed_in_row = 0
-        statusword, counts, torque_permille = self._tpdo1
-        self.statusword = statusword
-        self.position_rad = (
-            self.unwrap.update(counts) * self.scaling.rad_per_count - self.cfg.zero_offset_rad
-        )
         effort = self.scaling.torque_permille_to_nm(torque_permille) * self.scaling.gear_ratio
         return JointSample(stamp_ns, self.position_rad, effort, self._fault(statusword))
+
+    def _bus_problem(self) -> str:
+        """Return a reboot of the drive or a second SYNC producer while active ('' if neither)."""
+        if not self.active:
+            return ''
+        if self.drive_heartbeat is not None and self.drive_heartbeat.boots:
+            self._no_enable = True
+            return f'{self.drive_heartbeat.problem(time.monotonic())}: control ended'
+        if self.foreign_syncs:
+            return (
+                f'a second SYNC producer on the bus ({self.foreign_syncs} SYNC not sent by this '
+                'master; one producer per bus: sync_producer of the other drivers, 0x1005 of '
+                'the other nodes): control ended'
+            )
+        return ''
 
     def _answered(self, seq: int) -> bool:
         """Wait for the TPDO1 that answers the SYNC just sent (``answers.py``); False: none."""
@@ -399,6 +346,7 @@ class Cia402Joint(Joint):
         since = self._not_following_since_ns
         settled = since is not None and now - since > self.cfg.state_timeout_s * 1e9
         reason = torque_fault(statusword, settled) or self.emcy_fault
+        self._no_enable = self._no_enable or bool(reason)
         if reason and not self._tpdo2[1]:  # TPDO2 of this SYNC brings the error code
             seq = self._tpdo2_seq
             self._wait(lambda: self._tpdo2_seq > seq, self.wait_s)
@@ -415,7 +363,7 @@ class Cia402Joint(Joint):
         with self._arrived:
             while not condition():
                 left = deadline - time.monotonic()
-                if left <= 0.0 or self.health.fault:
+                if left <= 0.0 or not self.health.can_send:  # error-passive: answers come
                     return False
                 self._arrived.wait(left)
             return True
@@ -437,16 +385,27 @@ class Cia402Joint(Joint):
             self._arrived.notify_all()
 
     def _on_emcy(self, emcy) -> None:
-        """EMCY (bus thread): with an error register a fault, else a warning."""
+        """EMCY (bus thread): with an error register a fault, else a warning (logged, counted)."""
         if emcy.code and emcy.register and not self.emcy_fault:
             self.emcy_fault = f'drive EMCY 0x{emcy.code:04X} {p.error_text(emcy.code)}'
-        elif emcy.code:
-            self.warnings.append(
-                f'EMCY 0x{emcy.code:04X} ({p.error_text(emcy.code)}) without error register'
-            )
+        elif emcy.code and not emcy.register:
+            text = f'EMCY 0x{emcy.code:04X} ({p.error_text(emcy.code)}) without error register'
+            with self._arrived:
+                self._warnings.append(text)
+                self.warning_count += 1
+                self.last_warning = text
+
+    def take_warnings(self) -> list[str]:
+        """Return the EMCY warnings since the last call (the node logs each)."""
+        with self._arrived:
+            taken, self._warnings = self._warnings, []
+        return taken
 
     def _on_sync(self, can_id, data, timestamp) -> None:
-        """Count a SYNC of another producer (bus thread)."""
+        """Count a SYNC of another producer (bus thread); a producer counts it as foreign."""
+        if self.cfg.sync_producer:  # this master's own SYNCs do not come back to it
+            self.foreign_syncs += 1
+            return
         with self._arrived:
             self._sync_seq += 1
             self._tpdo1_at_sync = self._tpdo1_seq
@@ -458,6 +417,8 @@ class Cia402Joint(Joint):
         while not self._heartbeat_stop.wait(period):
             if self.active and self._cycling and time.monotonic() - self._last_read_mono > stale:
                 continue  # the cycle hangs: let the drive's consumer stop it
+            if self.silenced:
+                continue  # a stop failed: the drive's consumer must stop it
             if self.network is not None:
                 self._send(0x700 + self.cfg.master_node_id, bytes([HEARTBEAT_OPERATIONAL]))
 
@@ -478,4 +439,9 @@ class Cia402Joint(Joint):
             'sync_producer': str(self.cfg.sync_producer),
             'identity': self.master.identity if self.master else '',
             'fault_reaction_option': str(self.master.fault_reaction) if self.master else '',
+            'emcy_warnings': str(self.warning_count),
+            'last_emcy_warning': self.last_warning,
+            'foreign_syncs': str(self.foreign_syncs),
+            'bus_load_percent': f'{100 * self.bus_load.fraction:.1f}',
+            'stop': self.stop_report,
         }

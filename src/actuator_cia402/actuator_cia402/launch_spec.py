@@ -22,7 +22,8 @@ import socket
 from typing import Any, Sequence
 
 from actuator_core import limits
-from actuator_cia402.config import DriverParameters, SimDriveSettings
+from actuator_cia402.config import DriverParameters, check_real_drive
+from actuator_cia402.sim_settings import SimDriveSettings
 from actuator_cia402.hub import LOOPBACK
 
 DRIVER_PACKAGE = 'actuator_cia402'
@@ -126,11 +127,13 @@ def _check(params: dict[str, Any]) -> None:
     if params.get('mode', 'realtime') != 'realtime':
         raise ValueError("mode = 'sim' refused: the CiA 402 driver runs in real time only")
     common = JointSettings(**{k: v for k, v in params.items() if k in common_names})
-    DriverParameters(
+    drive = DriverParameters(
         **{k: v for k, v in params.items() if k in drive_names},
         sync_period_s=common.sample_time_s,
         current_limit_a=common.current_limit_a,
-    ).eds_path()
+    )
+    drive.eds_path()
+    check_real_drive(drive, (common.position_min_rad, common.position_max_rad))
 
 
 def driver_arguments(params: dict[str, Any]) -> list[str]:

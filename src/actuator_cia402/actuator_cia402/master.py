@@ -8,16 +8,21 @@ Every object it reads or writes, and why: docs/cia402.md#every-object-the-driver
 
   configure   NMT reset communication and boot-up; device type, identity 0x1018 against the
               EDS; a drive left enabled is stopped (quick stop, ramp, brake, disable voltage);
-              0x6071 = 0; rated current/torque, encoder resolution, factor group 0x6091/0x6092
-              and polarity 0x607E checked; limits 0x6072/0x6073/0x6080 written and read back;
-              option codes 0x605A/0x605C/0x605E and torque slope 0x6087 set; SYNC counter
-              0x1019 (a SYNC producer, when the EDS has it), SYNC period 0x1006,
-              window 0x1007, interpolation period 0x60C2; PDO mapping; heartbeat consumer 0x1016
-              and abort connection option 0x6007 written and verified; mode 0x6060 = CST.
-  enable      0x6071 = 0, mode display 0x6061 polled; shutdown, switch on (brake still closed);
-              NMT operational. Operation is enabled by the first valid command, in the cycle.
-  stop        quick stop; wait for the ramp's end (quick stop active + target reached, 0x605A
-              = 6) and the brake's 'closed' (brake_status_index); then disable voltage.
+              SYNC COB-ID 0x1005 = 0x80 without bit 30 (the drive produces no SYNC: one
+              producer per bus); 0x6071 = 0; rated current/torque, encoder resolution, factor
+              group 0x6091/0x6092 and polarity 0x607E checked; limits 0x6072/0x6073/0x6080,
+              option codes 0x605A = 2 (no transition 16)/0x605C, torque slope 0x6087 and
+              quick stop deceleration 0x6085 written and read back; 0x605E read; SYNC counter
+              0x1019 (a SYNC producer, when the EDS has it), SYNC period 0x1006, window 0x1007,
+              interpolation period 0x60C2; PDO mapping written and read back; heartbeat consumer
+              0x1016, abort connection 0x6007 and the drive's heartbeat 0x1017; mode 0x6060.
+              Every value written is kept and read back again at enable (``verify``).
+  enable      the configuration verified (a drive that rebooted has lost it); 0x6071 = 0, mode
+              display 0x6061 polled; shutdown, switch on (brake still closed); NMT
+              operational. Operation is enabled by the first valid command, in the cycle.
+  stop        quick stop; wait for the drive's end state (0x605A = 2: 'switch on disabled' by
+              itself; never statusword bit 10) and the brake's 'closed'; then disable voltage
+              whatever failed before; a drive that keeps its voltage gets NMT stop.
   acknowledge fault reset (rising edge of controlword bit 7), only when a person asks.
 """
 
@@ -29,33 +34,29 @@ from typing import Optional
 
 import canopen
 
+from actuator_cia402 import pdo_setup
 from actuator_cia402 import profile as p
-from actuator_cia402.pdo_codec import PdoCodec
 from actuator_cia402.scaling import Scaling
+from actuator_cia402.supervision import DISABLED_STATES, describe
 
 
 class Cia402Error(RuntimeError):
     """A drive did not do what the master asked (one line: what, and what the drive said)."""
 
 
-#: Transmission type 1: synchronous, every SYNC (CiA 301).
-SYNCHRONOUS = 1
-#: Option codes this master sets (CiA 402-2): quick stop = ramp at the quick-stop slope and
-#: stay in 'quick stop active' (the master disables voltage once the brake is closed);
-#: disable operation = ramp, then disable; abort connection (heartbeat lost) = quick stop.
-QUICK_STOP_OPTION = 6
+#: Option codes this master sets (CiA 402-2): quick stop = the quick stop ramp, then 'switch
+#: on disabled' by the drive itself (2: no transition 16, so an 'enable operation' in flight
+#: cannot undo a quick stop the drive made on its own input; 5-8 would stay in 'quick stop
+#: active' and allow it); disable operation = ramp, then disable; abort connection
+#: (heartbeat lost) = quick stop.
+QUICK_STOP_OPTION = 2
 DISABLE_OPERATION_OPTION = 1
 ABORT_CONNECTION_QUICK_STOP = 3
-#: Cycle PDO layout: RPDO1, TPDO1, TPDO2 (docs/cia402.md#bus-load: 4, 8, 5 bytes).
-RPDO1 = (p.CONTROLWORD, p.TARGET_TORQUE)
-TPDO1 = (p.STATUSWORD, p.POSITION_ACTUAL, p.TORQUE_ACTUAL)
-TPDO2 = (p.CURRENT_ACTUAL, p.ERROR_CODE, p.MODES_OF_OPERATION_DISPLAY)
-ENABLED_STATES = (
-    p.State.SWITCHED_ON,
-    p.State.OPERATION_ENABLED,
-    p.State.QUICK_STOP_ACTIVE,
-    p.State.READY_TO_SWITCH_ON,
-)
+#: The SYNC COB-ID every node listens on, no node producing it but this master (0x1005).
+SYNC_COB_ID = 0x80
+#: A quick stop ends in one of these states (a disable-operation reaction under way ends in
+#: 'switched on').
+STOP_ENDS = (*DISABLED_STATES, p.State.SWITCHED_ON, p.State.READY_TO_SWITCH_ON)
 
 
 class Cia402Master:
@@ -75,18 +76,47 @@ class Cia402Master:
         self.identity = ''
         self.fault_reaction = 0
         self.sync_counter_overflow = 0  # 0x1019 as configured: 0, SYNCs carry no counter
+        self.brake_index, self.brake_mask = cfg.brake_status
+        #: Every object configure wrote: (index, subindex) -> (value, what); ``verify`` reads
+        #: them back at enable.
+        self.configured: dict[tuple[int, int], tuple[int, str]] = {}
+        self.disabled = False  # the last stop saw the drive disabled (or in fault)
 
     def _sdo(self, index: int, subindex: Optional[int] = None):
         """Return the SDO variable of an object (blocking transfers: transitions only)."""
         return self.node.sdo[index] if subindex is None else self.node.sdo[index][subindex]
 
-    def _write_verified(self, index: int, subindex: Optional[int], value: int, what: str) -> None:
-        """Write an object and read it back; Cia402Error when the drive keeps another value."""
+    def _write_verified(
+        self, index: int, subindex: Optional[int], value: int, what: str, kept: bool = True
+    ) -> None:
+        """Write an object and read it back; Cia402Error when the drive keeps another value.
+
+        ``kept``: a configuration object, read back again at enable (a process object is not).
+        """
         var = self._sdo(index, subindex)
         var.raw = value
         back = var.raw
         if back != value:
             raise Cia402Error(f'{what} 0x{index:04X} reads {back} after writing {value}')
+        if kept:
+            self.configured[(index, subindex or 0)] = (value, what)
+
+    def verify(self) -> None:
+        """Read back every object configure wrote; Cia402Error on the first that changed."""
+        for (index, subindex), (value, what) in self.configured.items():
+            back = self._sdo(index, subindex if self._is_record(index) else None).raw
+            if back != value:
+                raise Cia402Error(
+                    f"the drive's configuration changed since configure: {what} 0x{index:04X}"
+                    f':{subindex} reads {back}, configured {value} (rebooted or changed by a '
+                    'tool?): configure again'
+                )
+
+    def _is_record(self, index: int) -> bool:
+        """Whether an object has subindices (a record or an array)."""
+        return not isinstance(
+            self.node.object_dictionary[index], canopen.objectdictionary.ODVariable
+        )
 
     # --- configure --------------------------------------------------------------------------
     def reset_communication(self) -> None:
@@ -156,10 +186,13 @@ class Cia402Master:
     def configure(self) -> list[str]:
         """Every step of the module docstring's configure; returns notes (raises Cia402Error)."""
         cfg, s = self.cfg, self.scaling
+        self.configured = {}
         self.reset_communication()
         self.identity = self.check_identity()
-        notes = self.make_safe()
-        self._write_verified(p.TARGET_TORQUE, None, 0, 'target torque')
+        notes = self._stop_ramps()  # first: a drive found enabled stops on these
+        notes += self.make_safe()
+        notes += self._one_sync_producer()
+        self._write_verified(p.TARGET_TORQUE, None, 0, 'target torque', kept=False)
         self._check_equal(
             p.RATED_CURRENT, None, round(s.rated_current_a * 1000), 'rated current', 'mA'
         )
@@ -194,8 +227,6 @@ class Cia402Master:
         )
         rpm = math.ceil(cfg.velocity_limit_rad_s * s.gear_ratio * 60.0 / (2.0 * math.pi))
         self._write_verified(p.MAX_MOTOR_SPEED, None, rpm, 'max motor speed')
-        self._write_verified(p.TORQUE_SLOPE, None, cfg.torque_slope_permille_s, 'torque slope')
-        self._write_verified(p.QUICK_STOP_OPTION, None, QUICK_STOP_OPTION, 'quick stop option')
         self._write_verified(
             p.DISABLE_OPERATION_OPTION, None, DISABLE_OPERATION_OPTION, 'disable operation option'
         )
@@ -221,7 +252,32 @@ class Cia402Master:
         self._write_verified(
             p.ABORT_CONNECTION_OPTION, None, ABORT_CONNECTION_QUICK_STOP, 'abort connection option'
         )
+        self._write_verified(
+            p.HEARTBEAT_PRODUCER_MS,
+            None,
+            int(round(cfg.drive_heartbeat_period_s * 1000)),
+            'producer heartbeat time',
+        )
         self._write_verified(p.MODES_OF_OPERATION, None, p.MODE_CST, 'modes of operation')
+        return notes
+
+    def _stop_ramps(self) -> list[str]:
+        """Write and read back the stop objects: 0x605A, torque slope 0x6087, 0x6085."""
+        cfg, notes = self.cfg, []
+        self._write_verified(p.QUICK_STOP_OPTION, None, QUICK_STOP_OPTION, 'quick stop option')
+        self._write_verified(p.TORQUE_SLOPE, None, cfg.torque_slope_permille_s, 'torque slope')
+        if p.QUICK_STOP_DECELERATION in self.node.object_dictionary:
+            self._write_verified(
+                p.QUICK_STOP_DECELERATION,
+                None,
+                cfg.quick_stop_deceleration_rpm_s,
+                'quick stop deceleration',
+            )
+        else:
+            notes.append(
+                f'the EDS of node {self.node.id} has no 0x6085: its quick stop decelerates as '
+                'the drive tool set it'
+            )
         return notes
 
     def _configure_sync_counter(self) -> list[str]:
@@ -252,31 +308,30 @@ class Cia402Master:
             )
 
     def _map_pdos(self) -> None:
-        """RPDO1, TPDO1, TPDO2 synchronous (transmission type 1); the other PDOs disabled."""
-        rpdo_cob, tpdo1_cob, tpdo2_cob = self.cfg.cob_ids
-        layout = (
-            (self.node.rpdo[1], rpdo_cob, RPDO1),
-            (self.node.tpdo[1], tpdo1_cob, TPDO1),
-            (self.node.tpdo[2], tpdo2_cob, TPDO2),
-        )
-        for pdo_map, cob_id, objects in layout:
-            pdo_map.clear()
-            for index in objects:
-                pdo_map.add_variable(index)
-            pdo_map.cob_id, pdo_map.trans_type, pdo_map.enabled = cob_id, SYNCHRONOUS, True
-            pdo_map.save()
-        for maps, used in ((self.node.rpdo, 1), (self.node.tpdo, 2)):
-            for number, pdo_map in maps.map.items():
-                if number > used:
-                    pdo_map.clear()
-                    pdo_map.cob_id = pdo_map.predefined_cob_id or (
-                        0x100 * (number + 1) + self.node.id
-                    )
-                    pdo_map.trans_type, pdo_map.enabled = SYNCHRONOUS, False
-                    pdo_map.save()
-        self.codecs = tuple(PdoCodec.compile(m) for m, _, _ in layout)
+        """RPDO1, TPDO1, TPDO2 synchronous, the others disabled; every entry read back."""
+        self.codecs = pdo_setup.write_mapping(self.node, self.cfg.cob_ids)
         if None in self.codecs:
             raise Cia402Error('the EDS gives a PDO layout that is not byte aligned')
+        wanted = pdo_setup.expected_objects(self.node, self.cfg.cob_ids)
+        miss = pdo_setup.read_back(lambda index, sub: self._sdo(index, sub).raw, wanted)
+        if miss:
+            raise Cia402Error(f'node {self.node.id}: {miss}')
+        for index, sub, value, what in wanted:
+            if not what.endswith('COB-ID'):  # the COB-ID's RTR bit is the drive's
+                self.configured[(index, sub)] = (value, what)
+
+    def _one_sync_producer(self) -> list[str]:
+        """0x1005 = 0x80 without bit 30: the drive listens to SYNC and produces none itself."""
+        value = self._sdo(p.SYNC_COB_ID).raw
+        if value != SYNC_COB_ID:
+            self._write_verified(p.SYNC_COB_ID, None, SYNC_COB_ID, 'SYNC COB-ID')
+            producing = ' (it produced SYNC itself: bit 30)' if value & 1 << 30 else ''
+            return [
+                f'node {self.node.id} had SYNC COB-ID 0x1005 = 0x{value:08X}{producing}: set to '
+                f'0x{SYNC_COB_ID:08X}, one SYNC producer per bus'
+            ]
+        self.configured[(p.SYNC_COB_ID, 0)] = (value, 'SYNC COB-ID')
+        return []
 
     # --- state machine over SDO (transitions only) ------------------------------------------
     def read_state(self) -> tuple[int, Optional[p.State]]:
@@ -305,7 +360,9 @@ class Cia402Master:
             time.sleep(0.002)
 
     def enable(self) -> None:
-        """0x6071 = 0, CST shown in 0x6061, shutdown, switch on (brake closed), NMT operational."""
+        """Verify the configuration; 0x6071 = 0, CST shown, shutdown, switch on, NMT start."""
+        self.verify()
+        self.disabled = False
         statusword, state = self.read_state()
         if state in (p.State.FAULT, p.State.FAULT_REACTION_ACTIVE):
             code = self._sdo(p.ERROR_CODE).raw
@@ -313,7 +370,7 @@ class Cia402Master:
                 f'drive in fault 0x{code:04X} ({p.error_text(code)}): acknowledge '
                 'it (acknowledge_fault) after finding the cause'
             )
-        self._write_verified(p.TARGET_TORQUE, None, 0, 'target torque')
+        self._write_verified(p.TARGET_TORQUE, None, 0, 'target torque', kept=False)
         deadline = time.monotonic() + self.cfg.state_timeout_s
         while (shown := self._sdo(p.MODES_OF_OPERATION_DISPLAY).raw) != p.MODE_CST:
             if time.monotonic() > deadline:
@@ -331,30 +388,54 @@ class Cia402Master:
 
     def brake_closed(self) -> Optional[bool]:
         """Read the brake status bit (None when the drive cannot tell: brake_status_index 0)."""
-        if not self.cfg.brake_status_index:
+        if not self.brake_index:
             return None
-        return bool(self._sdo(self.cfg.brake_status_index).raw & self.cfg.brake_status_mask)
+        return bool(self._sdo(self.brake_index).raw & self.brake_mask)
 
     def stop(self) -> list[str]:
-        """Quick stop, the ramp's end, the brake closed, then disable voltage; returns notes."""
+        """Quick stop, the drive's end state, the brake, then disable voltage; returns notes.
+
+        Whatever failed before, disable voltage follows; a drive that still shows its voltage
+        after that gets NMT stop, and ``disabled`` stays False (its heartbeat consumer must
+        stay armed).
+        """
         notes = []
-        statusword, state = self.read_state()
-        if state in (p.State.OPERATION_ENABLED, p.State.QUICK_STOP_ACTIVE):
-            # 'switched on': a disable-operation reaction already under way (the last cycle's
-            # brake) ran its ramp and closed the brake; disable voltage follows as after a quick
-            # stop
-            self.command(
-                p.Command.QUICK_STOP,
-                (
-                    p.State.QUICK_STOP_ACTIVE,
-                    p.State.SWITCH_ON_DISABLED,
-                    p.State.FAULT,
-                    p.State.SWITCHED_ON,
-                ),
-                done=lambda sw: (
-                    p.decode_state(sw) is not p.State.QUICK_STOP_ACTIVE or sw & p.SW_TARGET_REACHED
-                ),
+        self.disabled = False
+        try:
+            statusword, state = self.read_state()
+            if state in (p.State.OPERATION_ENABLED, p.State.QUICK_STOP_ACTIVE):
+                self.command(
+                    p.Command.QUICK_STOP,
+                    (*STOP_ENDS, p.State.QUICK_STOP_ACTIVE),
+                    done=self._stop_ended,
+                )
+            notes += self._await_brake()
+        except (Cia402Error, canopen.SdoAbortedError, canopen.SdoCommunicationError) as exc:
+            notes.append(f'quick stop: {exc}; disable voltage follows')
+        try:
+            statusword, state = self.read_state()
+            if state not in DISABLED_STATES:
+                self.command(p.Command.DISABLE_VOLTAGE, DISABLED_STATES)
+            self.disabled = True
+        except (Cia402Error, canopen.SdoAbortedError, canopen.SdoCommunicationError) as exc:
+            self.node.nmt.state = 'STOPPED'
+            notes.append(
+                f'disable voltage: {exc}; NMT stop sent to node {self.node.id}, its heartbeat '
+                'consumer left armed'
             )
+        return notes
+
+    def _stop_ended(self, statusword: int) -> bool:
+        """Tell whether a quick stop has ended (never from statusword bit 10).
+
+        Out of quick stop active, or in it with the brake closed (an option code that stays).
+        """
+        if p.decode_state(statusword) is not p.State.QUICK_STOP_ACTIVE:
+            return True
+        return bool(self.brake_closed())
+
+    def _await_brake(self) -> list[str]:
+        """Wait up to brake_closing_s for the brake's 'closed'; notes when it cannot be told."""
         deadline = time.monotonic() + self.cfg.brake_closing_s
         closed = self.brake_closed()
         while closed is False and time.monotonic() < deadline:
@@ -362,17 +443,29 @@ class Cia402Master:
             closed = self.brake_closed()
         if closed is None:
             time.sleep(self.cfg.brake_closing_s)
-            notes.append(
+            return [
                 f'brake not verified (no brake status object): waited '
                 f'{self.cfg.brake_closing_s:g} s'
-            )
-        elif not closed:
-            notes.append(
+            ]
+        if not closed:
+            return [
                 f'brake not closed {self.cfg.brake_closing_s:g} s after the ramp: '
                 'voltage disabled anyway'
-            )
-        self.command(p.Command.DISABLE_VOLTAGE, (p.State.SWITCH_ON_DISABLED, p.State.FAULT))
-        return notes
+            ]
+        return []
+
+    def read_process(self) -> tuple[int, int, int]:
+        """Statusword, current actual [per mille] and error code over SDO (after a stop)."""
+        return (
+            self._sdo(p.STATUSWORD).raw,
+            self._sdo(p.CURRENT_ACTUAL).raw,
+            self._sdo(p.ERROR_CODE).raw,
+        )
+
+    def describe(self) -> str:
+        """One line on the drive as it answers over SDO now (state, current, brake)."""
+        statusword, current, _ = self.read_process()
+        return describe(statusword, self.scaling.permille_to_current(current), self.brake_closed())
 
     def acknowledge_fault(self) -> str:
         """Fault reset (rising edge of bit 7) on a person's request; returns what was reset."""

@@ -18,7 +18,7 @@ SYNC_COUNTER_MAX = 240
 # --- object dictionary indices (CiA 301 communication area, CiA 402 profile area) -----------
 DEVICE_TYPE = 0x1000  # UNSIGNED32; low 16 bits = device profile number (402)
 ERROR_REGISTER = 0x1001  # UNSIGNED8 (CiA 301)
-SYNC_COB_ID = 0x1005  # UNSIGNED32
+SYNC_COB_ID = 0x1005  # UNSIGNED32: bits 0-10 COB-ID, bit 30 this node produces the SYNC
 COMMUNICATION_CYCLE_US = 0x1006  # UNSIGNED32, SYNC period [us]
 SYNC_WINDOW_US = 0x1007  # UNSIGNED32, synchronous window length [us]
 SYNC_COUNTER_OVERFLOW = 0x1019  # UNSIGNED8: 0 SYNC without counter, 2-240 the counter's overflow
@@ -47,6 +47,7 @@ TORQUE_ACTUAL = 0x6077  # INTEGER16 [per mille of rated torque]
 CURRENT_ACTUAL = 0x6078  # INTEGER16 [per mille of rated current]
 POLARITY = 0x607E  # UNSIGNED8: bit 7 position, bit 6 velocity
 MAX_MOTOR_SPEED = 0x6080  # UNSIGNED32 [rpm]
+QUICK_STOP_DECELERATION = 0x6085  # UNSIGNED32 [acceleration unit; rpm/s on the simulated drive]
 TORQUE_SLOPE = 0x6087  # UNSIGNED32 [per mille of rated torque per s]
 ENCODER_RESOLUTION = 0x608F  # ARRAY: 1 = encoder increments, 2 = motor revolutions
 GEAR_RATIO = 0x6091  # ARRAY: 1 = motor revolutions, 2 = shaft revolutions

@@ -27,8 +27,16 @@ them (the console script ``cia402_sim_drive`` runs it in a process of its own):
   fault, voltage off), a quick-stop input, remote off, 'target ignored' (statusword bit 12 low),
   and bus errors (sent by the hub as error frames);
 - polarity 0x607E bit 7 inverts position and torque; position actual 0x6064 wraps as INTEGER32;
-- NMT reset communication restores the communication objects (0x1000-0x1FFF) to the EDS's
-  defaults and sends the boot-up; the power state machine and 0x6071 are not reset.
+- NMT reset communication restores the communication objects (0x1000-0x1FFF) to their saved
+  values (``save``: what a drive tool stores; else the EDS's defaults) and sends the boot-up;
+  the power state machine and 0x6071 are not reset. A reboot (NMT reset node, or the injection
+  'reboot') restores every object to its saved value: the power stage off, the brake closed,
+  the master's configuration lost, then the boot-up;
+- the heartbeat 0x1017 is produced as configured (canopen's NMT slave);
+- ``Quirks`` make it less kind, as real drives are (sim_faults.py): transition 16, no bit 10 in
+  quick stop active, a velocity-based quick stop (0x6085), SYNC produced by the drive itself
+  while 0x1005 bit 30 is set, a PDO mapping entry that keeps its value whatever is written,
+  an encoder counting against the torque.
 
 The joint is ``actuator_plant.sim_joint.SimulatedJoint`` (model, torque loop, holding brake):
 the one brake model. Position is quantised through the drive's ``Scaling``.
@@ -49,13 +57,19 @@ from actuator_cia402 import profile as p
 from actuator_cia402.drive_clock import DriveClock
 from actuator_cia402.pdo_codec import PdoCodec
 from actuator_cia402.scaling import Scaling
-from actuator_cia402.sim_faults import FAULT_CODES, FaultPlan, inject_due, plant_parameters
+from actuator_cia402.sim_faults import (
+    FAULT_CODES,
+    FaultPlan,
+    Quirks,
+    inject_due,
+    plant_parameters,
+)
+from actuator_cia402.sim_states import DriveStateMachine
 
-ERROR_REGISTER_GENERIC = 0x01
-ERROR_REGISTER_CURRENT = 0x02
-HEARTBEAT_ERROR = 0x8130
 #: 0x60FD bit 16 (manufacturer-specific): the holding brake is closed.
 DI_BRAKE_CLOSED = 1 << 16
+#: 0x1005 bit 30: this node produces the SYNC (CiA 301).
+SYNC_PRODUCER_BIT = 1 << 30
 INT32 = 2**32
 
 
@@ -64,7 +78,7 @@ def wrap_int32(value: int) -> int:
     return (value + 2**31) % INT32 - 2**31
 
 
-class SimulatedDrive:
+class SimulatedDrive(DriveStateMachine):
     """CiA 402 drive in CST mode on a CAN bus, with the simulated joint as motor and load."""
 
     def __init__(
@@ -80,6 +94,7 @@ class SimulatedDrive:
         initial_position_rad: float = 0.0,
         encoder_offset_counts: int = 0,
         on_event: Callable[[str], None] | None = None,
+        quirks: Quirks = Quirks(),
     ):
         """Build the drive (not yet on a bus: ``attach`` it to a connected network)."""
         self.scaling = scaling
@@ -93,6 +108,7 @@ class SimulatedDrive:
         )
         self.joint.read(0)  # the first read only samples: from now on each read integrates
         self.faults = faults
+        self.quirks = quirks
         self.over_current_a = over_current_a
         self.encoder_offset_counts = encoder_offset_counts
         self.rng = random.Random(faults.seed)
@@ -110,6 +126,11 @@ class SimulatedDrive:
         self._brake_closing_at: float | None = None  # drive time the brake will be closed
         self.ramp_permille = 0.0  # the torque the drive applies while it ramps down
         self._stopping: p.State | None = None  # state reached once ramp and brake are done
+        self._decelerating = False  # a velocity-based quick stop is under way
+        self._stop_velocity = 0.0  # its velocity reference [rad/s at the joint]
+        self.saved: dict[int, dict[int, bytes]] = {}  # the drive tool's stored settings
+        self._sync_task = None  # the SYNC this drive produces (0x1005 bit 30)
+        self.reboots = 0
         self._cut_ramps = 0
         self.sto = self.remote_off = self.target_ignored = self.silent = False
         self.syncs = 0  # periods of drive time
@@ -143,18 +164,81 @@ class SimulatedDrive:
         network.subscribe(0x80, self._on_sync)
         self.node.add_read_callback(self._on_read)
         self.node.add_write_callback(self._on_write)
+        self._set_data, self.node.set_data = self.node.set_data, self._set_data_unless_fixed
+        if self.quirks.sync_producer:
+            cob_id = self.od[p.SYNC_COB_ID].default
+            self.save(p.SYNC_COB_ID, 0, (cob_id | SYNC_PRODUCER_BIT).to_bytes(4, 'little'))
         self._boot()
         threading.Thread(target=self._clock, name=f'drive-{self.node.id}', daemon=True).start()
         return self
 
     def stop(self) -> None:
-        """Stop the drive's clock."""
+        """Stop the drive's clock and its SYNC production."""
         self._clock_stop.set()
+        self._produce_sync(False)
+
+    def save(self, index: int, subindex: int, data: bytes) -> None:
+        """Store a setting as a drive tool does: kept across reset communication and reboot."""
+        with self.lock:
+            self.saved.setdefault(index, {})[subindex] = bytes(data)
+            self.node.data_store.setdefault(index, {})[subindex] = bytes(data)
+            self._cache.clear()
 
     def _boot(self) -> None:
-        """Boot-up message, then NMT pre-operational (CiA 301)."""
+        """Boot-up message, then NMT pre-operational (CiA 301); SYNC produced if 0x1005 says so."""
         self.node.nmt.send_command(0x82)  # state 'initialising': sends the boot-up
         self.node.nmt.send_command(0x80)
+        self._produce_sync(bool(self._cfg(p.SYNC_COB_ID) & SYNC_PRODUCER_BIT))
+
+    def _restore(self, below: int) -> None:
+        """Objects with an index below ``below`` back to their saved values (else the EDS's)."""
+        for index in [i for i in self.node.data_store if i < below]:
+            del self.node.data_store[index]
+        for index, subs in self.saved.items():
+            if index < below:
+                self.node.data_store[index] = dict(subs)
+        self._cache.clear()
+
+    def reboot(self) -> None:
+        """Power cycle: every object saved or default, power stage off, brake closed, boot-up."""
+        with self.lock:
+            self.reboots += 1
+            self._restore(0x10000)
+            self.state = p.State.SWITCH_ON_DISABLED
+            self._stopping, self._decelerating = None, False
+            self.ramp_permille, self.target_permille, self.last_controlword = 0.0, 0, 0
+            self.error_code = self.error_register = 0
+            self.brake_closed, self._brake_closing_at = True, None
+            self.sto = self.remote_off = self.target_ignored = False
+            if self._heartbeat_producer:
+                self.network.unsubscribe(0x700 + self._heartbeat_producer, self._on_heartbeat)
+            self._heartbeat_producer, self._heartbeat_seen, self._heartbeat_lost = 0, None, False
+            self._pdo_ready, self._rpdo_data = False, None
+            self.node.nmt.stop_heartbeat()
+            self._event('rebooted: configuration lost, power stage off, brake closed')
+            self._boot()
+
+    def _produce_sync(self, on: bool) -> None:
+        """Start or stop this drive's own SYNC (every 0x1006 us, else every period)."""
+        if on and self._sync_task is None and self.network is not None:
+            period_us = self._cfg(p.COMMUNICATION_CYCLE_US) or int(round(self.dt_s * 1e6))
+            self._sync_task = self.network.send_periodic(0x80, b'', period_us * 1e-6)
+            self._event('producing SYNC (0x1005 bit 30)')
+        elif not on and self._sync_task is not None:
+            self._sync_task.stop()
+            self._sync_task = None
+            self._event('SYNC production stopped (0x1005 bit 30 cleared)')
+
+    @property
+    def producing_sync(self) -> bool:
+        """Whether this drive sends SYNC itself."""
+        return self._sync_task is not None
+
+    def _set_data_unless_fixed(self, index, subindex, data, check_writable=False) -> None:
+        """SDO write, except to the mapping entry the drive keeps (``Quirks``): answered only."""
+        if (index, subindex) == self.quirks.fixed_mapping_entry:
+            return
+        self._set_data(index, subindex, data, check_writable)
 
     def leave_enabled(self, target_permille: int) -> None:
         """Put the drive where a crashed master left it: operational, enabled, a target."""
@@ -195,17 +279,19 @@ class SimulatedDrive:
             self.node.sdo.on_request(can_id, data, timestamp)
 
     def _on_nmt(self, can_id, data, timestamp) -> None:
-        """NMT: reset communication restores 0x1000-0x1FFF; operational takes the PDO set-up."""
+        """NMT: reset node reboots, reset communication restores 0x1000-0x1FFF, start maps."""
         if self.silent or data[1] not in (0, self.node.id):
             return
         with self.lock:
-            if data[0] in (0x81, 0x82):
-                for index in [i for i in self.node.data_store if i < 0x2000]:
-                    del self.node.data_store[index]
-                self._cache.clear()
+            if data[0] == 0x81:
+                self.reboot()
+                return
+            if data[0] == 0x82:
+                self._produce_sync(False)
+                self._restore(0x2000)
                 self._heartbeat_seen, self._heartbeat_lost = None, False
                 self._pdo_ready = False
-                self._event('NMT reset communication: communication objects at defaults')
+                self._event('NMT reset communication: communication objects restored')
                 self._boot()
                 return
             self.node.nmt.on_command(can_id, data, timestamp)
@@ -269,7 +355,7 @@ class SimulatedDrive:
         }
 
     def _on_write(self, index: int, subindex: int, od, data: bytes) -> None:
-        """SDO writes that act at once: controlword, target torque, heartbeat consumer."""
+        """SDO writes that act at once: controlword, target torque, heartbeat consumer, SYNC."""
         with self.lock:
             self._cache.pop((index, subindex), None)
             self.node.data_store.setdefault(index, {})[subindex] = bytes(data)
@@ -277,6 +363,8 @@ class SimulatedDrive:
                 self.apply_controlword(od.decode_raw(data))
             elif index == p.TARGET_TORQUE:
                 self.target_permille = od.decode_raw(data)
+            elif index == p.SYNC_COB_ID:
+                self._produce_sync(bool(od.decode_raw(data) & SYNC_PRODUCER_BIT))
             elif index == p.HEARTBEAT_CONSUMER and subindex == 1:
                 value = od.decode_raw(data)
                 if self._heartbeat_producer:
@@ -297,115 +385,16 @@ class SimulatedDrive:
         return -1 if self._cfg(p.POLARITY) & 0x80 else 1
 
     @property
-    def statusword(self) -> int:
-        """Statusword 0x6041: state, remote, 'follows the target' in operation."""
-        word = p.encode_statusword(self.state, remote=not self.remote_off)
-        if self.sto:
-            word &= ~p.SW_VOLTAGE_ENABLED
-        if self.state is p.State.OPERATION_ENABLED and not self.target_ignored:
-            word |= p.SW_FOLLOWS_TARGET
-        if self.state is p.State.QUICK_STOP_ACTIVE and self._stopping is None:
-            word |= p.SW_TARGET_REACHED  # halted
-        return word
-
-    @property
     def position_counts(self) -> int:
         """Position actual 0x6064: the joint angle in encoder counts, INTEGER32 (wraps)."""
         counts = round(float(self.joint.plant.position_rad) / self.scaling.rad_per_count)
-        return wrap_int32(self._sign * counts + self.encoder_offset_counts)
+        sign = self._sign * self.quirks.encoder_sign
+        return wrap_int32(sign * counts + self.encoder_offset_counts)
 
     @property
     def torque_permille(self) -> int:
         """Torque actual 0x6077 [per mille of rated torque]: k_t i / T_rated."""
         return self._sign * self.scaling.current_to_torque_permille(self.current_a)
-
-    # --- state machine ----------------------------------------------------------------------
-    def apply_controlword(self, controlword: int) -> None:
-        """One controlword 0x6040: CiA 402 transition; fault reset on the rising edge of bit 7."""
-        if self.remote_off:
-            return  # controlled locally: the bus's controlword is ignored
-        command = p.decode_command(controlword)
-        reset_bit = p.CW_FAULT_RESET
-        rising = bool(controlword & reset_bit) and not self.last_controlword & reset_bit
-        self.last_controlword = controlword
-        if command is p.Command.FAULT_RESET:
-            if rising and self.state is p.State.FAULT:
-                self.state, self.error_code, self.error_register = p.State.SWITCH_ON_DISABLED, 0, 0
-                self._send_emcy(0x0000, 0)
-            return
-        before = self.state
-        after = p.next_state(before, command)
-        stopping = self._stopping is not None and command is not p.Command.DISABLE_VOLTAGE
-        if after is before or stopping:
-            return
-        if self.sto and after in (
-            p.State.READY_TO_SWITCH_ON,
-            p.State.SWITCHED_ON,
-            p.State.OPERATION_ENABLED,
-        ):
-            return  # no power stage: stays in 'switch on disabled'
-        if after is p.State.OPERATION_ENABLED:
-            if self._cfg(p.MODES_OF_OPERATION) != p.MODE_CST:
-                return  # this drive runs CST only
-            self._event(f'operation enabled with 0x6071 = {self.target_permille} per mille')
-            self.state, self.brake_closed, self._brake_closing_at = after, False, None
-            self._event('brake released')
-            return
-        if before is p.State.OPERATION_ENABLED:
-            if after is p.State.QUICK_STOP_ACTIVE:
-                self._begin_stop(self._cfg(p.QUICK_STOP_OPTION), p.State.QUICK_STOP_ACTIVE)
-                self.state = p.State.QUICK_STOP_ACTIVE
-                return
-            if after is p.State.SWITCHED_ON and self._cfg(p.DISABLE_OPERATION_OPTION) == 1:
-                self._begin_stop(1, after)
-                return
-            self._close_brake()
-        if self._stopping is not None and after is p.State.SWITCH_ON_DISABLED:
-            self._cut_ramps += 1
-            self._event(
-                f'ramp cut by disable voltage at {self.ramp_permille:.0f} per mille, '
-                f'brake {"closed" if self.brake_closed else "open"}'
-            )
-            self._stopping = None
-            self.ramp_permille = 0.0
-            self._close_brake()
-        elif after is p.State.SWITCH_ON_DISABLED and not self.brake_closed:
-            self._event('voltage disabled with the brake open')
-        self.state = after
-
-    def _begin_stop(self, option: int, final: p.State) -> None:
-        """Ramp (option 1, 2, 5, 6) or not (0), then the brake, then ``final``."""
-        self.ramp_permille = float(self._applied_target()) if option else 0.0
-        stay = option in (5, 6)
-        if final is p.State.QUICK_STOP_ACTIVE and not stay:
-            final = p.State.SWITCH_ON_DISABLED
-        self._stopping = final
-        self._event(f'stopping: ramp from {self.ramp_permille:.0f} per mille (option {option})')
-
-    def _close_brake(self) -> None:
-        """Start closing the brake (closing time 0x2100)."""
-        if not self.brake_closed and self._brake_closing_at is None:
-            self._brake_closing_at = self.syncs * self.dt_s + self._cfg(p.BRAKE_CLOSING_MS) * 1e-3
-
-    def _raise_fault(self, code: int) -> None:
-        """Fault reaction (0x605E): ramp, brake, then 'fault'; 0x603F, 0x1001 set, EMCY sent."""
-        powered = self.state in (p.State.OPERATION_ENABLED, p.State.QUICK_STOP_ACTIVE)
-        self.error_code = code
-        self.error_register = ERROR_REGISTER_GENERIC | (
-            ERROR_REGISTER_CURRENT if code >> 12 == 0x2 else 0
-        )
-        self._send_emcy(code, self.error_register)
-        self._event(f'fault 0x{code:04X} {p.error_text(code)}')
-        if powered:
-            self._begin_stop(2 if self._cfg(p.FAULT_REACTION_OPTION) else 0, p.State.FAULT)
-            self.state = p.State.FAULT_REACTION_ACTIVE
-        else:
-            self.state = p.State.FAULT
-
-    def _send_emcy(self, code: int, register: int) -> None:
-        """EMCY frame (CiA 301: code, error register, 5 vendor bytes)."""
-        if not self.silent:
-            self.node.emcy.send(code, register)
 
     # --- the cycle --------------------------------------------------------------------------
     def _clock(self) -> None:
@@ -467,56 +456,12 @@ class SimulatedDrive:
                     self.apply_controlword(data[p.CONTROLWORD])
         self._supervise_heartbeat()
         current = self._power_stage(t_s)
-        if cycle:
+        if cycle and self._pdo_ready:  # a reboot in this period took the PDOs away
             self._send_tpdos()
         self.joint.write(current, self.brake_closed)
         self.joint.read(self.syncs * self.period_ns)
         if abs(self.joint._flowing_a) > self.over_current_a and self.error_code == 0:
             self._raise_fault(FAULT_CODES['over_current'])
-
-    def _power_stage(self, t_s: float) -> float:
-        """Return the motor current applied over this period [A]; ramps and brake advance."""
-        s = self.scaling
-        if self._brake_closing_at is not None and t_s >= self._brake_closing_at:
-            self.brake_closed, self._brake_closing_at = True, None
-            self._event('brake closed')
-        if self._stopping is not None:
-            step = self._cfg(p.TORQUE_SLOPE) * self.dt_s
-            r = self.ramp_permille
-            self.ramp_permille = 0.0 if abs(r) <= step else r - step * (1 if r > 0 else -1)
-            if self.ramp_permille == 0.0:
-                self._close_brake()
-                if self.brake_closed:
-                    self.state, self._stopping = self._stopping, None
-                    self._event(f'stopped: {self.state.value}')
-            return s.torque_permille_to_current(round(self.ramp_permille))
-        if self.state is p.State.OPERATION_ENABLED and not self.sto:
-            if self.target_ignored or self.last_controlword & p.CW_HALT:
-                return 0.0
-            return s.torque_permille_to_current(self._applied_target())
-        self._close_brake()
-        return 0.0
-
-    def _supervise_heartbeat(self) -> None:
-        """Heartbeat consumer 0x1016: a producer silent beyond its time triggers 0x6007."""
-        time_ms = self._cfg(p.HEARTBEAT_CONSUMER, 1) & 0xFFFF
-        seen = self._heartbeat_seen
-        if not time_ms or seen is None or self._heartbeat_lost:
-            return
-        if time.monotonic() - seen > time_ms * 1e-3:
-            self._heartbeat_lost = True
-            option = self._cfg(p.ABORT_CONNECTION_OPTION)
-            self._event(
-                f'heartbeat of node {self._heartbeat_producer} lost for {time_ms} ms: '
-                f'abort connection option {option}'
-            )
-            self._send_emcy(HEARTBEAT_ERROR, ERROR_REGISTER_GENERIC)
-            if option == 1:
-                self._raise_fault(HEARTBEAT_ERROR)
-            elif option == 2:
-                self.apply_controlword(p.Command.DISABLE_VOLTAGE.value)
-            elif option == 3:
-                self.apply_controlword(p.Command.QUICK_STOP.value)
 
     def _send_tpdos(self) -> None:
         """TPDO1/TPDO2 with the objects the master mapped; a late answer goes before them."""

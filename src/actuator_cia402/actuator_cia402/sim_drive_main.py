@@ -14,6 +14,7 @@ running, as on a real bus. ROS-free; the hub binds 127.0.0.1 only.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import faulthandler
 import os
 import signal
@@ -25,10 +26,18 @@ import canopen
 
 from actuator_cia402.busload import frame_bits
 from actuator_cia402.config import RATED_CURRENT_A, RATED_TORQUE_NM
+from actuator_cia402.sim_settings import SimDriveSettings
 from actuator_cia402.hub import Hub, error_frame
 from actuator_cia402.scaling import Scaling
 from actuator_cia402.sim_drive import SimulatedDrive
-from actuator_cia402.sim_faults import FAULT_CODES, INJECTIONS, FaultPlan, plant_parameters
+from actuator_cia402.sim_faults import (
+    FAULT_CODES,
+    INJECTIONS,
+    FaultPlan,
+    Quirks,
+    mapping_entry,
+    plant_parameters,
+)
 from actuator_core import limits
 from actuator_ros.realtime import RealtimeSettings  # ROS-free: yaml only, no rclpy
 
@@ -56,12 +65,25 @@ def _injection(text: str) -> tuple[str, float]:
     return kind, float(at)
 
 
+def _mapping_entry(text: str):
+    """'1A01:3' -> (0x1A01, 3) for argparse."""
+    try:
+        return mapping_entry(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def _priority(text: str) -> int:
     """Return a SCHED_FIFO priority 0-99 (0 = normal scheduling) from the command line."""
     value = int(text)
     if not 0 <= value <= 99:
         raise argparse.ArgumentTypeError(f'--thread-priority takes 0-99, got {value}')
     return value
+
+
+def _described(name: str) -> str:
+    """Return the description of a SimDriveSettings field (the one source of its meaning)."""
+    return {f.name: f.metadata['description'] for f in dataclasses.fields(SimDriveSettings)}[name]
 
 
 def parser() -> argparse.ArgumentParser:
@@ -96,6 +118,25 @@ def parser() -> argparse.ArgumentParser:
     ap.add_argument('--silent-at', type=float, default=-1.0)
     ap.add_argument('--drop-tpdo', type=float, default=0.0)
     ap.add_argument('--late-tpdo', type=float, default=0.0)
+    ap.add_argument('--no-load', action='store_true', help='not: ' + _described('load'))
+    ap.add_argument('--emcy-register', type=int, default=0, help=_described('emcy_register'))
+    ap.add_argument('--transition-16', action='store_true', help=_described('transition_16'))
+    ap.add_argument(
+        '--no-halted-bit', action='store_true', help='not: ' + _described('halted_bit')
+    )
+    ap.add_argument(
+        '--velocity-quick-stop', action='store_true', help=_described('velocity_quick_stop')
+    )
+    ap.add_argument('--produces-sync', action='store_true', help=_described('produces_sync'))
+    ap.add_argument(
+        '--fixed-mapping-entry',
+        type=_mapping_entry,
+        default=None,
+        help=_described('fixed_mapping_entry'),
+    )
+    ap.add_argument(
+        '--encoder-sign', type=int, choices=(1, -1), default=1, help=_described('encoder_sign')
+    )
     ap.add_argument(
         '--inject',
         type=_injection,
@@ -146,6 +187,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         args.seed,
         tuple(args.inject),
         late_tpdo_fraction=args.late_tpdo,
+        emcy_register=args.emcy_register,
+    )
+    quirks = Quirks(
+        transition_16=args.transition_16,
+        halted_bit=not args.no_halted_bit,
+        velocity_quick_stop=args.velocity_quick_stop,
+        sync_producer=args.produces_sync,
+        fixed_mapping_entry=args.fixed_mapping_entry,
+        encoder_sign=args.encoder_sign,
     )
     if args.thread_priority:  # before any thread exists: every thread inherits it
         refused = RealtimeSettings(thread_priority=args.thread_priority).apply()
@@ -172,15 +222,16 @@ def main(argv: Sequence[str] | None = None) -> int:
             node_id,
             scaling,
             args.sync_period,
-            plant_parameters(args.working_condition),
+            plant_parameters(args.working_condition, load=not args.no_load),
             args.torque_time_constant,
             plan,
             args.over_current,
             args.initial_position,
             args.encoder_offset_counts,
             on_event,
+            quirks,
         )
-        drive.node.data_store.setdefault(0x607E, {})[0] = bytes([args.polarity & 0xFF])
+        drive.save(0x607E, 0, bytes([args.polarity & 0xFF]))  # set in the drive tool
         drive.attach(network)
         if args.left_enabled is not None:
             drive.leave_enabled(args.left_enabled)

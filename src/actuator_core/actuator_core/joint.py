@@ -11,8 +11,13 @@ diagnostics; a joint only moves the hardware (or the model).
 Lifecycle, each call may raise ``JointError`` with a one-line reason:
   configure   communication up and checked; nothing moves, the brake holds;
   activate    ready to apply torque; the brake holds until the first valid command;
+  end_control the node ended control (a fault, a soft limit, a stale loop): 0 A and the brake
+              now, whatever it takes (a synchronous drive needs cycles to take them); returns
+              what the joint did, as the joint reports it;
   deactivate  0 A and the brake, calmly (a drive's quick-stop ramp included);
-  cleanup     communication down;  close: at exit, from any state.
+  cleanup     communication down;  close: at exit, from any state (both return warnings).
+``describe`` says in one line what the joint shows after a stop; ``take_warnings`` hands the
+node what the joint noticed without ending control (logged, counted in /diagnostics).
 Cycle, once per sample k, called by the node in this order:
   write(current_a, brake)  what to apply from now on (the gate's decision for [t_k, t_k+1));
   read(t_k+1)              the sample at the next instant: angle, applied torque, health.
@@ -67,16 +72,30 @@ class Joint(ABC):
         """Make the joint ready to apply torque; the brake stays engaged (raise JointError)."""
         return []
 
+    def end_control(self, reason: str) -> str:
+        """Apply 0 A and the brake at once (control ended for ``reason``); say what was done."""
+        self.write(0.0, True)
+        return '0 A, brake engaged'
+
     def deactivate(self) -> list[str]:
         """Return to 0 A with the brake engaged, calmly; return warnings."""
         return []
 
-    def cleanup(self) -> None:
-        """Bring communication down."""
+    def cleanup(self) -> list[str]:
+        """Bring communication down; return warnings."""
+        return []
 
-    def close(self) -> None:
-        """At exit, from any state: leave the joint safe and release every resource."""
-        self.cleanup()
+    def close(self) -> list[str]:
+        """At exit, from any state: leave the joint safe, release every resource; warnings."""
+        return self.cleanup()
+
+    def describe(self) -> str:
+        """One line on the joint's state as last read ('' when it has nothing to add)."""
+        return ''
+
+    def take_warnings(self) -> list[str]:
+        """Return what the joint noticed since the last call without ending control."""
+        return []
 
     @abstractmethod
     def write(self, current_a: float, brake: bool) -> None:

@@ -24,8 +24,11 @@ and runs one cycle per sample: the gate's hold is written to the joint, then the
 A joint that replays missed samples (a simulation) integrates each one after a stall; a real
 joint skips them, as ros2_control's loop does. mode 'sim': the node owns /clock and steps in
 lockstep: it publishes sample k and waits for the command answering it.
-A joint that reports a fault, or a soft limit crossed, ends control at once (0 A, brake); a
-fault takes the node through error processing to unconfigured, with the reason logged.
+A joint that reports a fault, a soft limit crossed or a stale loop (``stop_on_stale_loop``)
+ends control at once: the gate closes and the joint's ``end_control`` makes it take 0 A and
+the brake (a synchronous drive through braked cycles), the log says what the joint did; the
+supervision tick then takes the node through its own deactivation (a fault: on through error
+processing to unconfigured), with the reason logged.
 """
 
 from __future__ import annotations
@@ -39,7 +42,7 @@ from rclpy.lifecycle import LifecycleState, TransitionCallbackReturn
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState
 
-from actuator_core.gate import CommandGate
+from actuator_core.gate import CommandGate, Held
 from actuator_core.binding import CommandBinding
 from actuator_core.limits import CYCLE_LATENESS_MAX_FRACTION
 from actuator_core.joint import (
@@ -70,6 +73,9 @@ from actuator_ros.wire_io import codec, subscribe_views
 SIM_START_NS = 1_000_000_000
 #: Wall time the graph must have been ready before sampling starts [ns].
 SETTLE_NS = 500_000_000
+#: Longest wait for the sampling thread at a stop [s]: it may be ending control (a drive's
+#: braked cycles last up to its state timeout).
+SAMPLER_JOIN_TIMEOUT_S = 10.0
 
 
 class JointNode(JointReport, ManagedNode):
@@ -123,9 +129,9 @@ class JointNode(JointReport, ManagedNode):
         try:
             for note in self.joint.configure():
                 self.get_logger().warning(note)
-        except JointError as exc:
+        except JointError:
             self.joint = None
-            raise ParameterError(f'{self.summary}: {exc}') from None
+            raise
         self.period_ns = period_ns(cfg.sample_time_s)
         self.late_cycle_ns = round(CYCLE_LATENESS_MAX_FRACTION * self.period_ns)
         self.gate = CommandGate(cfg.current_limit_a, cfg.command_timeout_s, cfg.brake_delay_s)
@@ -174,11 +180,13 @@ class JointNode(JointReport, ManagedNode):
         self.settle_until_ns: Optional[int] = None
         self.conflict = bool(self.guard.conflict)  # more than one publisher on current_command
         self.stopped_reason = ''  # why control ended on the joint side (fault, soft limit)
+        self.ending = False  # the joint is stopping (end_control) after control ended
         self.fault = ''  # a joint fault: error processing follows
         self.lockstep_timeouts = 0
         self.skipped_cycles = 0  # realtime, a real joint: cycles the host was too late to run
         self.longest_stall_cycles = 0  # the most cycles one stall skipped
         self.lost_feedback = 0  # cycles the joint gave no sample for (its read returned None)
+        self.joint_warnings = 0  # what the joint noticed without ending control (logged)
         self.refused = 0
         self.binding.reset()
         self.soft_limits.reset()
@@ -187,11 +195,8 @@ class JointNode(JointReport, ManagedNode):
     def start(self) -> None:
         """Activate the joint and open the gate; sampling starts once the graph is ready."""
         self._reset_run()
-        try:
-            for note in self.joint.activate():
-                self.get_logger().warning(note)
-        except JointError as exc:
-            raise ParameterError(f'activate refused: {exc}') from None
+        for note in self.joint.activate():
+            self.get_logger().warning(note)
         with self.gate_lock:
             self.gate.activate()
 
@@ -201,10 +206,15 @@ class JointNode(JointReport, ManagedNode):
             self.gate.deactivate()
         self.stop_sampling.set()
         if self.sampler is not None and self.sampler is not threading.current_thread():
-            self.sampler.join(timeout=1.0)
+            self.sampler.join(timeout=SAMPLER_JOIN_TIMEOUT_S)
         self.joint.write(0.0, True)
         for note in self.joint.deactivate():
             self.get_logger().warning(note)
+        self.held = self.gate.hold(0)  # 0 A and the brake: /diagnostics says so from now on
+        self._log_warnings()
+        what = self.joint.describe()
+        if what:
+            self.get_logger().info(f'{self.summary} stopped: {what}')
         self.close_log()
 
     def drop(self) -> None:
@@ -216,16 +226,25 @@ class JointNode(JointReport, ManagedNode):
                 self.destroy_lifecycle_publisher(pub)
         self.drop_extras()
         self.diagnostics.destroy()
-        self.joint.close()
+        for note in self.joint.close():
+            self.get_logger().warning(note)
         self.joint = None
+
+    def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """Configure; a joint that cannot be brought up (JointError) leaves it unconfigured."""
+        try:
+            return super().on_configure(state)
+        except JointError as exc:
+            self.get_logger().error(f'configure failed: {self.summary}: {exc}')
+            return TransitionCallbackReturn.FAILURE
 
     def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
         """Activate; a joint that refuses (JointError) leaves the node inactive."""
         try:
             return super().on_activate(state)
-        except ParameterError as exc:
+        except JointError as exc:
             self.active = False
-            self.get_logger().error(str(exc))
+            self.get_logger().error(f'activate refused: {exc}')
             return TransitionCallbackReturn.FAILURE
 
     def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
@@ -246,11 +265,17 @@ class JointNode(JointReport, ManagedNode):
 
     # --- supervision (executor thread, 10 Hz) ------------------------------------------------
     def on_tick(self) -> None:
-        """Start once the graph is ready; publisher guard; sim lockstep watchdog; faults."""
+        """Joint warnings; start once the graph is ready; sim lockstep watchdog; control ended."""
+        self._log_warnings()
         if not self.active:
             return
-        if self.fault:
-            self.trigger_deactivate()
+        if self.stopped_reason:  # the node's own deactivation (a fault: error processing next)
+            if not self.ending:  # once the joint has stopped (and said so)
+                self._internal_transition = True
+                try:
+                    self.trigger_deactivate()
+                finally:
+                    self._internal_transition = False
             return
         if self.start_ns is None:
             self._start_when_ready()
@@ -351,19 +376,6 @@ class JointNode(JointReport, ManagedNode):
             self.error = f'sampling thread failed: {exc!r}'
             self.finished = True
 
-    def _host_stalled(self, skipped: int) -> None:
-        """Count and log the cycles a host stall took (a real joint skips them)."""
-        self.skipped_cycles += skipped
-        self.longest_stall_cycles = max(self.longest_stall_cycles, skipped)
-        self.log.warn(
-            'host_stall',
-            lambda: (
-                f'host stall: {skipped} cycles skipped (the sampling thread woke '
-                f'{skipped * self.period_ns * 1e-6:.0f} ms late; {self.skipped_cycles} in all, '
-                f'the longest {self.longest_stall_cycles})'
-            ),
-        )
-
     def _cycle(self, k: int, write: bool = True) -> bool:
         """Write the gate's hold to the joint, read sample k, publish it; False: control ended."""
         if self.stopped_reason:
@@ -412,14 +424,21 @@ class JointNode(JointReport, ManagedNode):
         return False
 
     def _end_control(self, reason: str, fault: bool) -> None:
-        """0 A and the brake at once, no more samples; a fault goes to error processing."""
+        """0 A and the brake now (the joint's end_control), no more samples; log what it did.
+
+        The supervision tick then deactivates the node; a fault goes on to error processing.
+        """
         with self.gate_lock:
             self.gate.deactivate()
-        self.joint.write(0.0, True)
-        self.stopped_reason = reason
+            self.held = Held(0.0, -1, True, f'control ended: {reason}')
+        self.stopped_reason, self.ending = reason, True
         if fault:
             self.fault = reason
-        self.get_logger().error(f'control ended: {reason}; 0 A, brake engaged')
+        try:
+            what = self.joint.end_control(reason)
+        finally:
+            self.ending = False
+        self.get_logger().error(f'control ended: {reason}; {what}')
         if self.cfg.stop_after_s:  # a bounded run cannot reach its end: it failed, and exits
             self.error = f'the run of {self.cfg.stop_after_s:g} s ended early: {reason}'
             self.finished = True

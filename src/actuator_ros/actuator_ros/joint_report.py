@@ -1,7 +1,7 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""What the joint node says: its closing line, its /diagnostics.
+"""What the joint node says: its closing line, host stalls, the joint's warnings, /diagnostics.
 
 ``JointReport`` is a part of ``JointNode`` (a mixin): it reads the node's counters, its gate
 and its joint, and changes nothing the sampling loop reads.
@@ -13,7 +13,7 @@ from actuator_core.health import HealthMonitor, Level, Snapshot
 
 
 class JointReport:
-    """The closing line and the /diagnostics of the joint node."""
+    """The closing line, the host-stall and joint-warning lines and /diagnostics of the node."""
 
     def close_log(self) -> None:
         """Log a one-line summary; write the per-sample log if asked."""
@@ -27,6 +27,27 @@ class JointReport:
             f'cycles without feedback {self.lost_feedback}'
         )
 
+    def _host_stalled(self, skipped: int) -> None:
+        """Count and log the cycles a host stall took (a real joint skips them)."""
+        self.skipped_cycles += skipped
+        self.longest_stall_cycles = max(self.longest_stall_cycles, skipped)
+        self.log.warn(
+            'host_stall',
+            lambda: (
+                f'host stall: {skipped} cycles skipped (the sampling thread woke '
+                f'{skipped * self.period_ns * 1e-6:.0f} ms late; {self.skipped_cycles} in all, '
+                f'the longest {self.longest_stall_cycles})'
+            ),
+        )
+
+    def _log_warnings(self) -> None:
+        """Log and count what the joint noticed without ending control (EMCY warnings)."""
+        if self.joint is None:
+            return
+        for text in self.joint.take_warnings():
+            self.joint_warnings += 1
+            self.get_logger().warning(f'{self.summary}: {text}')
+
     def health_monitor(self) -> HealthMonitor:
         """Rules of /diagnostics: STALE without samples; WARN on refusals and timeouts."""
         return HealthMonitor(
@@ -37,6 +58,7 @@ class JointReport:
                 'refused_by_value': 'commands refused by value',
                 'command_timeouts': 'command timeouts (0 A, then the brake)',
                 'lockstep_timeouts': 'sim lockstep timeouts (control ended)',
+                'joint_warnings': 'warnings of the joint (logged)',
             },
             hardware_id=self.joint.kind,
         )
@@ -59,13 +81,14 @@ class JointReport:
                 'refused_by_value': self.gate.refused,
                 'command_timeouts': self.gate.timeouts,
                 'lockstep_timeouts': self.lockstep_timeouts,
+                'joint_warnings': self.joint_warnings,
             },
             {
+                **self.joint.diagnostics(),  # the node's own keys below win (its 'brake': held)
                 'mode': self.mode,
                 'brake': bool(self.held.brake),
                 'held': self.held.reason or f'{self.held.current_a:.3f} A',
                 'fresh commands [%]': 'not judged yet' if share is None else f'{100 * share:.1f}',
-                **self.joint.diagnostics(),
             },
             problems,
         )
