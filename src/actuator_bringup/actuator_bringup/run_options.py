@@ -39,6 +39,7 @@ class RunOption:
     high: float = math.inf
     unit: str = ''
     flag: str = ''  # the runner's flag when it is not --name (e.g. --no-record for record)
+    flag_help: str = ''  # the flag's help when it turns a default-true option off
     runner: bool = True  # the runner offers it
     launch: bool = True  # the launch file offers it
 
@@ -91,7 +92,14 @@ RUN_OPTIONS = (
         'cia402: the driver on a real bus; none: a driver started elsewhere',
         choices=JOINTS,
     ),
-    RunOption('record', bool, True, 'record the run to a bag', flag='--no-record'),
+    RunOption(
+        'record',
+        bool,
+        True,
+        'record the run to a bag',
+        flag='--no-record',
+        flag_help='do not record the run',
+    ),
     RunOption(
         'params_file',
         list,

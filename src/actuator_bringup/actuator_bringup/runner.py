@@ -343,7 +343,7 @@ def build_parser() -> argparse.ArgumentParser:
         help_text = f'{option.description} ({option.range_text()})'
         if option.kind is bool:
             action = 'store_false' if option.default else 'store_true'
-            what = f'not: {option.description}' if option.default else option.description
+            what = option.flag_help or option.description
             parser.add_argument(option.cli, action=action, help=what, **dest)
         elif option.kind is list:
             parser.add_argument(
