@@ -815,3 +815,23 @@ def test_the_watchdog_sends_no_second_command_for_a_sample_the_joint_already_hol
         False,
         True,
     )
+
+
+def test_the_state_is_never_ok_while_the_command_sits_at_the_limit_past_a_handful() -> None:
+    """AT_LIMIT_SAMPLES at the limit may say OK (a step); the next says RECOVERING until off it."""
+    from actuator_core.assembly import AT_LIMIT_SAMPLES
+
+    step = StepReference(amplitude_rad=1.0, start_s=0.001)
+    a = ControlSampleAssembly(
+        make_controller('pi'), step, P, False, following_error_limit_rad=10.0
+    )
+    assert a.add_measurement(0, 0.0).status is Status.OK  # on the reference before its step
+    statuses = []
+    for k in range(1, AT_LIMIT_SAMPLES + 4):  # the joint does not follow the step: +20 A
+        s = a.add_measurement(k * P, 0.0)
+        assert s.current_a == 20.0
+        statuses.append(s.status)
+    assert statuses[:AT_LIMIT_SAMPLES] == [Status.OK] * AT_LIMIT_SAMPLES
+    assert statuses[AT_LIMIT_SAMPLES:] == [Status.RECOVERING] * 3
+    s = a.add_measurement((AT_LIMIT_SAMPLES + 4) * P, 1.0)  # the joint on the reference again
+    assert abs(s.current_a) < 20.0 and s.status is Status.OK and a.at_limit_run == 0

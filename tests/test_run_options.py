@@ -118,7 +118,7 @@ def test_a_parameter_file_reaches_the_plant_and_the_observer_of_a_run(isolated):
     params = isolated / 'mine.yaml'
     params.write_text(
         'actuator_plant:\n  ros__parameters:\n    condition:\n      temperature_c: 25.0\n'
-        'actuator_eso:\n  ros__parameters:\n    omega0_rad_s: 50.0\n'
+        'actuator_eso:\n  ros__parameters:\n    omega0_rad_s: 70.0\n'
     )
     code = bringup.main(
         ['--mode', 'sim', '--duration', '1', '--no-record', '--params-file', str(params)]
@@ -126,4 +126,44 @@ def test_a_parameter_file_reaches_the_plant_and_the_observer_of_a_run(isolated):
     assert code == 0
     run = next((isolated / 'results' / 'runs').iterdir())
     assert 'T = 25.0 degC' in (run / 'plant.stderr').read_text()
-    assert 'w0 = 50.0 rad/s' in (run / 'eso.stderr').read_text()
+    assert 'w0 = 70.0 rad/s' in (run / 'eso.stderr').read_text()
+
+
+def test_table_4_gains_are_refused_on_a_synchronous_drive_before_anything_starts(isolated):
+    """The paper's gains with one SYNC of delay: radius 1.003 at a drift vertex, refused."""
+    from actuator_bringup.gain_check import check_gains, loop_radius
+    from actuator_bringup.runner import scenario_file
+
+    paper = [scenario_file('case2_pp_nftsmc_eso')]
+    assert loop_radius('case2_pp_nftsmc_eso', paper, 'plant')[1] < 1.0  # the paper's own loop
+    name, radius = loop_radius('case2_pp_nftsmc_eso', paper, 'cia402_sim')
+    assert name == 'pp_nftsmc_eso' and 1.0 < radius < 1.01
+    drive = [scenario_file('drive_pp_nftsmc_eso')]
+    assert check_gains('drive_pp_nftsmc_eso', drive, 'cia402_sim', False) == (
+        pytest.approx(loop_radius('drive_pp_nftsmc_eso', drive, 'cia402_sim')[1]),
+        '',
+    )
+    with pytest.raises(SystemExit) as stop:
+        bringup.run_closed_loop('case2_pp_nftsmc_eso', 'realtime', 1.0, joint='cia402_sim')
+    assert str(stop.value) == (
+        'bringup: the pp_nftsmc_eso gains of case2_pp_nftsmc_eso are unstable with joint '
+        f'cia402_sim (1 sample(s) of command delay): linearised radius {radius:.3f} >= 1 at a '
+        'vertex of the drift; name gains stable there, or insist with allow_unstable_gains'
+    )
+    assert not (isolated / 'bags').exists()  # refused before anything started
+    insisted = check_gains('case2_pp_nftsmc_eso', paper, 'cia402_sim', True)
+    assert insisted[1].endswith('run anyway (allow_unstable_gains)')
+
+
+def test_a_users_parameter_file_is_part_of_the_gains_judged(tmp_path):
+    """A file that raises k3 beyond what one sample of delay allows is judged with it."""
+    from actuator_bringup.gain_check import loop_radius
+    from actuator_bringup.runner import scenario_file
+
+    files = [scenario_file('drive_pp_nftsmc_eso')]
+    stable = loop_radius('drive_pp_nftsmc_eso', files, 'cia402_sim')[1]
+    hot = tmp_path / 'hot.yaml'
+    hot.write_text(
+        'actuator_controller:\n  ros__parameters:\n    pp_nftsmc_eso:\n      k3_per_s: 2000.0\n'
+    )
+    assert loop_radius('drive_pp_nftsmc_eso', [*files, hot], 'cia402_sim')[1] > stable

@@ -166,6 +166,13 @@ RUN_OPTIONS = (
         high=MAX_JOINTS_ON_BUS,
     ),
     RunOption(
+        'allow_unstable_gains',
+        bool,
+        False,
+        "run gains the linearised loop finds unstable at the joint's delay (a synchronous "
+        "drive's SYNC included) instead of refusing them before start",
+    ),
+    RunOption(
         'autostart',
         bool,
         True,

@@ -35,6 +35,7 @@ from actuator_bringup.run_description import (
     ros_arguments,
 )
 from actuator_bringup.composition import compose
+from actuator_bringup.gain_check import UnstableGains, check_gains
 from actuator_bringup.run_options import (
     MODES,
     RUN_OPTIONS,
@@ -106,6 +107,7 @@ def run_closed_loop(
     joints: int = 1,
     record_in_process: bool = False,
     params_files: Sequence[Path] = (),
+    allow_unstable_gains: bool = False,
 ) -> RunResult:
     """Start the nodes of ``scenario`` in ``mode``, run to the end, stop everything.
 
@@ -118,7 +120,9 @@ def run_closed_loop(
     one bus, each loop under its namespace (graph.closed_loop). ``record_in_process``: the
     composed loop's process writes the bag itself (composition.compose). ``params_files``: ROS 2
     parameter files every node process loads after the scenario's, each section for a node of
-    this run (run_options.check_parameter_files; refused with one line otherwise).
+    this run (run_options.check_parameter_files; refused with one line otherwise). The gains
+    they name are judged at the joint's delay first (gain_check): an unstable set is refused
+    unless ``allow_unstable_gains``.
     """
     if duration_s is None:
         duration_s = scenario_duration(scenario)
@@ -128,10 +132,7 @@ def run_closed_loop(
     stamp = dt.datetime.now(dt.timezone.utc).strftime('%Y%m%dT%H%M%SZ')
     name = f'{scenario}_{mode}_{stamp}'
     run_dir = results_root / name
-    run_dir.mkdir(parents=True, exist_ok=True)
     bag = bag_root / name if record else None
-    if bag is not None:
-        bag_root.mkdir(parents=True, exist_ok=True)
     specs = closed_loop(
         mode,
         duration_s,
@@ -155,6 +156,15 @@ def run_closed_loop(
     except OptionError as exc:
         raise SystemExit(f'bringup: {exc}') from None
     files = [Path(f).resolve() for f in params_files]
+    try:
+        _, warning = check_gains(scenario, [params, *files], joint, allow_unstable_gains)
+    except UnstableGains as exc:
+        raise SystemExit(f'bringup: {exc}') from None
+    if warning:
+        print(f'[bringup] warning: {warning}', file=sys.stderr, flush=True)
+    run_dir.mkdir(parents=True, exist_ok=True)  # nothing is made for a run refused above
+    if bag is not None:
+        bag_root.mkdir(parents=True, exist_ok=True)
     procs: dict[str, RosProcess] = {}
     figures: dict[str, ProcessFigures] = {}
     previous = {s: signal.signal(s, _raise_stopped) for s in (signal.SIGTERM, signal.SIGINT)}
@@ -407,6 +417,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         diagnostics_rate_hz=None if rate != rate else rate,
         joints=args['joints'],
         record_in_process=args['record_in_process'],
+        allow_unstable_gains=args['allow_unstable_gains'],
     )
     print(
         json.dumps(

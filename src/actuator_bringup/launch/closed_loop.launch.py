@@ -41,6 +41,7 @@ from launch_ros.actions import LifecycleNode, Node
 
 from actuator_sim.params_yaml import node_parameters
 from actuator_bringup.composition import compose
+from actuator_bringup.gain_check import UnstableGains, check_gains
 from actuator_bringup.run_description import (
     PINNING,
     closed_loop,
@@ -142,9 +143,13 @@ def _processes(context):
     files = [Path(f).resolve() for f in options['params_file']]
     try:
         check_parameter_files(tuple(files), node_names(specs))
-    except OptionError as exc:
+        _, warning = check_gains(
+            scenario, [Path(params), *files], joint, options['allow_unstable_gains']
+        )
+    except (OptionError, UnstableGains) as exc:
         raise RuntimeError(str(exc)) from None
-    actions, leaders, producer, drive = [], [], None, None
+    warnings = [LogInfo(msg=f'WARNING: {warning}')] if warning else []
+    actions, leaders, producer, drive = warnings, [], None, None
     for spec in specs:
         if spec.arguments:  # a plain process (the simulated drive): its own command line
             drive = Node(

@@ -9,7 +9,7 @@ its assembly and its timing log, and changes nothing the control path reads.
 
 from __future__ import annotations
 
-from actuator_core.assembly import ControlSample
+from actuator_core.assembly import AT_LIMIT_SAMPLES, ControlSample
 from actuator_core.health import HealthMonitor, Level, Snapshot
 from actuator_core.stats import percentiles
 from actuator_core.status import Status
@@ -37,13 +37,22 @@ class ControllerReport:
                 "the observer converges, then the reference restarts from the joint's angle"
             )
         if sample.status is Status.RECOVERING and self.status is not Status.RECOVERING:
-            self.log.warn(  # rate-limited: a marginal envelope may flip it often
-                'recovering',
-                lambda: (
-                    'RECOVERING: the law runs again after a gap or a resync (or |e| left the '
-                    'envelope); the state says RECOVERING until it is back inside'
-                ),
-            )
+            if a.at_limit_run > AT_LIMIT_SAMPLES:
+                self.log.warn(
+                    'at_limit',
+                    lambda: (
+                        f'RECOVERING: the command sat at the current limit for more than '
+                        f'{AT_LIMIT_SAMPLES} samples; the state says RECOVERING until it leaves it'
+                    ),
+                )
+            else:
+                self.log.warn(  # rate-limited: a marginal envelope may flip it often
+                    'recovering',
+                    lambda: (
+                        'RECOVERING: the law runs again after a gap or a resync (or |e| left the '
+                        'envelope); the state says RECOVERING until it is back inside'
+                    ),
+                )
         elif sample.status is Status.OK and self.status is Status.RECOVERING:
             self.log.info('recovered', lambda: 'recovered: status OK again')
 

@@ -61,6 +61,10 @@ PENDING_LIMIT = 64
 #: Samples of 0 A after a resync: five time constants of the observer's poles at -c w0 = -300
 #: rad/s (17 ms) and margin, so x2_hat and x3_hat have converged before control restarts.
 RESYNC_SAMPLES = 50
+#: Samples in a row the law's command may sit at the current limit and the state still say OK
+#: ("a handful": a step of the reference or a brief disturbance); from the next, RECOVERING
+#: until the command leaves the limit (a loop chattering at the limit is never OK).
+AT_LIMIT_SAMPLES = 5
 #: Samples after the law restarts (a resync, a short gap) that say RECOVERING.
 RECOVERY_SAMPLES = RESYNC_SAMPLES
 #: A resync also waits until x2_hat says the braked joint is at rest [rad/s], at most
@@ -148,6 +152,7 @@ class ControlSampleAssembly:
         self.stall_noticed_ns: Optional[int] = None  # receipt clock: when a stall was noticed
         self.refusal = ''  # why the last input was refused ('' when it was not)
         self.initial_ahead: Optional[tuple] = None  # an observer restart ahead of y, kept aside
+        self.at_limit_run = 0  # the law's samples in a row at the current limit, up to now
         self.corrected = self.unanswered = self.missed = self.resyncs = 0
         self.refused = self.conflicts = self.gap_resyncs = 0
 
@@ -358,6 +363,7 @@ class ControlSampleAssembly:
                 y - self.reference.sample(self.reference_shift_s).position_rad
             )
             self.law.reset()
+            self.at_limit_run = 0
             self.start_ns = stamp
             self._recover_until(stamp)
         self.controlled_ns = stamp
@@ -378,8 +384,11 @@ class ControlSampleAssembly:
         )
         self.latched = self.latched | bad
         current = xm.where(self.latched, 0.0, out.current_a)
-        recovering = xm.logical_not(out.bounds_kept) | (
-            self.recovering_until_ns is not None and stamp < self.recovering_until_ns
+        self.at_limit_run = xm.where(out.saturated, self.at_limit_run + 1, 0)
+        recovering = (
+            xm.logical_not(out.bounds_kept)
+            | (self.at_limit_run > AT_LIMIT_SAMPLES)
+            | (self.recovering_until_ns is not None and stamp < self.recovering_until_ns)
         )
         status = xm.where(
             self.latched,

@@ -25,8 +25,9 @@ class Status(IntEnum):
     #: the observer has converged on the new samples, then control restarts
     CONFLICT = 7  #: more than one publisher feeds a control input: 0 A until one is left
     INACTIVE = 8  #: the node is not active (lifecycle): it commands nothing but 0 A
-    RECOVERING = 9  #: the law runs, but |e| is outside the prescribed envelope or the loop is
-    #: within RECOVERY_SAMPLES of a restart after a gap or a resync: never OK meanwhile
+    RECOVERING = 9  #: the law runs, but |e| is outside the prescribed envelope, its command has
+    #: sat at the current limit for more than AT_LIMIT_SAMPLES, or the loop is within
+    #: RECOVERY_SAMPLES of a restart after a gap or a resync: never OK meanwhile
 
     @property
     def controlled(self) -> bool:
