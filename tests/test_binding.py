@@ -75,7 +75,10 @@ def test_estimates_stamped_ahead_are_refused_with_the_reason_and_change_no_comma
     attacked = _run(a, 60, burst)
     assert a.refused == 6 * 25
     assert [s.current_a for s in attacked] == [s.current_a for s in clean]
-    assert all(s.status is Status.OK for s in attacked[1:])
+    # the statuses too: the attack changed nothing (the start's samples at the limit say
+    # RECOVERING in both, AT_LIMIT_SAMPLES)
+    assert [s.status for s in attacked] == [s.status for s in clean]
+    assert {s.status for s in attacked[1:]} <= {Status.OK, Status.RECOVERING}
 
 
 def test_two_different_estimates_for_one_sample_give_zero_not_the_racers_current():
@@ -306,7 +309,7 @@ def test_the_paper_runs_pass_the_plausibility_check():
 def test_a_wall_clock_step_neither_silences_nor_races_the_watchdog(step_s):
     clock = SteppedClock()
     a = assembly()
-    start = clock.stamp_ns()
+    start = clock.wall_ns()
     for k in range(20):
         stamp = start + k * P
         a.add_estimate(stamp, 0.0, 0.0, stamp - P, 0.0, 0.0, k == 0, clock.now_ns())
@@ -460,3 +463,90 @@ def test_rebases_are_counted():
     m.rebase(T0, 0.0)
     m.rebase(T0 + P, 1.0)
     assert m.rebases == 2 and m.last == (T0 + P, 1.0)
+
+
+# --- a step of the wall clock in a running loop ------------------------------------------------
+@pytest.mark.parametrize('step_s', [-5e-3, 5e-3, -1.0, 1.0])
+def test_a_wall_clock_step_in_every_object_of_a_running_loop_refuses_no_stamp(step_s):
+    """One host's wall clock steps under the joint, the observer and the controller at once.
+
+    The joint's stamps count monotonic periods from a wall-clock anchor; each receiver judges
+    them against its own stamp time (StampClock), anchored when it started: after the step no
+    stamp is ahead and none is a jump, in either direction, by a sample period or by a second.
+    (Judged against the wall clock, a step back of 5 ms made every later stamp 'ahead'.)
+    """
+    from actuator_core.clock import StampClock
+    from actuator_core.timebase import StampCheck, Verdict
+
+    host = SteppedClock()
+    joint = StampClock(host)
+    receivers = {name: (StampClock(host), StampCheck(P, False, 2 * P)) for name in ('eso', 'ctl')}
+    start = joint.at(host.now_ns())
+    verdicts = []
+    for k in range(2000):
+        if k == 1000:
+            host.step_wall(int(step_s * 1e9))
+        stamp = start + k * P  # the joint's sample k
+        host.advance(P // 5)  # the transport
+        for stamp_clock, check in receivers.values():
+            verdicts.append(check.check(stamp, stamp_clock.now_ns()))
+        host.advance(P - P // 5)
+    assert set(verdicts) == {Verdict.OK}
+    assert all(check.refused_future == check.jumps == 0 for _, check in receivers.values())
+    # the wall clock the receivers no longer judge by did step
+    assert StampClock(host).now_ns() - receivers['eso'][0].now_ns() == int(step_s * 1e9)
+
+
+def test_a_time_base_ahead_of_the_receivers_is_adopted_after_a_stream_not_a_stray_stamp():
+    """A joint restarted after a step forward: its stamps are ahead of the receiver's stamp time.
+
+    A stray stamp ahead is refused; FUTURE_STREAM_SAMPLES of them in a row, one period apart, are
+    a new time base: a JUMP, which the receiver adopts (its restart policy resyncs), and the
+    stream goes on OK.
+    """
+    from actuator_core.clock import StampClock
+    from actuator_core.timebase import FUTURE_STREAM_SAMPLES, StampCheck, Verdict
+
+    host = SteppedClock()
+    stamp_clock, check = StampClock(host), StampCheck(P, False, 2 * P)
+    base = stamp_clock.now_ns()
+    assert check.check(base, stamp_clock.now_ns()) is Verdict.OK
+    assert check.check(base + 10**9, stamp_clock.now_ns()) is Verdict.FUTURE  # a stray one
+    host.advance(P)
+    ahead = base + 10**9  # the restarted joint's base: one second ahead
+    verdicts = []
+    for k in range(FUTURE_STREAM_SAMPLES + 3):
+        stamp = ahead + k * P
+        verdict = check.check(stamp, stamp_clock.now_ns())
+        if verdict is Verdict.JUMP:
+            stamp_clock.adopt(stamp, host.now_ns())
+        verdicts.append(verdict)
+        host.advance(P)
+    assert (
+        verdicts
+        == [Verdict.FUTURE] * (FUTURE_STREAM_SAMPLES - 1) + [Verdict.JUMP] + [Verdict.OK] * 3
+    )
+    # a stream broken by a genuine stamp starts counting again
+    fresh = StampCheck(P, False, 2 * P)
+    now = stamp_clock.now_ns()
+    assert fresh.check(now, now) is Verdict.OK
+    for k in range(FUTURE_STREAM_SAMPLES - 1):
+        assert fresh.check(now + 10**9 + k * P, now) is Verdict.FUTURE
+    assert fresh.check(now + P, now) is Verdict.OK  # the genuine next sample
+    assert fresh.check(now + 10**9 + FUTURE_STREAM_SAMPLES * P, now) is Verdict.FUTURE
+
+
+def test_injected_wall_clock_steps_move_the_wall_clock_of_every_clock_in_the_process(monkeypatch):
+    """ACTUATOR_WALL_CLOCK_STEPS: at monotonic time T the wall clock steps, never the monotonic."""
+    import time as real_time
+
+    from actuator_core.clock import STEPS_ENV, Clock
+
+    now_s = real_time.monotonic()
+    monkeypatch.setenv(STEPS_ENV, f'{now_s - 1.0}:-0.5,{now_s + 3600.0}:2.0')
+    clock = Clock()
+    drift = clock.wall_ns() - real_time.time_ns()
+    assert -0.5e9 - 1e7 < drift < -0.5e9 + 1e7  # the past step applies, the future one not yet
+    assert abs(clock.now_ns() - real_time.monotonic_ns()) < 1e7
+    monkeypatch.delenv(STEPS_ENV)
+    assert abs(Clock().wall_ns() - real_time.time_ns()) < 1e7

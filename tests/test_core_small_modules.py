@@ -300,10 +300,10 @@ def test_clock_does_not_sleep_at_or_past_the_deadline(sleeps):
 def test_stepped_clock_advance_moves_both_clocks():
     """Wall = monotonic + offset; advance adds to the monotonic time (twice: the sum)."""
     c = SteppedClock(monotonic_ns=5_000, wall_offset_ns=70_000)
-    assert (c.now_ns(), c.stamp_ns()) == (5_000, 75_000)
+    assert (c.now_ns(), c.wall_ns()) == (5_000, 75_000)
     c.advance(300)
     c.advance(200)
-    assert (c.now_ns(), c.stamp_ns()) == (5_500, 75_500)
+    assert (c.now_ns(), c.wall_ns()) == (5_500, 75_500)
 
 
 def test_stepped_clock_step_wall_moves_the_wall_clock_only():
@@ -311,7 +311,7 @@ def test_stepped_clock_step_wall_moves_the_wall_clock_only():
     c = SteppedClock(monotonic_ns=5_000, wall_offset_ns=70_000)
     c.step_wall(1_000)
     c.step_wall(-4_000)
-    assert (c.now_ns(), c.stamp_ns()) == (5_000, 72_000)
+    assert (c.now_ns(), c.wall_ns()) == (5_000, 72_000)
 
 
 def test_stepped_clock_sleep_until_never_goes_back():

@@ -52,7 +52,14 @@ def test_spec_carries_its_description_unit_range_and_openness():
         'low': -2.0,
         'high': 3.0,
         'low_open': True,
+        'choices': (),
     }
+    c = params.spec('a', 'one of two', choices=('a', 'b'))
+    assert c.metadata['choices'] == ('a', 'b')
+    assert params.range_text(c.metadata) == 'one of a, b'
+    params.check_value('x', 'b', c.metadata)
+    with pytest.raises(ValueError, match=r"^x = 'c' is not one of a, b$"):
+        params.check_value('x', 'c', c.metadata)
     g = params.spec(0, 'unbounded')
     assert (g.metadata['unit'], g.metadata['low'], g.metadata['high']) == ('', -math.inf, math.inf)
     assert g.metadata['low_open'] is False

@@ -217,3 +217,51 @@ def test_controller_on_a_1_khz_timer_closes_the_loop_with_the_newest_measurement
     assert controlled.mean() > 0.9, (controlled.mean(), episodes)
     # the law ran for most of the 6000 samples (a run the host stalled into resyncs ends above)
     assert log['stamp_ns'].size > 4000, log['stamp_ns'].size
+
+
+@pytest.mark.realtime
+def test_wall_clock_steps_in_every_node_of_a_running_loop_leave_it_tracking(
+    isolated, monkeypatch, host_window
+):
+    """The wall clock of the joint, the observer and the controller steps at one instant.
+
+    -5 ms, +5 ms, -1 s, +1 s, a second apart (ACTUATOR_WALL_CLOCK_STEPS in every process): the
+    stamps count monotonic periods and each receiver judges them against its own stamp time, so
+    no measurement is refused as ahead, no time base jumps, and the loop tracks through it.
+    """
+    import time
+
+    from actuator_analysis.analyze import load_run
+    from actuator_bringup.runner import run_closed_loop
+    from actuator_core.clock import STEPS_ENV
+
+    at = time.monotonic() + 4.0  # the loop starts in about 2 s
+    steps = [(at, -5e-3), (at + 1.0, 5e-3), (at + 2.0, -1.0), (at + 3.0, 1.0)]
+    monkeypatch.setenv(STEPS_ENV, ','.join(f'{t:.3f}:{s:g}' for t, s in steps))
+    result = run_closed_loop(
+        'case2_pp_nftsmc_eso',
+        'realtime',
+        8.0,
+        bag_root=isolated / 'bags',
+        results_root=isolated / 'runs',
+        quiet=True,
+        thread_priority=50,
+    )
+    assert all(code == 0 for code in result.exit_codes.values()), result.exit_codes
+    logs = {key: process_log(result.run_dir, key) for key in ('plant', 'eso', 'controller')}
+    for key in ('eso', 'controller'):
+        assert 'beyond the sample clock' not in logs[key], logs[key][-2000:]
+        assert 'time base jumped' not in logs[key] and 'a jump of the time base' not in logs[key]
+    plant = np.load(result.run_dir / 'plant_samples.npz')
+    assert np.all(np.diff(plant['stamp_ns']) % 1_000_000 == 0)  # no stamp moved off the grid
+    run = load_run(result.bag, quiet=True)
+    controlled = np.isin(run.status, CONTROLLED)
+    assert 'safe stop latched' not in logs['controller']
+    tracking = _max_error_from(run, controlled, TRACKING_FROM_S)
+    if tracking >= TRACKING_MAX_RAD or controlled.mean() <= 0.9:
+        skip_or_fail(
+            host_window,
+            f'max |e| from {TRACKING_FROM_S:g} s {tracking:.2e} rad, {controlled.mean():.0%} '
+            'controlled through the wall-clock steps',
+            samples=int(np.sum(~controlled)),
+        )

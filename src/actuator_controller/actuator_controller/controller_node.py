@@ -37,7 +37,7 @@ import time
 from actuator_core import limits
 from actuator_core.assembly import ESTIMATE_AHEAD_SAMPLES, ControlSample, ControlSampleAssembly
 from actuator_core.binding import MeasurementPlausibility
-from actuator_core.clock import Clock
+from actuator_core.clock import Clock, StampClock
 from actuator_core.sample_log import SampleLog
 from actuator_core.status import Status
 from actuator_core.timebase import StampCheck, Verdict
@@ -99,6 +99,7 @@ class ControllerNode(ControllerReport, ManagedNode):
             self.period_ns, self.params.mode == 'sim', tolerance + self.period_ns
         )
         self.clock = Clock()
+        self.stamp_clock = StampClock(self.clock)  # stamp time, which a wall-clock step leaves
         self.plausibility = MeasurementPlausibility()
         self.guard = GraphGuard(self, self.on_conflict)
         qos = control_qos(self.params.mode)
@@ -199,8 +200,8 @@ class ControllerNode(ControllerReport, ManagedNode):
         """y(k): checked, then the assembly; control sample k as soon as x_hat(k) is in."""
         if not self.active:
             return
-        self.received_ns = self.clock.stamp_ns()
         self.received_mono_ns = self._received()
+        self.received_ns = self.stamp_clock.now_ns()  # stamp time: latency, the future check
         self.measurements_in += 1
         stamp = stamp_to_ns(msg.header.stamp)
         y = joint_position(msg, self.params.joint_name)
@@ -224,6 +225,8 @@ class ControllerNode(ControllerReport, ManagedNode):
             self._refuse('implausible', None, lambda: implausible)
             return
         verdict = self.measurement_check.check(stamp, self.received_ns)
+        if verdict is Verdict.JUMP:  # a new time base: stamp time follows it from here
+            self.stamp_clock.adopt(stamp, self.clock.now_ns())
         if verdict in (Verdict.FUTURE, Verdict.INVALID):
             self._refuse(
                 verdict.value,
@@ -303,7 +306,7 @@ class ControllerNode(ControllerReport, ManagedNode):
             )
             self.log.warn('initial_ahead', lambda: self.assembly.refusal)
             return
-        now = self.clock.stamp_ns()
+        now = self.stamp_clock.now_ns()
         verdict = self.estimate_check.check(stamp, now, limit)
         if verdict in (Verdict.FUTURE, Verdict.INVALID):
             # Two kinds, each reported: beyond this node's clock (no genuine estimate is), or
@@ -446,7 +449,8 @@ class ControllerNode(ControllerReport, ManagedNode):
                     }
                 )
             )
-        self.command_done_ns, self.command_wall_ns = time.perf_counter_ns(), self.clock.stamp_ns()
+        self.command_done_ns = time.perf_counter_ns()
+        self.command_wall_ns = self.stamp_clock.now_ns()
         if not (
             state
             and self.state_pub.get_subscription_count()  # nobody listens: neither filled nor sent

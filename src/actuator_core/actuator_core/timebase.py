@@ -6,9 +6,12 @@
 Every stamp is checked against the receiver's clock and the sample grid. Held by each node for each
 1 kHz input. ``check`` sorts a stamp into:
   OK       the next sample, or a later one on the same grid (missed samples are not an error);
-  FUTURE   real time: beyond the receiver's clock plus ``future_tolerance_ns``; sim: beyond the
-           next expected sample. Refused, never integrated: one stamp 1000 s ahead used to end
-           control for good;
+  FUTURE   real time: beyond the receiver's stamp time (actuator_core.clock.StampClock, which a
+           wall-clock step leaves) plus ``future_tolerance_ns``; sim: beyond the next expected
+           sample. Refused, never integrated: one stamp 1000 s ahead used to end control for
+           good. But a stream of ``FUTURE_STREAM_SAMPLES`` stamps one period apart, all ahead,
+           is a sender whose time base is ahead of the receiver's (a joint restarted after a
+           step of the wall clock): a JUMP, and the receiver adopts it;
   OLD      a duplicate or an out-of-order sample a little in the past: ignored;
   JUMP     a discontinuity (a restarted sensor or driver): off the grid, or back in time (by
            more than ``jump_samples`` in real time, by any amount in sim, where nothing comes
@@ -31,6 +34,9 @@ from actuator_core.limits import STAMP_MAX_NS
 
 #: Samples back (or, in real time, ahead) that count as a restarted time base, not jitter.
 JUMP_SAMPLES = 1000
+#: Stamps in a row, one period apart and each ahead of the receiver's stamp time, that make a
+#: time base ahead of the receiver's, not a stray stamp: 50 ms of samples.
+FUTURE_STREAM_SAMPLES = 50
 
 
 class Verdict(Enum):
@@ -55,6 +61,8 @@ class StampCheck:
         self.future_tolerance_ns = future_tolerance_ns
         self.jump_ns = jump_samples * period_ns
         self.last_ns: Optional[int] = None
+        self.future_run = 0  # stamps in a row ahead of the receiver's stamp time, on a grid
+        self.future_last_ns: Optional[int] = None
         self.refused_future = self.ignored_old = self.jumps = self.invalid = 0
 
     def check(self, stamp_ns: int, now_ns: int, limit_ns: Optional[int] = None) -> Verdict:
@@ -70,8 +78,8 @@ class StampCheck:
             self.refused_future += 1
             return Verdict.FUTURE
         if not self.sim and stamp_ns > now_ns + self.future_tolerance_ns:
-            self.refused_future += 1
-            return Verdict.FUTURE
+            return self._ahead(stamp_ns)
+        self.future_run = 0
         last = self.last_ns
         if last is None:
             self.last_ns = stamp_ns
@@ -91,6 +99,22 @@ class StampCheck:
         self.last_ns = stamp_ns
         return Verdict.OK
 
+    def _ahead(self, stamp_ns: int) -> Verdict:
+        """Judge a stamp ahead of stamp time: FUTURE, or JUMP when it ends a stream of them."""
+        on_grid = self.future_last_ns is not None and stamp_ns - self.future_last_ns == (
+            self.period_ns
+        )
+        self.future_run = self.future_run + 1 if on_grid else 1
+        self.future_last_ns = stamp_ns
+        if self.future_run < FUTURE_STREAM_SAMPLES:
+            self.refused_future += 1
+            return Verdict.FUTURE
+        self.future_run = 0
+        self.jumps += 1
+        self.last_ns = stamp_ns
+        return Verdict.JUMP
+
     def reset(self) -> None:
         """Forget the grid (lifecycle cleanup)."""
         self.last_ns = None
+        self.future_run = 0

@@ -37,7 +37,7 @@ import math
 from actuator_core import limits
 from actuator_core.assembly import gap_limit_samples
 from actuator_core.binding import MeasurementPlausibility
-from actuator_core.clock import Clock
+from actuator_core.clock import Clock, StampClock
 from actuator_core.health import HealthMonitor, Level, Snapshot
 from actuator_core.pairing import (
     REALTIME_PATIENCE_SAMPLES,
@@ -102,6 +102,7 @@ class EsoNode(ManagedNode):
         )
         self.input_current_gain = self.dt_s * self.gains.theta1n
         self.clock = Clock()
+        self.stamp_clock = StampClock(self.clock)  # stamp time, which a wall-clock step leaves
         self.plausibility = MeasurementPlausibility()
         self.refused = 0
         self.refusals: dict[str, int] = {}  # by reason, for /diagnostics
@@ -214,7 +215,10 @@ class EsoNode(ManagedNode):
         if implausible and not rebased:
             self._refuse('implausible', lambda: implausible)
             return
-        verdict = self.measurement_check.check(stamp, self.clock.stamp_ns())
+        received_ns = self.clock.now_ns()
+        verdict = self.measurement_check.check(stamp, self.stamp_clock.at(received_ns))
+        if verdict is Verdict.JUMP:  # a new time base: stamp time follows it from here
+            self.stamp_clock.adopt(stamp, received_ns)
         if verdict in (Verdict.FUTURE, Verdict.INVALID):
             self._refuse(
                 verdict.value,

@@ -42,6 +42,7 @@ from rclpy.lifecycle import LifecycleState, TransitionCallbackReturn
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState
 
+from actuator_core import clock as stamp_time
 from actuator_core.gate import CommandGate, Held
 from actuator_core.binding import CommandBinding
 from actuator_core.limits import CYCLE_LATENESS_MAX_FRACTION
@@ -328,12 +329,16 @@ class JointNode(JointReport, ManagedNode):
     def _start_sampling(self) -> None:
         """Fix the stamp of sample 0 and read it (realtime: start the sampling thread)."""
         self.get_logger().info('sampling started')
+        # stamp time anchored on the wall clock once: the grid then counts monotonic periods, so a
+        # later step of the wall clock moves no stamp (actuator_core.clock); in sim it times the
+        # log's publications only (the stamps are sim time)
+        self.stamp_clock = stamp_time.StampClock(stamp_time.Clock())
         if self.mode == 'sim':
             self.start_ns = SIM_START_NS
             self._cycle(0, write=False)
             return
         self.start_mono_ns = time.monotonic_ns() + self.period_ns
-        self.start_ns = time.time_ns() + self.period_ns
+        self.start_ns = self.stamp_clock.at(self.start_mono_ns)
         self.stop_sampling.clear()
         self.sampler = threading.Thread(target=self._sampling_loop, name='sampling', daemon=True)
         self.sampler.start()
@@ -469,7 +474,8 @@ class JointNode(JointReport, ManagedNode):
                 }
             )
         )
-        self.samples_log.append((sample.stamp_ns, time.time_ns(), self.held.command_stamp_ns))
+        published = self.stamp_clock.now_ns()
+        self.samples_log.append((sample.stamp_ns, published, self.held.command_stamp_ns))
         self.publish_extras(sample.stamp_ns)
         return True
 
