@@ -29,7 +29,7 @@ from typing import Optional, Sequence
 from actuator_core import limits
 from actuator_sim.scenarios import PAPER_SCENARIO
 from actuator_bench.bench_figures import Figures
-from actuator_bench.bench_report import one_line, report
+from actuator_bench.bench_report import DOCS_BEGIN, one_line, report
 from actuator_bench.bench_run import (
     RunRecord,
     environment,
@@ -179,6 +179,14 @@ def build_parser() -> OneLineParser:
         'results/bench)',
     )
     p.add_argument('--quiet', action='store_true', help='no progress lines, only the table')
+    p.add_argument(
+        '--docs',
+        type=Path,
+        default=None,
+        metavar='MARKDOWN',
+        help="also write the table between the bench-table markers of this file (the docs' "
+        'one current table: docs/performance.md), after a run without failures',
+    )
     return p
 
 
@@ -203,6 +211,10 @@ def check_args(args: argparse.Namespace) -> Optional[str]:
     if not 0.0 < args.offline_sim_s <= 600.0:
         return '--offline-sim-s must be in (0, 600] s'
     known = all_scenarios()
+    if args.docs is not None and DOCS_BEGIN not in (
+        args.docs.read_text() if args.docs.is_file() else ''
+    ):
+        return f'--docs {args.docs}: no file with a {DOCS_BEGIN} marker'
     if args.scenario not in known:
         return f'unknown scenario {args.scenario!r}; known: {", ".join(sorted(known))}'
     from actuator_bringup.runner import scenario_file
