@@ -35,7 +35,7 @@ from actuator_controller.goal_execution import (
     Mailbox,
     TrajectoryExecution,
 )
-from actuator_controller.trajectory import Waypoints
+from actuator_controller.trajectory import DesiredState, Waypoints
 from actuator_controller.trajectory_settings import (
     JointConstraints,
     TrajectoryConstraints,
@@ -67,9 +67,10 @@ class Harness:
                 ref = self.reference.sample(t)  # the law's sample
                 self.desired.append(tuple(ref))
                 y = ref.position_rad - lag(t)
-                self.execution.after_sample(stamp, status, t, (y,), (ref.velocity_rad_s,))
+                desired = DesiredState((ref[0],), (ref[1],), (ref[2],))
+                self.execution.after_sample(stamp, status, t, desired, (y,), (ref[1],))
             else:
-                self.execution.after_sample(stamp, status, None, (math.nan,), None)
+                self.execution.after_sample(stamp, status, None, None, (math.nan,), None)
             self.events += self.execution.take_events()
             self.k += 1
         return self

@@ -329,8 +329,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         '--scenario',
         default=None,
         help='installed scenario (share/actuator_bringup/config/<name>.yaml; default: '
-        "case2_pp_nftsmc_eso for the plant, drive_pp_nftsmc_eso, tuned for the drive's delay, "
-        'for a CiA 402 joint)',
+        "hold_pp_nftsmc_eso for the plant, drive_hold_pp_nftsmc_eso, tuned for the drive's "
+        'delay, for a CiA 402 joint: both hold still until a goal moves the joint; the '
+        "paper's cases by name, e.g. case2_pp_nftsmc_eso)",
     )
     parser.add_argument('--mode', choices=MODES, default='realtime')
     parser.add_argument(

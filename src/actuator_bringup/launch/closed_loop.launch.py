@@ -221,7 +221,9 @@ def generate_launch_description():
                 'scenario',
                 default_value='',
                 description='parameter file share/actuator_bringup/config/<scenario>.yaml; empty: '
-                'case2_pp_nftsmc_eso for the plant, drive_pp_nftsmc_eso for a CiA 402 joint',
+                'hold_pp_nftsmc_eso for the plant, drive_hold_pp_nftsmc_eso for a CiA 402 joint '
+                "(both hold still until a goal moves the joint); the paper's cases by name, e.g. "
+                'case2_pp_nftsmc_eso',
             ),
             DeclareLaunchArgument(
                 'mode',

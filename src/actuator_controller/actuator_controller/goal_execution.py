@@ -160,7 +160,9 @@ class TrajectoryExecution:
 
     def deactivate(self, stamp_ns: int) -> None:
         """Abort every goal now (the node deactivates; JTC's string); the motion stops."""
-        self.commands.clear()
+        for kind, item in self._take_commands():
+            if kind == 'goal':
+                self._end(stamp_ns, item, ABORTED, INVALID_GOAL, DEACTIVATED)
         for goal in (self.pending, self.active):
             if goal is not None:
                 self._end(stamp_ns, goal, ABORTED, INVALID_GOAL, DEACTIVATED)
@@ -179,13 +181,15 @@ class TrajectoryExecution:
         stamp_ns: int,
         status: Status,
         t_s: Optional[float],
+        desired: Optional[DesiredState],
         actual_positions: tuple,
         actual_velocities: Optional[tuple],
     ) -> None:
         """Judge the running goal on sample ``stamp_ns`` and apply the queued commands.
 
         ``t_s`` None: the law did not run for this sample (a safe sample); ``status`` says why.
-        ``actual_velocities`` None when the law has no velocity estimate (PI).
+        ``desired``: the reference the law used at t_s. ``actual_velocities`` None when the
+        law has no velocity estimate (PI).
         """
         self.newest_stamp_ns = stamp_ns
         if t_s is None:
@@ -196,8 +200,9 @@ class TrajectoryExecution:
             return
         self.blocked = ''
         self._t = t_s
-        desired = self.reference.state(t_s)
         self.desired = desired
+        if not (self.active or self.pending or self.commands):
+            return  # holding, nothing asked: the sample costs this much
         if self.active is not None:
             self._judge(stamp_ns, t_s, desired, actual_positions, actual_velocities)
         for command in self._take_commands():

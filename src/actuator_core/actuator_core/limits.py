@@ -147,6 +147,9 @@ STOP_DECELERATION_RAD_S2 = 0.5 * CURRENT_ACCELERATION_RAD_S2
 #: Start of the steady-state window [s]: the references carry (1 - exp(-t)), within 0.7 % of
 #: 1 after 5 s; the paper does not state its window (docs/paper-resolutions.md, 18).
 STEADY_STATE_START_S = 5.0
+#: A goal of a commanded run has settled once |e| stays within this [rad] (its settling time,
+#: actuator_analysis.goals): 1.4x the paper's worst steady-state error of PP-NFTSMC-ESO (Table 6).
+GOAL_SETTLING_BAND_RAD = 1.0e-3
 
 # --- encoder and loop delay (simulated joint, offline studies) -----------------------------------
 #: Largest encoder resolution accepted [counts per joint revolution] (a 32-bit absolute encoder).

@@ -33,6 +33,7 @@ from actuator_core.timing import period_ns, sample_time_s
 from actuator_controller.goal_execution import Goal, GoalEvent, TrajectoryExecution
 from actuator_controller.laws import CommonConfig, ControlOutput, make_controller
 from actuator_controller.reference import make_reference
+from actuator_controller.trajectory import DesiredState
 from actuator_controller.trajectory_settings import TrajectorySettings
 from actuator_eso.observer import EsoGains, ExtendedStateObserver
 from actuator_plant.encoder import Encoder, EncoderParameters
@@ -214,13 +215,14 @@ class ClosedLoop:
                     self.execution.submit(command)
                 else:
                     self.execution.cancel(command)
+        ref = sample.reference
+        desired = None if ref is None else DesiredState((ref[0],), (ref[1],), (ref[2],))
+        estimate = sample.estimate
         velocities = (
-            None
-            if sample.estimate is None or not self.assembly.needs_estimate
-            else (sample.estimate[0],)
+            None if estimate is None or not self.assembly.needs_estimate else (estimate[0],)
         )
         self.execution.after_sample(
-            sample.stamp_ns, sample.status, sample.t_s, (sample.y,), velocities
+            sample.stamp_ns, sample.status, sample.t_s, desired, (sample.y,), velocities
         )
         self.goal_events.extend(self.execution.take_events())
 
