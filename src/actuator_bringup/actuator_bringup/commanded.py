@@ -26,18 +26,18 @@ from actuator_analysis.goals import GoalEventRow
 from actuator_bringup.runner import RunResult, run_closed_loop
 from actuator_controller.goal_execution import PREEMPTED, Goal
 from actuator_controller.goal_rules import RequestPoint, TrajectoryRequest, waypoints
-from actuator_controller.trajectory import Waypoints
 from actuator_sim.loop import ClosedLoop
 from actuator_sim.params_yaml import all_scenarios
 from actuator_sim.scenarios import HOLD_SCENARIO
 
 JOINTS = ('joint',)
-MS = 1_000_000
+#: Sample time the commanded run lasts [s]: the script's last goal is cancelled at 2.3 s.
+COMMANDED_DURATION_S = 3.0
 
 
 @dataclass(frozen=True)
 class ScriptedGoal:
-    """One goal of the script: its points (positions only) and when it is sent and starts."""
+    """One goal of a script: its points (one joint) and when it is sent, starts, is cancelled."""
 
     name: str
     times_s: tuple
@@ -45,6 +45,43 @@ class ScriptedGoal:
     send_s: float  #: sent once the loop's clock has passed this [s]
     start_s: float  #: its header.stamp [s on the loop's clock]
     cancel_s: Optional[float] = None  #: cancelled once the loop's clock passes this [s]
+    velocities_rad_s: Optional[tuple] = None  #: None: positions only
+    accelerations_rad_s2: Optional[tuple] = None
+
+    def request(self, stamp_ns: int = 0) -> TrajectoryRequest:
+        """Return the trajectory as the controller takes it from the message (ns times)."""
+        n = len(self.times_s)
+        velocities = self.velocities_rad_s or (None,) * n
+        accelerations = self.accelerations_rad_s2 or (None,) * n
+        return TrajectoryRequest(
+            JOINTS,
+            tuple(
+                RequestPoint(
+                    int(round(t * 1e9)),
+                    (p,),
+                    () if v is None else (v,),
+                    () if a is None else (a,),
+                )
+                for t, p, v, a in zip(self.times_s, self.positions_rad, velocities, accelerations)
+            ),
+            stamp_ns,
+        )
+
+    def message(self, stamp_ns: int):
+        """Return the trajectory_msgs/JointTrajectory a client sends."""
+        from actuator_controller.goal_client import joint_trajectory
+
+        def column(values):
+            return None if values is None else [[v] for v in values]
+
+        return joint_trajectory(
+            JOINTS,
+            self.times_s,
+            column(self.positions_rad),
+            column(self.velocities_rad_s),
+            column(self.accelerations_rad_s2),
+            stamp_ns=stamp_ns,
+        )
 
 
 #: Multi-point, replaced mid-motion (sent while the first moves, starting 0.2 s later), and a
@@ -55,14 +92,6 @@ SCRIPT = (
     ScriptedGoal('replacement', (0.3, 0.6), (-0.3, 0.0), 0.85, 1.05),
     ScriptedGoal('cancelled', (0.8,), (0.5,), 1.75, 2.0, cancel_s=2.3),
 )
-
-
-def _waypoints(goal: ScriptedGoal) -> Waypoints:
-    """Return the goal's points as the controller takes them from the message (ns times)."""
-    points = tuple(
-        RequestPoint(int(round(t * 1e9)), (p,)) for t, p in zip(goal.times_s, goal.positions_rad)
-    )
-    return waypoints(TrajectoryRequest(JOINTS, points), JOINTS)
 
 
 class ScriptedClient(threading.Thread):
@@ -87,7 +116,6 @@ class ScriptedClient(threading.Thread):
         from rosgraph_msgs.msg import Clock
 
         from actuator_controller.goal_client import GoalClient, follow_goal, goal_id
-        from actuator_controller.goal_client import joint_trajectory
         from actuator_ros.joint_node import SIM_START_NS
 
         context = Context()
@@ -122,10 +150,7 @@ class ScriptedClient(threading.Thread):
                 if not spin_until(lambda g=goal: now_ns() >= self.t0_ns + g.send_s * 1e9):
                     return
                 stamp = self.t0_ns + int(round(goal.start_s * 1e9))
-                trajectory = joint_trajectory(
-                    JOINTS, goal.times_s, [[p] for p in goal.positions_rad], stamp_ns=stamp
-                )
-                run = client.send(follow_goal(trajectory))
+                run = client.send(follow_goal(goal.message(stamp)))
                 self.runs[goal.name] = run
                 if not spin_until(lambda r=run: r.accepted is not None):
                     return
@@ -147,8 +172,15 @@ def scripted_run(
     mode: str = 'sim',
     duration_s: float = 3.0,
     script=SCRIPT,
+    thread_priority: Optional[int] = None,
 ) -> tuple[RunResult, ScriptedClient]:
-    """Run the hold scenario with the scripted client; return the run and the client."""
+    """Run the hold scenario with the scripted client; return the run and the client.
+
+    ``thread_priority``: the real-time runs' SCHED_FIFO priority (default 50 in real time, as
+    the main job's paper case; 0 in sim).
+    """
+    if thread_priority is None:
+        thread_priority = 50 if mode == 'realtime' else 0
     client = ScriptedClient(mode, script)
     client.start()
     try:
@@ -159,7 +191,7 @@ def scripted_run(
             bag_root=bag_root,
             results_root=results_root,
             quiet=True,
-            thread_priority=50 if mode == 'realtime' else 0,
+            thread_priority=thread_priority,
         )
     finally:
         client.stop.set()
@@ -211,7 +243,8 @@ def replay_offline(run, client: ScriptedClient, duration_s: float) -> OfflineRep
     t0 = run.t0_ns  # the bag's first sample is the offline loop's sample 0
     for goal, goal_id, at_ns in zip(sent, ids, handovers(run.goal_events, ids)):
         stamp = client.t0_ns + int(round(goal.start_s * 1e9)) - t0
-        loop.submit_at(at_ns - t0, Goal(goal_id, _waypoints(goal), tolerances, stamp))
+        points = waypoints(goal.request(), JOINTS)
+        loop.submit_at(at_ns - t0, Goal(goal_id, points, tolerances, stamp))
         canceled = [e for e in run.goal_events if e.goal_id == goal_id and e.kind == 'canceled']
         if canceled:
             loop.cancel_at(canceled[0].stamp_ns - t0, goal_id)
