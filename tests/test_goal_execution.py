@@ -384,3 +384,40 @@ def test_offline_cancel_at_peak_velocity_stops_without_a_sample_at_the_current_l
     assert not np.any(trace['saturated'])
     assert np.max(np.abs(trace['error_rad'])) < 2e-3
     assert trace['reference_velocity_rad_s'][-1] == 0.0
+
+
+def test_a_resync_aborts_the_goal_and_the_reference_restarts_as_a_hold_of_the_joints_angle():
+    """The assembly's restart hook: after the resync the joint holds the angle it is at."""
+    from actuator_core.assembly import RESYNC_SAMPLES, ControlSampleAssembly
+    from actuator_controller.laws import make_controller
+
+    h = Harness()
+    assembly = ControlSampleAssembly(make_controller('pp_nftsmc_eso'), h.reference, MS)
+    angle = [0.0]
+
+    def sample(k):
+        stamp = k * MS
+        assembly.add_measurement(stamp, angle[0])
+        out = assembly.add_estimate(stamp, 0.0, 0.0)
+        ref = out.reference
+        desired = None if ref is None else DesiredState((ref[0],), (ref[1],), (ref[2],))
+        h.execution.after_sample(stamp, out.status, out.t_s, desired, (angle[0],), (0.0,))
+        h.events += h.execution.take_events()
+        return out
+
+    for k in range(10):
+        sample(k)
+    h.goal('a', [1.0], [0.4])
+    for k in range(10, 200):
+        sample(k)
+    assert h.reference.moving
+    assembly.resync(200 * MS)
+    angle[0] = 0.123  # the braked joint came to rest here
+    statuses = [sample(k).status for k in range(200, 200 + RESYNC_SAMPLES + 1)]
+    assert statuses[0] == Status.RESYNC and statuses[-1] == Status.RECOVERING
+    assert h.events[-1] == GoalEvent(
+        200 * MS, 'a', ABORTED, INVALID_GOAL, f'Aborted: {BLOCKING[Status.RESYNC]}'
+    )
+    restarted = sample(200 + RESYNC_SAMPLES + 1)
+    assert tuple(restarted.reference) == (0.123, 0.0, 0.0)
+    assert h.execution.blocked == ''
