@@ -1,7 +1,7 @@
 # Copyright 2026 Actuator control team
 # SPDX-License-Identifier: Apache-2.0
 
-"""Per-goal figures of a commanded run (actuator_analysis.goals) on a run built sample by sample."""
+"""Per-goal figures of a commanded run (actuator_analysis.goals), on a synthetic run."""
 
 from pathlib import Path
 
