@@ -320,7 +320,13 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         '--modes', nargs='+', choices=('offline', 'sim'), default=['offline', 'sim']
     )
     parser.add_argument('--duration', type=float, default=10.0, help='tracking/cancel run [s]')
-    parser.add_argument('--start', type=float, default=0.5, help="the goal's start stamp [s]")
+    parser.add_argument(
+        '--start',
+        type=float,
+        default=2.0,
+        help="the goal's start stamp [s]: ahead of the loop's clock when the client sends it "
+        '(a goal taken after it would start from hold onto a trajectory already moving)',
+    )
     parser.add_argument('--cpu-duration', type=float, default=10.0, help='each cpu run [s]')
     parser.add_argument('--pairs', type=int, default=2, help='before/after pairs (cpu)')
     parser.add_argument('--out', type=Path, default=Path('results/goal_bench'))
