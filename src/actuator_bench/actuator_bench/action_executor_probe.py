@@ -82,7 +82,14 @@ def serve(executor_kind: str, server: str) -> int:
         add_server(goals)
         goal_executor = SingleThreadedExecutor()
         goal_executor.add_node(goals)
-        threading.Thread(target=goal_executor.spin, daemon=True).start()
+
+        def spin_goals() -> None:
+            try:
+                goal_executor.spin()
+            except Exception:  # noqa: BLE001 - the context shut down at the end of the run
+                pass
+
+        threading.Thread(target=spin_goals, daemon=True).start()
     print('ready', flush=True)
     try:
         while rclpy.ok():
