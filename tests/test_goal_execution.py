@@ -384,6 +384,13 @@ def test_offline_cancel_at_peak_velocity_stops_without_a_sample_at_the_current_l
     assert not np.any(trace['saturated'])
     assert np.max(np.abs(trace['error_rad'])) < 2e-3
     assert trace['reference_velocity_rad_s'][-1] == 0.0
+    # the envelope runs on from the run's start (a goal starts from the desired state: no step
+    # of e); e stays inside it, and the status says OK only where it does
+    inside = (trace['error_rad'] > trace['lower_bound_rad']) & (
+        trace['error_rad'] < trace['upper_bound_rad']
+    )
+    assert np.all(inside)
+    assert np.all((trace['status'] == Status.OK) <= trace['bounds_kept'].astype(bool))
 
 
 def test_a_resync_aborts_the_goal_and_the_reference_restarts_as_a_hold_of_the_joints_angle():
