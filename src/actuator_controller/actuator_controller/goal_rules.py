@@ -142,7 +142,7 @@ def waypoints(request: TrajectoryRequest, joint_names: Sequence[str]) -> Waypoin
     def column(field: str):
         if not getattr(points[0], field):
             return None
-        return np.array([[getattr(p, field)[i] for i in order] for p in points], dtype=float)
+        return np.array([getattr(p, field) for p in points], dtype=float)[:, order]
 
     return Waypoints(
         np.array([p.time_from_start_ns for p in points], dtype=float) * 1e-9,

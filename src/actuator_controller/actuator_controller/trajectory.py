@@ -173,18 +173,15 @@ class Segments:
         segment shorter than a sample, where the law would see the jump between two samples.
         Arrays (m,) and (m, joints).
         """
-        taus, rows = [], []
-        for s, h in enumerate(self.durations):
-            tau = np.linspace(0.0, h, points_per_segment + 1)
-            taus.append(tau)
-            rows.append(np.full(tau.shape, s))
-        tau = np.concatenate(taus)[:, None]
-        c = self.coefficients[np.concatenate(rows)]  # (m, joints, 6)
+        fractions = np.linspace(0.0, 1.0, points_per_segment + 1)
+        durations = np.asarray(self.durations)
+        tau = (durations[:, None] * fractions[None, :]).reshape(-1, 1)  # segment by segment
+        c = np.repeat(self.coefficients, fractions.size, axis=0)  # (m, joints, 6)
         c0, c1, c2, c3, c4, c5 = (c[..., k] for k in range(6))
         p = c0 + tau * (c1 + tau * (c2 + tau * (c3 + tau * (c4 + tau * c5))))
         v = c1 + tau * (2.0 * c2 + tau * (3.0 * c3 + tau * (4.0 * c4 + tau * 5.0 * c5)))
         a = 2.0 * c2 + tau * (6.0 * c3 + tau * (12.0 * c4 + tau * 20.0 * c5))
-        t = np.concatenate([self.starts[s] + tk for s, tk in enumerate(taus)])
+        t = np.repeat(np.asarray(self.starts), fractions.size) + tau[:, 0]
         return t, p, v, a
 
 
