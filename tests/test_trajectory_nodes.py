@@ -76,20 +76,20 @@ class Client(ros_helpers.TestNode):
         return next(e for e in self.goals.events if predicate(e))
 
 
-def _loop(ros_process, mode, extra=()):
+def _loop(ros_process, mode, extra=(), scenario=SCENARIO):
     """Start the loop on the hold scenario (real time: SCHED_FIFO 50 where granted)."""
     from actuator_bringup.run_description import closed_loop
     from actuator_bringup.runner import scenario_file
 
     specs = closed_loop(mode, 0.0, record=False, thread_priority=50 if mode == 'realtime' else 0)
     return ros_helpers.start_closed_loop(
-        ros_process, specs, scenario_file(SCENARIO), {'controller': list(extra)}
+        ros_process, specs, scenario_file(scenario), {'controller': list(extra)}
     )
 
 
-def _client(rclpy_context, ros_process, mode='sim'):
+def _client(rclpy_context, ros_process, mode='sim', scenario=SCENARIO):
     """Start the loop, wait until it controls, return a client of its controller."""
-    _loop(ros_process, mode)
+    _loop(ros_process, mode, scenario=scenario)
     client = Client(rclpy_context)
     client.wait_steady()
     return client
@@ -269,6 +269,17 @@ def test_a_goal_the_joint_cannot_follow_is_rejected_saying_which_check(rclpy_con
     assert run.accepted is False
     refused = client.event(lambda e: e.event == 0, 'the refusal')
     assert refused.error_string.startswith('Trajectory cannot be followed: joint joint ')
+
+
+def test_a_run_on_a_built_in_trajectory_refuses_goals_saying_why(rclpy_context, ros_process):
+    client = _client(rclpy_context, ros_process, scenario='case2_pp_nftsmc_eso')
+    run = client.send(_goal([0.5], [0.2]))
+    assert run.accepted is False
+    refused = client.event(lambda e: e.event == 0, 'the refusal')
+    assert refused.error_string == (
+        "the controller follows its built-in 'fast' reference (parameter reference): it takes "
+        "goals with reference 'hold'"
+    )
 
 
 def test_a_future_start_time_starts_at_that_sample(rclpy_context, ros_process):
