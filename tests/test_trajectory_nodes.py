@@ -263,6 +263,17 @@ def test_rejected_goals_get_no_result_and_their_reason_is_published(
     assert refused.goal_id.startswith('refused-') and refused.from_action
 
 
+def test_a_goal_with_multi_dof_joints_is_rejected_not_ignored(rclpy_context, ros_process):
+    from actuator_controller.goal_interface import MULTI_DOF_REFUSED
+
+    client = _client(rclpy_context, ros_process)
+    goal = _goal([0.5], [0.2])
+    goal.multi_dof_trajectory.joint_names = ['base']
+    assert client.send(goal).accepted is False
+    refused = client.event(lambda e: e.event == 0, 'the refusal')
+    assert refused.error_string == MULTI_DOF_REFUSED
+
+
 def test_a_goal_the_joint_cannot_follow_is_rejected_saying_which_check(rclpy_context, ros_process):
     client = _client(rclpy_context, ros_process)
     run = client.send(_goal([0.05], [0.5]))  # 0.5 rad in 50 ms: 18 rad/s, far beyond 10 A

@@ -9,8 +9,8 @@
 
 Both live on a node of their own (``<controller>_goals``, same namespace) spun by a thread of
 its own, so the control executor waits on exactly what it waited on before (no action server
-entities in its wait set, measured by ``actuator_bench.goal_bench``). The goal thread checks a
-goal (JTC's rules, the tolerances, whether the joint can follow it from the desired state now:
+entities in its wait set; ``actuator_bench.action_executor_probe`` measured the alternatives).
+The goal thread checks a goal (JTC's rules, the tolerances, whether the joint can follow it from the desired state now:
 goal_rules) and posts it to a ``Mailbox``; the control thread takes it after its next sample
 and hands ``TrajectoryExecution`` events back through a deque, which this thread turns into
 feedback, results and GoalEvents at ``action_monitor_rate`` (as JTC's action monitor).
@@ -67,6 +67,11 @@ EVENT_CODES = {
     ABORTED: GoalEventMsg.EVENT_ABORTED,
     CANCELED: GoalEventMsg.EVENT_CANCELED,
 }
+#: A goal naming multi-DOF joints is refused, not ignored (JTC ignores it): the loop has none.
+MULTI_DOF_REFUSED = (
+    'multi_dof_trajectory and component tolerances are not supported: the loop has no '
+    'multi-DOF joint'
+)
 #: How long the goal thread waits in its executor per turn [s] (its stop is seen this late).
 SPIN_S = 0.05
 
@@ -267,7 +272,16 @@ class GoalInterface:
                 stamp_to_ns(goal.goal_time_tolerance) * 1e-9,
             )
 
-        parts, why = self._check(goal.trajectory, tolerances_of)
+        multi_dof = goal.multi_dof_trajectory
+        if (
+            multi_dof.points
+            or multi_dof.joint_names
+            or goal.component_path_tolerance
+            or (goal.component_goal_tolerance)
+        ):
+            parts, why = None, MULTI_DOF_REFUSED
+        else:
+            parts, why = self._check(goal.trajectory, tolerances_of)
         if why:  # rclpy gives goal_callback no goal id: the refusal is numbered
             self._refuse(f'refused-{next(self.refused_count)}', True, why)
             return GoalResponse.REJECT
