@@ -11,8 +11,8 @@ Both live on a node of their own (``<controller>_goals``, same namespace) spun b
 its own, so the control executor waits on exactly what it waited on before (no action server
 entities in its wait set; ``actuator_bench.action_executor_probe`` measured the alternatives).
 The goal thread checks a goal (JTC's rules, the tolerances, whether the joint can follow it
-from the desired state now: goal_rules) and posts it to a ``Mailbox``; the control thread takes it after its next sample
-and hands ``TrajectoryExecution`` events back through a deque, which this thread turns into
+from the desired state now: goal_rules) and posts it to a ``Mailbox``; the control thread
+takes it after its next sample and hands ``TrajectoryExecution`` events back through a deque, which this thread turns into
 feedback, results and GoalEvents at ``action_monitor_rate`` (as JTC's action monitor).
 A refused goal is rejected (as JTC) and the reason logged in one line and published.
 """
