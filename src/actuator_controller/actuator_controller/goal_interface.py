@@ -12,8 +12,9 @@ its own, so the control executor waits on exactly what it waited on before (no a
 entities in its wait set; ``actuator_bench.action_executor_probe`` measured the alternatives).
 The goal thread checks a goal (JTC's rules, the tolerances, whether the joint can follow it
 from the desired state now: goal_rules) and posts it to a ``Mailbox``; the control thread
-takes it after its next sample and hands ``TrajectoryExecution`` events back through a deque, which this thread turns into
-feedback, results and GoalEvents at ``action_monitor_rate`` (as JTC's action monitor).
+takes it after its next sample and hands ``TrajectoryExecution`` events back through a deque,
+which this thread turns into feedback, results and GoalEvents at ``action_monitor_rate`` (as
+JTC's action monitor).
 A refused goal is rejected (as JTC) and the reason logged in one line and published.
 """
 
