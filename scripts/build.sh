@@ -4,9 +4,15 @@
 # files need one, and this script notices them).
 #
 # Skipped when nothing changed since the last successful build: the key is a hash of the
-# content of every file under src/ that git tracks or would track (untracked, not ignored),
-# of the lock files, of this script and of the set-up stamp. Extra arguments go to
-# `colcon build` and force a build (e.g. scripts/build.sh --packages-select actuator_msgs).
+# content of every file under src/ and interfaces/ that git tracks or would track (untracked,
+# not ignored), of the lock files, of this script, of the set-up stamp and of where
+# control_msgs comes from. Extra arguments go to `colcon build` and force a build (e.g.
+# scripts/build.sh --packages-select actuator_msgs).
+#
+# interfaces/control_msgs (what FollowJointTrajectory needs, in the Jazzy release's layout) is
+# built only when the environment has no control_msgs of its own: a Jazzy install with
+# ros-jazzy-control-msgs keeps its own, and a copy built here before is then removed from
+# install/ so it cannot shadow it.
 set -euo pipefail
 set -o errtrace
 
@@ -31,11 +37,37 @@ trap on_error ERR
 step "hash sources"
 list_sources() {
     if git -C "$ROOT" rev-parse --is-inside-work-tree >/dev/null 2>&1; then
-        git -C "$ROOT" ls-files -z --cached --others --exclude-standard -- src
+        git -C "$ROOT" ls-files -z --cached --others --exclude-standard -- src interfaces
     else
-        find src -type f -not -path '*/__pycache__/*' -print0
+        find src interfaces -type f -not -path '*/__pycache__/*' -print0
     fi
 }
+
+step "find control_msgs"
+# The ament prefixes of the environment before this workspace's overlay (a shell that sourced
+# scripts/env.sh carries install/ in AMENT_PREFIX_PATH already: it does not count).
+installed_control_msgs() {
+    (
+        ACTUATOR_ENV_NO_WORKSPACE=1 source "$ROOT/scripts/env.sh" >/dev/null
+        local prefix
+        IFS=':' read -r -a prefixes <<<"${AMENT_PREFIX_PATH:-}"
+        for prefix in "${prefixes[@]}"; do
+            [[ -z $prefix || $prefix == "$ROOT/install"* ]] && continue
+            if [[ -f $prefix/share/ament_index/resource_index/packages/control_msgs ]]; then
+                echo "$prefix"
+                return 0
+            fi
+        done
+    )
+}
+CONTROL_MSGS_PREFIX="$(installed_control_msgs || true)"
+if [[ -n $CONTROL_MSGS_PREFIX ]]; then
+    echo "[build]   control_msgs: installed in $CONTROL_MSGS_PREFIX (interfaces/control_msgs not built)"
+    BASE_PATHS=(src)
+else
+    echo "[build]   control_msgs: none installed, building interfaces/control_msgs"
+    BASE_PATHS=(src interfaces)
+fi
 # Deleted-but-tracked files are listed by git too: hash only what exists.
 BUILD_KEY="$(
     {
@@ -44,6 +76,7 @@ BUILD_KEY="$(
         done
         sha256sum requirements/*.lock scripts/build.sh
         cat .venv/.actuator-setup.stamp 2>/dev/null || echo "no setup stamp"
+        echo "control_msgs from ${CONTROL_MSGS_PREFIX:-interfaces/control_msgs}"
     } | sha256sum | cut -c1-64
 )"
 
@@ -58,11 +91,15 @@ ACTUATOR_ENV_NO_WORKSPACE=1 source "$ROOT/scripts/env.sh"
 
 step "colcon build"
 rm -f "$STAMP"
+if [[ -n $CONTROL_MSGS_PREFIX && -d install/control_msgs ]]; then
+    echo "[build]   removing the control_msgs built here before: the installed one is used"
+    rm -rf install/control_msgs build/control_msgs
+fi
 # colcon is run with the venv's interpreter so the installed executables' shebang is the
 # venv's python (which sees the venv's packages), also when colcon itself comes from apt.
 if ! python -c 'import sys; sys.argv[0] = "colcon"; from colcon_core.command import main; sys.exit(main())' \
     --log-base log build \
-    --base-paths src \
+    --base-paths "${BASE_PATHS[@]}" \
     --build-base build \
     --install-base install \
     --symlink-install \

@@ -22,6 +22,11 @@ ROS_FREE_MODULES = (
     'actuator_controller.laws',
     'actuator_controller.ppf',
     'actuator_controller.reference',
+    'actuator_controller.trajectory',
+    'actuator_controller.trajectory_settings',
+    'actuator_controller.goal_rules',
+    'actuator_controller.goal_execution',
+    'actuator_controller.commanded_reference',
     'actuator_bench.host_stalls',
 )
 

@@ -36,7 +36,6 @@ SKIPPED_DIRS = {'.git', '.venv', 'build', 'install', 'log', 'results', '__pycach
 #: accepted while the page does not exist; once it exists it is checked like any other, and its
 #: entry here can go.
 PENDING = {
-    'docs/how-to/command-the-joint.md',
     'docs/how-to/identify-a-joint.md',
 }
 

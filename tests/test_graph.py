@@ -193,19 +193,30 @@ def test_the_bus_load_of_every_joint_is_checked():
 
 
 @pytest.mark.slow
-def test_a_cia402_joint_runs_the_drive_tuning_and_the_plant_the_papers_unless_named():
-    """graph.default_scenario: what bringup --joint and launch joint:= run by default."""
-    from actuator_sim.params_yaml import all_scenarios
+def test_every_joint_holds_unless_a_scenario_is_named_a_cia402_one_with_the_drive_tuning():
+    """graph.default_scenario: what bringup --joint and launch joint:= run by default.
 
-    assert default_scenario('plant') == 'case2_pp_nftsmc_eso'
-    assert default_scenario('cia402_sim') == default_scenario('cia402') == 'drive_pp_nftsmc_eso'
+    No joint starts a built-in trajectory unless one is named (reference hold); the tuning is
+    the paper's Case 2 for the plant, the drive's for a CiA 402 joint.
+    """
+    from actuator_sim.params_yaml import all_scenarios, node_parameters
+
+    assert default_scenario('plant') == default_scenario('none') == 'hold_pp_nftsmc_eso'
+    assert default_scenario('cia402_sim') == default_scenario('cia402')
+    assert default_scenario('cia402') == 'drive_hold_pp_nftsmc_eso'
     scenarios = all_scenarios()
     for joint in JOINTS:
-        assert default_scenario(joint) in scenarios
-        bringup.scenario_file(default_scenario(joint))  # installed
-    drive = scenarios['drive_pp_nftsmc_eso']
-    assert drive.command_delay_samples == 1 and drive.gains.k3_per_s == 100.0
-    assert (drive.eso.l1, drive.eso.l2, drive.eso.l3) == (12.0, 48.0, 64.0)
+        name = default_scenario(joint)
+        assert scenarios[name].reference == 'hold'
+        path = bringup.scenario_file(name)  # installed
+        assert node_parameters(path, 'actuator_controller')['reference'] == 'hold'
+    for name in ('drive_pp_nftsmc_eso', 'drive_hold_pp_nftsmc_eso'):
+        drive = scenarios[name]
+        assert drive.command_delay_samples == 1 and drive.gains.k3_per_s == 100.0
+        assert (drive.eso.l1, drive.eso.l2, drive.eso.l3) == (12.0, 48.0, 64.0)
+    assert scenarios['drive_pp_nftsmc_eso'].reference == 'fast'  # the paper's, when named
+    hold, paper = scenarios['hold_pp_nftsmc_eso'], scenarios['case2_pp_nftsmc_eso']
+    assert (hold.plant, hold.eso, hold.gains) == (paper.plant, paper.eso, paper.gains)
     with pytest.raises(ValueError, match='joint must be one of'):
         default_scenario('plnat')
 

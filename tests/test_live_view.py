@@ -57,6 +57,7 @@ def test_shipped_layout_is_the_built_one_and_reads_only_existing_fields():
         '/current_command': 'actuator_msgs/msg/CurrentCommand',
         '/eso/estimate': 'actuator_msgs/msg/StateEstimate',
         '/plant/truth': 'actuator_msgs/msg/PlantTruth',
+        '/controller/goal_events': 'actuator_msgs/msg/GoalEvent',
     }
     store = SOURCE.typestore(list(types.values()))
     for path in live_layout.message_paths():

@@ -43,12 +43,15 @@ from actuator_bag.msgdefs import DefinitionSource
 from actuator_bag.progress import Progress
 from actuator_bag.reading import bag_typestore, find_topic, open_bag, topic_names
 
+from .goals import goal_event_row
+
 CONTROLLER_STATE = 'actuator_msgs/msg/ControllerState'
 STATE_ESTIMATE = 'actuator_msgs/msg/StateEstimate'
 PLANT_TRUTH = 'actuator_msgs/msg/PlantTruth'
 CURRENT_COMMAND = 'actuator_msgs/msg/CurrentCommand'
 JOINT_STATE = 'sensor_msgs/msg/JointState'
 DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
+GOAL_EVENT = 'actuator_msgs/msg/GoalEvent'
 #: Stamps and log times before this are on a sim clock (2000-01-01T00:00:00Z) [ns].
 WALL_CLOCK_START_NS = 946_684_800 * 1_000_000_000
 #: The observer's input current and the one the joint held are the same float when the command
@@ -95,6 +98,8 @@ class RunData:
     #: Per /diagnostics component, over the run (the joint's first to last sample): {'levels':
     #: {level: reports}, 'worst': level, 'reasons': [..], 'before_run': {..}, 'after_run': {..}}.
     diagnostics: dict[str, dict[str, Any]] = field(default_factory=dict)
+    #: controller/goal_events in stamp order: actuator_analysis.goals.GoalEventRow each.
+    goal_events: list = field(default_factory=list)
 
     @property
     def has_envelope(self) -> bool:
@@ -175,6 +180,7 @@ def load_run(
             'joint': find_topic(conns, JOINT_STATE, 'joint_states'),
             'command': find_topic(conns, CURRENT_COMMAND, 'current_command'),
             'diagnostics': find_topic(conns, DIAGNOSTIC_ARRAY, '/diagnostics'),
+            'goals': find_topic(conns, GOAL_EVENT, 'controller/goal_events'),
         }
         present = {k: c for k, c in wanted.items() if c is not None}
         by_id = {c.id: k for k, c in present.items()}
@@ -277,6 +283,8 @@ def _extract(kind: str, msg: Any, log_ns: int) -> tuple:
     if kind == 'diagnostics':
         stamp = stamp_to_ns(msg.header.stamp)
         return tuple((stamp, s.name, _level(s.level), s.message) for s in msg.status)
+    if kind == 'goals':
+        return goal_event_row(msg)
     return (stamp_to_ns(msg.header.stamp), int(log_ns))
 
 
@@ -341,6 +349,7 @@ def _assemble(path: Path, rows: dict[str, list[tuple]]) -> RunData:
     run.diagnostics = summarize_diagnostics(
         [status for statuses in rows.get('diagnostics', []) for status in statuses], window
     )
+    run.goal_events = sorted(rows.get('goals', []), key=lambda r: r.stamp_ns)
     return run
 
 

@@ -22,6 +22,7 @@ from actuator_core.metrics import STEADY_STATE_START_S
 from .analyze import analyze_run, load_run
 from .analyze_table import format_table
 from .figures import FIGURE_FILES, draw_figures
+from .goals import format_goals, goal_reports
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -95,8 +96,14 @@ def _main(argv: Optional[Sequence[str]]) -> int:
         run = load_run(bag, source, quiet=args.quiet)
         reports.append(analyze_run(run, args.steady_start))
     print(format_table(reports))
+    goals = {r.run.name: goal_reports(r.run) for r in reports}
+    for name, rows in goals.items():
+        if rows:
+            print(f'\ngoals of {name}:\n{format_goals(rows)}')
     if args.json:
-        doc = _jsonable([r.as_dict() for r in reports])
+        doc = _jsonable(
+            [{**r.as_dict(), 'goals': [g.as_dict() for g in goals[r.run.name]]} for r in reports]
+        )
         try:
             args.json.write_text(
                 json.dumps(doc, indent=2, default=str, allow_nan=False) + '\n', encoding='utf-8'

@@ -27,6 +27,7 @@ SYSTEM_TOPICS = {
     'eso/estimate': 'actuator_msgs/msg/StateEstimate',
     'controller/state': 'actuator_msgs/msg/ControllerState',
     'plant/truth': 'actuator_msgs/msg/PlantTruth',
+    'controller/goal_events': 'actuator_msgs/msg/GoalEvent',
     '/clock': 'rosgraph_msgs/msg/Clock',
     '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray',
 }
@@ -36,6 +37,7 @@ DEFAULT_TOPICS = [
     'eso/estimate',
     'controller/state',
     'plant/truth',
+    'controller/goal_events',
 ]
 
 

@@ -6,7 +6,10 @@
 Fast trajectory, deep sea (10 MPa, 2 degC), PP-NFTSMC-ESO: plant, ESO and controller run
 as separate processes, recorded to bags/ by the recorder, first in deterministic sim time
 (checked sample by sample against the offline core), then in real time. Each bag is then
-analysed (metrics and the paper's five figures) and a short report is printed.
+analysed (metrics and the paper's five figures) and a short report is printed. Beside it, a
+commanded run (actuator_bringup.commanded): the same loop holding still until a scripted client
+sends a multi-point goal, replaces it mid-motion and cancels a third, reported per goal (and in
+sim time replayed offline, sample by sample).
 """
 
 from __future__ import annotations
@@ -26,6 +29,8 @@ from actuator_core.timing import period_ns
 from actuator_analysis.analyze import analyze_run, load_run
 from actuator_analysis.figures import draw_figures
 from actuator_analysis.analyze_table import format_table
+from actuator_analysis.goals import format_goals, goal_reports
+from actuator_bringup.commanded import COMMANDED_DURATION_S, replay_offline, scripted_run
 from actuator_bringup.runner import RunResult, run_closed_loop
 from actuator_sim.loop import ClosedLoop
 from actuator_sim.offline import trace_metrics
@@ -140,10 +145,42 @@ def main(argv: Sequence[str] | None = None) -> int:
         print_run(mode, entry, offline_metrics.max_steady_error_rad)
     print('\n== bags compared (bag_analyze)')
     print(format_table([analyze_run(r) for r in runs]))
+    report['commanded'] = {mode: commanded_run(mode, args.out) for mode in args.modes}
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / 'report.json').write_text(json.dumps(report, indent=1, default=str))
     print(f'\nreport: {args.out / "report.json"}')
     return 0
+
+
+def commanded_run(mode: str, out: Path) -> dict:
+    """Run the commanded run in ``mode``: goals as a ROS user sends them, reported per goal."""
+    print(
+        f'\n== commanded run, {mode} mode: hold_pp_nftsmc_eso holds still; a scripted client '
+        'sends a multi-point goal, replaces it mid-motion and cancels a third',
+        flush=True,
+    )
+    result, client = scripted_run(Path('bags'), Path('results/runs'), mode, COMMANDED_DURATION_S)
+    entry: dict = {'bag': str(result.bag), 'exit_codes': result.exit_codes}
+    if client.error or any(code != 0 for code in result.exit_codes.values()):
+        print(f'  the run failed: {client.error or result.exit_codes}; logs in {result.run_dir}')
+        return entry
+    run = load_run(result.bag, quiet=True)
+    goals = goal_reports(run)
+    entry['goals'] = [g.as_dict() for g in goals]
+    print(f'bag: {result.bag}\n{format_goals(goals)}')
+    if mode == 'sim':
+        replay = replay_offline(run, client, COMMANDED_DURATION_S)
+        entry['offline_comparison'] = compare_with_offline(run, replay.trace)
+        c = entry['offline_comparison']
+        print(
+            f'  vs the offline loop handed the same goals at the same samples: '
+            f'{c["samples_compared"]} samples, '
+            f'{"identical" if c["identical"] else "DIFFERENT"}'
+        )
+    figures = draw_figures([run], out / result.name)
+    entry['figures'] = [str(f) for f in figures]
+    print(f'  figures (desired and measured angle, error, current): {Path(figures[0]).parent}')
+    return entry
 
 
 def print_run(mode: str, entry: dict, offline_error: float) -> None:

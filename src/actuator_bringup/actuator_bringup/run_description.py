@@ -29,19 +29,21 @@ from typing import Optional, Sequence
 import yaml
 
 from actuator_sim.params_yaml import node_parameters
-from actuator_sim.scenarios import DRIVE_SCENARIO, PAPER_SCENARIO
+from actuator_sim.scenarios import DRIVE_HOLD_SCENARIO, HOLD_SCENARIO
 
 #: What plays the joint: the simulated plant, the CiA 402 driver with its simulated drive on
 #: a virtual CAN bus, the driver on a real bus, or nothing (a driver started elsewhere).
 JOINTS = ('plant', 'cia402_sim', 'cia402', 'none')
-#: The scenario each joint runs unless one is named: the paper's Case 2 for the simulated plant;
-#: for a CiA 402 drive, whose RPDO acts one SYNC later, the same case tuned for that delay
-#: (``actuator_sim.scenarios.through_a_drive``).
+#: The scenario each joint runs unless one is named: it holds still until a goal moves it
+#: (reference ``hold``), with the paper's Case 2 tuning for the simulated plant (and a driver
+#: started elsewhere); for a CiA 402 drive, whose RPDO acts one SYNC later, the same tuned for
+#: that delay (``actuator_sim.scenarios.commanded``). The paper's cases run when named
+#: (``case2_pp_nftsmc_eso``, as the main job does).
 DEFAULT_SCENARIOS = {
-    'plant': PAPER_SCENARIO,
-    'cia402_sim': DRIVE_SCENARIO,
-    'cia402': DRIVE_SCENARIO,
-    'none': PAPER_SCENARIO,
+    'plant': HOLD_SCENARIO,
+    'cia402_sim': DRIVE_HOLD_SCENARIO,
+    'cia402': DRIVE_HOLD_SCENARIO,
+    'none': HOLD_SCENARIO,
 }
 #: ``bringup --pin`` on a 2-core machine: the ESO and the controller work in strict sequence
 #: each sample (command -> estimate -> command), so they share a core; the joint uses the other.

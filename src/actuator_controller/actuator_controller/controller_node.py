@@ -8,6 +8,10 @@
 subscribes joint_states (sensor_msgs/JointState), eso/estimate (actuator_msgs/StateEstimate)
 publishes  current_command (actuator_msgs/CurrentCommand),
            controller/state (actuator_msgs/ControllerState)
+goals      <node>/follow_joint_trajectory (control_msgs/action/FollowJointTrajectory),
+           <node>/joint_trajectory (trajectory_msgs/JointTrajectory), controller/goal_events
+           (actuator_msgs/GoalEvent): with reference 'hold', on a node and thread of their own
+           (goal_interface), judged sample by sample by the same TrajectoryExecution as offline
 
 The node holds the control law and its ``ControlSampleAssembly`` (actuator_core), the same
 objects as the offline loop: sample k is controlled as soon as y(k) and x_hat(k) are both in
@@ -45,6 +49,7 @@ from actuator_core.timing import period_ns, stamp_to_ns
 from actuator_controller.controller_parameters import declare_controller_parameters
 from actuator_controller.controller_report import ControllerReport
 from actuator_controller.controller_state import controller_state_fields
+from actuator_controller.goal_interface import GoalInterface
 from actuator_core.decimation import Decimator
 from actuator_controller.laws import make_controller
 from actuator_controller.reference import make_reference
@@ -85,15 +90,21 @@ class ControllerNode(ControllerReport, ManagedNode):
         """Law, reference, assembly, stamp checks, topics and the watchdog."""
         self.period_ns = period_ns(self.params.common.dt_s)
         law = make_controller(self.params.name, self.params.gains, self.params.common)
-        reference = make_reference(self.params.kind, self.params.amplitude, self.params.frequency)
+        settings = self.params.settings
+        reference = make_reference(
+            self.params.kind,
+            settings.reference_amplitude_rad,
+            settings.reference_frequency_rad_s,
+            self.params.trajectory.max_deceleration,
+        )
         self.assembly = ControlSampleAssembly(
             law,
             reference,
             self.period_ns,
             self.params.name != 'pi',
-            self.params.following_error_limit_rad,
+            settings.following_error_limit_rad,
         )
-        tolerance = int(self.params.future_tolerance_s * 1e9)
+        tolerance = int(settings.future_stamp_tolerance_s * 1e9)
         self.measurement_check = StampCheck(self.period_ns, self.params.mode == 'sim', tolerance)
         self.estimate_check = StampCheck(
             self.period_ns, self.params.mode == 'sim', tolerance + self.period_ns
@@ -121,9 +132,7 @@ class ControllerNode(ControllerReport, ManagedNode):
         timer_clock = (
             self.get_clock() if self.params.mode == 'sim' else RosClock(clock_type=STEADY)
         )
-        shortest_timeout_ns = min(
-            self.params.measurement_timeout_ns, self.params.estimate_timeout_ns
-        )
+        shortest_timeout_ns = min(settings.measurement_timeout_ns, settings.estimate_timeout_ns)
         self.watchdog = self.create_timer(
             shortest_timeout_ns * 0.5e-9, self.on_watchdog, clock=timer_clock
         )
@@ -149,25 +158,28 @@ class ControllerNode(ControllerReport, ManagedNode):
         self.command_done_ns: int | None = None  # perf_counter of the newest command published
         self.encode_command = codec(CurrentCommand).encode
         self.encode_state = codec(ControllerState).encode
-        self.state_decimator = Decimator(self.params.state_rate_hz)
+        self.state_decimator = Decimator(settings.state_rate_hz)
         self.timing = SampleLog(('received_wall_ns', 'stamp_ns', 'latency_ns', 'compute_ns'))
         self.diagnostics = NodeDiagnostics(self, self.health_monitor(), self.health)
         params = self.params
         self.get_logger().info(
             f'{params.name} on the {params.kind} reference, {params.mode} mode, current limit '
             f'{params.common.current_limit_a} A; controller/state '
-            + (f'at {params.state_rate_hz:g} Hz' if params.state_rate_hz else 'every sample')
+            + (f'at {settings.state_rate_hz:g} Hz' if settings.state_rate_hz else 'every sample')
         )
+        self.goals = GoalInterface(self, reference)
 
     def stop(self) -> None:
         """One safe-stop command so the drive brakes now; the timing summary."""
         stamp = self.measurement_check.last_ns
         if stamp is not None:  # the command only: controller/state keeps one entry per sample
             self._publish(self.assembly.safe_sample(stamp, Status.INACTIVE), None, state=False)
+        self.goals.deactivate(stamp or 0)
         self.close_log()
 
     def drop(self) -> None:
         """Destroy topics and timers."""
+        self.goals.close()
         self.diagnostics.destroy()
         for timer in (self.watchdog, self.graph_timer, self.tick_timer):
             if timer is not None:
@@ -204,13 +216,13 @@ class ControllerNode(ControllerReport, ManagedNode):
         self.received_ns = self.stamp_clock.now_ns()  # stamp time: latency, the future check
         self.measurements_in += 1
         stamp = stamp_to_ns(msg.header.stamp)
-        y = joint_position(msg, self.params.joint_name)
+        y = joint_position(msg, self.params.settings.joint_name)
         if y is None or not math.isfinite(y) or abs(y) > limits.POSITION_LIMIT_RAD:
             self._refuse(  # before its stamp is taken: a refused value moves nothing
                 'bad_measurement',
                 None,
                 lambda: (
-                    f'measurement refused (joint {self.params.joint_name!r} missing, '
+                    f'measurement refused (joint {self.params.settings.joint_name!r} missing, '
                     f'non-finite or beyond {limits.POSITION_LIMIT_RAD} rad): '
                     f'{list(msg.position)}'
                 ),
@@ -368,7 +380,9 @@ class ControllerNode(ControllerReport, ManagedNode):
         if self.assembly.newest_measurement_ns is not None:  # a stall of this node may end here
             self._after_silence(time.perf_counter_ns())
         sample = self.assembly.watchdog(
-            now, self.params.measurement_timeout_ns, self.params.estimate_timeout_ns
+            now,
+            self.params.settings.measurement_timeout_ns,
+            self.params.settings.estimate_timeout_ns,
         )
         if sample is None:
             return
@@ -413,7 +427,8 @@ class ControllerNode(ControllerReport, ManagedNode):
         if sample.status is Status.LATCHED and self.status is not Status.LATCHED:
             self.get_logger().error(
                 'control output not finite or |error| beyond following_error_limit_rad '
-                f'{self.params.following_error_limit_rad}: safe stop latched (0 A) until cleanup'
+                f'{self.params.settings.following_error_limit_rad}: safe stop latched (0 A) until '
+                'cleanup'
             )
         self._publish(sample, started_ns)
         if sample.output is None:
@@ -451,9 +466,14 @@ class ControllerNode(ControllerReport, ManagedNode):
             )
         self.command_done_ns = time.perf_counter_ns()
         self.command_wall_ns = self.stamp_clock.now_ns()
+        if state:
+            self._publish_state(sample, started_ns, changed)
+            self.goals.after_sample(sample)  # after both went out: off the command's latency
+
+    def _publish_state(self, sample: ControlSample, started_ns: int | None, changed: bool) -> None:
+        """controller/state of one sample, when someone listens and the decimator admits it."""
         if not (
-            state
-            and self.state_pub.get_subscription_count()  # nobody listens: neither filled nor sent
+            self.state_pub.get_subscription_count()  # nobody listens: neither filled nor sent
             and self.state_decimator.admit(sample.stamp_ns, force=changed)
         ):
             return

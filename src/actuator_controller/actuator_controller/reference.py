@@ -3,7 +3,8 @@
 
 """Reference trajectories with analytic derivatives.
 
-The paper's slow and fast ones, step and sine.
+The paper's slow and fast ones, step and sine; and ``hold``, the commanded reference
+(actuator_controller.commanded_reference): holds the joint's angle until a goal moves it.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import math
 from dataclasses import dataclass
 from typing import NamedTuple, Protocol
 
+from actuator_core import limits
 from actuator_core import xmath as xm
 
 
@@ -97,22 +99,31 @@ class SineReference:
         return ReferenceSample(self.offset_rad + amp * s, amp * w * c, -amp * w * w * s)
 
 
-#: The reference trajectories ``make_reference`` builds, by name.
-REFERENCE_KINDS = ('slow', 'fast', 'step', 'sine')
+#: The references ``make_reference`` builds, by name: ``hold`` (commanded: goals move it) and
+#: the built-in trajectories, which run from activation and take no goals.
+REFERENCE_KINDS = ('hold', 'slow', 'fast', 'step', 'sine')
 
 
 def make_reference(
-    kind: str, amplitude_rad: float | None = None, frequency_rad_s: float | None = None
+    kind: str,
+    amplitude_rad: float | None = None,
+    frequency_rad_s: float | None = None,
+    max_deceleration: tuple = (limits.STOP_DECELERATION_RAD_S2,),
 ) -> Reference:
     """Build a reference by name.
 
-    'slow', 'fast', 'step' or 'sine'; an amplitude or frequency given overrides the dataclass's
-    default (one source: the node's parameters default to them too).
+    'hold', 'slow', 'fast', 'step' or 'sine'; an amplitude or frequency given overrides the
+    dataclass's default (one source: the node's parameters default to them too).
+    ``max_deceleration``: hold's bound on |x1d''| per joint when it stops a motion [rad/s^2].
     """
     amplitude = {} if amplitude_rad is None else {'amplitude_rad': amplitude_rad}
     frequency = {} if frequency_rad_s is None else {'frequency_rad_s': frequency_rad_s}
-    if kind == 'slow':
-        ref: Reference = slow_trajectory()
+    if kind == 'hold':
+        from actuator_controller.commanded_reference import CommandedReference
+
+        ref: Reference = CommandedReference(max_deceleration)
+    elif kind == 'slow':
+        ref = slow_trajectory()
     elif kind == 'fast':
         ref = fast_trajectory()
     elif kind == 'step':

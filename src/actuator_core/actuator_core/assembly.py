@@ -18,7 +18,9 @@ observer converges on the new samples, and then the reference and the law restar
 joint's angle at the reference's first rest t_0 (``first_rest_s``): y_d(t - t_r + t_0) -
 y_d(t_0) + q(t_r), so a braked joint starts onto a reference at rest, not one already moving
 (the paper's trajectory starts at -0.35 rad/s: a step the law answered at the limit). A
-controller (re)started while the joint is away from y_d(0) starts its reference there too.
+controller (re)started while the joint is away from y_d(0) starts its reference there too. A
+commanded reference (``reference: hold``, actuator_controller.commanded_reference) restarts
+as a hold of the joint's angle instead (``_restart_reference``).
 
 Bound to what it saw (actuator_core.binding): an estimate counts only for the newest
 measurement received or the next one (x_hat(k+1) is made before y(k+1) exists); one stamped
@@ -358,10 +360,7 @@ class ControlSampleAssembly:
             ):
                 return self.safe_sample(stamp, Status.RESYNC, y)
             self.resync_until_ns = self.stall_noticed_ns = None
-            self.reference_shift_s = self.rest_s
-            self.reference_offset_rad = (
-                y - self.reference.sample(self.reference_shift_s).position_rad
-            )
+            self._restart_reference(y, self.rest_s)
             self.law.reset()
             self.at_limit_run = 0
             self.start_ns = stamp
@@ -369,11 +368,7 @@ class ControlSampleAssembly:
         self.controlled_ns = stamp
         if self.start_ns is None:  # the first sample: the reference starts from the joint's angle
             self.start_ns = stamp
-            offset = y - self.reference.sample(0.0).position_rad
-            if xm.any_true(
-                offset != 0.0
-            ):  # a restarted controller; the paper's runs start at 0 = y_d(0)
-                self.reference_offset_rad = offset
+            self._restart_reference(y, None)
         t = sample_time_s(stamp - self.start_ns)
         ref = self.reference.sample(t + self.reference_shift_s)
         if self.reference_offset_rad is not None:
@@ -403,6 +398,26 @@ class ControlSampleAssembly:
         latched = self.latched is True  # a node's scalar latch brakes at once
         self.braking = latched
         return ControlSample(stamp, current, status, t, y, estimate, ref, out, latched)
+
+    def _restart_reference(self, y, shift_s: Optional[float]) -> None:
+        """Start the reference from the joint's angle ``y`` (first sample, end of a resync).
+
+        A commanded reference (``restart_from``) holds y. A trajectory is moved by the offset
+        y - y_d(shift): ``shift_s`` t_0 after a resync (onto its first rest); None at the first
+        sample, where only a controller started away from y_d(0) needs an offset (the paper's
+        runs start at 0 = y_d(0)).
+        """
+        restart_from = getattr(self.reference, 'restart_from', None)
+        if restart_from is not None:
+            restart_from(y)
+            return
+        if shift_s is not None:
+            self.reference_shift_s = shift_s
+            self.reference_offset_rad = y - self.reference.sample(shift_s).position_rad
+            return
+        offset = y - self.reference.sample(0.0).position_rad
+        if xm.any_true(offset != 0.0):
+            self.reference_offset_rad = offset
 
     def _recover_until(self, stamp_ns: int) -> None:
         """Say RECOVERING for RECOVERY_SAMPLES from ``stamp_ns``."""

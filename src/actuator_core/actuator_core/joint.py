@@ -37,7 +37,7 @@ from typing import NamedTuple, Optional
 
 from actuator_core import limits
 from actuator_core.loop_params import shared
-from actuator_core.params import spec, validate
+from actuator_core.params import require_below, spec, validate
 
 
 class JointError(RuntimeError):
@@ -198,11 +198,7 @@ class JointSettings:
     def __post_init__(self) -> None:
         """Refuse out-of-range values and an empty soft-limit window."""
         validate(self)
-        if not self.position_min_rad < self.position_max_rad:
-            raise ValueError(
-                f'position_min_rad = {self.position_min_rad} must be below position_max_rad = '
-                f'{self.position_max_rad}'
-            )
+        require_below(self, 'position_min_rad', 'position_max_rad')
 
 
 class SoftLimits:

@@ -128,10 +128,28 @@ DIAGNOSTICS_RATE_RANGE_HZ = (0.0, 1.0e4)
 #: seconds overflow (2^31 - 1 s), so a stamp plus the few samples a node adds stays writable.
 STAMP_MAX_NS = (2**31 - 1 - 3600) * 1_000_000_000
 
+# --- commanded trajectories (actuator_controller.trajectory, goal_rules) ---------------------
+#: A goal is refused when its planned x1d needs a nominal current (x1d'' - theta_2n x1d') /
+#: theta_1n beyond this share of the current limit anywhere (eq. (3) without the disturbance):
+#: the rest is kept for the lumped disturbance the law cancels and for its feedback.
+GOAL_CURRENT_SHARE = 0.5
+#: ... or when its planned x1d comes closer than this [rad] to the joint's soft position limits
+#: (where the joint brakes): a tracking error cannot carry the joint onto them.
+GOAL_POSITION_MARGIN_RAD = 0.01
+#: ... or when its planned |x1d'| exceeds this share of the joint's soft velocity limit.
+GOAL_VELOCITY_SHARE = 0.9
+#: Default bound on |x1d''| of a stop (a cancel, an aborted goal) [rad/s^2]: half of what the
+#: current limit can command at the nominal model (314), so the stop leaves the other half for
+#: the disturbance and the feedback, and no sample of a stop needs the limit.
+STOP_DECELERATION_RAD_S2 = 0.5 * CURRENT_ACCELERATION_RAD_S2
+
 # --- metrics ----------------------------------------------------------------------------------
 #: Start of the steady-state window [s]: the references carry (1 - exp(-t)), within 0.7 % of
 #: 1 after 5 s; the paper does not state its window (docs/paper-resolutions.md, 18).
 STEADY_STATE_START_S = 5.0
+#: A goal of a commanded run has settled once |e| stays within this [rad] (its settling time,
+#: actuator_analysis.goals): 1.4x the paper's worst steady-state error of PP-NFTSMC-ESO (Table 6).
+GOAL_SETTLING_BAND_RAD = 1.0e-3
 
 # --- encoder and loop delay (simulated joint, offline studies) -----------------------------------
 #: Largest encoder resolution accepted [counts per joint revolution] (a 32-bit absolute encoder).

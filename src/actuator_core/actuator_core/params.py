@@ -93,6 +93,14 @@ def validate(obj: Any) -> None:
             check_value(name, value, f.metadata)
 
 
+def require_below(obj: Any, low: str, high: str) -> None:
+    """Raise ValueError unless field ``low`` of ``obj`` is below field ``high`` (a window)."""
+    if not getattr(obj, low) < getattr(obj, high):
+        raise ValueError(
+            f'{low} = {getattr(obj, low)} must be below {high} = {getattr(obj, high)}'
+        )
+
+
 def _section(f: dataclasses.Field) -> Any:
     """Return the dataclass a field nests (its default factory is one), or None for a value."""
     factory = f.default_factory

@@ -3,11 +3,14 @@
 
 """The Foxglove layout of a closed-loop run, built with foxglove-sdk's layout types.
 
-It shows the run as the paper's figures do: position with the reference (Figs. 5a/6a); the
+It shows the run as the paper's figures do: position with the reference, the desired angle x1d
+a goal or a built-in trajectory asks for (Figs. 5a/6a), and its velocity beside the estimate; the
 tracking error inside the prescribed-performance bounds (Figs. 5b/6b, eqs. (8)-(12)); the
 commanded current beside the plant's applied current (Fig. 8); the ESO's velocity and
 disturbance estimates against the plant's truth (Fig. 7, eqs. (14)-(16)); the controller status
-and every node's /diagnostics. Every series is timed by its header stamp, so the same layout
+and every node's /diagnostics; what became of each commanded trajectory (controller/goal_events:
+0 refused, 1 accepted, 2 started, 3 succeeded, 4 aborted, 5 canceled). Every series is timed
+by its header stamp, so the same layout
 works live (live_view) and on a recorded bag (sim-time or wall-clock stamps alike).
 
     python -m actuator_live_view.live_layout [OUT.json]   # writes the shipped file
@@ -32,7 +35,7 @@ PLOTS = (
         'Position',
         'joint angle [rad]',
         [
-            ('/controller/state.reference_position_rad', 'reference'),
+            ('/controller/state.reference_position_rad', 'desired x1d'),
             ('/controller/state.measured_position_rad', 'measured'),
         ],
     ),
@@ -55,9 +58,10 @@ PLOTS = (
         ],
     ),
     (
-        'Velocity: estimate vs truth',
+        'Velocity: desired, estimate, truth',
         'rad/s',
         [
+            ('/controller/state.reference_velocity_rad_s', "desired x1d'"),
             ('/eso/estimate.velocity_rad_s', 'ESO'),
             ('/plant/truth.velocity_rad_s', 'truth'),
         ],
@@ -72,6 +76,7 @@ PLOTS = (
     ),
 )
 STATUS_PATH = '/controller/state.status'
+GOAL_EVENT_PATH = '/controller/goal_events.event'
 
 
 def _plot(title: str, unit: str, series) -> fl.PlotPanel:
@@ -100,7 +105,10 @@ def build_layout() -> fl.Layout:
             paths=[
                 fl.StateTransitionsSeries(
                     value=STATUS_PATH, label='status', timestamp_method='headerStamp'
-                )
+                ),
+                fl.StateTransitionsSeries(
+                    value=GOAL_EVENT_PATH, label='goal event', timestamp_method='headerStamp'
+                ),
             ],
             is_synced=True,
         ),
@@ -134,7 +142,7 @@ def layout_json() -> str:
 
 def message_paths() -> list[str]:
     """Every ``/topic.field`` the layout reads."""
-    return [path for _, _, series in PLOTS for path, _ in series] + [STATUS_PATH]
+    return [path for _, _, series in PLOTS for path, _ in series] + [STATUS_PATH, GOAL_EVENT_PATH]
 
 
 def main(argv=None) -> int:

@@ -11,6 +11,8 @@ Sample k (see docs/concepts/architecture.md#sample-timing), each step the same c
   4. the joint's gate takes u(k) with its safe_stop and holds it, brake included
                                           (joint node: ``CommandGate``), written to the joint;
   5. the pairing takes u(k): one observer step to x_hat(k+1).
+  6. (reference ``hold``) the trajectory execution judges the running goal on sample k and
+     takes the goals and cancels handed to it before k   (controller node: the same object).
 The nodes hold these same classes (``actuator_core``), so a run in deterministic sim time
 reproduces this loop sample by sample by construction, and a test checks it bit for bit
 (``tests/test_closed_loop_nodes.py``). Stamps are integer nanoseconds from t_0 = 0.
@@ -28,8 +30,11 @@ from actuator_core.limits import DIVERGENCE_ERROR_RAD
 from actuator_core.pairing import SIM_PATIENCE_SAMPLES, ObserverInputPairing
 from actuator_core.status import Status
 from actuator_core.timing import period_ns, sample_time_s
+from actuator_controller.goal_execution import Goal, GoalEvent, TrajectoryExecution
 from actuator_controller.laws import CommonConfig, ControlOutput, make_controller
 from actuator_controller.reference import make_reference
+from actuator_controller.trajectory import DesiredState
+from actuator_controller.trajectory_settings import TrajectorySettings
 from actuator_eso.observer import EsoGains, ExtendedStateObserver
 from actuator_plant.encoder import Encoder, EncoderParameters
 from actuator_plant.model import PlantParameters
@@ -70,6 +75,10 @@ class Scenario:
     command_delay_samples: int = 0
     #: First-order torque loop of a drive between command and joint [s] (0: none, the paper's).
     torque_time_constant_s: float = 0.0
+    #: What goals are judged by (reference ``hold``): JTC's tolerances and the soft limits.
+    trajectory: TrajectorySettings = field(
+        default_factory=lambda: TrajectorySettings(joint_names=('joint',))
+    )
 
     @property
     def samples(self) -> int:
@@ -106,11 +115,24 @@ class ClosedLoop:
             self.eso, self.period_ns, self.eso.correction, SIM_PATIENCE_SAMPLES
         )
         law = make_controller(scenario.controller, scenario.gains, scenario.common)
+        reference = make_reference(
+            scenario.reference, max_deceleration=scenario.trajectory.max_deceleration
+        )
         self.assembly = ControlSampleAssembly(
-            law,
-            make_reference(scenario.reference),
-            self.period_ns,
-            needs_estimate=scenario.controller != 'pi',
+            law, reference, self.period_ns, needs_estimate=scenario.controller != 'pi'
+        )
+        common = scenario.common
+        #: Goals and cancels by the stamp of the sample before which they are handed over.
+        self.schedule: list[tuple[int, object]] = []
+        self.goal_events: list[GoalEvent] = []
+        self.execution = (
+            TrajectoryExecution(
+                reference,
+                scenario.trajectory,
+                (common.theta1n, common.theta2n, common.current_limit_a),
+            )
+            if scenario.reference == 'hold' and batch is None
+            else None
         )
         self.gate = CommandGate(scenario.common.current_limit_a)
         self.gate.activate()
@@ -135,6 +157,8 @@ class ClosedLoop:
         self.deliver_estimates(self.pairing.add_measurement(stamp, y))
         x1_hat, x2_hat, x3_hat = self.estimate.x_hat
         sample = self.assembly.add_measurement(stamp, y)
+        if self.execution is not None:
+            self._execute(sample)
         if not command_lost:
             self.gate.offer(sample.current_a, stamp, sample.safe_stop, stamp)
         held = self.gate.hold(stamp)
@@ -172,6 +196,35 @@ class ClosedLoop:
         record['current_a'] = sample.current_a
         record['status'] = sample.status
         return record
+
+    def submit_at(self, stamp_ns: int, goal: Goal) -> None:
+        """Hand ``goal`` over before the sample stamped ``stamp_ns`` (as the goal thread would)."""
+        self.schedule.append((stamp_ns, goal))
+
+    def cancel_at(self, stamp_ns: int, goal_id: str) -> None:
+        """Cancel ``goal_id`` before the sample stamped ``stamp_ns``."""
+        self.schedule.append((stamp_ns, goal_id))
+
+    def _execute(self, sample) -> None:
+        """Hand over what is due, then the execution's judgement of this sample (node order)."""
+        due = [item for item in self.schedule if item[0] <= sample.stamp_ns]
+        if due:
+            self.schedule = [item for item in self.schedule if item[0] > sample.stamp_ns]
+            for _, command in sorted(due, key=lambda item: item[0]):
+                if isinstance(command, Goal):
+                    self.execution.submit(command)
+                else:
+                    self.execution.cancel(command)
+        ref = sample.reference
+        desired = None if ref is None else DesiredState((ref[0],), (ref[1],), (ref[2],))
+        estimate = sample.estimate
+        velocities = (
+            None if estimate is None or not self.assembly.needs_estimate else (estimate[0],)
+        )
+        self.execution.after_sample(
+            sample.stamp_ns, sample.status, sample.t_s, desired, (sample.y,), velocities
+        )
+        self.goal_events.extend(self.execution.take_events())
 
     def deliver_estimates(self, estimates) -> None:
         """Hand the observer's new estimates to the controller, as the estimate topic does."""

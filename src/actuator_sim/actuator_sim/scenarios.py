@@ -53,8 +53,14 @@ DRIVE_K3_PER_S = 100.0
 #: Name of that scenario (its parameter file share/actuator_bringup/config/<name>.yaml).
 DRIVE_SCENARIO = 'drive_pp_nftsmc_eso'
 #: The paper's hardest case, PP-NFTSMC-ESO on the fast trajectory in deep sea (Case 2, Table 6):
-#: what the plant runs by default, the benchmark and the main job measure.
+#: what the benchmark and the main job measure.
 PAPER_SCENARIO = 'case2_pp_nftsmc_eso'
+#: Case 2's PP-NFTSMC-ESO holding still until a goal moves it (reference ``hold``): what a run
+#: with the simulated plant gets unless a scenario is named.
+HOLD_SCENARIO = 'hold_pp_nftsmc_eso'
+#: The same through a drive (tuned as ``DRIVE_SCENARIO``): the CiA 402 joints' default, so a real
+#: joint never starts a built-in trajectory unless one is named.
+DRIVE_HOLD_SCENARIO = 'drive_hold_pp_nftsmc_eso'
 
 
 def paper_scenario(
@@ -145,3 +151,17 @@ def through_a_drive(duration_s: float = 10.0) -> list[Scenario]:
     )
     scenario.command_delay_samples = DRIVE_DELAY_SAMPLES
     return [scenario]
+
+
+def holding(scenario: Scenario, name: str) -> Scenario:
+    """Return ``scenario`` with reference ``hold``: the same loop, still until commanded."""
+    return dataclasses.replace(scenario, name=name, reference='hold')
+
+
+def commanded(duration_s: float = 10.0) -> list[Scenario]:
+    """Return the hold scenarios: Case 2's PP-NFTSMC-ESO, and the same through a drive."""
+    case2_pp = paper_scenario(HOLD_SCENARIO, 'pp_nftsmc_eso', 'fast', 'deep_sea', duration_s)
+    return [
+        holding(case2_pp, HOLD_SCENARIO),
+        holding(through_a_drive(duration_s)[0], DRIVE_HOLD_SCENARIO),
+    ]
