@@ -621,3 +621,35 @@ def test_a_sim_lockstep_without_commands_ends_the_run_with_its_reason(ros_proces
         '(lockstep_timeout_s); 0 A, brake engaged'
     ) in plant.output, plant.output[-1500:]
     assert 'the run of 3 s ended early: sim: no command for sample 0' in plant.output
+
+
+def test_a_sim_observer_holds_its_first_estimate_until_a_subscriber_matched(
+    rclpy_context, ros_process
+):
+    """x_hat(0) made before the controller's subscription matched is sent once it has.
+
+    RELIABLE does not keep a message for a reader that has not matched: a lost x_hat(0) left the
+    controller waiting for it and the observer for u(0), and the lockstep stopped at start-up.
+    """
+    from actuator_msgs.msg import StateEstimate
+    from actuator_ros.qos import control_qos
+    from ros_helpers import TestNode
+    from sensor_msgs.msg import JointState
+
+    eso = ros_process('actuator_eso', 'eso_node', [*AUTOSTART, '-p', 'mode:=sim'])
+    test = TestNode(rclpy_context, 'late_subscriber')
+    qos = control_qos('sim')
+    joint = test.node.create_publisher(JointState, 'joint_states', qos)
+    test.wait_for(lambda: joint.get_subscription_count() >= 1, what='the observer subscribed')
+    eso.wait_for_output(r'\]: active', timeout=30)
+    y0 = JointState(name=['joint'], position=[0.25])
+    y0.header.stamp = ns_to_stamp(10**9)
+    joint.publish(y0)
+    test.spin(0.5)  # x_hat(0) is made now, with no one to take it
+    got = []
+    test.node.create_subscription(StateEstimate, 'eso/estimate', got.append, qos)
+    test.wait_for(lambda: got, timeout=10.0, what='the held x_hat(0)')
+    first = got[0]
+    assert first.initial and stamp_to_ns(first.header.stamp) == 10**9
+    assert first.position_rad == 0.25
+    test.close()

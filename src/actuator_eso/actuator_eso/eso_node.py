@@ -49,6 +49,7 @@ from actuator_core.timebase import StampCheck, Verdict
 from actuator_core.timing import period_ns, stamp_to_ns
 from actuator_eso.observer import EsoGains, ExtendedStateObserver
 from actuator_msgs.msg import CurrentCommand, StateEstimate
+from rclpy.event_handler import PublisherEventCallbacks
 from actuator_ros.conversions import joint_position
 from actuator_ros.diagnostics import NodeDiagnostics
 from actuator_ros.guard import GraphGuard
@@ -110,7 +111,15 @@ class EsoNode(ManagedNode):
         self.restart_next = False
         self.guard = GraphGuard(self, self.on_conflict)
         qos = control_qos(self.mode)
-        self.pub = self.create_lifecycle_publisher(StateEstimate, 'eso/estimate', qos)
+        # sim: an estimate made before the controller's subscription matched is held and sent
+        # once it has (a lost x_hat(0) left the lockstep waiting for good at start-up)
+        self.unsent: list = []
+        self.pub = self.create_lifecycle_publisher(
+            StateEstimate,
+            'eso/estimate',
+            qos,
+            event_callbacks=PublisherEventCallbacks(matched=self._on_matched),
+        )
         self.subs = [
             subscribe_views(
                 self, kind, topic, callback, qos, event_callbacks=self.guard.callbacks(topic)
@@ -286,7 +295,7 @@ class EsoNode(ManagedNode):
                 ),
             )
         x1, x2, x3 = e.x_hat
-        self.pub.publish(
+        self._send(
             self.encode_estimate(
                 {
                     'header.stamp': e.sample_ns,
@@ -304,6 +313,20 @@ class EsoNode(ManagedNode):
                 }
             )
         )
+
+    def _send(self, message) -> None:
+        """Publish an estimate; in sim, hold it until a subscriber matched (no RELIABLE loss)."""
+        if self.mode == 'sim' and (self.unsent or not self.pub.get_subscription_count()):
+            self.unsent.append(message)
+            return
+        self.pub.publish(message)
+
+    def _on_matched(self, info) -> None:
+        """Send what was held for a subscriber of eso/estimate, in order, once one matched."""
+        if info.current_count > 0 and self.unsent:
+            held, self.unsent = self.unsent, []
+            for message in held:
+                self.pub.publish(message)
 
     def close_log(self) -> None:
         """Log a one-line summary; write the pairing counts as JSON if asked."""
