@@ -5,7 +5,7 @@
 
 Names as JTC's (``constraints.goal_time``, ``constraints.<joint>.trajectory``, ...), so a JTC
 configuration carries over; the soft limits share the joint node's names (``position_min_rad``
-...), so one ``/**`` section sets both nodes. docs/parameters.md lists them.
+...), so one ``/**`` section sets both nodes. docs/reference/parameters.md lists them.
 """
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 from actuator_core import limits
+from actuator_core.loop_params import shared
 from actuator_core.params import require_below, spec, validate
 
 
@@ -104,31 +105,9 @@ class GoalSettings:
         0.1,
         1000.0,
     )
-    position_min_rad: float = spec(
-        -limits.POSITION_LIMIT_RAD,
-        "the joint's soft limit (set it with the joint node's, e.g. in a /** section): goals "
-        f'whose x1d comes within {limits.GOAL_POSITION_MARGIN_RAD:g} rad of it are refused',
-        'rad',
-        -limits.POSITION_LIMIT_RAD,
-        limits.POSITION_LIMIT_RAD,
-    )
-    position_max_rad: float = spec(
-        limits.POSITION_LIMIT_RAD,
-        "the joint's soft limit (set it with the joint node's): goals whose x1d comes within "
-        f'{limits.GOAL_POSITION_MARGIN_RAD:g} rad of it are refused',
-        'rad',
-        -limits.POSITION_LIMIT_RAD,
-        limits.POSITION_LIMIT_RAD,
-    )
-    velocity_max_rad_s: float = spec(
-        limits.VELOCITY_LIMIT_RAD_S,
-        "the joint's soft speed limit (set it with the joint node's): goals whose |x1d'| "
-        f'exceeds {limits.GOAL_VELOCITY_SHARE:g} of it are refused',
-        'rad/s',
-        0.0,
-        limits.VELOCITY_LIMIT_RAD_S,
-        low_open=True,
-    )
+    position_min_rad: float = shared('position_min_rad')
+    position_max_rad: float = shared('position_max_rad')
+    velocity_max_rad_s: float = shared('velocity_max_rad_s')
 
     def __post_init__(self) -> None:
         """Refuse out-of-range values and an empty position window."""

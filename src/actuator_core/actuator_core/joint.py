@@ -152,28 +152,9 @@ class JointSettings:
         0.01,
         600.0,
     )
-    position_min_rad: float = spec(
-        -limits.POSITION_LIMIT_RAD,
-        'soft limit: below this angle the joint is braked',
-        'rad',
-        -limits.POSITION_LIMIT_RAD,
-        limits.POSITION_LIMIT_RAD,
-    )
-    position_max_rad: float = spec(
-        limits.POSITION_LIMIT_RAD,
-        'soft limit: above this angle the joint is braked',
-        'rad',
-        -limits.POSITION_LIMIT_RAD,
-        limits.POSITION_LIMIT_RAD,
-    )
-    velocity_max_rad_s: float = spec(
-        limits.VELOCITY_LIMIT_RAD_S,
-        'soft limit: beyond this speed (over the last 20 ms of samples) the joint is braked',
-        'rad/s',
-        0.0,
-        limits.VELOCITY_LIMIT_RAD_S,
-        low_open=True,
-    )
+    position_min_rad: float = shared('position_min_rad')
+    position_max_rad: float = shared('position_max_rad')
+    velocity_max_rad_s: float = shared('velocity_max_rad_s')
     fresh_command_window_s: float = spec(
         limits.FRESH_COMMAND_WINDOW_S,
         'loop health: the window over which the share of fresh commands is judged',

@@ -3,10 +3,11 @@
 
 """The parameters the nodes of one joint's loop share, each specified once.
 
-The joint (plant or driver), the observer and the controller all read the sample time, the
-current limit, the joint's name and the mode; the observer and the controller the nominal model
-and the future-stamp tolerance. Each node's specification takes these fields from here
-(``shared``), so a name has one description, one unit and one range wherever it is declared
+The joint (plant or driver), the observer and the controller all read the sample time, the current
+limit, the joint's name and the mode; the observer and the controller the nominal model and the
+future-stamp tolerance; the joint and the controller the soft limits (the joint brakes at them, the
+controller refuses goals that come near them). Each node's specification takes these fields from
+here (``shared``), so a name has one description, one unit and one range wherever it is declared
 (tests/test_param_docs.py holds the generated reference to that).
 """
 
@@ -60,6 +61,34 @@ _SHARED: dict[str, dict[str, Any]] = {
         unit='rad/s^2/A',
         low=0.0,
         high=1.0e6,
+        low_open=True,
+    ),
+    'position_min_rad': dict(
+        default=-limits.POSITION_LIMIT_RAD,
+        description='soft limit: below this angle the joint brakes, and goals whose x1d comes '
+        f'within {limits.GOAL_POSITION_MARGIN_RAD:g} rad of it are refused (set both nodes in '
+        'one /** section)',
+        unit='rad',
+        low=-limits.POSITION_LIMIT_RAD,
+        high=limits.POSITION_LIMIT_RAD,
+    ),
+    'position_max_rad': dict(
+        default=limits.POSITION_LIMIT_RAD,
+        description='soft limit: above this angle the joint brakes, and goals whose x1d comes '
+        f'within {limits.GOAL_POSITION_MARGIN_RAD:g} rad of it are refused (set both nodes in '
+        'one /** section)',
+        unit='rad',
+        low=-limits.POSITION_LIMIT_RAD,
+        high=limits.POSITION_LIMIT_RAD,
+    ),
+    'velocity_max_rad_s': dict(
+        default=limits.VELOCITY_LIMIT_RAD_S,
+        description='soft speed limit: beyond it (over the last 20 ms of samples) the joint '
+        f"brakes, and goals whose |x1d'| exceeds {limits.GOAL_VELOCITY_SHARE:g} of it are "
+        'refused (set both nodes in one /** section)',
+        unit='rad/s',
+        low=0.0,
+        high=limits.VELOCITY_LIMIT_RAD_S,
         low_open=True,
     ),
     'theta2n': dict(
