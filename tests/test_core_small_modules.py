@@ -17,6 +17,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from actuator_core import limits
 from actuator_core import clock as clock_module
 from actuator_core import xmath as xm
 from actuator_core.clock import Clock, Schedule, SteppedClock
@@ -509,3 +510,31 @@ def test_a_repeated_stamp_is_admitted_once():
     for bad in (-1.0, -1e-9, math.nan):
         with pytest.raises(ValueError, match='rate_hz must be >= 0'):
             Decimator(bad)
+
+
+def test_values_are_judged_against_their_physical_bound_in_one_place():
+    """actuator_core.values: finite and within +-bound (inclusive), the refusal's exact words."""
+    from actuator_core import values
+
+    assert values.within(2.0, 2.0) and values.within(-2.0, 2.0)
+    assert not values.within(2.0 + 1e-12, 2.0) and not values.within(math.nan, 1e9)
+    assert values.measurement_problem(0.5, 'j', [0.5]) == ''
+    assert values.measurement_problem(None, 'j', []) == (
+        f"measurement refused (joint 'j' missing, non-finite or beyond "
+        f'{limits.POSITION_LIMIT_RAD} rad): []'
+    )
+    assert values.command_problem(20.0, 20.0) == ''
+    assert values.command_problem(math.inf, 20.0) == (
+        'command inf A refused (non-finite or beyond 20.0 A)'
+    )
+    gain_bound = limits.input_current_gain_limit(1e-3)
+    assert values.estimate_problem(0.0, 0.0, 0.0, gain_bound, 20.0, 1e-3) == ('', '')
+    assert values.estimate_problem(0.0, 0.0, 0.0, -1e-3, 20.0, 1e-3) == (
+        'input_current_gain',
+        'input_current_gain = -0.001 is negative',
+    )
+    field, why = values.estimate_problem(0.0, math.nan, 0.0, 0.0, 20.0, 1e-3)
+    assert (field, why) == (
+        'disturbance_rad_s2',
+        f'disturbance_rad_s2 = nan is not finite or beyond +-{limits.DISTURBANCE_LIMIT_RAD_S2:g}',
+    )

@@ -35,13 +35,13 @@ safe-stop command so the drive brakes at once.
 
 from __future__ import annotations
 
-import math
 import time
 
 from actuator_core import limits
 from actuator_core.assembly import ESTIMATE_AHEAD_SAMPLES, ControlSample, ControlSampleAssembly
 from actuator_core.binding import MeasurementPlausibility
 from actuator_core.clock import Clock, StampClock
+from actuator_core.values import estimate_problem, measurement_problem
 from actuator_core.sample_log import SampleLog
 from actuator_core.status import Status
 from actuator_core.timebase import StampCheck, Verdict
@@ -217,16 +217,9 @@ class ControllerNode(ControllerReport, ManagedNode):
         self.measurements_in += 1
         stamp = stamp_to_ns(msg.header.stamp)
         y = joint_position(msg, self.params.settings.joint_name)
-        if y is None or not math.isfinite(y) or abs(y) > limits.POSITION_LIMIT_RAD:
-            self._refuse(  # before its stamp is taken: a refused value moves nothing
-                'bad_measurement',
-                None,
-                lambda: (
-                    f'measurement refused (joint {self.params.settings.joint_name!r} missing, '
-                    f'non-finite or beyond {limits.POSITION_LIMIT_RAD} rad): '
-                    f'{list(msg.position)}'
-                ),
-            )
+        problem = measurement_problem(y, self.params.settings.joint_name, msg.position)
+        if problem:  # before its stamp is taken: a refused value moves nothing
+            self._refuse('bad_measurement', None, lambda: problem)
             return
         if self.conflict:  # whose sample this is cannot be told: no stamp is taken
             self._publish(self.assembly.safe_sample(stamp, Status.CONFLICT), None)
@@ -298,7 +291,7 @@ class ControllerNode(ControllerReport, ManagedNode):
             msg.input_current_a,
             msg.input_current_gain,
         )
-        field, problem = _estimate_problem(
+        field, problem = estimate_problem(
             x2, x3, u, gain, self.params.common.current_limit_a, self.params.common.dt_s
         )
         if problem:  # rate-limited per field, so each kind of refusal is reported
@@ -490,25 +483,6 @@ class ControllerNode(ControllerReport, ManagedNode):
                 )
             )
         )
-
-
-def _estimate_problem(x2, x3, u, gain, current_limit_a: float, dt_s: float) -> tuple[str, str]:
-    """Return (field, why) when an estimate's field is not physical, else ('', '').
-
-    The ranges are those of actuator_core.limits.
-    """
-    checks = (
-        ('velocity_rad_s', x2, limits.VELOCITY_LIMIT_RAD_S),
-        ('disturbance_rad_s2', x3, limits.DISTURBANCE_LIMIT_RAD_S2),
-        ('input_current_a', u, current_limit_a),
-        ('input_current_gain', gain, limits.input_current_gain_limit(dt_s)),
-    )
-    for name, value, bound in checks:
-        if not math.isfinite(value) or abs(value) > bound:
-            return name, f'{name} = {value} is not finite or beyond +-{bound:g}'
-    if gain < 0.0:
-        return 'input_current_gain', f'input_current_gain = {gain} is negative'
-    return '', ''
 
 
 def main(argv=None) -> int:

@@ -56,6 +56,7 @@ import numpy as np
 from actuator_core import limits
 from actuator_core import xmath as xm
 from actuator_core.status import Status
+from actuator_core.timebase import ahead_ns
 from actuator_core.timing import sample_time_s
 
 #: Estimates kept while waiting for their measurement.
@@ -214,9 +215,14 @@ class ControlSampleAssembly:
     def estimate_refusal(self, stamp_ns: int) -> str:
         """'' when an estimate stamped ``stamp_ns`` answers a measurement seen, else why not."""
         newest = self.newest_measurement_ns
-        if newest is not None and stamp_ns > newest + ESTIMATE_AHEAD_SAMPLES * self.period_ns:
+        ahead = (
+            None
+            if newest is None
+            else ahead_ns(stamp_ns, newest, ESTIMATE_AHEAD_SAMPLES, self.period_ns)
+        )
+        if ahead is not None:
             return (
-                f'estimate stamped {stamp_ns} ns refused: {(stamp_ns - newest) / 1e6:g} ms ahead '
+                f'estimate stamped {stamp_ns} ns refused: {ahead / 1e6:g} ms ahead '
                 f'of the newest measurement seen (at most {ESTIMATE_AHEAD_SAMPLES} sample)'
             )
         return ''

@@ -27,6 +27,7 @@ from collections import deque
 from typing import Optional
 
 from actuator_core import limits
+from actuator_core.timebase import ahead_ns
 
 #: Samples of history a receiver keeps (1 s at 1 kHz).
 SEEN_DEPTH = 1000
@@ -84,12 +85,10 @@ class SeenSamples:
         """Return why ``stamp_ns`` is beyond the newest sample plus ``allowed_samples``, or ''."""
         if self.newest_ns is None:
             return 'no sample seen yet'
-        limit = self.newest_ns + allowed_samples * self.period_ns
-        if stamp_ns > limit:
-            return (
-                f'stamped {(stamp_ns - self.newest_ns) / 1e6:.3f} ms ahead of the newest sample '
-                f'seen ({self.newest_ns} ns)'
-            )
+        ahead = ahead_ns(stamp_ns, self.newest_ns, allowed_samples, self.period_ns)
+        if ahead is not None:
+            newest = self.newest_ns
+            return f'stamped {ahead / 1e6:.3f} ms ahead of the newest sample seen ({newest} ns)'
         return ''
 
     def reset(self) -> None:

@@ -32,6 +32,8 @@ from __future__ import annotations
 
 from typing import Callable, NamedTuple, Optional, Protocol
 
+from actuator_core.timebase import ahead_ns
+
 #: Unpaired samples kept of each kind; older ones are dropped.
 PENDING_LIMIT = 256
 #: Observer steps one incoming message may cause (a late half of a pair frees a few at most).
@@ -139,12 +141,15 @@ class ObserverInputPairing:
             while len(self.currents) > PENDING_LIMIT:
                 self.currents.pop(min(self.currents))
             return []
-        ahead = stamp_ns - self.newest_measurement_ns
-        if ahead > COMMAND_AHEAD_SAMPLES * self.period_ns or ahead % self.period_ns:
+        ahead = ahead_ns(
+            stamp_ns, self.newest_measurement_ns, COMMAND_AHEAD_SAMPLES, self.period_ns
+        )
+        off_grid = (stamp_ns - self.newest_measurement_ns) % self.period_ns
+        if ahead is not None or off_grid:
             self.refused += 1
             self.refusal = f'command stamped {stamp_ns} ns refused: ' + (
                 'off the sample grid'
-                if ahead % self.period_ns
+                if off_grid
                 else f'{ahead / 1e6:g} ms ahead of the newest measurement received'
             )
             return []

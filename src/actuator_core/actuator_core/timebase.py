@@ -39,6 +39,18 @@ JUMP_SAMPLES = 1000
 FUTURE_STREAM_SAMPLES = 50
 
 
+def ahead_ns(stamp_ns: int, newest_ns: int, allowed_samples: int, period_ns: int) -> Optional[int]:
+    """Return how far [ns] ``stamp_ns`` is ahead of ``newest_ns``, when beyond the allowed samples.
+
+    The one "ahead" rule of the protocol: a stamp more than ``allowed_samples`` periods after
+    the newest sample a receiver saw is none it can answer (the joint's commands, the observer's
+    commands, the controller's estimates); None when it is within them.
+    """
+    if stamp_ns > newest_ns + allowed_samples * period_ns:
+        return stamp_ns - newest_ns
+    return None
+
+
 class Verdict(Enum):
     """What a stamp is."""
 
@@ -74,7 +86,7 @@ class StampCheck:
         if stamp_ns < 0 or stamp_ns > STAMP_MAX_NS:
             self.invalid += 1
             return Verdict.INVALID
-        if limit_ns is not None and stamp_ns > limit_ns:
+        if limit_ns is not None and ahead_ns(stamp_ns, limit_ns, 0, self.period_ns) is not None:
             self.refused_future += 1
             return Verdict.FUTURE
         if not self.sim and stamp_ns > now_ns + self.future_tolerance_ns:

@@ -32,12 +32,11 @@ activation.
 from __future__ import annotations
 
 import json
-import math
 
-from actuator_core import limits
 from actuator_core.assembly import gap_limit_samples
 from actuator_core.binding import MeasurementPlausibility
 from actuator_core.clock import Clock, StampClock
+from actuator_core.values import command_problem, measurement_problem
 from actuator_core.health import HealthMonitor, Level, Snapshot
 from actuator_core.pairing import (
     REALTIME_PATIENCE_SAMPLES,
@@ -207,14 +206,9 @@ class EsoNode(ManagedNode):
         if not self.active:
             return
         y = joint_position(msg, self.joint_name)
-        if y is None or not math.isfinite(y) or abs(y) > limits.POSITION_LIMIT_RAD:
-            self._refuse(
-                'bad_measurement',
-                lambda: (
-                    f'measurement refused (joint {self.joint_name!r} missing, '
-                    f'non-finite or beyond {limits.POSITION_LIMIT_RAD} rad): {list(msg.position)}'
-                ),
-            )
+        problem = measurement_problem(y, self.joint_name, msg.position)
+        if problem:
+            self._refuse('bad_measurement', lambda: problem)
             return
         stamp = stamp_to_ns(msg.header.stamp)
         if self.conflict:
@@ -268,11 +262,9 @@ class EsoNode(ManagedNode):
         if not self.active:
             return
         u = msg.current_a
-        if not math.isfinite(u) or abs(u) > self.current_limit_a:
-            self._refuse(
-                'bad_command',
-                lambda: f'command {u} A refused (non-finite or beyond {self.current_limit_a} A)',
-            )
+        problem = command_problem(u, self.current_limit_a)
+        if problem:
+            self._refuse('bad_command', lambda: problem)
             return
         stamp = stamp_to_ns(msg.header.stamp)
         if self.conflict:
