@@ -27,6 +27,9 @@ measurement received or the next one (x_hat(k+1) is made before y(k+1) exists); 
 further ahead is refused with its reason and moves nothing. Two different estimates for one
 sample (a second publisher racing the observer) are both dropped: that sample gets 0 A.
 
+The supervision is one explicit state (``Supervision``: running, answered, braked, stalled,
+resync), its transitions in this class; the latch is apart (elementwise for a batch).
+
 Recovery policy (docs/safety.md#recovery-policy), every gap alike: a stale input is answered in
 grades by ``watchdog``: up to its timeout nothing (the drive holds the last command), then 0 A
 without the brake, and 0 A with the brake once the input is ``brake_after`` old; a brake a safe
@@ -49,6 +52,7 @@ arithmetic elementwise, the latch included.
 
 from __future__ import annotations
 
+from enum import Enum
 from typing import NamedTuple, Optional
 
 import numpy as np
@@ -83,6 +87,26 @@ CONFLICTED = ('conflicted',)
 ESTIMATE_AHEAD_SAMPLES = 1
 #: How far [s] a restart looks for the reference's first rest (``first_rest_s``).
 REST_HORIZON_S = 1.0
+
+
+class Supervision(Enum):
+    """What the loop's supervision holds between the law's samples (docs/safety.md).
+
+    The transitions, all in ``ControlSampleAssembly``: ``watchdog`` answers a stale input
+    (ANSWERED; BRAKED once an answer asked for the brake), ``command_gap`` notices a stall of the
+    node itself (STALLED), ``resync`` holds 0 A and the brake (RESYNC, until
+    ``resync_until_ns`` and the joint at rest). At the law's next sample: from BRAKED or STALLED,
+    or after a gap beyond the drive's command timeout, the resync runs; from ANSWERED the law
+    goes on saying RECOVERING for RECOVERY_SAMPLES; RESYNC ends in a restart of the reference and
+    the law. The latch (a non-finite output or a following error) is apart: it holds 0 A until
+    ``reset``, elementwise for a batch of offline runs.
+    """
+
+    RUNNING = 'running'  #: the law runs for each sample
+    ANSWERED = 'answered'  #: the watchdog answered with 0 A, no brake: a short gap so far
+    BRAKED = 'braked'  #: a watchdog answer braked the joint: the law's next sample resyncs
+    STALLED = 'stalled'  #: this node sent nothing beyond the drive's timeout: resync next
+    RESYNC = 'resync'  #: 0 A and brake while the observer converges, then restart
 
 
 def gap_limit_samples(period_ns: int) -> int:
@@ -143,13 +167,11 @@ class ControlSampleAssembly:
         self.measurement_received_ns: Optional[int] = None  # monotonic receipt of the newest
         self.estimate_received_ns: Optional[int] = None
         self.controlled_ns: Optional[int] = None  # stamp of the newest sample the law ran for
-        self.stale_answered = False  # the watchdog answered a sample since the law's last one
-        self.brake_answered = False  # ... and one of its answers braked the joint
-        self.stalled = False  # the node itself sent nothing beyond the drive's timeout
+        self.supervision = Supervision.RUNNING
         self.recovering_until_ns: Optional[int] = None
         self.latched = False
         self.braking = False  # the newest command asked for the brake (safe_stop)
-        self.resync_until_ns: Optional[int] = None
+        self.resync_until_ns: Optional[int] = None  # RESYNC: 0 A and brake up to this stamp
         # a stall's hold on the receipt clock too: as many periods from when it was noticed
         self.resync_until_received_ns = 0
         self.stall_noticed_ns: Optional[int] = None  # receipt clock: when a stall was noticed
@@ -254,9 +276,10 @@ class ControlSampleAssembly:
 
         0 A and brake while the observer converges, then restart.
         """
-        if self.resync_until_ns is not None and stamp_ns < self.resync_until_ns:
+        if self.supervision is Supervision.RESYNC and stamp_ns < self.resync_until_ns:
             return  # already resyncing
         self.resyncs += 1
+        self.supervision = Supervision.RESYNC
         hold_ns = self.resync_samples * self.period_ns
         self.resync_until_ns = stamp_ns + hold_ns
         # A stall caught this node with the sample in hand (received long before the stall was
@@ -288,7 +311,7 @@ class ControlSampleAssembly:
         lasts ``resync_samples`` periods from then.
         """
         if silent_ns > max(self.gap_limit_ns, quiet_ns) and self.controlled_ns is not None:
-            self.stalled = True  # the resync starts at the sample the law is to run for next
+            self.supervision = Supervision.STALLED  # the resync starts at the law's next sample
             self.stall_noticed_ns = now_ns
 
     def reset(self) -> None:
@@ -346,15 +369,17 @@ class ControlSampleAssembly:
         """Run the law for sample ``stamp``; latch on a non-finite output or a following error."""
         if self.latched is True:
             return self.safe_sample(stamp, Status.LATCHED, y)
+        braked = self.supervision in (Supervision.BRAKED, Supervision.STALLED)
         if self.controlled_ns is not None and (
-            stamp - self.controlled_ns > self.gap_limit_ns or self.brake_answered or self.stalled
+            stamp - self.controlled_ns > self.gap_limit_ns or braked
         ):
             self.gap_resyncs += 1  # the joint was braked: no chase of what the reference ran on
             self.resync(stamp)
-        elif self.stale_answered:
+        elif self.supervision is Supervision.ANSWERED:
             self._recover_until(stamp)  # a short gap: the law goes on, saying RECOVERING
-        self.stale_answered = self.brake_answered = self.stalled = False
-        if self.resync_until_ns is not None:
+        if self.supervision is not Supervision.RESYNC:
+            self.supervision = Supervision.RUNNING
+        else:
             sliding = self.needs_estimate and xm.any_true(
                 xm.fabs(estimate[0]) > RESYNC_REST_VELOCITY_RAD_S
             )
@@ -365,6 +390,7 @@ class ControlSampleAssembly:
                 or (sliding and stamp < self.resync_until_ns + self.resync_extra_ns)
             ):
                 return self.safe_sample(stamp, Status.RESYNC, y)
+            self.supervision = Supervision.RUNNING
             self.resync_until_ns = self.stall_noticed_ns = None
             self._restart_reference(y, self.rest_s)
             self.law.reset()
@@ -484,13 +510,23 @@ class ControlSampleAssembly:
         if self.pending is not None and self.pending[0] == stamp:
             self.pending = None
             self.unanswered += 1
-        self.stale_answered = True
         answered = self.commanded is not None and self.commanded[0] == stamp
         sample = self.safe_sample(stamp, status, y, safe_stop=age > self.brake_after_ns)
-        self.brake_answered = self.brake_answered or sample.safe_stop
+        self.supervision = _answered(self.supervision, sample.safe_stop)
         if answered and not sample.safe_stop:  # the joint would refuse it as a replay
             return sample._replace(command=False)
         return sample
+
+
+def _answered(state: Supervision, braked: bool) -> Supervision:
+    """Return the supervision after a watchdog answer (``braked``: it asked for the brake).
+
+    A resync in progress stays one; a stall or a brake seen stays (both resync next); else
+    the answer braked the joint, or it was a short gap so far.
+    """
+    if state in (Supervision.RESYNC, Supervision.STALLED, Supervision.BRAKED):
+        return state
+    return Supervision.BRAKED if braked else Supervision.ANSWERED
 
 
 def first_rest_s(reference, period_ns: int, horizon_s: float = REST_HORIZON_S) -> float:
