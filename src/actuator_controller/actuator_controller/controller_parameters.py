@@ -6,7 +6,7 @@
 Numbers and names are dataclass fields with their unit, range and description
 (``ControllerSettings``; the law's gains, ``CommonConfig`` and the trajectory settings of
 ``trajectory_settings`` likewise), declared with ``declare_spec_parameters``; choices among
-names are ``declare_choice``. docs/parameters.md is generated from these declarations.
+names are ``declare_choice``. docs/reference/parameters.md is generated from these declarations.
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@
 
 Names as JTC's (``constraints.goal_time``, ``constraints.<joint>.trajectory``, ...), so a JTC
 configuration carries over; the soft limits share the joint node's names (``position_min_rad``
-...), so one ``/**`` section sets both nodes. docs/parameters.md lists them.
+...), so one ``/**`` section sets both nodes. docs/reference/parameters.md lists them.
 """
 
 from __future__ import annotations
