@@ -30,8 +30,18 @@ CODE_DIRS = ('src', 'tests', 'scripts')
 #: Files read as code (scripts without a suffix too, e.g. scripts/ros2run).
 CODE_SUFFIXES = {'.py', '.sh', '.toml', '.cfg', '.ini', '.xml', '.yaml', '.yml', ''}
 #: Folders never read: build products, the environment, run outputs.
-SKIPPED_DIRS = {'.git', '.venv', 'build', 'install', 'log', 'results', '__pycache__',
-                '.pytest_cache', '.ruff_cache', 'mutants'}
+SKIPPED_DIRS = {
+    '.git',
+    '.venv',
+    'build',
+    'install',
+    'log',
+    'results',
+    '__pycache__',
+    '.pytest_cache',
+    '.ruff_cache',
+    'mutants',
+}
 #: Pages that other branches write and that the docs already link to. A link to one of them is
 #: accepted while the page does not exist; once it exists it is checked like any other, and its
 #: entry here can go.
@@ -245,7 +255,9 @@ def test_a_made_up_reference_fails(tmp_path):
         ('src/pkg/mod.py:2', 'docs/a.md#made-up-heading'),
         ('src/pkg/mod.py:3', 'docs/missing.md'),
         ('src/pkg/mod.py:4', 'docs/missing.md'),
-        ('src/pkg/mod.py:6', '# README_FIGURE is a name, README.md a path, README "Safety" '
-         'a section by name'),
+        (
+            'src/pkg/mod.py:6',
+            '# README_FIGURE is a name, README.md a path, README "Safety" a section by name',
+        ),
         ('src/pkg/mod.py:7', '# and docs/a.md "Real heading" a section by name too'),
     ], code

@@ -16,13 +16,14 @@ from pathlib import Path
 import pytest
 
 from actuator_bringup import runner as bringup
-from actuator_bringup.run_description import closed_loop
+from actuator_bringup.run_description import closed_loop, default_scenario
 from actuator_bringup.run_options import (
     OPTIONS,
     RUN_OPTIONS,
     OptionError,
     check_parameter_files,
     eds_parameters,
+    joint_overrides,
     node_names,
     parse,
 )
@@ -167,3 +168,46 @@ def test_a_users_parameter_file_is_part_of_the_gains_judged(tmp_path):
         'actuator_controller:\n  ros__parameters:\n    pp_nftsmc_eso:\n      k3_per_s: 2000.0\n'
     )
     assert loop_radius('drive_pp_nftsmc_eso', [*files, hot], 'cia402_sim')[1] > stable
+
+
+def test_a_real_drive_is_judged_before_start_with_the_values_of_the_users_files(tmp_path):
+    eds = tmp_path / 'drive.eds'
+    eds.write_text('[FileInfo]\n')
+    travel = _file(
+        tmp_path,
+        '/**:\n  ros__parameters:\n    position_min_rad: -1.5\n    position_max_rad: 1.5\n'
+        '    pp_nftsmc_eso:\n      k0_per_s: 2.0\n',  # another node's name: not the driver's
+    )
+    drive = tmp_path / 'drive.yaml'
+    drive.write_text(
+        'actuator_cia402_driver:\n  ros__parameters:\n    brake_status_index: 0\n'
+        '    quick_stop_deceleration_rad_s2: 40.0\n'
+    )
+    given = joint_overrides('cia402', str(eds), [travel, drive])
+    assert given == {
+        'position_min_rad': -1.5,
+        'position_max_rad': 1.5,
+        'brake_status_index': 0,
+        'quick_stop_deceleration_rad_s2': 40.0,
+        'eds_file': str(eds.resolve()),
+    }
+    specs = closed_loop('realtime', 1.0, record=False, joint='cia402', joint_parameters=given)
+    assert any(s.name == 'actuator_cia402_driver' for s in specs)
+    # without the drive's section, the refusal names what is missing, in one line
+    missing = joint_overrides('cia402', str(eds), [travel])
+    with pytest.raises(ValueError, match='^a real drive needs brake_status_index .*quick_stop'):
+        closed_loop('realtime', 1.0, record=False, joint='cia402', joint_parameters=missing)
+    with pytest.raises(SystemExit) as stop:
+        bringup.run_closed_loop(
+            default_scenario('cia402'),
+            'realtime',
+            1.0,
+            record=False,
+            joint='cia402',
+            joint_parameters=missing,
+            results_root=tmp_path / 'runs',
+        )
+    assert str(stop.value).startswith('bringup: a real drive needs brake_status_index')
+    assert not (tmp_path / 'runs').exists()  # nothing made for a refused run
+    # a plant takes no driver values from the files
+    assert joint_overrides('plant', '', [drive]) == {}

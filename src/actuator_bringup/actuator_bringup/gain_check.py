@@ -19,8 +19,9 @@ from typing import Sequence
 
 from actuator_controller.laws import GAINS_BY_NAME
 from actuator_core.params import build
+from actuator_bringup.run_options import node_section
 from actuator_eso.observer import EsoGains
-from actuator_sim.params_yaml import all_scenarios, node_parameters
+from actuator_sim.params_yaml import all_scenarios
 from actuator_sim.scenarios import DRIVE_DELAY_SAMPLES
 from actuator_sim.stability import drift_extremes, radius_along_envelope
 
@@ -38,28 +39,20 @@ class UnstableGains(ValueError):
     """The gains are unstable at the joint's delay; the message says so in one line."""
 
 
-def _section(files: Sequence[Path], node: str) -> dict:
-    """Return what the files give ``node``, later files over earlier ones (dotted names)."""
-    values: dict = {}
-    for path in files:
-        values.update(node_parameters(Path(path), node))
-    return values
-
-
 def loop_radius(scenario: str, files: Sequence[Path], joint: str) -> tuple[str, float]:
     """Return (controller, the worst linearised radius over the drift's vertices and time).
 
     ``files``: the scenario's parameter file first, then the user's. The plant's drift is the
     scenario's when it is one of actuator_sim's, else the paper's.
     """
-    controller_values = _section(files, 'actuator_controller')
+    controller_values = node_section(files, 'actuator_controller')
     name = controller_values.get('controller', 'pp_nftsmc_eso')
     prefix = f'{name}.'
     gains = build(
         GAINS_BY_NAME[name],
         {k[len(prefix) :]: v for k, v in controller_values.items() if k.startswith(prefix)},
     )
-    eso = build(EsoGains, _section(files, 'actuator_eso')) if name != 'pi' else None
+    eso = build(EsoGains, node_section(files, 'actuator_eso')) if name != 'pi' else None
     known = all_scenarios().get(scenario)
     plant = known.plant if known is not None else all_scenarios()['case2_pp_nftsmc_eso'].plant
     delay = JOINT_DELAY_SAMPLES.get(joint, 0)

@@ -144,7 +144,13 @@ def _entities(node) -> dict[str, list[tuple[str, str]]]:
         t = getattr(entity, 'msg_type', None) or getattr(entity, 'srv_type', None)
         return f'{t.__module__.split(".")[0]}/{t.__name__}'
 
+    from rclpy.action import get_action_server_names_and_types_by_node
+
+    actions = get_action_server_names_and_types_by_node(
+        node, node.get_name(), node.get_namespace()
+    )  # the node's own, in its local graph at once
     return {
+        'action servers': sorted((n, t[0].replace('/action/', '/')) for n, t in actions),
         'publishes': sorted(
             (e.topic_name, kind(e)) for e in node.publishers if e.topic_name != '/parameter_events'
         ),
@@ -199,6 +205,10 @@ def render_nodes_and_topics() -> tuple[str, str]:
         for title, module, cls in NODES:
             with _configured(module, cls) as node:
                 found[title] = (node.get_name(), _entities(node))
+                goals = getattr(getattr(node, 'goals', None), 'node', None)
+                if goals is not None:  # the controller's goal interface: a node of its own
+                    section = f"{title.split(' (')[0]}'s goal interface (a node in its process)"
+                    found[section] = (goals.get_name(), _entities(goals))
         return found
 
     found = _with_rclpy(build)
@@ -218,7 +228,7 @@ def render_nodes_and_topics() -> tuple[str, str]:
         for kind, rows in entities.items():
             for entity, type_name in rows:
                 nodes.append(f'| {kind} | `{entity}` | `{type_name}` |')
-                if kind != 'services':
+                if kind in ('publishes', 'subscribes'):
                     entry = topics.setdefault(entity, {'type': type_name, 'by': {}})
                     entry['by'].setdefault(kind, []).append(f'`{name}`')
     lines = [

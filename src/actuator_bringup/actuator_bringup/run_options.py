@@ -14,12 +14,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Optional
+from typing import Any, Optional, Sequence
 
 import yaml
 
 from actuator_core import limits
 from actuator_core.loop_params import MODES
+from actuator_sim.params_yaml import node_parameters
 from actuator_bringup.run_description import JOINTS, LIVE_DIAGNOSTICS_RATE_HZ, MAX_JOINTS_ON_BUS
 
 #: The executors a node can run (actuator_ros.runner).
@@ -236,12 +237,13 @@ def parse(option: RunOption, text: Any, label: str = '') -> Any:
     return value
 
 
-def check_parameter_files(paths: tuple, node_names: set[str]) -> None:
+def check_parameter_files(paths: tuple, node_names: Optional[set[str]]) -> None:
     """Refuse a parameter file that is missing, is not one, or has a section for no node here.
 
-    ``node_names``: the run's nodes, each by its name and its fully qualified name. A section is
-    a node name, a fully qualified one, or ``/**``; its parameters are the node's own to judge
-    (each node refuses a name it does not have when it configures).
+    ``node_names``: the run's nodes, each by its name and its fully qualified name (None: the
+    files' form only). A section is a node name, a fully qualified one, or ``/**``; its
+    parameters are the node's own to judge (each node refuses a name it does not have when it
+    configures).
     """
     for path in paths:
         file = Path(path)
@@ -258,6 +260,8 @@ def check_parameter_files(paths: tuple, node_names: set[str]) -> None:
             raise OptionError(
                 f'params_file {path}: not a ROS 2 parameter file (node: {{ros__parameters: ...}})'
             )
+        if node_names is None:
+            continue
         unknown = sorted(str(s) for s in sections if s not in node_names and s != '/**')
         if unknown:
             raise OptionError(
@@ -293,6 +297,37 @@ def eds_parameters(joint: str, eds_file: str) -> dict:
     if eds_file and not Path(eds_file).is_file():
         raise OptionError(f'eds_file {eds_file}: no such file')
     return {'eds_file': str(Path(eds_file).resolve())} if eds_file else {}
+
+
+def node_section(files: Sequence[Path], node: str) -> dict:
+    """Return what parameter ``files`` give ``node`` by dotted names, later files first.
+
+    '/**' then the node's own section, as rcl applies them.
+    """
+    values: dict = {}
+    for path in files:
+        values.update(node_parameters(Path(path), node))
+    return values
+
+
+def joint_overrides(joint: str, eds_file: str, files: Sequence[Path]) -> dict:
+    """Return the joint's parameters the run passes it: the EDS file, and a driver's own.
+
+    For a CiA 402 driver, what the user's parameter ``files`` give it (of '/**' the names it
+    has, its own section whole), so the checks before start (a real drive's reaction values)
+    judge the values it will run with; ``eds_file`` over the files' one. The files' form is
+    checked first (one line).
+    """
+    if joint not in ('cia402_sim', 'cia402'):
+        return eds_parameters(joint, eds_file)
+    check_parameter_files(tuple(files), None)
+    from actuator_cia402.launch_spec import DRIVER_NODE_NAME, known_names
+
+    known = known_names()
+    given = {k: v for k, v in node_section(files, '/**').items() if k in known}
+    for path in files:
+        given.update(node_parameters(Path(path), DRIVER_NODE_NAME, shared=False))
+    return {**given, **eds_parameters(joint, eds_file or str(given.get('eds_file', '')))}
 
 
 def default_for(option: RunOption) -> Optional[str]:

@@ -41,7 +41,7 @@ from actuator_bringup.run_options import (
     RUN_OPTIONS,
     OptionError,
     check_parameter_files,
-    eds_parameters,
+    joint_overrides,
     node_names,
     parse,
 )
@@ -133,22 +133,25 @@ def run_closed_loop(
     name = f'{scenario}_{mode}_{stamp}'
     run_dir = results_root / name
     bag = bag_root / name if record else None
-    specs = closed_loop(
-        mode,
-        duration_s,
-        record=record,
-        bag=bag,
-        joint=joint,
-        thread_priority=thread_priority,
-        cpus=cpus,
-        executor=executor,
-        logs=run_dir,
-        joint_parameters=joint_parameters,
-        live_view=live_view,
-        live_view_parameters=live_view_parameters,
-        diagnostics_rate_hz=diagnostics_rate_hz,
-        joints=joints,
-    )
+    try:
+        specs = closed_loop(
+            mode,
+            duration_s,
+            record=record,
+            bag=bag,
+            joint=joint,
+            thread_priority=thread_priority,
+            cpus=cpus,
+            executor=executor,
+            logs=run_dir,
+            joint_parameters=joint_parameters,
+            live_view=live_view,
+            live_view_parameters=live_view_parameters,
+            diagnostics_rate_hz=diagnostics_rate_hz,
+            joints=joints,
+        )
+    except ValueError as exc:  # a joint's parameters refused before start (launch_spec)
+        raise SystemExit(f'bringup: {exc}') from None
     if composed:
         specs = compose(specs, record_in_process)
     try:
@@ -380,7 +383,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             for o in RUN_OPTIONS
             if o.runner
         }
-        joint_parameters = eds_parameters(args['joint'], args['eds_file'])
+        joint_parameters = joint_overrides(
+            args['joint'], args['eds_file'], [Path(f) for f in args['params_file']]
+        )
     except OptionError as exc:
         parser.error(str(exc))
     if args['joints'] > 1 and args['joint'] not in ('cia402_sim', 'cia402'):

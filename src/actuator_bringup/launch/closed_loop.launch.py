@@ -53,7 +53,7 @@ from actuator_bringup.run_options import (
     OptionError,
     check_parameter_files,
     default_for,
-    eds_parameters,
+    joint_overrides,
     node_names,
     parse,
 )
@@ -117,25 +117,27 @@ def _processes(context):
         raise RuntimeError(f'no scenario {scenario!r}: {params} does not exist')
     rate = options['diagnostics_rate_hz']
     try:
-        joint_parameters = eds_parameters(joint, options['eds_file'])
-    except OptionError as exc:
+        joint_parameters = joint_overrides(
+            joint, options['eds_file'], [Path(f).resolve() for f in options['params_file']]
+        )
+        specs = closed_loop(
+            options['mode'],
+            options['duration'],
+            record=options['record'],
+            bag=options['bag'] or None,
+            joint=joint,
+            thread_priority=options['thread_priority'],
+            cpus=PINNING if options['pin'] else None,
+            executor=options['executor'],
+            logs=Path(options['logs']) if options['logs'] else None,
+            joint_parameters=joint_parameters,
+            autostart=options['autostart'],
+            live_view=options['live_view'],
+            diagnostics_rate_hz=None if rate != rate else rate,
+            joints=options['joints'],
+        )
+    except (OptionError, ValueError) as exc:
         raise RuntimeError(str(exc)) from None
-    specs = closed_loop(
-        options['mode'],
-        options['duration'],
-        record=options['record'],
-        bag=options['bag'] or None,
-        joint=joint,
-        thread_priority=options['thread_priority'],
-        cpus=PINNING if options['pin'] else None,
-        executor=options['executor'],
-        logs=Path(options['logs']) if options['logs'] else None,
-        joint_parameters=joint_parameters,
-        autostart=options['autostart'],
-        live_view=options['live_view'],
-        diagnostics_rate_hz=None if rate != rate else rate,
-        joints=options['joints'],
-    )
     if options['composed']:
         specs = compose(specs, options['record_in_process'])
     elif options['record_in_process']:

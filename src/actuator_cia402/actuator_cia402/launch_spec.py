@@ -112,15 +112,28 @@ NODE_PARAMETERS = {
 }
 
 
-def _check(params: dict[str, Any]) -> None:
-    """Build DriverParameters and JointSettings from the flat names, so a refusal fails here."""
+def _names() -> tuple[set[str], set[str]]:
+    """Return (the drive's parameter names, the joint node's common ones)."""
     from actuator_core.joint import JointSettings
 
     drive_names = {f.name for f in dataclasses.fields(DriverParameters)} - {
         'sync_period_s',
         'current_limit_a',
     }
-    common_names = {f.name for f in dataclasses.fields(JointSettings)}
+    return drive_names, {f.name for f in dataclasses.fields(JointSettings)}
+
+
+def known_names() -> set[str]:
+    """Return every parameter name the driver node declares (its drive's, common, node's)."""
+    drive_names, common_names = _names()
+    return drive_names | common_names | NODE_PARAMETERS
+
+
+def _check(params: dict[str, Any]) -> None:
+    """Build DriverParameters and JointSettings from the flat names, so a refusal fails here."""
+    from actuator_core.joint import JointSettings
+
+    drive_names, common_names = _names()
     unknown = sorted(set(params) - drive_names - common_names - NODE_PARAMETERS)
     if unknown:
         raise ValueError(f'unknown driver parameter(s): {", ".join(unknown)}')

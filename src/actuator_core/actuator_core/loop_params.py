@@ -24,7 +24,7 @@ MODES = ('realtime', 'sim')
 _SHARED: dict[str, dict[str, Any]] = {
     'mode': dict(
         default='realtime',
-        description="realtime: wall-clock 1 kHz, best-effort streams; sim: lockstep on the "
+        description='realtime: wall-clock 1 kHz, best-effort streams; sim: lockstep on the '
         "joint's /clock, reliable streams",
         choices=MODES,
     ),
@@ -38,7 +38,7 @@ _SHARED: dict[str, dict[str, Any]] = {
     ),
     'current_limit_a': dict(
         default=limits.CURRENT_LIMIT_A,
-        description='the loop\'s current limit: the law commands within +-this, the observer '
+        description="the loop's current limit: the law commands within +-this, the observer "
         'and the joint refuse a command beyond it',
         unit='A',
         low=limits.CURRENT_LIMIT_RANGE_A[0],
@@ -56,8 +56,8 @@ _SHARED: dict[str, dict[str, Any]] = {
     ),
     'theta1n': dict(
         default=limits.THETA1N,
-        description='theta_1n = k_tn/(J_n N), eq. (3): the nominal model\'s current-to-'
-        'acceleration gain (the observer\'s b0)',
+        description="theta_1n = k_tn/(J_n N), eq. (3): the nominal model's current-to-"
+        "acceleration gain (the observer's b0)",
         unit='rad/s^2/A',
         low=0.0,
         high=1.0e6,
@@ -93,7 +93,7 @@ _SHARED: dict[str, dict[str, Any]] = {
     ),
     'theta2n': dict(
         default=limits.THETA2N,
-        description='theta_2n = -k_bn/J_n, eq. (3): the nominal model\'s viscous term',
+        description="theta_2n = -k_bn/J_n, eq. (3): the nominal model's viscous term",
         unit='1/s',
         low=-1.0e4,
         high=1.0e4,

@@ -70,15 +70,16 @@ def scenario_parameters(scenario: Scenario) -> dict:
     }
 
 
-def node_parameters(path: Path, node_name: str) -> dict:
+def node_parameters(path: Path, node_name: str, shared: bool = True) -> dict:
     """Return what a ROS 2 parameter file gives ``node_name``: '/**', then its own section.
 
-    Nested entries by their dotted names (``pp_nftsmc_eso.k0_per_s``), as a node declares them.
+    Nested entries by their dotted names (``pp_nftsmc_eso.k0_per_s``), as a node declares them;
+    ``shared`` False leaves '/**' out.
     """
     with open(path) as f:
         data = yaml.safe_load(f) or {}
     out: dict = {}
-    for key in ('/**', node_name, f'/{node_name}'):
+    for key in (('/**',) if shared else ()) + (node_name, f'/{node_name}'):
         section = data.get(key) or {}
         out.update(dotted(section.get('ros__parameters') or {}))
     return out
