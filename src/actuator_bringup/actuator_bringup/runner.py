@@ -102,6 +102,7 @@ def run_closed_loop(
     diagnostics_rate_hz: float | None = None,
     joints: int = 1,
     record_in_process: bool = False,
+    joint_params_files: Sequence[Path] = (),
 ) -> RunResult:
     """Start the nodes of ``scenario`` in ``mode``, run to the end, stop everything.
 
@@ -112,7 +113,8 @@ def run_closed_loop(
     (composition.compose).
     ``diagnostics_rate_hz``: controller/state and plant/truth; ``joints``: CiA 402 drives on
     one bus, each loop under its namespace (graph.closed_loop). ``record_in_process``: the
-    composed loop's process writes the bag itself (composition.compose).
+    composed loop's process writes the bag itself (composition.compose). ``joint_params_files``:
+    parameter files for the joint's process (plant or driver), loaded after the scenario's.
     """
     if duration_s is None:
         duration_s = scenario_duration(scenario)
@@ -151,7 +153,9 @@ def run_closed_loop(
     codes: dict = {}
     try:
         for spec in specs:
-            extra = _extra_arguments(spec, extra_params)
+            extra = _extra_arguments(spec, extra_params) + _joint_arguments(
+                spec, joint_params_files
+            )
             args = ros_arguments(spec, params, run_dir)
             procs[spec.key] = RosProcess.installed(
                 spec.package, spec.executable, args + extra, log_dir=run_dir, name=spec.key
@@ -204,6 +208,14 @@ def _extra_arguments(spec, extra_params: Sequence[str]) -> list[str]:
         else:
             out.append(arg)
     return out
+
+
+def _joint_arguments(spec, files: Sequence[Path]) -> list[str]:
+    """``--params-file`` of each joint parameter file, for the process that holds the joint."""
+    kinds = {node_kind(spec), *(node_kind(m) for m in spec.members)}
+    if not kinds & {'plant', 'driver'}:
+        return []
+    return [a for f in files for a in ('--params-file', str(Path(f).resolve()))]
 
 
 def run_launched(
@@ -385,6 +397,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         "scenario's (e.g. share/actuator_studies/config/pp_nftsmc_eso_designed.yaml); repeatable",
     )
     parser.add_argument(
+        '--joint-params-file',
+        type=Path,
+        action='append',
+        default=[],
+        metavar='YAML',
+        help='a ROS 2 parameter file for the joint (plant or driver), loaded after the '
+        "scenario's: e.g. a simulated joint's parameters (actuator_plant: nominal.*, seal.*, "
+        'encoder.*); repeatable',
+    )
+    parser.add_argument(
         '--live-view',
         action='store_true',
         help='also serve the loop to Foxglove (live_view on ws://127.0.0.1:8765; README)',
@@ -429,9 +451,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             file=sys.stderr,
             flush=True,
         )
-    for path in args.params_file:
-        if not path.is_file():
-            parser.error(f'--params-file {path}: no such file')
+    for option, paths in (
+        ('--params-file', args.params_file),
+        ('--joint-params-file', args.joint_params_file),
+    ):
+        for path in paths:
+            if not path.is_file():
+                parser.error(f'{option} {path}: no such file')
     if args.scenario is None:
         args.scenario = default_scenario(args.joint)
     duration = args.duration if args.duration is not None else scenario_duration(args.scenario)
@@ -451,6 +477,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         diagnostics_rate_hz=args.diagnostics_rate,
         joints=args.joints,
         record_in_process=args.record_in_process,
+        joint_params_files=args.joint_params_file,
     )
     print(
         json.dumps(

@@ -49,6 +49,7 @@ from actuator_bringup.run_description import (
     PINNING,
     closed_loop,
     default_scenario,
+    node_kind,
     ros_arguments,
 )
 from actuator_bringup.composition import compose
@@ -138,6 +139,11 @@ def _processes(context):
     composed = _flag(context, 'composed')
     rate = LaunchConfiguration('diagnostics_rate_hz').perform(context)
     joints = int(LaunchConfiguration('joints').perform(context))
+    # parameter files for the ESO and the controller after the scenario's (bringup --params-file)
+    extra = [f for f in LaunchConfiguration('params_file').perform(context).split(',') if f]
+    for path in extra:
+        if not os.path.isfile(path):
+            raise RuntimeError(f'params_file: {path} does not exist')
     specs = closed_loop(
         mode,
         duration,
@@ -169,6 +175,8 @@ def _processes(context):
             continue
         if spec.members:  # the container: per-node parameters as node:name:=value
             arguments = ros_arguments(spec, Path(params))
+            for path in extra:  # rcl applies each file's sections to the nodes they name
+                arguments += ['--params-file', path]
             split = arguments.index('--ros-args')
             action = Node(  # no name=: a __node remap would rename every node of the process
                 package=spec.package,
@@ -194,7 +202,9 @@ def _processes(context):
             executable=spec.executable,
             name=spec.name,
             namespace=spec.namespace,
-            parameters=from_file + [spec.parameters],
+            parameters=from_file
+            + (extra if node_kind(spec) in ('controller', 'eso') else [])
+            + [spec.parameters],
             output='screen',
         )
         action = LifecycleNode(**common) if spec.managed else Node(**common)
@@ -295,6 +305,13 @@ def generate_launch_description():
                 description='rate of controller/state and plant/truth [Hz] (0: every sample; '
                 f'empty: every sample when recording or in sim, {LIVE_DIAGNOSTICS_RATE_HZ:g} Hz '
                 'otherwise)',
+            ),
+            DeclareLaunchArgument(
+                'params_file',
+                default_value='',
+                description='parameter files for the ESO and the controller, loaded after the '
+                "scenario's, comma-separated (e.g. bag_identify --params FILE; as bringup "
+                '--params-file)',
             ),
             DeclareLaunchArgument(
                 'thread_priority',

@@ -85,7 +85,12 @@ class ControllerNode(ControllerReport, ManagedNode):
         """Law, reference, assembly, stamp checks, topics and the watchdog."""
         self.period_ns = period_ns(self.params.common.dt_s)
         law = make_controller(self.params.name, self.params.gains, self.params.common)
-        reference = make_reference(self.params.kind, self.params.amplitude, self.params.frequency)
+        reference = make_reference(
+            self.params.kind,
+            self.params.amplitude,
+            self.params.frequency,
+            excitation=self.params.excitation,
+        )
         self.assembly = ControlSampleAssembly(
             law,
             reference,

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from actuator_core import limits
+from actuator_controller.excitation import ExcitationReference
 from actuator_controller.laws import CONTROLLER_NAMES, GAINS_BY_NAME, CommonConfig
 from actuator_controller.reference import REFERENCE_KINDS, SineReference, StepReference
 from actuator_ros.parameters import (
@@ -44,6 +45,7 @@ class ControllerParameters:
     joint_name: str  #: the joint's name in joint_states
     timing_log: str  #: per-update timing (.npz) path, '' for none
     state_rate_hz: float  #: rate of controller/state, 0: every sample
+    excitation: ExcitationReference = ExcitationReference()  #: the excitation reference's shape
 
 
 def declare_controller_parameters(node) -> ControllerParameters:
@@ -96,6 +98,7 @@ def declare_controller_parameters(node) -> ControllerParameters:
         'rad/s',
         'sine angular frequency',
     )
+    excitation = declare_spec_parameters(node, ExcitationReference, prefix='excitation.')
     measurement_timeout_ns = int(
         1e9
         * declare_number(
@@ -184,4 +187,5 @@ def declare_controller_parameters(node) -> ControllerParameters:
         joint_name=joint_name,
         timing_log=timing_log,
         state_rate_hz=state_rate_hz,
+        excitation=excitation,
     )

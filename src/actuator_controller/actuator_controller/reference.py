@@ -3,7 +3,8 @@
 
 """Reference trajectories with analytic derivatives.
 
-The paper's slow and fast ones, step and sine.
+The paper's slow and fast ones, step and sine, and the identification run's excitation
+(``actuator_controller.excitation``).
 """
 
 from __future__ import annotations
@@ -98,16 +99,20 @@ class SineReference:
 
 
 #: The reference trajectories ``make_reference`` builds, by name.
-REFERENCE_KINDS = ('slow', 'fast', 'step', 'sine')
+REFERENCE_KINDS = ('slow', 'fast', 'step', 'sine', 'excitation')
 
 
 def make_reference(
-    kind: str, amplitude_rad: float | None = None, frequency_rad_s: float | None = None
+    kind: str,
+    amplitude_rad: float | None = None,
+    frequency_rad_s: float | None = None,
+    excitation=None,
 ) -> Reference:
     """Build a reference by name.
 
-    'slow', 'fast', 'step' or 'sine'; an amplitude or frequency given overrides the dataclass's
-    default (one source: the node's parameters default to them too).
+    'slow', 'fast', 'step', 'sine' or 'excitation'; an amplitude or frequency given overrides the
+    dataclass's default (one source: the node's parameters default to them too); ``excitation``
+    (an ExcitationReference) replaces the excitation's defaults.
     """
     amplitude = {} if amplitude_rad is None else {'amplitude_rad': amplitude_rad}
     frequency = {} if frequency_rad_s is None else {'frequency_rad_s': frequency_rad_s}
@@ -119,6 +124,10 @@ def make_reference(
         ref = StepReference(**amplitude)
     elif kind == 'sine':
         ref = SineReference(**amplitude, **frequency)
+    elif kind == 'excitation':
+        from actuator_controller.excitation import ExcitationReference
+
+        ref = excitation if excitation is not None else ExcitationReference()
     else:
         raise ValueError(f'reference must be one of {", ".join(REFERENCE_KINDS)}, got {kind!r}')
     return ref
