@@ -199,6 +199,11 @@ def _filter(dt_s: float, cutoff_hz: float):
     return signal.butter(FILTER_ORDER, cutoff_hz, fs=1.0 / dt_s, output='sos')
 
 
+def lowpass(x: np.ndarray, dt_s: float, cutoff_hz: float = FILTER_CUTOFF_HZ) -> np.ndarray:
+    """Zero-phase low-pass of the estimator (Butterworth, forward and backward)."""
+    return signal.sosfiltfilt(_filter(dt_s, cutoff_hz), x)
+
+
 def check_records(records: list[Record]) -> None:
     """Refuse records with non-finite samples or a sample time that differs between them."""
     if not records:
