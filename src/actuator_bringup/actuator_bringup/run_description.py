@@ -272,7 +272,6 @@ def closed_loop(
                     'truth_rate_hz': float(diagnostics_rate_hz),
                     **settings('joint', joint_priority),
                     **logged(('timing_log', 'plant_samples.npz')),
-                    **(joint_parameters or {}),
                 },
                 leader=True,
             )
