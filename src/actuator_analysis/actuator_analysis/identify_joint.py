@@ -138,7 +138,8 @@ def check_theta1(fit: idf.Fit) -> None:
         raise idf.RefusedData(
             f'theta1 is not determined: {theta1:.4g} +- {100 * half / theta1:.0f} % (95 %), more '
             f"than +-{100 * idf.MAX_THETA1_HALF_WIDTH:g} %: the run does not excite the joint's "
-            'acceleration enough; record the excitation scenario'
+            'acceleration enough, or the joint changes during the run (its blocks disagree: a '
+            'drifting theta1, a varying load); record the excitation scenario on a steady joint'
         )
 
 
