@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Optional
 
 import numpy as np
@@ -118,3 +119,111 @@ def synthetic_joint(
         command[k] = current
     at_limit = np.abs(held) >= current_limit_a
     return JointRun(measured, held, command, truth, at_limit)
+
+
+#: The topics an identification bag may hold: kind -> (topic, type).
+BAG_TOPICS = {
+    'joint': ('/joint_states', 'sensor_msgs/msg/JointState'),
+    'truth': ('/plant/truth', 'actuator_msgs/msg/PlantTruth'),
+    'state': ('/controller/state', 'actuator_msgs/msg/ControllerState'),
+    'command': ('/current_command', 'actuator_msgs/msg/CurrentCommand'),
+    'estimate': ('/eso/estimate', 'actuator_msgs/msg/StateEstimate'),
+}
+#: k_t N the synthetic joint reports its effort with [N m/A], and the observer's theta1n.
+TORQUE_PER_AMP, OBSERVER_THETA1N = 10.5, 31.4
+
+
+def _messages(run: JointRun, store, kinds):
+    """(kind, log time, message) per sample, stamps on a sim clock from 0."""
+    types = store.types
+    time_t, header_t = types['builtin_interfaces/msg/Time'], types['std_msgs/msg/Header']
+    nan = float('nan')
+    for k in range(len(run.position_rad)):
+        ns = k * 1_000_000
+        stamp = time_t(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+        header = header_t(stamp=stamp, frame_id='')
+        y, held, cmd = run.position_rad[k], run.current_held_a[k], run.command_a[k]
+        if 'joint' in kinds:
+            yield 'joint', ns + 10_000, types['sensor_msgs/msg/JointState'](
+                header=header, name=['joint'], position=np.array([y]), velocity=np.empty(0),
+                effort=np.array([TORQUE_PER_AMP * held]),
+            )  # fmt: skip
+        if 'truth' in kinds:
+            fields = dict.fromkeys(
+                ('position_rad', 'velocity_rad_s', 'acceleration_rad_s2', 'disturbance_rad_s2',
+                 'parametric_rad_s2', 'stirring_rad_s2', 'external_rad_s2', 'seal_rad_s2',
+                 'stirring_torque_nm', 'external_torque_nm', 'seal_torque_nm', 'inertia_kg_m2',
+                 'torque_constant_nm_a', 'viscous_coefficient_nm_s_rad', 'viscosity_pa_s',
+                 'pressure_pa', 'temperature_degc'),
+                0.0,
+            )  # fmt: skip
+            yield (
+                'truth',
+                ns + 20_000,
+                types['actuator_msgs/msg/PlantTruth'](
+                    header=header, current_a=held, brake_engaged=False, **fields
+                ),
+            )
+        if 'command' in kinds:
+            yield (
+                'command',
+                ns + 30_000,
+                types['actuator_msgs/msg/CurrentCommand'](
+                    header=header, current_a=cmd, safe_stop=False
+                ),
+            )
+        if 'estimate' in kinds:
+            yield 'estimate', ns + 40_000, types['actuator_msgs/msg/StateEstimate'](
+                header=header, position_rad=y, velocity_rad_s=0.0, disturbance_rad_s2=0.0,
+                input_stamp=stamp, input_position_rad=y, input_current_a=held,
+                input_current_gain=DT_S * OBSERVER_THETA1N, initial=k == 0,
+                current_substituted=False, missing_current_count=0,
+            )  # fmt: skip
+        if 'state' in kinds:
+            terms = dict.fromkeys(
+                ('reference_position_rad', 'reference_velocity_rad_s',
+                 'reference_acceleration_rad_s2', 'estimated_velocity_rad_s',
+                 'estimated_disturbance_rad_s2', 'error_rad', 'rho_rad', 'lower_bound_rad',
+                 'upper_bound_rad', 'z1', 'z2_rad_s', 'alpha_rad_s', 'alpha_dot_rad_s2',
+                 'sigma_rad_s', 'u_eq_rad_s2', 'u_sw_rad_s2', 'u_b_rad_s2', 'proportional_a',
+                 'integral_a'),
+                nan,
+            )  # fmt: skip
+            yield 'state', ns + 50_000, types['actuator_msgs/msg/ControllerState'](
+                header=header, controller_name='pd', measured_position_rad=y,
+                bounds_kept=True, current_unlimited_a=cmd, current_a=cmd,
+                saturated=bool(abs(cmd) >= 20.0), status=0, compute_time_s=1e-5,
+                late_samples=0, missed_samples=0, **terms,
+            )  # fmt: skip
+
+
+def write_identification_bag(
+    path: Path, run: JointRun, style: str = 'project', kinds=tuple(BAG_TOPICS)
+) -> Path:
+    """Write ``run`` as this project's recorder ('project') or ``ros2 bag record`` ('rosbag2')."""
+    from actuator_bag.bag_format import BagWriter, QosProfile, topic_spec
+    from bag_helpers import SOURCE
+
+    store = SOURCE.typestore([BAG_TOPICS[k][1] for k in kinds])
+    messages = sorted(_messages(run, store, kinds), key=lambda m: m[1])
+    if style == 'project':
+        with BagWriter(path) as writer:
+            handles = {
+                k: writer.add_topic(topic_spec(*BAG_TOPICS[k], SOURCE, [QosProfile(depth=100)]))
+                for k in kinds
+            }
+            for kind, log_ns, msg in messages:
+                writer.write(
+                    handles[kind], log_ns, bytes(store.serialize_cdr(msg, BAG_TOPICS[kind][1]))
+                )
+        return path
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    wall = 1_800_000_000_000_000_000  # ros2 bag record logs on the wall clock
+    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        conns = {k: writer.add_connection(*BAG_TOPICS[k], typestore=store) for k in kinds}
+        for kind, log_ns, msg in messages:
+            writer.write(
+                conns[kind], wall + log_ns, bytes(store.serialize_cdr(msg, BAG_TOPICS[kind][1]))
+            )
+    return path
