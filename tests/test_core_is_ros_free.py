@@ -22,6 +22,11 @@ ROS_FREE_MODULES = (
     'actuator_controller.laws',
     'actuator_controller.ppf',
     'actuator_controller.reference',
+    'actuator_controller.excitation',
+    'actuator_analysis.identify',
+    'actuator_analysis.identify_heldout',
+    'actuator_analysis.identify_joint',
+    'actuator_analysis.mismatch',
     'actuator_bench.host_stalls',
 )
 

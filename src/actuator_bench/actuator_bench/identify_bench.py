@@ -60,6 +60,10 @@ TEMPERATURE_C = 2.0
 #: Done-when targets.
 TARGET_MEDIAN_ERROR, TARGET_WORST_ERROR = 0.05, 0.10
 TARGET_COVERAGE, TARGET_TRACKING_RATIO = 0.90, 1.2
+#: Runs of a draw's excitation before it counts as failed.
+RUN_ATTEMPTS = 2
+#: The file in a draw's folder that names the bag of its successful run.
+RECORDED = 'recorded.txt'
 #: The paper's fast case as the tracking test: reference, duration [s].
 TRACKING_REFERENCE, TRACKING_DURATION_S = 'fast', 10.0
 
@@ -144,27 +148,45 @@ def draw_joints(count: int, seed: int) -> list[Draw]:
     ]
 
 
-def record(draw: Draw, out: Path, duration_s: Optional[float]) -> Path:
-    """Run the excitation scenario on the draw's joint through the nodes (sim time); its bag."""
+def record(draw: Draw, out: Path, duration_s: Optional[float], resume: bool = False) -> Path:
+    """Run the excitation scenario on the draw's joint through the nodes (sim time); its bag.
+
+    ``resume``: the bag of an earlier successful run for the same joint file (named in the
+    draw's ``RECORDED`` file) is used as it is.
+    A run that fails (a node's exit code, the runner's time limit: a lockstep whose nodes lost
+    each other on a loaded host) is run again, up to ``RUN_ATTEMPTS`` in all.
+    """
     from actuator_bringup.runner import run_closed_loop
 
     folder = out / f'draw_{draw.index:03d}'
     folder.mkdir(parents=True, exist_ok=True)
     joint = folder / 'joint.yaml'
-    joint.write_text(yaml.safe_dump(draw.joint_file(), sort_keys=False))
-    result = run_closed_loop(
-        'excitation',
-        'sim',
-        duration_s,
-        record=True,
-        bag_root=folder / 'bags',
-        results_root=folder / 'runs',
-        quiet=True,
-        joint_params_files=[joint],
-    )
-    if any(code != 0 for code in result.exit_codes.values()):
-        raise RuntimeError(f'node exit codes {result.exit_codes}; logs in {result.run_dir}')
-    return result.bag
+    text = yaml.safe_dump(draw.joint_file(), sort_keys=False)
+    marker = folder / RECORDED
+    if resume and marker.is_file() and joint.is_file() and joint.read_text() == text:
+        return Path(marker.read_text().strip())
+    joint.write_text(text)
+    failures = []
+    for _ in range(RUN_ATTEMPTS):
+        try:
+            result = run_closed_loop(
+                'excitation',
+                'sim',
+                duration_s,
+                record=True,
+                bag_root=folder / 'bags',
+                results_root=folder / 'runs',
+                quiet=True,
+                joint_params_files=[joint],
+            )
+        except SystemExit as stop:  # the runner's refusals and its time limit
+            failures.append(str(stop))
+            continue
+        if all(code == 0 for code in result.exit_codes.values()):
+            marker.write_text(f'{result.bag}\n')
+            return result.bag
+        failures.append(f'node exit codes {result.exit_codes}; logs in {result.run_dir}')
+    raise RuntimeError('; '.join(failures))
 
 
 def identify_bag(bag: Path):
@@ -295,7 +317,14 @@ def table(rows: list[dict]) -> str:
     return tabulate(lines, headers=headers, disable_numparse=True)
 
 
-def run_benchmark(count: int, seed: int, out: Path, duration_s: Optional[float], log=print):
+def run_benchmark(
+    count: int,
+    seed: int,
+    out: Path,
+    duration_s: Optional[float],
+    resume: bool = False,
+    log=print,
+):
     """Record, identify and track every draw; write results.json and table.txt into ``out``."""
     draws = draw_joints(count, seed)
     rows = []
@@ -304,7 +333,7 @@ def run_benchmark(count: int, seed: int, out: Path, duration_s: Optional[float],
         t0 = time.monotonic()
         result, error = None, None
         try:
-            result = identify_bag(record(draw, out, duration_s))
+            result = identify_bag(record(draw, out, duration_s, resume))
         except Exception as err:  # noqa: BLE001 - a draw's failure is reported, the rest go on
             error = ' '.join(str(err).split()) or type(err).__name__
         rows.append(_row(draw, result, error))
@@ -314,7 +343,7 @@ def run_benchmark(count: int, seed: int, out: Path, duration_s: Optional[float],
             f'{100 * (r["theta1_interval"][1] - r["theta1"]) / r["truth"]["theta1"]:.3f} %)'
         )
         log(f'identify_bench: draw {draw.index + 1}/{count} in {time.monotonic() - t0:.0f} s: '
-            f'{status}; load {os.getloadavg()[0]:.1f}')  # fmt: skip
+            f'{status}; load {os.getloadavg()[0]:.1f}', flush=True)  # fmt: skip
     ok = [(d, r) for d, r in zip(draws, rows) if r['error'] is None]
     if ok:
         chosen = [d for d, _ in ok]
@@ -360,15 +389,20 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     p.add_argument(
         '--duration', type=float, help="excitation run length [s] (default: the scenario's)"
     )
+    p.add_argument(
+        '--resume',
+        action='store_true',
+        help='use the bags an earlier run left in --out for the same joints (identify again)',
+    )
     a = p.parse_args(argv)
     if a.draws < 1:
         p.error('--draws must be >= 1')
     out = a.out or Path('results/identify_bench') / dt.datetime.now(dt.timezone.utc).strftime(
         '%Y%m%dT%H%M%SZ'
     )
-    if out.exists() and any(out.iterdir()):
-        p.error(f'--out {out} exists and is not empty')
-    rows, summary, text = run_benchmark(a.draws, a.seed, out, a.duration)
+    if out.exists() and any(out.iterdir()) and not a.resume:
+        p.error(f'--out {out} exists and is not empty (--resume uses its bags)')
+    rows, summary, text = run_benchmark(a.draws, a.seed, out, a.duration, a.resume)
     print(text)
     print(json.dumps(summary, indent=1))
     print(f'identify_bench: {out}/results.json, {out}/table.txt')

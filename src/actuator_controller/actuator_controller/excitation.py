@@ -38,8 +38,11 @@ SWEEP_SPEED_FRACTIONS = (0.25, 0.5, 1.0)
 #: Sine components of the multi-sine and how many of its periods a cycle holds.
 MULTISINE_COMPONENTS = 12
 MULTISINE_PERIODS = 2
-#: Points per period of the highest component where the multi-sine's peaks are found.
-PEAK_GRID_PER_PERIOD = 32
+#: Points per period of the highest component where the multi-sine's peaks are found, and the
+#: margin its scale keeps below the bounds: between grid points a peak rises at most by about
+#: (pi / points)^2 / 2 = 3e-4 of itself.
+PEAK_GRID_PER_PERIOD = 128
+PEAK_MARGIN = 1.0e-3
 
 
 def smoothstep(u: float) -> tuple[float, float, float]:
@@ -148,7 +151,7 @@ class ExcitationReference:
             np.max(np.abs(np.cos(arg) @ (amplitude * w))),
             np.max(np.abs(np.sin(arg) @ (amplitude * w * w))),
         ]
-        scale = min(
+        scale = (1.0 - PEAK_MARGIN) * min(
             self.amplitude_rad / peaks[0],
             limits.EXCITATION_VELOCITY_RAD_S / peaks[1],
             self.acceleration_rad_s2 / peaks[2],
