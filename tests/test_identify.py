@@ -57,15 +57,18 @@ def test_the_friction_model_is_the_one_the_data_supports(truth, model):
     """The model of the data is chosen, and its estimates are the truth's.
 
     To a tolerance rather than by the intervals: on these noise-free joints of the model's own
-    family the intervals are 0.01-0.08 % wide, and the Coulomb step at the velocity reversals
-    leaves a bias of 0.02-0.07 % beyond the filter guard (``identify``'s docstring).
+    family the intervals are 0.01-0.3 % wide, and the Coulomb step at the velocity reversals
+    leaves a bias of 0.02-0.07 % in theta1 beyond the filter guard (``identify``'s docstring),
+    0.2-0.3 % in theta2 and the Coulomb friction with Stribeck's term.
     """
     result = identify([synthetic_joint(truth).record()])
     assert result.model == model
     for name in idf.PARAMETERS[model]:
         expected = getattr(truth, name)
         tolerance = 5e-3 if name == 'offset_rad_s2' else 2e-2 * abs(expected)
-        if name in ('theta1', 'theta2', 'coulomb_rad_s2'):
+        if name in ('theta2', 'coulomb_rad_s2'):
+            tolerance = 5e-3 * abs(expected)
+        if name == 'theta1':
             tolerance = 1e-3 * abs(expected)
         assert result.value(name) == pytest.approx(expected, abs=tolerance), name
 
@@ -84,8 +87,8 @@ def test_two_records_identify_as_one(drag_joint):
     ]
     whole, split = identify([rec]), identify(parts)
     assert split.figures['records'] == 2
-    assert _covers(split, 'theta1', drag_joint.truth.theta1)
-    assert abs(split.value('theta1') / whole.value('theta1') - 1.0) < 2e-3
+    assert split.figures['held_out_blocks'] == 2  # one per half: 7 s each, block 3 held out
+    assert abs(split.value('theta1') / whole.value('theta1') - 1.0) < 1e-3
 
 
 def test_theta1_of_the_suites_plant_is_found_despite_its_exponential_seal():

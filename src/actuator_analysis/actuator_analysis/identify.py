@@ -10,7 +10,9 @@ friction per inertia (the motor's k_b/J of eq. (3), the oil's stirring loss of e
 seal's viscous part): from angle and current these cannot be told apart, and the observer and
 the law need their sum. f [rad/s^2] is one of ``FRICTION_MODELS``: Coulomb fc sign(q');
 Stribeck (fc + fs exp(-(q'/vs)^2)) sign(q'); drag fc sign(q') + fd q'|q'| (a friction that grows
-faster than linearly with speed, as an oil-filled seal's). c [rad/s^2] is a constant load. Only
+faster than linearly with speed, as an oil-filled seal's). c(t) [rad/s^2] is the load per inertia,
+let vary slowly with time (``identify_load``: piecewise linear, knots every 0.5 s) and projected
+out of the fit; its mean is reported as the offset c. Only
 these per-inertia figures are identifiable: J and k_t separately are not (scaling both leaves
 every measured signal unchanged), and the observer's b0 = theta1n and the law need no more.
 
@@ -30,13 +32,15 @@ Split: each record is cut into blocks of ``BLOCK_S``; every ``HELD_OUT_EVERY``-t
 out (never fitted), with the training rows within ``GUARD_S`` of it. ``identify_heldout``
 simulates the held-out blocks and compares angle and velocity (r^2, RMS).
 
-Intervals (95 %): the least-squares Jacobian's bread around a meat of the training blocks'
-score sums (cluster-robust with the blocks as clusters, as the filtered residuals are correlated
-within a block), a Student t quantile on (blocks - parameters) degrees of freedom. Friction
-model: the one of lowest BIC, counted on the effective sample count (rows x 2 f_c dt: rows
-closer than half a filter period are not independent), among Coulomb + viscous and the
-candidates whose extra term is significant (its 95 % interval excludes 0; Stribeck's vs inside
-its search range).
+Fit: linear least squares with the load's columns projected out (Frisch-Waugh); Stribeck's vs
+by separable least squares (the linear terms solved for each vs, vs by a bounded search on its
+logarithm). Intervals (95 %): the least-squares Jacobian's bread around a meat of the training
+blocks' score sums (cluster-robust with the blocks as clusters, as the filtered residuals are
+correlated within a block), a Student t quantile on (blocks - parameters) degrees of freedom,
+the load's local weights not counted. Friction model: the one of lowest BIC, counted on the
+effective sample count (rows x 2 f_c dt: rows closer than half a filter period are not
+independent), among Coulomb + viscous and the candidates whose extra term is significant (its
+95 % interval excludes 0; Stribeck's vs inside its search range).
 
 Known limit: on a joint of the model's own family without noise, the Coulomb step at the
 reversals leaves a bias in theta1 of 0.02-0.06 % (the filter's reach outlasts ``GUARD_S``), about
@@ -60,6 +64,8 @@ from dataclasses import dataclass
 import numpy as np
 from actuator_core.identified import FRICTION_MODELS
 from scipy import optimize, signal, stats
+
+from .identify_load import LoadProjection, filtered_hats
 
 #: Zero-phase low-pass of the angle and current before differentiating.
 FILTER_CUTOFF_HZ = 30.0
@@ -151,6 +157,7 @@ class Prepared:
     held_out: np.ndarray  # bool
     sos: np.ndarray
     record_velocity: np.ndarray  # the filtered angle's velocity at every sample of the record
+    load: np.ndarray  # the load's hats at the rows, filtered (identify_load)
 
 
 @dataclass
@@ -165,9 +172,16 @@ class Regressors:
         return np.concatenate([getattr(p, name) for p in self.parts])
 
     def __post_init__(self) -> None:
-        """Stack the columns the fit reads."""
+        """Stack the columns the fit reads; the load's hats block-diagonal (one set per record)."""
         for name in ('velocity', 'acceleration', 'current', 'sign', 'block', 'training'):
             setattr(self, name, self.stack(name))
+        self.load = np.zeros((self.velocity.size, sum(p.load.shape[1] for p in self.parts)))
+        self.load_columns, row, column = [], 0, 0
+        for p in self.parts:
+            rows, columns = p.load.shape
+            self.load[row : row + rows, column : column + columns] = p.load
+            self.load_columns.append(slice(column, column + columns))
+            row, column = row + rows, column + columns
 
 
 @dataclass
@@ -182,6 +196,7 @@ class Fit:
     rows: int
     blocks: int
     bic: float
+    load_weights: np.ndarray  # of every hat of the load c(t) (identify_load)
 
     def as_dict(self) -> dict:
         """Estimates with their 95 % intervals, by name."""
@@ -256,7 +271,7 @@ def prepare(record: Record, sos: np.ndarray, first_block: int = 0) -> Prepared |
     return Prepared(
         record, k, yf[k], vel, acc, cur, sgn, block + first_block,
         ~near_held & ~at_limit & ~near_reversal,
-        held & ~at_limit, sos, vel_all,
+        held & ~at_limit, sos, vel_all, filtered_hats(n, dt, sos, k),
     )  # fmt: skip
 
 
@@ -292,8 +307,8 @@ def _stribeck_shape(velocity_scale: float):
 
 
 def design_matrix(reg: Regressors, model: str, stribeck_velocity: float = 1.0) -> np.ndarray:
-    """Columns multiplying theta1, theta2, fc, c and the model's extra friction term."""
-    cols = [reg.current, reg.velocity, -reg.sign, np.ones_like(reg.current)]
+    """Columns multiplying theta1, theta2, fc and the model's extra friction term (c: the load)."""
+    cols = [reg.current, reg.velocity, -reg.sign]
     if model == 'stribeck':
         cols.append(-_feature(reg, _stribeck_shape(stribeck_velocity)))
     elif model == 'drag':
@@ -303,13 +318,19 @@ def design_matrix(reg: Regressors, model: str, stribeck_velocity: float = 1.0) -
     return np.column_stack(cols)
 
 
-def _covariance(jac: np.ndarray, residual: np.ndarray, blocks: np.ndarray) -> tuple:
-    """Cluster-robust covariance (blocks as clusters) and its t quantile."""
+def _covariance(
+    jac: np.ndarray, residual: np.ndarray, blocks: np.ndarray, dof_parameters: int
+) -> tuple:
+    """Cluster-robust covariance (blocks as clusters) and its t quantile.
+
+    Degrees of freedom: blocks - ``dof_parameters``, the parameters of interest (the load's
+    local weights are nuisance parameters, each of one block or two).
+    """
     bread = np.linalg.pinv(jac.T @ jac)
     ids, where = np.unique(blocks, return_inverse=True)
     scores = np.zeros((len(ids), jac.shape[1]))
     np.add.at(scores, where, jac * residual[:, None])
-    dof = max(len(ids) - jac.shape[1], 1)
+    dof = max(len(ids) - dof_parameters, 1)
     meat = scores.T @ scores * (len(ids) / dof)
     return bread @ meat @ bread, float(stats.t.ppf(0.5 + 0.5 * CONFIDENCE, dof))
 
@@ -320,37 +341,68 @@ def _bic(rss: float, rows: int, parameters: int, dt_s: float, cutoff_hz: float) 
     return n_eff * math.log(rss / rows) + parameters * math.log(n_eff)
 
 
-def _stribeck_estimate(reg: Regressors, y: np.ndarray, rows: np.ndarray, base: np.ndarray):
-    """Nonlinear least squares in (linear terms, log vs): estimate, Jacobian, residual."""
+def _stribeck_estimate(reg: Regressors, y: np.ndarray, rows: np.ndarray, project):
+    """Separable least squares: for each vs the linear terms, vs by a bounded search on log vs.
+
+    The load projected out. Returns (theta1, theta2, fc, fs, vs) and d(model)/d(parameters)
+    at the training rows (unprojected).
+    """
     low, high = STRIBECK_VELOCITY_RAD_S
+    fixed, py = project(design_matrix(reg, 'coulomb_viscous')[rows]), project(y)
 
-    def residual_of(p: np.ndarray) -> np.ndarray:
-        return design_matrix(reg, 'stribeck', math.exp(p[-1]))[rows] @ p[:-1] - y
+    def solve(log_vs: float) -> tuple[float, np.ndarray]:
+        column = project(-_feature(reg, _stribeck_shape(math.exp(log_vs)))[rows])
+        x = np.column_stack((fixed, column))
+        beta = np.linalg.lstsq(x, py, rcond=None)[0]
+        rest = py - x @ beta
+        return float(rest @ rest), beta
 
-    result = optimize.least_squares(
-        residual_of,
-        np.concatenate((base, [0.0, math.log(math.sqrt(low * high))])),
-        bounds=([-np.inf] * 5 + [math.log(low)], [np.inf] * 5 + [math.log(high)]),
-        x_scale='jac',
+    best = optimize.minimize_scalar(
+        lambda z: solve(z)[0],
+        bounds=(math.log(low), math.log(high)),
+        method='bounded',
+        options={'xatol': 1e-4},
     )
-    estimate, jac = result.x.copy(), result.jac.copy()
-    jac[:, -1] /= math.exp(estimate[-1])  # per rad/s of vs, not per unit of log vs
-    estimate[-1] = math.exp(estimate[-1])
-    return estimate, jac, -result.fun
+    vs = math.exp(best.x)
+    estimate = np.append(solve(best.x)[1], vs)
+    x = design_matrix(reg, 'stribeck', vs)[rows]
+    step = 1e-6 * vs
+    slope = (
+        design_matrix(reg, 'stribeck', vs + step)[rows][:, -1]
+        - design_matrix(reg, 'stribeck', vs - step)[rows][:, -1]
+    ) / (2.0 * step)
+    return estimate, np.column_stack((x, estimate[3] * slope))
 
 
 def fit_model(reg: Regressors, model: str, cutoff_hz: float = FILTER_CUTOFF_HZ) -> Fit:
-    """Least squares of one friction model on the training rows, with its intervals."""
+    """Least squares of one friction model on the training rows, with its intervals.
+
+    The load c(t) is projected out (``identify_load``); the estimate vector holds the
+    parameters in ``PARAMETERS`` order, the offset c being the mean of c(t).
+    """
     rows = reg.training
     y = reg.acceleration[rows]
+    project = LoadProjection(reg.load[rows])
     if model == 'stribeck':
-        base = fit_model(reg, 'coulomb_viscous', cutoff_hz).estimate
-        estimate, jac, residual = _stribeck_estimate(reg, y, rows, base)
+        main, jac = _stribeck_estimate(reg, y, rows, project)
+        fitted = design_matrix(reg, model, main[-1])[rows] @ main[:-1]
     else:
         jac = design_matrix(reg, model)[rows]
-        estimate, *_ = np.linalg.lstsq(jac, y, rcond=None)
-        residual = y - jac @ estimate
-    cov, quantile = _covariance(jac, residual, reg.block[rows])
+        main = np.linalg.lstsq(project(jac), project(y), rcond=None)[0]
+        fitted = jac @ main
+    weights = project.weights(y - fitted)
+    basis = project.basis
+    residual = y - fitted - basis @ weights[project.keep]
+    whole = np.column_stack((jac, basis))
+    cov_all, quantile = _covariance(whole, residual, reg.block[rows], dof_parameters=len(main))
+    # (main, w) -> (theta1, theta2, fc, offset = mean c(t) over the training rows, extra...)
+    p = len(main)
+    to_reported = np.zeros((p + 1, whole.shape[1]))
+    to_reported[:3, :3] = np.eye(3)
+    to_reported[3, p:] = basis.mean(axis=0)
+    to_reported[4:, 3:p] = np.eye(p - 3)
+    cov = to_reported @ cov_all @ to_reported.T
+    estimate = to_reported @ np.concatenate((main, weights[project.keep]))
     half = quantile * np.sqrt(np.maximum(np.diag(cov), 0.0))
     rss = float(residual @ residual)
     return Fit(
@@ -361,8 +413,14 @@ def fit_model(reg: Regressors, model: str, cutoff_hz: float = FILTER_CUTOFF_HZ) 
         rss,
         int(y.size),
         len(np.unique(reg.block[rows])),
-        _bic(rss, int(y.size), len(estimate), reg.dt_s, cutoff_hz),
+        _bic(rss, int(y.size), whole.shape[1], reg.dt_s, cutoff_hz),
+        weights,
     )
+
+
+def load_at_rows(reg: Regressors, fit: Fit) -> np.ndarray:
+    """c(t) of a fit at every row (filtered like the columns)."""
+    return reg.load @ fit.load_weights
 
 
 def supported(fit: Fit) -> bool:

@@ -5,7 +5,7 @@
 
 identify_held_out.png: measured and simulated velocity over the first held-out blocks (each
 simulated from its measured start), the residual below. identify_friction.png: what the data
-says the velocity-dependent acceleration is, q'' - theta1 i - c over the training samples
+says the velocity-dependent acceleration is, q'' - theta1 i - c(t) over the training samples
 against q', with the model's theta2 q' - f(q') through it.
 """
 
@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .identify import load_at_rows
 from .identify_heldout import friction, held_out_blocks
 from .identify_joint import Identification
 
@@ -35,7 +36,7 @@ def draw_identification(result: Identification, folder: Path) -> list[Path]:
     dt = reg.dt_s
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(9, 5.5), sharex=True)
     start = 0.0
-    for i, (_, _, measured, simulated) in enumerate(held_out_blocks(reg, model, estimate)):
+    for i, (_, _, measured, simulated) in enumerate(held_out_blocks(reg, result.chosen)):
         if i == BLOCKS_DRAWN:
             break
         t = start + dt * np.arange(measured.size)
@@ -61,10 +62,11 @@ def draw_identification(result: Identification, folder: Path) -> list[Path]:
     rows = np.flatnonzero(reg.training)
     rows = rows[:: max(1, rows.size // POINTS_DRAWN)]
     v = reg.velocity[rows]
-    seen = reg.acceleration[rows] - estimate[0] * reg.current[rows] - estimate[3]
+    load = load_at_rows(reg, result.chosen)[rows]
+    seen = reg.acceleration[rows] - estimate[0] * reg.current[rows] - load
     grid = np.linspace(v.min(), v.max(), 400)
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    ax.plot(v, seen, '.', ms=2, color='0.5', label="q'' - theta1 i - c (training samples)")
+    ax.plot(v, seen, '.', ms=2, color='0.5', label="q'' - theta1 i - c(t) (training samples)")
     ax.plot(grid, estimate[1] * grid - friction(model, estimate, grid), 'C1', lw=1.5,
             label=f"theta2 q' - f(q'), {model}")  # fmt: skip
     ax.set(

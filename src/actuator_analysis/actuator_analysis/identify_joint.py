@@ -157,5 +157,5 @@ def identify(records: list[idf.Record], cutoff_hz: float = idf.FILTER_CUTOFF_HZ)
     chosen = idf.choose_model(fits)
     check_theta1(chosen)
     figures['cutoff_hz'] = cutoff_hz
-    held_out = held_out_fit(reg, chosen.model, chosen.estimate)
+    held_out = held_out_fit(reg, chosen)
     return Identification(chosen, fits, held_out, figures, reg)
