@@ -162,7 +162,8 @@ def test_installed_scenario_files_match_the_scenarios():
     config = Path(get_package_share_directory('actuator_bringup')) / 'config'
     scenarios = all_scenarios()
     assert {p.stem for p in config.glob('*.yaml')} == set(scenarios)
-    assert len(scenarios) == 10  # Case 1's four runs, Case 2's four + SMC as printed, the drive's
+    assert len(scenarios) == 11  # Case 1's four, Case 2's four + SMC as printed, the drive's,
+    # the excitation run
     for name, scenario in scenarios.items():
         assert yaml.safe_load((config / f'{name}.yaml').read_text()) == scenario_parameters(
             scenario

@@ -228,6 +228,26 @@ def test_the_runners_extra_parameters_reach_the_eso_and_the_controllers_only():
     ]
 
 
+def test_the_runners_joint_parameter_files_reach_the_joints_process_only(tmp_path):
+    """--joint-params-file: the plant, a driver, or the container holding the joint; no other."""
+    joint = tmp_path / 'joint.yaml'
+    expected = ['--params-file', str(joint.resolve())]
+    for specs in (
+        closed_loop('sim', 5.0),
+        closed_loop('realtime', 5.0, joint='cia402_sim', joints=2),
+        compose(closed_loop('sim', 5.0)),
+    ):
+        got = {s.key: bringup._joint_arguments(s, [joint]) for s in specs}
+        holders = {
+            s.key
+            for s in specs
+            if s.key.rstrip('0123456789') in ('plant', 'driver')
+            or any(m.key in ('plant', 'driver') for m in s.members)
+        }
+        assert holders and {k for k, v in got.items() if v} == holders
+        assert all(got[k] == expected for k in holders)
+
+
 @pytest.mark.parametrize('mode, nice', [('realtime', RECORDER_NICE), ('sim', None)])
 def test_the_recorder_yields_the_cpu_to_the_loop_in_real_time_only(mode, nice):
     """Real time: the recorder's process at RECORDER_NICE, on its command line; no loop node is."""
