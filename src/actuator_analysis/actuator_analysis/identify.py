@@ -46,8 +46,9 @@ Known limit: on a joint of the model's own family without noise, the Coulomb ste
 reversals leaves a bias in theta1 of 0.02-0.06 % (the filter's reach outlasts ``GUARD_S``), about
 the width of such a joint's interval; a longer guard removes it there but, on the suite's plant
 (seal friction growing exponentially, eq. (42)), leaves the sweeps' friction to pull theta1 by
-0.2-0.4 %, far outside the intervals (measured over 40 drawn joints: ``GUARD_S`` 0.03 s covered
-theta1 in all, 0.06 s in 2). The guard is the one that serves the plant.
+0.2-0.4 %, far outside the intervals (measured over 40 offline-drawn joints with the load held
+constant: ``GUARD_S`` 0.03 s covered theta1 in all, 0.06 s in 2; with the load c(t) and 0.03 s,
+again in all 40). The guard is the one that serves the plant.
 
 Refusals (``RefusedData``, one line with the reason; ``identify_joint`` runs them): non-finite
 samples, too little data, the current at its limit in more than

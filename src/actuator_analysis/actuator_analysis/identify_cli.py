@@ -232,7 +232,8 @@ def _main(argv: Optional[Sequence[str]]) -> int:
                 [
                     (k, v['value'], v['low'], v['high'], v['unit'])
                     for k, v in result.chosen.as_dict().items()
-                ]
+                ],
+                headers=('parameter', 'estimate', '95 % low', '95 % high', 'unit'),
             )
         )
     else:
