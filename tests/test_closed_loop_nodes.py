@@ -163,8 +163,9 @@ def test_installed_scenario_files_match_the_scenarios():
     config = Path(get_package_share_directory('actuator_bringup')) / 'config'
     scenarios = all_scenarios()
     assert {p.stem for p in config.glob('*.yaml')} == set(scenarios)
-    # Case 1's four runs, Case 2's four + SMC as printed, the drive's, the two that hold
-    assert len(scenarios) == 12
+    # Case 1's four runs, Case 2's four + SMC as printed, the drive's, the two that hold, the
+    # excitation run
+    assert len(scenarios) == 13
     for name, scenario in scenarios.items():
         assert yaml.safe_load((config / f'{name}.yaml').read_text()) == scenario_parameters(
             scenario

@@ -27,6 +27,11 @@ ROS_FREE_MODULES = (
     'actuator_controller.goal_rules',
     'actuator_controller.goal_execution',
     'actuator_controller.commanded_reference',
+    'actuator_controller.excitation',
+    'actuator_analysis.identify',
+    'actuator_analysis.identify_heldout',
+    'actuator_analysis.identify_joint',
+    'actuator_analysis.mismatch',
     'actuator_bench.host_stalls',
 )
 

@@ -42,13 +42,6 @@ SKIPPED_DIRS = {
     '.ruff_cache',
     'mutants',
 }
-#: Pages that other branches write and that the docs already link to. A link to one of them is
-#: accepted while the page does not exist; once it exists it is checked like any other, and its
-#: entry here can go.
-PENDING = {
-    'docs/how-to/identify-a-joint.md',
-}
-
 #: A cited Markdown path in code: at least one folder, optional $VAR/ prefix, optional anchor.
 CITED = re.compile(r'(?<![\w./-])(?:\$\{?\w+\}?/)?((?:[\w.-]+/)+[\w.-]+\.md)(#[\w-]*)?')
 #: The README named without its path, and a section cited by name after a path.
@@ -138,8 +131,6 @@ def check_target(root: Path, base: Path, target: str, where: str) -> list[Proble
         except ValueError:
             return [Problem(where, target, 'points outside the repository')]
         if not path.exists():
-            if rel in PENDING:
-                return []
             return [Problem(where, target, f'no file {rel}')]
         if path.is_dir():
             return [Problem(where, target, 'an anchor on a folder')] if anchor else []

@@ -64,7 +64,13 @@ def test_a_parameter_file_may_address_every_node_of_the_run_and_no_other(tmp_pat
         tmp_path,
         ''.join(
             f'{n}:\n  ros__parameters:\n    x: 1\n'
-            for n in ('/**', 'actuator_plant', '/actuator_eso', 'actuator_controller')
+            for n in (
+                '/**',
+                'actuator_plant',
+                '/actuator_eso',
+                'actuator_controller',
+                'identified_joint',
+            )
         ),
     )
     check_parameter_files((str(every),), names)

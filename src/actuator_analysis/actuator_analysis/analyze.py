@@ -44,6 +44,7 @@ from actuator_bag.progress import Progress
 from actuator_bag.reading import bag_typestore, find_topic, open_bag, topic_names
 
 from .goals import goal_event_row
+from .mismatch import B0Mismatch, b0_mismatch
 
 CONTROLLER_STATE = 'actuator_msgs/msg/ControllerState'
 STATE_ESTIMATE = 'actuator_msgs/msg/StateEstimate'
@@ -89,6 +90,8 @@ class RunData:
     #: it (eso/estimate input_current_a) minus the current the joint held there (plant/truth
     #: current_a) [A]; nonzero where a command reached the observer but not the joint in time.
     observer_input_error_a: Optional[np.ndarray] = None
+    #: eso/estimate input_current_gain per estimate: dt theta1n, the observer's b0 times dt.
+    est_current_gain: np.ndarray = field(default_factory=lambda: np.empty(0))
     disturbance_error: Optional[np.ndarray] = None
     sample_period_s: np.ndarray = field(default_factory=lambda: np.empty(0))
     command_latency_s: np.ndarray = field(default_factory=lambda: np.empty(0))
@@ -123,6 +126,7 @@ class RunReport:
     metrics: RunMetrics
     timing: dict[str, Optional[dict[str, float]]]
     missed_samples: int
+    b0: Optional[B0Mismatch] = None  # the joint's theta1 as the run shows it (mismatch)
 
     def as_dict(self) -> dict[str, Any]:
         """Plain-dict form for JSON output."""
@@ -138,6 +142,7 @@ class RunReport:
             'steady_window_empty': steady_empty(self.metrics),
             'diagnostics': self.run.diagnostics,
             'observer_input': observer_input(self.run),
+            'b0_mismatch': None if self.b0 is None else self.b0.as_dict(),
         }
 
 
@@ -272,6 +277,7 @@ def _extract(kind: str, msg: Any, log_ns: int) -> tuple:
             msg.velocity_rad_s,
             msg.disturbance_rad_s2,
             msg.input_current_a,
+            msg.input_current_gain,
         )
     if kind == 'truth':
         return (
@@ -320,6 +326,7 @@ def _assemble(path: Path, rows: dict[str, list[tuple]]) -> RunData:
         run.est_t = (np.array([r[0] for r in ordered], dtype=np.int64) - t0) * 1e-9
         run.est_velocity = np.array([r[1] for r in ordered], dtype=float)
         run.est_disturbance = np.array([r[2] for r in ordered], dtype=float)
+        run.est_current_gain = np.array([r[4] for r in ordered], dtype=float)
     if truths:
         ordered = sorted(truths.values())
         run.truth_t = (np.array([r[0] for r in ordered], dtype=np.int64) - t0) * 1e-9
@@ -399,7 +406,28 @@ def analyze_run(run: RunData, steady_state_start_s: float = STEADY_STATE_START_S
                 nominal_ns,
             )
     timing = {'sample_period': _stats(period), 'command_latency': _stats(run.command_latency_s)}
-    return RunReport(run=run, metrics=metrics, timing=timing, missed_samples=missed)
+    return RunReport(run, metrics, timing, missed, run_b0_mismatch(run))
+
+
+def run_b0_mismatch(run: RunData) -> Optional[B0Mismatch]:
+    """Return the observer's b0 against the joint's theta1 as the run shows it (``mismatch``).
+
+    The current held before sample k is the command of sample k - 1; theta1n is read from
+    eso/estimate (None without it).
+    """
+    if run.t.size < 3:
+        return None
+    dt = float(np.median(np.diff(run.t)))
+    theta1n = None
+    if run.est_current_gain.size > 1 and dt > 0:
+        theta1n = float(np.median(run.est_current_gain)) / float(np.median(np.diff(run.est_t)))
+    held = np.concatenate(([0.0], run.current[:-1]))
+    usable = np.isin(run.status, CONTROLLED) & np.isfinite(run.measured)
+    if usable.sum() < 2:
+        return None
+    index = np.arange(run.t.size)  # the angle through the unusable samples: their windows are
+    angle = np.interp(index, index[usable], run.measured[usable])  # skipped, not the filter's
+    return b0_mismatch(angle, held, dt, usable, theta1n or None)
 
 
 def steady_empty(metrics: RunMetrics) -> bool:

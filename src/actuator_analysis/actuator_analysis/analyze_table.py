@@ -13,6 +13,7 @@ from tabulate import tabulate
 from actuator_core.status import Status
 
 from .analyze import RunReport, observer_input, steady_empty
+from .mismatch import START_S, WINDOW_S, WORTH_IDENTIFYING
 
 
 def _steady(r: RunReport, value: Optional[float], unit: str) -> str:
@@ -63,6 +64,26 @@ def _observer_input(r: RunReport) -> str:
         f'{figures["differing"]} of {figures["samples"]} samples differ, '
         f'max {figures["max_abs_a"]:.3g} A'
     )
+
+
+def _b0(r: RunReport) -> str:
+    """Format the joint's theta1 as the run shows it against the observer's theta1n."""
+    b = r.b0
+    if b is None:
+        return f'n/a (no {WINDOW_S:g} s window of control after {START_S:g} s)'
+    seen = f'{b.theta1_seen:.4g} rad/s^2/A'
+    if b.relative is None:
+        return f'joint {seen} (theta1n not recorded: no eso/estimate)'
+    low, high = (100 * (x / b.theta1n - 1) for x in (b.window_low, b.window_high))
+    text = (
+        f'joint {seen}, {100 * b.relative:+.1f} % from theta1n {b.theta1n:.4g} '
+        f'({b.windows} windows of {WINDOW_S:g} s: {low:+.1f} to {high:+.1f} %)'
+    )
+    if high - low > 2 * 100 * WORTH_IDENTIFYING:
+        return text + ": the joint's theta1 drifts"
+    if abs(b.relative) > WORTH_IDENTIFYING:
+        return text + ': identify the joint (bag_identify)'
+    return text
 
 
 def _against_truth(errors: Optional[np.ndarray], value: Optional[float], unit: str) -> str:
@@ -150,6 +171,7 @@ def format_table(reports: Sequence[RunReport]) -> str:
         ],
     )
     add('observer input vs current held', [_observer_input(r) for r in reports])
+    add("b0 = theta1n vs the joint's theta1", [_b0(r) for r in reports])
     add('sample period p50/p99/max', [_timing(r.timing['sample_period']) for r in reports])
     add(
         'missed samples',

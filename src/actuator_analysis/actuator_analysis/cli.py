@@ -12,7 +12,7 @@ import argparse
 import json
 import math
 from pathlib import Path
-from typing import Any, Optional, Sequence
+from typing import Any, Callable, Optional, Sequence
 
 from actuator_bag.errors import AnalysisError, BagError, run_cli
 from actuator_bag.msgdefs import DefinitionSource, definition_roots
@@ -54,6 +54,13 @@ def build_parser() -> argparse.ArgumentParser:
         metavar='SECONDS',
         help='start of the steady-state window after the run start [s] (default: %(default)s)',
     )
+    add_msg_path(parser)
+    parser.add_argument('-q', '--quiet', action='store_true', help='no progress lines')
+    return parser
+
+
+def add_msg_path(parser: argparse.ArgumentParser) -> None:
+    """Add the --msg-path option of the bag tools: extra message definitions."""
     parser.add_argument(
         '--msg-path',
         type=Path,
@@ -62,8 +69,6 @@ def build_parser() -> argparse.ArgumentParser:
         metavar='DIR',
         help='extra folder holding <pkg>/msg/<Type>.msg (searched first)',
     )
-    parser.add_argument('-q', '--quiet', action='store_true', help='no progress lines')
-    return parser
 
 
 def _jsonable(value: Any) -> Any:
@@ -75,6 +80,26 @@ def _jsonable(value: Any) -> Any:
     if isinstance(value, (list, tuple)):
         return [_jsonable(v) for v in value]
     return value
+
+
+def write_json(path: Path, doc: Any) -> None:
+    """Write ``doc`` as JSON (non-finite floats as null); BagError when the file cannot be."""
+    try:
+        path.write_text(
+            json.dumps(_jsonable(doc), indent=2, default=str, allow_nan=False) + '\n',
+            encoding='utf-8',
+        )
+    except OSError as err:
+        raise BagError(f'cannot write {path}: {err.strerror}') from None
+
+
+def write_figures(draw: Callable[[], list[Path]], folder: Path) -> None:
+    """Draw the figures into ``folder`` and name them; BagError when they cannot be written."""
+    try:
+        paths = draw()
+    except OSError as err:
+        raise BagError(f'cannot write figures to {folder}: {err.strerror}') from None
+    print(f'figures: {", ".join(str(p) for p in paths)}')
 
 
 def _main(argv: Optional[Sequence[str]]) -> int:
@@ -101,21 +126,12 @@ def _main(argv: Optional[Sequence[str]]) -> int:
         if rows:
             print(f'\ngoals of {name}:\n{format_goals(rows)}')
     if args.json:
-        doc = _jsonable(
-            [{**r.as_dict(), 'goals': [g.as_dict() for g in goals[r.run.name]]} for r in reports]
+        write_json(
+            args.json,
+            [{**r.as_dict(), 'goals': [g.as_dict() for g in goals[r.run.name]]} for r in reports],
         )
-        try:
-            args.json.write_text(
-                json.dumps(doc, indent=2, default=str, allow_nan=False) + '\n', encoding='utf-8'
-            )
-        except OSError as err:
-            raise BagError(f'cannot write {args.json}: {err.strerror}') from None
     if args.out:
-        try:
-            paths = draw_figures([r.run for r in reports], args.out)
-        except OSError as err:
-            raise BagError(f'cannot write figures to {args.out}: {err.strerror}') from None
-        print(f'figures: {", ".join(str(p) for p in paths)}')
+        write_figures(lambda: draw_figures([r.run for r in reports], args.out), args.out)
     return 0
 
 

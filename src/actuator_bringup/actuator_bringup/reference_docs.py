@@ -54,6 +54,7 @@ FOLDER = Path('docs/reference')
 TOOLS = (
     ('actuator_bringup', 'bringup', 'actuator_bringup.runner'),
     ('actuator_analysis', 'bag_analyze', 'actuator_analysis.cli'),
+    ('actuator_analysis', 'bag_identify', 'actuator_analysis.identify_cli'),
     ('actuator_bag', 'bag_repair', 'actuator_bag.repair'),
     ('actuator_bag', 'recorder', 'actuator_bag.recorder_node'),
     ('actuator_bag', 'player', 'actuator_bag.player_node'),

@@ -19,6 +19,7 @@ from typing import Any, Optional, Sequence
 import yaml
 
 from actuator_core import limits
+from actuator_core.identified import SECTION as IDENTIFIED_SECTION
 from actuator_core.loop_params import MODES
 from actuator_sim.params_yaml import node_parameters
 from actuator_bringup.run_description import JOINTS, LIVE_DIAGNOSTICS_RATE_HZ, MAX_JOINTS_ON_BUS
@@ -237,11 +238,16 @@ def parse(option: RunOption, text: Any, label: str = '') -> Any:
     return value
 
 
+#: Sections of a parameter file that name no node: rcl's every-node one, and the identified
+#: joint's model that bag_identify writes beside the nodes' sections (actuator_core.identified).
+NOT_NODES = frozenset({'/**', IDENTIFIED_SECTION})
+
+
 def check_parameter_files(paths: tuple, node_names: Optional[set[str]]) -> None:
     """Refuse a parameter file that is missing, is not one, or has a section for no node here.
 
     ``node_names``: the run's nodes, each by its name and its fully qualified name (None: the
-    files' form only). A section is a node name, a fully qualified one, or ``/**``; its
+    files' form only). A section is a node name, a fully qualified one, or one of NOT_NODES; its
     parameters are the node's own to judge (each node refuses a name it does not have when it
     configures).
     """
@@ -262,7 +268,7 @@ def check_parameter_files(paths: tuple, node_names: Optional[set[str]]) -> None:
             )
         if node_names is None:
             continue
-        unknown = sorted(str(s) for s in sections if s not in node_names and s != '/**')
+        unknown = sorted(str(s) for s in sections if s not in node_names | NOT_NODES)
         if unknown:
             raise OptionError(
                 f'params_file {path}: no node {", ".join(unknown)} in this run (its nodes: '

@@ -96,6 +96,7 @@ class ControllerNode(ControllerReport, ManagedNode):
             settings.reference_amplitude_rad,
             settings.reference_frequency_rad_s,
             self.params.trajectory.max_deceleration,
+            excitation=self.params.excitation,
         )
         self.assembly = ControlSampleAssembly(
             law,

@@ -17,6 +17,7 @@ from typing import Any
 from actuator_core import limits
 from actuator_core.loop_params import shared
 from actuator_core.params import spec, validate
+from actuator_controller.excitation import ExcitationReference
 from actuator_controller.laws import CONTROLLER_NAMES, GAINS_BY_NAME, CommonConfig
 from actuator_controller.reference import REFERENCE_KINDS, SineReference, StepReference
 from actuator_controller.trajectory_settings import (
@@ -100,6 +101,7 @@ class ControllerParameters:
     timing_log: str  #: per-update timing (.npz) path, '' for none
     settings: ControllerSettings  #: the node's own numbers
     trajectory: TrajectorySettings  #: what goals are judged by (reference hold)
+    excitation: ExcitationReference  #: the excitation reference's shape (reference excitation)
 
 
 def declare_trajectory_parameters(node, joint_names) -> TrajectorySettings:
@@ -136,8 +138,9 @@ def declare_controller_parameters(node) -> ControllerParameters:
         REFERENCE_KINDS,
         "hold: hold the joint's angle until a goal (follow_joint_trajectory, joint_trajectory) "
         "moves it; else a built-in trajectory from activation (the paper's slow and fast, a "
-        'step, a sine), which takes no goals',
+        "step, a sine, an identification run's excitation), which takes no goals",
     )
+    excitation = declare_spec_parameters(node, ExcitationReference, prefix='excitation.')
     trigger = declare_choice(
         node,
         'trigger',
@@ -169,4 +172,5 @@ def declare_controller_parameters(node) -> ControllerParameters:
         timing_log=timing_log,
         settings=settings,
         trajectory=trajectory,
+        excitation=excitation,
     )

@@ -3,7 +3,8 @@
 
 """Reference trajectories with analytic derivatives.
 
-The paper's slow and fast ones, step and sine; and ``hold``, the commanded reference
+The paper's slow and fast ones, step and sine, the identification run's excitation
+(``actuator_controller.excitation``); and ``hold``, the commanded reference
 (actuator_controller.commanded_reference): holds the joint's angle until a goal moves it.
 """
 
@@ -101,7 +102,7 @@ class SineReference:
 
 #: The references ``make_reference`` builds, by name: ``hold`` (commanded: goals move it) and
 #: the built-in trajectories, which run from activation and take no goals.
-REFERENCE_KINDS = ('hold', 'slow', 'fast', 'step', 'sine')
+REFERENCE_KINDS = ('hold', 'slow', 'fast', 'step', 'sine', 'excitation')
 
 
 def make_reference(
@@ -109,12 +110,14 @@ def make_reference(
     amplitude_rad: float | None = None,
     frequency_rad_s: float | None = None,
     max_deceleration: tuple = (limits.STOP_DECELERATION_RAD_S2,),
+    excitation=None,
 ) -> Reference:
-    """Build a reference by name.
+    """Build a reference by name (REFERENCE_KINDS).
 
-    'hold', 'slow', 'fast', 'step' or 'sine'; an amplitude or frequency given overrides the
-    dataclass's default (one source: the node's parameters default to them too).
-    ``max_deceleration``: hold's bound on |x1d''| per joint when it stops a motion [rad/s^2].
+    An amplitude or frequency given overrides the dataclass's default (one source: the node's
+    parameters default to them too). ``max_deceleration``: hold's bound on |x1d''| per joint when
+    it stops a motion [rad/s^2]; ``excitation`` (an ExcitationReference) replaces the
+    excitation's defaults.
     """
     amplitude = {} if amplitude_rad is None else {'amplitude_rad': amplitude_rad}
     frequency = {} if frequency_rad_s is None else {'frequency_rad_s': frequency_rad_s}
@@ -130,6 +133,10 @@ def make_reference(
         ref = StepReference(**amplitude)
     elif kind == 'sine':
         ref = SineReference(**amplitude, **frequency)
+    elif kind == 'excitation':
+        from actuator_controller.excitation import ExcitationReference
+
+        ref = excitation if excitation is not None else ExcitationReference()
     else:
         raise ValueError(f'reference must be one of {", ".join(REFERENCE_KINDS)}, got {kind!r}')
     return ref

@@ -71,6 +71,12 @@ FRESH_COMMAND_SHARE_MIN = 0.5
 FRESH_COMMAND_HYSTERESIS = 0.1
 #: theta_1n * I_max: the acceleration the current limit can command [rad/s^2] (629).
 CURRENT_ACCELERATION_RAD_S2 = THETA1N * CURRENT_LIMIT_A
+#: The identification run's reference (actuator_controller.excitation): its largest acceleration
+#: [rad/s^2] by default, a quarter of what the current limit commands with the nominal model
+#: (157 rad/s^2, about 5 A on a Table 1 joint, 10 A on one with half its theta1), and the speed
+#: its sweeps and multi-sine stay below [rad/s], half the velocity limit.
+EXCITATION_ACCELERATION_RAD_S2 = 0.25 * CURRENT_ACCELERATION_RAD_S2
+EXCITATION_VELOCITY_RAD_S = 0.5 * VELOCITY_LIMIT_RAD_S
 #: |x3_hat| beyond this [rad/s^2] is refused: 4 times what the current limit can compensate
 #: (2515 rad/s^2); a lumped disturbance the law cannot cancel even at 20 A is not an estimate
 #: to act on (the paper's disturbances stay below 1e3 rad/s^2, the deep-sea case's ESO below

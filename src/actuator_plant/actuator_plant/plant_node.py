@@ -8,7 +8,8 @@ drive applied), plus the ground truth a simulation has (plant/truth: velocity, t
 disturbance and its parts, the drifting parameters, the brake). Everything else, the timing,
 the command gate, the checks and the lifecycle, is the joint node's, shared with the CiA 402
 driver. Parameters: the joint node's common ones and the model's (``PlantParameters``), the
-working condition, the initial angle and the optional drive effects.
+working condition, the initial angle and the encoder (``encoder.*``: quantisation and noise of the
+angle joint_states reports, off by default).
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from dataclasses import replace
 
 from actuator_core import limits
 from actuator_msgs.msg import PlantTruth
+from actuator_plant.encoder import Encoder, EncoderParameters
 from actuator_plant.model import CONDITION_CHOICES, PlantParameters, working_condition
 from actuator_plant.sim_joint import SimulatedJoint
 from actuator_ros.joint_node import JointNode
@@ -26,6 +28,8 @@ from actuator_ros.runner import run_node
 from actuator_ros.wire_io import codec
 
 NODE_NAME = 'actuator_plant'
+#: Largest encoder seed a node parameter takes (a ROS integer parameter is 64-bit signed).
+ENCODER_SEED_MAX = 2**62
 
 
 class PlantNode(JointNode):
@@ -63,6 +67,19 @@ class PlantNode(JointNode):
             'Hz',
             'rate of plant/truth (every n-th sample); 0: every sample, as the bag analysis needs',
         )
+        encoder = declare_spec_parameters(
+            self, EncoderParameters, prefix='encoder.', exclude=('seed',)
+        )
+        seed = declare_number(
+            self,
+            'encoder.seed',
+            0,
+            0,
+            ENCODER_SEED_MAX,
+            '',
+            'seed of the encoder noise generator',
+        )
+        self.encoder_params = replace(encoder, seed=seed)
         self.initial_position_rad = declare_number(
             self,
             'initial_position_rad',
@@ -75,8 +92,12 @@ class PlantNode(JointNode):
 
     def make_joint(self) -> SimulatedJoint:
         """Build the model at rest at the initial angle."""
+        encoder = self.encoder_params
         return SimulatedJoint(
-            self.params, self.cfg.sample_time_s, position_rad=self.initial_position_rad
+            self.params,
+            self.cfg.sample_time_s,
+            position_rad=self.initial_position_rad,
+            encoder=Encoder.from_parameters(encoder) if encoder.active else None,
         )
 
     def build_extras(self) -> None:

@@ -17,7 +17,7 @@ from pathlib import Path
 import yaml
 
 from actuator_sim.loop import Scenario
-from actuator_sim.scenarios import case1, case2, commanded, through_a_drive
+from actuator_sim.scenarios import case1, case2, commanded, excitation, through_a_drive
 from actuator_controller.laws import GAINS_BY_NAME
 
 
@@ -99,10 +99,13 @@ def dotted(tree: dict, prefix: str = '') -> dict:
 def all_scenarios() -> dict[str, Scenario]:
     """Every scenario by name.
 
-    Case 1's four runs, Case 2's controllers, Case 2 through a drive, and the two that hold
-    until commanded (``scenarios.commanded``).
+    Case 1's four runs, Case 2's controllers, Case 2 through a drive, the two that hold until
+    commanded (``scenarios.commanded``) and the identification run (``scenarios.excitation``).
     """
-    return {s.name: s for s in [s for s, _ in case1() + case2()] + through_a_drive() + commanded()}
+    return {
+        s.name: s
+        for s in [s for s, _ in case1() + case2()] + through_a_drive() + commanded() + excitation()
+    }
 
 
 def write_config(folder: Path) -> list[Path]:

@@ -18,8 +18,10 @@ largest common factor that brings the radius to 0.95 (``stability.largest_stable
 from __future__ import annotations
 
 import dataclasses
+import math
 
 from actuator_sim.loop import Scenario
+from actuator_controller.excitation import ExcitationReference
 from actuator_controller.laws import PpNftsmcGains, SmcGains
 from actuator_eso.observer import EsoGains
 from actuator_plant.model import CONDITIONS, PlantParameters
@@ -61,6 +63,10 @@ HOLD_SCENARIO = 'hold_pp_nftsmc_eso'
 #: The same through a drive (tuned as ``DRIVE_SCENARIO``): the CiA 402 joints' default, so a real
 #: joint never starts a built-in trajectory unless one is named.
 DRIVE_HOLD_SCENARIO = 'drive_hold_pp_nftsmc_eso'
+#: The identification run (``bag_identify``): Case 2's joint and controller on the excitation
+#: reference (actuator_controller.excitation) for ``EXCITATION_CYCLES`` of its cycles.
+EXCITATION_SCENARIO = 'excitation'
+EXCITATION_CYCLES = 2
 
 
 def paper_scenario(
@@ -164,4 +170,15 @@ def commanded(duration_s: float = 10.0) -> list[Scenario]:
     return [
         holding(case2_pp, HOLD_SCENARIO),
         holding(through_a_drive(duration_s)[0], DRIVE_HOLD_SCENARIO),
+    ]
+
+
+def excitation(cycles: int = EXCITATION_CYCLES) -> list[Scenario]:
+    """Return the identification run: Case 2's PP-NFTSMC-ESO and joint on the excitation.
+
+    Its length is ``cycles`` cycles of the default excitation, rounded up to 0.1 s.
+    """
+    duration = math.ceil(10.0 * cycles * ExcitationReference().cycle_s) / 10.0
+    return [
+        paper_scenario(EXCITATION_SCENARIO, 'pp_nftsmc_eso', 'excitation', 'deep_sea', duration)
     ]

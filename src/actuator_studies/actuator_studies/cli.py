@@ -263,6 +263,13 @@ def design_main(argv: Sequence[str] | None = None) -> int:
     )
     p.add_argument('--study-name', default='design_gains', help='study name in --storage')
     p.add_argument(
+        '--joint',
+        default='',
+        metavar='FILE',
+        help='design for an identified joint (bag_identify --params FILE): its model is the '
+        "nominal one and the plant's, the corners default to command_delay_samples=0,2",
+    )
+    p.add_argument(
         '--prune',
         action='store_true',
         help='exact pruning over the cases: a trial worse than the best on the hard quarter '
@@ -291,6 +298,7 @@ def design_main(argv: Sequence[str] | None = None) -> int:
         storage=a.storage,
         study_name=a.study_name,
         prune=a.prune,
+        joint=a.joint,
     )
     try:
         report = run_design(req, a.out, a.ray)

@@ -22,6 +22,11 @@ The paper's Table 4 gains are the first trial of a new study. With
 ``--storage FILE`` the Optuna study lives in a journal file: a design that stops resumes
 there, and several drivers may share it.
 
+With ``--joint FILE`` (``bag_identify --params``) the design is for an identified joint: its
+theta1, theta2 are the observer's and the law's nominal model and the plant is that joint
+(``identified_plant``), with the drift of eq. (41) around it in the margin and, by default, no
+and two samples of command delay as the corners.
+
 The result is validated out of sample (``validate``): on the design corners with noise seeds
 the search never saw, and on Latin-hypercube points inside the corners' box with their own
 seeds. design.json labels the search's own figures ``in_sample``.
@@ -58,6 +63,7 @@ from actuator_studies.evaluation import (
     split_gains,
 )
 from actuator_studies.gains_yaml import write_gains_yaml
+from actuator_studies.identified_plant import JOINT_CORNERS, joint_design, read_joint
 from actuator_studies.provenance import provenance
 from actuator_studies.results import FAILED_ERROR_RAD
 from actuator_studies.space import (
@@ -110,6 +116,7 @@ class DesignRequest:
     storage: str = ''  # Optuna journal file ('' : in memory)
     prune: bool = False  # exact pruning over the cases (worst case only)
     study_name: str = 'design_gains'
+    joint: str = ''  # an identified joint's parameter file (bag_identify --params): its model
 
 
 def corner_table(corners: list[str], controller: str) -> dict[str, np.ndarray]:
@@ -180,6 +187,8 @@ def open_study(req: DesignRequest):
         asked = {'corners': req.corners, 'settings': req.settings, 'seed': req.seed,
                  'noise_seeds': req.noise_seeds, 'duration_s': req.duration_s,
                  'percentile': req.percentile, 'target_radius': req.target_radius}  # fmt: skip
+        if req.joint:  # asked only then: the journals of earlier designs resume as they were
+            asked['joint'] = req.joint
         if not attrs:
             for k, v in asked.items():
                 study.set_user_attr(k, v)
@@ -392,7 +401,16 @@ def run_design(req: DesignRequest, out: Path, ray_target: str = '', log=print) -
     """
     target = _check(req, out)
     fixed = tuple(parse_setting(text, req.controller) for text in req.settings)
-    corners = corner_table(req.corners, req.controller)
+    eso, joint_notes, corner_texts = EsoGains(), [], req.corners
+    if req.joint:
+        eso, settings, joint_notes = joint_design(read_joint(Path(req.joint)))
+        joint_fixed = tuple(parse_setting(f'{n}={v!r}', req.controller) for n, v in settings)
+        both = {n for n, _ in fixed} & {n for n, _ in joint_fixed}
+        if both:
+            raise StudyInputError(f'--joint sets {", ".join(sorted(both))}: do not --set it too')
+        fixed += joint_fixed
+        corner_texts = req.corners or list(JOINT_CORNERS)
+    corners = corner_table(corner_texts, req.controller)
     searched = {name for name, _, _ in SEARCH_SPACE}
     clash = searched & ({n for n, _ in fixed} | set(corners))
     if clash:
@@ -404,6 +422,7 @@ def run_design(req: DesignRequest, out: Path, ray_target: str = '', log=print) -
         reference=req.reference,
         condition=req.condition,
         duration_s=req.duration_s,
+        eso=eso,
         fixed=fixed,
     )
     if ray_target:
@@ -441,9 +460,10 @@ def run_design(req: DesignRequest, out: Path, ray_target: str = '', log=print) -
         'validation': validation,
         'wall_s': time.perf_counter() - start,
         'gains_yaml': None,
+        'joint': {'file': req.joint, 'notes': joint_notes} if req.joint else None,
     }
     if best:
-        gains, eso = split_gains(best)
+        gains, eso = split_gains(best, base.eso)
         c = comparison['designed']
         held = validation['held_out_seeds']['designed']
         header = (
@@ -455,6 +475,9 @@ def run_design(req: DesignRequest, out: Path, ray_target: str = '', log=print) -
             f'{held["cases"]} cases (in sample {c["worst_error_rad"]:.3e}).\n'
             'Load with the scenario file: --params-file <scenario>.yaml --params-file this.yaml'
         )
+        if req.joint:
+            header += f'\nFor the identified joint {req.joint}: load it before this file.'
+
         report['gains_yaml'] = str(
             write_gains_yaml(out / 'gains.yaml', 'pp_nftsmc_eso', gains, eso, header)
         )

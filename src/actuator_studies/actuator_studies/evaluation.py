@@ -47,23 +47,31 @@ def case_seeds(seed: int, tag: int, count: int) -> np.ndarray:
     )
 
 
-def split_gains(values: dict[str, float]) -> tuple[PpNftsmcGains, EsoGains]:
-    """PP gains and ESO gains from a trial's named values (others keep Table 4's)."""
+def split_gains(
+    values: dict[str, float], eso: EsoGains | None = None
+) -> tuple[PpNftsmcGains, EsoGains]:
+    """PP gains and ESO gains from a trial's named values.
+
+    The others keep Table 4's; the observer's nominal model is ``eso``'s (default Table 1's).
+    """
     g = {k.split('.', 1)[1]: v for k, v in values.items() if k.startswith('pp_nftsmc_eso.')}
-    return dataclasses.replace(PpNftsmcGains(), **g), EsoGains(
-        omega0_rad_s=values['eso.omega0_rad_s']
+    return dataclasses.replace(PpNftsmcGains(), **g), dataclasses.replace(
+        eso or EsoGains(), omega0_rad_s=values['eso.omega0_rad_s']
     )
 
 
 def worst_radius(
-    values: dict[str, float], plants: list[PlantParameters], stop_above: float = np.inf
+    values: dict[str, float],
+    plants: list[PlantParameters],
+    stop_above: float = np.inf,
+    eso: EsoGains | None = None,
 ) -> dict[int, float]:
     """Worst spectral radius over ``plants`` and ENVELOPE_TIMES_S, per command delay.
 
     Stops at the first radius above ``stop_above`` (that delay then holds it, a lower bound of
     its worst; the delays not reached are absent): enough to call a trial infeasible.
     """
-    gains, eso = split_gains(values)
+    gains, eso = split_gains(values, eso)
     out: dict[int, float] = {}
     for d in DELAYS:
         worst = 0.0
@@ -141,9 +149,11 @@ class Evaluator:
     def radii(self, value_sets: list[dict], stop_above: float = np.inf) -> list[dict[int, float]]:
         """worst_radius of each gain set over the margin plants (Ray: one task per set)."""
         if self.ray is None:
-            return [worst_radius(v, self.margin_plants, stop_above) for v in value_sets]
+            return [
+                worst_radius(v, self.margin_plants, stop_above, self.base.eso) for v in value_sets
+            ]
         plants_ref = self.ray.put(self.margin_plants)
-        calls = [(v, plants_ref, stop_above) for v in value_sets]
+        calls = [(v, plants_ref, stop_above, self.base.eso) for v in value_sets]
         return self._in_order(self._radius_remote, calls, 'the margin of a trial')
 
     def _in_order(self, remote, calls: list[tuple], what: str) -> list:
