@@ -16,6 +16,7 @@ from pathlib import Path
 import pytest
 
 from actuator_bringup import runner as bringup
+from actuator_core import limits
 from actuator_bringup.run_description import closed_loop, default_scenario
 from actuator_bringup.run_options import (
     OPTIONS,
@@ -25,6 +26,7 @@ from actuator_bringup.run_options import (
     eds_parameters,
     joint_overrides,
     node_names,
+    node_section,
     parse,
 )
 
@@ -174,6 +176,35 @@ def test_a_users_parameter_file_is_part_of_the_gains_judged(tmp_path):
         'actuator_controller:\n  ros__parameters:\n    pp_nftsmc_eso:\n      k3_per_s: 2000.0\n'
     )
     assert loop_radius('drive_pp_nftsmc_eso', [*files, hot], 'cia402_sim')[1] > stable
+
+
+def test_the_simulated_joint_judged_is_the_one_the_files_give_the_plant_node(tmp_path):
+    """An identified nominal model (b0 20) is unstable on the paper's joint, stable on its own."""
+    from actuator_bringup.gain_check import loop_radius
+    from actuator_bringup.runner import scenario_file
+    from actuator_plant.model import plant_from_values
+    from actuator_sim.params_yaml import all_scenarios
+
+    for name, scenario in all_scenarios().items():  # each scenario file holds its joint
+        assert plant_from_values(node_section([scenario_file(name)], 'actuator_plant')) == (
+            scenario.plant
+        )
+    files = [scenario_file('case2_pp_nftsmc_eso')]
+    model = tmp_path / 'model.yaml'
+    model.write_text(
+        ''.join(
+            f'{node}:\n  ros__parameters:\n    {prefix}theta1n: 20.0\n'
+            for node, prefix in (('actuator_eso', ''), ('actuator_controller', 'common.'))
+        )
+    )
+    assert loop_radius('case2_pp_nftsmc_eso', [*files, model], 'plant')[1] > 1.0
+    joint = tmp_path / 'joint.yaml'  # the joint whose theta1 is 20 (J larger by 31.44 / 20)
+    inertia = limits.NOMINAL_INERTIA_KG_M2 * limits.THETA1N / 20.0
+    joint.write_text(
+        'actuator_plant:\n  ros__parameters:\n    with_drift: false\n'
+        f'    nominal:\n      inertia_kg_m2: {inertia!r}\n'
+    )
+    assert loop_radius('case2_pp_nftsmc_eso', [*files, joint, model], 'plant')[1] < 1.0
 
 
 def test_a_real_drive_is_judged_before_start_with_the_values_of_the_users_files(tmp_path):

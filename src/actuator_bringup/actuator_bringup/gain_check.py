@@ -21,6 +21,7 @@ from actuator_controller.laws import GAINS_BY_NAME
 from actuator_core.params import build
 from actuator_bringup.run_options import node_section
 from actuator_eso.observer import EsoGains
+from actuator_plant.model import PLANT_NODE_NAME, plant_from_values
 from actuator_sim.params_yaml import all_scenarios
 from actuator_sim.scenarios import DRIVE_DELAY_SAMPLES
 from actuator_sim.stability import drift_extremes, radius_along_envelope
@@ -42,8 +43,9 @@ class UnstableGains(ValueError):
 def loop_radius(scenario: str, files: Sequence[Path], joint: str) -> tuple[str, float]:
     """Return (controller, the worst linearised radius over the drift's vertices and time).
 
-    ``files``: the scenario's parameter file first, then the user's. The plant's drift is the
-    scenario's when it is one of actuator_sim's, else the paper's.
+    ``files``: the scenario's parameter file first, then the user's. The joint: the simulated
+    one as the files give it to the plant node; a drive's, the scenario's when it is one of
+    actuator_sim's, else the paper's. A drifting joint is judged at each vertex of its drift.
     """
     controller_values = node_section(files, 'actuator_controller')
     name = controller_values.get('controller', 'pp_nftsmc_eso')
@@ -53,12 +55,15 @@ def loop_radius(scenario: str, files: Sequence[Path], joint: str) -> tuple[str, 
         {k[len(prefix) :]: v for k, v in controller_values.items() if k.startswith(prefix)},
     )
     eso = build(EsoGains, node_section(files, 'actuator_eso')) if name != 'pi' else None
-    known = all_scenarios().get(scenario)
-    plant = known.plant if known is not None else all_scenarios()['case2_pp_nftsmc_eso'].plant
+    if joint == 'plant':  # the simulated joint the run's files describe
+        plant = plant_from_values(node_section(files, PLANT_NODE_NAME))
+    else:  # a drive's joint: the scenario's, or the paper's
+        known = all_scenarios().get(scenario)
+        plant = (known or all_scenarios()['case2_pp_nftsmc_eso']).plant
     delay = JOINT_DELAY_SAMPLES.get(joint, 0)
     worst = max(
         radius
-        for vertex in drift_extremes(plant)
+        for vertex in (drift_extremes(plant) if plant.with_drift else [plant])
         for _, radius in radius_along_envelope(
             name, gains, eso=eso, plant_delay=delay, plant=vertex
         )

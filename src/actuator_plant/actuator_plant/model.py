@@ -28,7 +28,7 @@ from actuator_plant.oil import (
     stirring_geometry_constant_m3,
 )
 from actuator_core import xmath as xm
-from actuator_core.params import check_value, spec, validate
+from actuator_core.params import build, check_value, spec, validate
 from actuator_core.timing import period_ns, sample_time_s
 
 #: Sea-water density [kg/m^3] and gravity [m/s^2] for the hydrostatic pressure at a depth.
@@ -203,10 +203,14 @@ CONDITIONS = {'lab': WorkingCondition.lab, 'deep_sea': WorkingCondition.deep_sea
 #: What a joint's ``working_condition`` parameter takes: a named one, or 'depth' (the
 #: hydrostatic pressure of ``depth_m``) or 'custom' (pressure and temperature as given).
 CONDITION_CHOICES = (*CONDITIONS, 'depth', 'custom')
+#: The simulated joint's node name, which its section of a parameter file carries.
+PLANT_NODE_NAME = 'actuator_plant'
+#: A joint's working condition and depth when its parameters name none (the plant node's).
+DEFAULT_CONDITION, DEFAULT_DEPTH_M = 'deep_sea', 1000.0
 
 
 def working_condition(
-    name: str, depth_m: float = 1000.0, given: 'WorkingCondition | None' = None
+    name: str, depth_m: float = DEFAULT_DEPTH_M, given: 'WorkingCondition | None' = None
 ) -> WorkingCondition:
     """Return the working condition ``name`` (one of CONDITION_CHOICES).
 
@@ -263,6 +267,17 @@ class PlantParameters:
             with_seal_friction=False,
             with_stirring=False,
         )
+
+
+def plant_from_values(values: dict) -> PlantParameters:
+    """Return the joint a plant node runs with ``values``, its parameters by dotted names."""
+    params = build(PlantParameters, values)
+    condition = working_condition(
+        values.get('working_condition', DEFAULT_CONDITION),
+        values.get('depth_m', DEFAULT_DEPTH_M),
+        params.condition,
+    )
+    return replace(params, condition=condition)
 
 
 class PlantConstants(NamedTuple):

@@ -19,7 +19,14 @@ from dataclasses import replace
 from actuator_core import limits
 from actuator_msgs.msg import PlantTruth
 from actuator_plant.encoder import Encoder, EncoderParameters
-from actuator_plant.model import CONDITION_CHOICES, PlantParameters, working_condition
+from actuator_plant.model import (
+    CONDITION_CHOICES,
+    DEFAULT_CONDITION,
+    DEFAULT_DEPTH_M,
+    PLANT_NODE_NAME,
+    PlantParameters,
+    working_condition,
+)
 from actuator_plant.sim_joint import SimulatedJoint
 from actuator_ros.joint_node import JointNode
 from actuator_ros.parameters import declare_choice, declare_number, declare_spec_parameters
@@ -27,7 +34,7 @@ from actuator_ros.qos import control_qos
 from actuator_ros.runner import run_node
 from actuator_ros.wire_io import codec
 
-NODE_NAME = 'actuator_plant'
+NODE_NAME = PLANT_NODE_NAME
 #: Largest encoder seed a node parameter takes (a ROS integer parameter is 64-bit signed).
 ENCODER_SEED_MAX = 2**62
 
@@ -46,13 +53,19 @@ class PlantNode(JointNode):
         condition = declare_choice(
             self,
             'working_condition',
-            'deep_sea',
+            DEFAULT_CONDITION,
             CONDITION_CHOICES,
             'deep_sea: 10 MPa, 2 degC; lab: 0 MPa, 25 degC; depth: depth_m and '
             'condition.temperature_c; custom: condition.pressure_pa and condition.temperature_c',
         )
         depth = declare_number(
-            self, 'depth_m', 1000.0, 0.0, 11000.0, 'm', 'water depth for working_condition depth'
+            self,
+            'depth_m',
+            DEFAULT_DEPTH_M,
+            0.0,
+            11000.0,
+            'm',
+            'water depth for working_condition depth',
         )
         params = declare_spec_parameters(self, PlantParameters)
         self.params = replace(

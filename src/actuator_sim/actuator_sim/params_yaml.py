@@ -19,6 +19,7 @@ import yaml
 from actuator_sim.loop import Scenario
 from actuator_sim.scenarios import case1, case2, commanded, excitation, through_a_drive
 from actuator_controller.laws import GAINS_BY_NAME
+from actuator_plant.model import PLANT_NODE_NAME
 
 
 def _nested(obj) -> dict:
@@ -49,7 +50,7 @@ def scenario_parameters(scenario: Scenario) -> dict:
                 'current_limit_a': scenario.common.current_limit_a,
             }
         },
-        'actuator_plant': {
+        PLANT_NODE_NAME: {
             'ros__parameters': {
                 'working_condition': 'custom',
                 'condition': {
