@@ -149,6 +149,23 @@ def test_ros2_launch_ends_a_sim_run_by_itself_with_every_exit_code_0(ros_env, tm
 
 
 @NEEDS_LAUNCH
+def test_ros2_launch_exits_1_when_the_joint_fails(ros_env, tmp_path):
+    """A joint that exits non-zero (here refusing a parameter) makes ros2 launch exit 1."""
+    params = tmp_path / 'params.yaml'
+    params.write_text('actuator_plant:\n  ros__parameters:\n    lockstep_timeout_s: 0.0\n')
+    proc = ros2(
+        ros_env, *LOOP, 'duration:=3', 'mode:=sim', 'record:=false', f'params_file:={params}'
+    )
+    out = lines(proc.stdout + proc.stderr)
+    assert proc.returncode == 1, out[-40:]
+    assert '[INFO] [launch.user]: ERROR: plant_node-3 exited with code 2: ending the run' in out
+    assert [line for line in out if line.startswith('[ERROR] [launch]')] == [
+        REFUSED + 'the run failed: plant_node-3 exited with code 2'
+    ]
+    assert not ours_running(ros_env)
+
+
+@NEEDS_LAUNCH
 def test_ros2_launch_records_a_composed_lockstep_in_process(ros_env, tmp_path):
     """record_in_process:=true: one process and its writer, the bag whole; refused alone."""
     bag = tmp_path / 'bag'

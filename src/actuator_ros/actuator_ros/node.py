@@ -15,7 +15,7 @@ States as in ros2_control's hardware lifecycle:
                 clean up, back to unconfigured.
 A node that is not active never commands current. ``autostart:=true`` runs configure and
 activate at start-up, so ``ros2 run`` alone gives a running node; otherwise ``ros2 lifecycle
-set`` (or the launch file) drives the transitions.
+set`` (or a lifecycle manager) drives the transitions.
 """
 
 from __future__ import annotations
