@@ -66,19 +66,21 @@ def ros2(env, *args, timeout=60.0) -> subprocess.CompletedProcess:
 
     The command runs in its own session (RosProcess): on timeout it and every process it
     started get SIGINT, then SIGTERM and SIGKILL, as Ctrl-C would reach them in a terminal.
-    Without the daemon: one left from another test's domain answers stale.
+    Without the daemon (one left from another test's domain answers stale), given 2 s more of
+    discovery at each new attempt.
     """
     args = list(args)
-    if args[:2] in (
+    discovers = args[:2] in (
         ['lifecycle', 'get'],
         ['lifecycle', 'set'],
         ['param', 'list'],
         ['param', 'describe'],
-    ):
-        args[2:2] = ['--no-daemon', '--spin-time', '2']  # 2 s of discovery without the daemon
-    for _ in range(5):  # discovery without the daemon can miss the node on a loaded machine
+    )
+    for attempt in range(5):  # discovery without the daemon can miss the node on a loaded machine
+        spin = ['--no-daemon', '--spin-time', str(2 * (attempt + 1))] if discovers else []
+        command = ['ros2', *args[:2], *spin, *args[2:]]
         with tempfile.TemporaryDirectory(prefix='ros2-') as logs:
-            proc = RosProcess(['ros2', *args], env=env, log_dir=logs, name='ros2')
+            proc = RosProcess(command, env=env, log_dir=logs, name='ros2')
             try:
                 code = proc.wait(timeout)
             except TimeoutError as exc:
@@ -126,6 +128,13 @@ def lifecycle_lines(out: str) -> Counter:
     return Counter(re.findall(pattern, '\n'.join(lines(out)), re.M))
 
 
+def finished_cleanly(out: str) -> list:
+    """Return the executables launch saw finish cleanly, sorted."""
+    return sorted(re.findall(r'^\[INFO\] \[(\w+)-\d\]: process has finished cleanly', out, re.M))
+
+
+#: The processes of a recorded run of the plant's loop, sorted.
+LOOP_PROCESSES = ['controller_node', 'eso_node', 'plant_node', 'recorder']
 #: Each managed node of the plant's loop configures and activates itself once.
 SELF_STARTED = Counter(
     {(node[1:], state): 1 for _, _, node in NODES for state in ('configured', 'active')}
@@ -140,8 +149,7 @@ def test_ros2_launch_ends_a_sim_run_by_itself_with_every_exit_code_0(ros_env, tm
     out = proc.stdout + proc.stderr
     assert proc.returncode == 0, out[-3000:]
     assert '[INFO] [launch.user]: plant_node-4 exited with code 0: ending the run' in lines(out)
-    finished = re.findall(r'^\[INFO\] \[(\w+)-\d\]: process has finished cleanly', out, re.M)
-    assert sorted(finished) == ['controller_node', 'eso_node', 'plant_node', 'recorder'], out
+    assert finished_cleanly(out) == LOOP_PROCESSES, out
     assert lifecycle_lines(out) == SELF_STARTED
     assert 'ERROR' not in out, out[-3000:]  # a clean run prints none
     assert topic_counts(bag) == SIM_3S_COUNTS
@@ -206,7 +214,7 @@ def test_ros2_launch_records_a_composed_lockstep_in_process(ros_env, tmp_path):
 def test_sigint_to_ros2_launch_leaves_no_process_behind(ros_env, tmp_path):
     """Ctrl-C to the launch process alone ends every node, exit 0.
 
-    Started as a background job of a non-interactive shell starts it: with SIGINT ignored.
+    Started with SIGINT ignored, as a background job of a non-interactive shell would start it.
     """
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
@@ -223,10 +231,7 @@ def test_sigint_to_ros2_launch_leaves_no_process_behind(ros_env, tmp_path):
     assert launch.wait(30.0) == 0, launch.describe()
     out = lines(launch.output)
     assert '[WARNING] [launch]: user interrupted with ctrl-c (SIGINT)' in out
-    finished = re.findall(
-        r'^\[INFO\] \[(\w+)-\d\]: process has finished cleanly', launch.output, re.M
-    )
-    assert sorted(finished) == ['controller_node', 'eso_node', 'plant_node', 'recorder']
+    assert finished_cleanly(launch.output) == LOOP_PROCESSES
     assert not ours_running(ros_env)
     assert 'Traceback' not in launch.output
 
