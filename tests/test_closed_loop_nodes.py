@@ -252,38 +252,27 @@ def test_launch_description_builds_the_processes_of_the_description():
         if isinstance(entity, launch.actions.DeclareLaunchArgument):
             entity.execute(context)
     (opaque,) = [e for e in description.entities if isinstance(e, launch.actions.OpaqueFunction)]
-    # joint:=none (a driver started elsewhere) and plant:=false (the same) start no joint
-    cases = [
-        (joint, plant, live_view)
-        for joint, plant in (('plant', 'true'), ('none', 'true'), ('plant', 'false'))
-        for live_view in (False, True)
-    ]
-    for joint, plant, live_view in cases:
-        context.launch_configurations.update(
-            {
-                'duration': '5',
-                'mode': 'realtime',
-                'thread_priority': '50',
-                'live_view': str(live_view).lower(),
-                'joint': joint,
-                'plant': plant,
-            }
-        )
-        actions = opaque.execute(context)
-        nodes = [a for a in actions if isinstance(a, Node)]
-        without_joint = joint == 'none' or plant == 'false'
-        expected = closed_loop(
-            'realtime',
-            5.0,
-            thread_priority=50,
-            autostart=False,
-            live_view=live_view,
-            joint='none' if without_joint else joint,
-        )
-        started = [(n.node_package, n.node_executable) for n in nodes]
-        assert started == [(s.package, s.executable) for s in expected], (joint, plant)
-        assert (('actuator_live_view', 'live_view') in started) is live_view
-        assert (('actuator_plant', 'plant_node') in started) is not without_joint, started
+    # joint:=none (a driver started elsewhere) starts no joint; cia402_sim its driver and drive
+    for joint in ('plant', 'none', 'cia402_sim'):
+        for live_view in (False, True):
+            context.launch_configurations.update(
+                {
+                    'duration': '5',
+                    'mode': 'realtime',
+                    'thread_priority': '50',
+                    'live_view': str(live_view).lower(),
+                    'joint': joint,
+                }
+            )
+            actions = opaque.execute(context)
+            nodes = [a for a in actions if isinstance(a, Node)]
+            expected = closed_loop(
+                'realtime', 5.0, thread_priority=50, live_view=live_view, joint=joint
+            )
+            started = [(n.node_package, n.node_executable) for n in nodes]
+            assert started == [(s.package, s.executable) for s in expected], (joint, live_view)
+            assert (('actuator_live_view', 'live_view') in started) is live_view
+            assert (('actuator_plant', 'plant_node') in started) is (joint == 'plant'), started
 
 
 @pytest.mark.ros

@@ -535,6 +535,53 @@ def test_lifecycle_transitions_and_parameters_read_at_configure(harness, ros_pro
     assert len(outside) == 2 and all('nftsmc_eso.k1=500.0' in w for w in outside), outside
 
 
+def test_every_outside_parameter_request_is_logged_refused_ones_too(harness, ros_process):
+    """The parameter service as ``ros2 param set`` calls it, while the node is unconfigured.
+
+    rclpy refuses a value out of the descriptor's range, a value of another type and a name the
+    node does not have before any on-set callback runs; each request is still logged, as the
+    accepted one is, in the order they came.
+    """
+    from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+    from rcl_interfaces.srv import SetParameters
+
+    ctrl = ros_process('actuator_controller', 'controller_node', NFTSMC_QUIET_WATCHDOG)
+    client = harness.node.create_client(SetParameters, '/actuator_controller/set_parameters')
+
+    def request(name, value):
+        if isinstance(value, str):
+            value = ParameterValue(type=ParameterType.PARAMETER_STRING, string_value=value)
+        else:
+            value = ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=value)
+        parameter = Parameter(name=name, value=value)
+        return harness.call(client, SetParameters.Request(parameters=[parameter])).results[0]
+
+    answers = [
+        request('reference_amplitude_rad', 99.0),  # valid [-10, 10]
+        request('reference_amplitude_rad', 'far'),
+        request('no_such_parameter', 1.0),
+        request('reference_amplitude_rad', 0.5),
+    ]
+    assert [a.successful for a in answers] == [False, False, False, True], answers
+    assert answers[0].reason == (  # rclpy's words, as ros2 param set prints them
+        'Parameter reference_amplitude_rad out of range Min: -10.0, Max: 10.0, value: 99.0'
+    )
+    assert answers[1].reason == "Wrong parameter type, expected 'Type.DOUBLE' got 'Type.STRING'"
+    assert ctrl.stop() == 0 and 'Traceback' not in ctrl.output
+    prefix = 'parameter change requested from outside (caller not known to rclpy): '
+    logged = [
+        line.split(']: ', 1)[1]
+        for line in ctrl.output.splitlines()
+        if line.startswith('[WARN]') and prefix in line
+    ]
+    assert logged == [
+        prefix + 'reference_amplitude_rad=99.0',
+        prefix + "reference_amplitude_rad='far'",
+        prefix + 'no_such_parameter=1.0',
+        prefix + 'reference_amplitude_rad=0.5',
+    ]
+
+
 def test_a_decimated_controller_state_keeps_every_command_and_every_change_of_status(
     harness, ros_process
 ):

@@ -53,6 +53,12 @@ def test_the_runner_offers_every_runner_option_under_its_flag():
     assert not ({o.cli for o in RUN_OPTIONS if not o.runner} & flags)
 
 
+def test_every_description_is_one_trimmed_line():
+    """Descriptions go into ros2 launch --show-args and the runner's help as written."""
+    untidy = [o.name for o in RUN_OPTIONS if o.description != ' '.join(o.description.split())]
+    assert untidy == []
+
+
 def _file(tmp_path: Path, text: str) -> Path:
     path = tmp_path / 'params.yaml'
     path.write_text(text)

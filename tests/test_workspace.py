@@ -13,6 +13,7 @@ import importlib.metadata
 import json
 import os
 import re
+import signal
 import subprocess
 import sys
 import time
@@ -269,6 +270,37 @@ def test_ros_process_escalates_and_leaves_no_orphans(tmp_path):
     assert quick.wait(timeout=30) == 3
     assert quick.stopped_by == 'exit' and quick.stdout.strip() == 'hello'
     assert (tmp_path / 'quick.stdout').read_text().strip() == 'hello'
+
+
+def _ignores_sigint(pid: int) -> bool:
+    """Return whether the process ignores SIGINT (its SigIgn mask in /proc)."""
+    with open(f'/proc/{pid}/status') as f:
+        mask = next(line.split()[1] for line in f if line.startswith('SigIgn:'))
+    return bool(int(mask, 16) & (1 << (signal.SIGINT - 1)))
+
+
+@pytest.mark.ros
+def test_ros_process_stops_with_sigint_even_where_its_starter_ignores_sigint(tmp_path):
+    """A starter ignoring SIGINT (a background job of a non-interactive shell) passes it on.
+
+    A plain Popen's child ignores SIGINT then; a RosProcess's does not, and its SIGINT stops it
+    (``ros2 launch`` would otherwise only end by SIGTERM, orphaning its nodes).
+    """
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        plain = subprocess.Popen(['sleep', '60'])
+        proc = ros_helpers.RosProcess(['sleep', '60'], log_dir=tmp_path, name='sleeper')
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    try:
+        assert _ignores_sigint(plain.pid)  # what the fix is for
+    finally:
+        plain.kill()
+        plain.wait()
+    with proc:
+        assert not _ignores_sigint(proc.pid)
+        assert proc.stop(sigint_timeout=5.0) == -signal.SIGINT
+    assert proc.stopped_by == 'SIGINT'
 
 
 @pytest.mark.slow

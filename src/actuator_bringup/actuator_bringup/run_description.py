@@ -139,10 +139,11 @@ def closed_loop(
 
     The joint is last: it starts sampling when all are there. ``logs``: folder for the per-node
     timing files the benchmark reads (controller_timing.npz, eso_stats.json, plant_samples.npz).
-    ``autostart``: the nodes configure and activate themselves (the runner); the launch file drives
-    the transitions instead. ``live_view``: also the Foxglove live view
-    (actuator_live_view.live_view, ws://127.0.0.1:8765 unless ``live_view_parameters`` say
-    otherwise), started before the joint so the joint waits for its subscription too.
+    ``autostart``: the nodes configure and activate themselves (the runner, and the launch file
+    unless ``autostart:=false``); false: they wait for ``ros2 lifecycle set``. ``live_view``: also
+    the Foxglove live view (actuator_live_view.live_view, ws://127.0.0.1:8765 unless
+    ``live_view_parameters`` say otherwise), started before the joint so the joint waits for its
+    subscription too.
     ``diagnostics_rate_hz``: the rate of controller/state and plant/truth (0: every sample); None:
     every sample when recording or in sim (the bag analysis needs them),
     ``LIVE_DIAGNOSTICS_RATE_HZ`` otherwise. ``joints`` > 1 (CiA 402 only): that many drives on one

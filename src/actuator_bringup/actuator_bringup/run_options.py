@@ -179,7 +179,7 @@ RUN_OPTIONS = (
         bool,
         True,
         'the managed nodes configure and activate themselves; false: they wait unconfigured for '
-        '`ros2 lifecycle set` (or a lifecycle manager) ',
+        '`ros2 lifecycle set` (or a lifecycle manager)',
         runner=False,
     ),
     RunOption(

@@ -6,8 +6,9 @@
 Start installed executables as ``ros2 run`` does, watch, stop, measure. Used by the runner
 (``bringup``), the benchmark and the tests alike. A ``RosProcess`` runs in its own session (process
 group), so stopping it reaches its children too: SIGINT (what Ctrl-C and ``ros2 launch`` send),
-then SIGTERM, then SIGKILL. ``ProcessFigures`` reads CPU time and peak resident memory through
-psutil while the process lives.
+then SIGTERM, then SIGKILL; its SIGINT is at the default action even where this process ignores
+SIGINT. ``ProcessFigures`` reads CPU time and peak resident memory through psutil while the
+process lives.
 
     python -m actuator_bringup.supervisor which PACKAGE EXECUTABLE  # the path ros2 run starts
 """
@@ -53,6 +54,17 @@ def executable_path(package: str, executable: str) -> str:
 
 
 _LIVE: 'set[RosProcess]' = set()
+
+
+def _default_sigint() -> None:
+    """In the child, before exec: SIGINT back to its default action.
+
+    An ignored SIGINT passes through fork and exec, and a process started from a background job
+    of a non-interactive shell has one: ``ros2 launch`` then never hears the SIGINT that stops
+    it (launch hears signals through Python's wakeup fd, and Python sets no handler for a signal
+    ignored at its start).
+    """
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 class RosProcess:
@@ -127,6 +139,9 @@ class RosProcess:
             stdout=out,
             stderr=err,
             start_new_session=True,
+            preexec_fn=(  # Python code after fork only where SIGINT is ignored here
+                _default_sigint if signal.getsignal(signal.SIGINT) == signal.SIG_IGN else None
+            ),
         )
         _LIVE.add(self)
         return self

@@ -16,9 +16,10 @@ transition event launch missed would otherwise never be activated (ros2/rcl#1166
 lockstep then waited for a command that never came. ``autostart:=false`` leaves them unconfigured
 for ``ros2 lifecycle set`` or a lifecycle manager. The run ends when the joint process ends
 (``duration`` elapsed, or it failed): every other process is then stopped with SIGINT and the
-joint's exit code is reported. ``composed:=true`` runs the joint, the ESO and the controller in
-one process (actuator_bringup loop_container, composition.compose); ``ros2 lifecycle`` still
-reaches each by its name. ``pin:=true`` pins the processes as ``bringup --pin`` does.
+joint's exit code is reported; ``ros2 launch`` exits 1 when a joint exited non-zero.
+``composed:=true`` runs the joint, the ESO and the controller in one process (actuator_bringup
+loop_container, composition.compose); ``ros2 lifecycle`` still reaches each by its name.
+``pin:=true`` pins the processes as ``bringup --pin`` does.
 """
 
 import os
@@ -77,18 +78,26 @@ def _leader_exits(leaders, producer=None, drive=None):
 
     Every process but the SYNC producer and the simulated drive gets SIGINT at once; the
     producer once every other joint has ended (no consumer loses its SYNC), and launch's
-    Shutdown (the drive last, as hardware) once every joint has ended. Nothing on Ctrl-C
+    Shutdown (the drive last, as hardware) once every joint has ended; where a joint exited
+    non-zero, an action that raises instead, which shuts launch down the same way and makes
+    ``ros2 launch`` exit 1 (its exit code says only whether an action raised). Nothing on Ctrl-C
     (launch is ending already).
     """
     ended = []
+    failed = []
+
+    def fail(context):
+        raise RuntimeError(f'the run failed: {"; ".join(failed)}')
 
     def on_exit(event, context):
         if context.is_shutdown:
             return None
         ended.append(event.action)
+        code = event.returncode
+        if code != 0:
+            failed.append(f'{event.action.name} exited with code {code}')
         actions = []
         if len(ended) == 1:
-            code = event.returncode
             text = f'{event.action.name} exited with code {code}: ending the run'
             held = (producer, drive)
             actions += [
@@ -99,8 +108,14 @@ def _leader_exits(leaders, producer=None, drive=None):
             actions.append(
                 EmitEvent(event=ShutdownProcess(process_matcher=matches_action(producer)))
             )
-        if len(ended) == len(leaders):
-            actions.append(EmitEvent(event=Shutdown(reason='every joint ended: ending the run')))
+        if len(ended) == len(leaders):  # a raising action shuts launch down by itself
+            reason = 'every joint ended: ending the run'
+            ending = (
+                OpaqueFunction(function=fail)
+                if failed
+                else EmitEvent(event=Shutdown(reason=reason))
+            )
+            actions.append(ending)
         return actions
 
     return on_exit

@@ -15,14 +15,14 @@ States as in ros2_control's hardware lifecycle:
                 clean up, back to unconfigured.
 A node that is not active never commands current. ``autostart:=true`` runs configure and
 activate at start-up, so ``ros2 run`` alone gives a running node; otherwise ``ros2 lifecycle
-set`` (or the launch file) drives the transitions.
+set`` (or a lifecycle manager) drives the transitions.
 """
 
 from __future__ import annotations
 
 import traceback
 
-from rcl_interfaces.msg import ParameterDescriptor, ParameterType, SetParametersResult
+from rcl_interfaces.msg import ParameterDescriptor, ParameterType
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 
 from actuator_ros import publisher_hooks
@@ -115,21 +115,24 @@ class ManagedNode(LifecycleNode, ProcessMember):
                 f'ignoring parameters this node does not have: {", ".join(unknown)}'
             )
         only_while_unconfigured(self)
-        # rclpy calls the newest callback first: every request is logged, refused ones too.
-        self.add_on_set_parameters_callback(self._log_outside_change)
+        # Before rclpy's own checks (undeclared name, type, range, read-only) and the on-set
+        # callbacks: every request is logged, refused ones too.
+        self.add_pre_set_parameters_callback(self._log_outside_change)
         self._internal_transition = False
 
-    def _log_outside_change(self, params):
-        """Log at warning level every parameter change requested from outside.
+    def _log_outside_change(self, params: list) -> list:
+        """Log at warning level every parameter change requested from outside; change nothing.
 
-        rclpy's parameter service does not tell who called it; the node's own declarations
-        do not come through here (this callback is added after them).
+        A pre-set callback: rclpy calls it for set_parameters (the parameter service's, as
+        ``ros2 param set`` calls it) before it validates anything, and never for a declaration.
+        rclpy goes on with the concatenation of what its pre-set callbacks return, so a second
+        one would request every parameter twice. The parameter service does not tell who called.
         """
         self.get_logger().warning(
             'parameter change requested from outside (caller not known to rclpy): '
             + ', '.join(f'{p.name}={p.value!r}' for p in params)
         )
-        return SetParametersResult(successful=True)
+        return params
 
     def refuse_sim_time_in_realtime(self, mode: str) -> None:
         """Realtime mode runs on the system clock: use_sim_time would stop the watchdog's clock."""
