@@ -231,3 +231,29 @@ def test_help() -> None:
     with pytest.raises(SystemExit) as exc:
         main(['--help'])
     assert exc.value.code == 0
+
+
+def test_a_component_with_no_report_inside_the_run_is_never_said_ok() -> None:
+    from actuator_analysis.analyze import summarize_diagnostics
+    from actuator_analysis.analyze_table import _diagnostics
+
+    reports = [
+        (5, 'actuator_plant', 0, ''),  # before the run
+        (50, 'actuator_plant', 0, ''),  # after it
+        (20, 'actuator_eso', 0, ''),
+        (30, 'actuator_eso', 1, 'late'),
+    ]
+    summary = summarize_diagnostics(reports, (10, 40))
+    assert summary['actuator_plant']['worst'] is None
+    assert summary['actuator_eso']['worst'] == 'WARN'
+
+    class Run:
+        diagnostics = summary
+
+    class Report:
+        run = Run()
+
+    assert _diagnostics(Report()).splitlines() == [
+        'actuator_eso WARN (OK 1 WARN 1): late',
+        'actuator_plant none stamped inside the run (2 outside it)',
+    ]

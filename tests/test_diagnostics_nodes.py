@@ -91,9 +91,12 @@ def test_a_sim_run_records_every_nodes_health_and_the_stop_of_its_inputs(
     # The analysis reads them, and judges the run by the reports stamped inside it: the
     # controller was OK while the plant sampled; its STALE reports of the plant's end come after
     # the last sample (sim time stopped there) and are counted apart.
-    summary = load_run(bag_dir, quiet=True).diagnostics['actuator_controller']
+    judged = load_run(bag_dir, quiet=True).diagnostics
+    summary = judged['actuator_controller']
     assert summary['worst'] == 'OK', summary
     assert summary['after_run']['STALE'] == len(stale)
+    # the sim-time joint stamps its reports with its samples' time, so they are judged too
+    assert judged['actuator_plant']['worst'] == 'OK', judged['actuator_plant']
 
 
 def test_the_controller_reports_refusals_by_reason_and_a_latch_as_error(

@@ -254,3 +254,12 @@ def test_a_real_drive_is_judged_before_start_with_the_values_of_the_users_files(
     assert not (tmp_path / 'runs').exists()  # nothing made for a refused run
     # a plant takes no driver values from the files
     assert joint_overrides('plant', '', [drive]) == {}
+
+
+def test_a_run_is_named_by_its_scenario_mode_and_utc_time_for_runner_and_launch():
+    from actuator_bringup.run_description import run_name
+
+    assert re.fullmatch(
+        r'hold_pp_nftsmc_eso_sim_\d{8}T\d{6}Z', run_name('hold_pp_nftsmc_eso', 'sim')
+    )
+    assert '<scenario>_<mode>_<UTC time>' in OPTIONS['bag'].description

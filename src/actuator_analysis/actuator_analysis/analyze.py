@@ -232,13 +232,14 @@ def summarize_diagnostics(
     ``reports``: (stamp ns, name, level, message). With ``window_ns`` (the run: the joint's first
     and last sample) only the reports stamped inside it are judged; those after it (the nodes
     report their inputs' end as stale while the run shuts down) are counted per level under
-    'after_run', those before it (start-up) under 'before_run'.
+    'after_run', those before it (start-up) under 'before_run'. 'worst' is None for a component
+    with no report judged (none stamped inside the run).
     """
     out: dict[str, dict[str, Any]] = {}
     severity = ('OK', 'WARN', 'STALE', 'ERROR')
     for stamp, name, level, message in reports:
         entry = out.setdefault(
-            name, {'levels': {}, 'worst': 'OK', 'reasons': [], 'before_run': {}, 'after_run': {}}
+            name, {'levels': {}, 'worst': None, 'reasons': [], 'before_run': {}, 'after_run': {}}
         )
         label = DIAGNOSTIC_LEVELS[level] if 0 <= level < len(DIAGNOSTIC_LEVELS) else str(level)
         if window_ns is not None and not window_ns[0] <= stamp < window_ns[1]:
@@ -248,7 +249,7 @@ def summarize_diagnostics(
         entry['levels'][label] = entry['levels'].get(label, 0) + 1
         rank = severity.index(label) if label in severity else len(severity)
         worst = severity.index(entry['worst']) if entry['worst'] in severity else len(severity)
-        if rank > worst:
+        if entry['worst'] is None or rank > worst:
             entry['worst'], entry['reasons'] = label, []
         if label == entry['worst'] and label != 'OK' and message not in entry['reasons']:
             if len(entry['reasons']) < 5:

@@ -49,6 +49,10 @@ def _diagnostics(r: RunReport) -> str:
         return 'n/a (not recorded)'
     parts = []
     for name, d in sorted(r.run.diagnostics.items()):
+        if d['worst'] is None:  # nothing to judge the run by: never OK
+            outside = sum(d['before_run'].values()) + sum(d['after_run'].values())
+            parts.append(f'{name} none stamped inside the run ({outside} outside it)')
+            continue
         levels = ' '.join(f'{k} {v}' for k, v in d['levels'].items())
         why = f': {d["reasons"][0]}' if d['reasons'] else ''
         parts.append(f'{name} {d["worst"]} ({levels}){why}')

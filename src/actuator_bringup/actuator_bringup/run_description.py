@@ -20,6 +20,7 @@ exceeded the kernel's RT budget (sched_rt_runtime_us) and were stopped for 27-63
 
 from __future__ import annotations
 
+import datetime as dt
 import hashlib
 import tempfile
 from dataclasses import dataclass, field
@@ -86,6 +87,12 @@ class NodeSpec:
 def node_kind(spec: NodeSpec) -> str:
     """Return a spec's node kind: its key without a joint's number (controller2: controller)."""
     return spec.key.rstrip('0123456789')
+
+
+def run_name(scenario: str, mode: str) -> str:
+    """Return a run's name, its bag's and results' folder: <scenario>_<mode>_<UTC time>."""
+    stamp = dt.datetime.now(dt.timezone.utc).strftime('%Y%m%dT%H%M%SZ')
+    return f'{scenario}_{mode}_{stamp}'
 
 
 def default_scenario(joint: str) -> str:

@@ -15,7 +15,6 @@ node it started before it exits.
 from __future__ import annotations
 
 import argparse
-import datetime as dt
 import json
 import signal
 import sys
@@ -33,6 +32,7 @@ from actuator_bringup.run_description import (
     default_scenario,
     node_kind,
     ros_arguments,
+    run_name,
 )
 from actuator_bringup.composition import compose
 from actuator_bringup.gain_check import UnstableGains, check_gains
@@ -129,8 +129,7 @@ def run_closed_loop(
     if mode not in MODES:
         raise SystemExit(f'bringup: mode must be one of {", ".join(MODES)}')
     params = scenario_file(scenario)
-    stamp = dt.datetime.now(dt.timezone.utc).strftime('%Y%m%dT%H%M%SZ')
-    name = f'{scenario}_{mode}_{stamp}'
+    name = run_name(scenario, mode)
     run_dir = results_root / name
     bag = bag_root / name if record else None
     try:
@@ -246,8 +245,7 @@ def run_launched(
     description (graph.closed_loop) and drives their lifecycle; CPU and memory are read from
     the node processes launch starts.
     """
-    stamp = dt.datetime.now(dt.timezone.utc).strftime('%Y%m%dT%H%M%SZ')
-    name = f'{scenario}_{mode}_launch_{stamp}'
+    name = run_name(scenario, f'{mode}_launch')
     run_dir, bag = results_root / name, bag_root / name
     run_dir.mkdir(parents=True, exist_ok=True)
     bag_root.mkdir(parents=True, exist_ok=True)

@@ -48,6 +48,7 @@ from actuator_bringup.run_description import (
     closed_loop,
     default_scenario,
     ros_arguments,
+    run_name,
 )
 from actuator_bringup.run_options import (
     RUN_OPTIONS,
@@ -139,7 +140,7 @@ def _processes(context):
             options['mode'],
             options['duration'],
             record=options['record'],
-            bag=options['bag'] or None,
+            bag=options['bag'] or Path('bags') / run_name(scenario, options['mode']),
             joint=joint,
             thread_priority=options['thread_priority'],
             cpus=PINNING if options['pin'] else None,

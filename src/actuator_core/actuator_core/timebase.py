@@ -80,7 +80,8 @@ class StampCheck:
     def check(self, stamp_ns: int, now_ns: int, limit_ns: Optional[int] = None) -> Verdict:
         """Return the verdict on ``stamp_ns``.
 
-        ``now_ns`` is what the receiver's wall clock read when the stamp was received;
+        ``now_ns``: the receiver's stamp time when the stamp was received (real time:
+        actuator_core.clock.StampClock, the wall clock's time kept on the monotonic clock);
         ``limit_ns`` the newest stamp the receiver may accept (None: no such bound).
         """
         if stamp_ns < 0 or stamp_ns > STAMP_MAX_NS:

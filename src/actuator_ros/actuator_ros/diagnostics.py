@@ -6,7 +6,8 @@
 The rules live in actuator_core.health (ROS-free); this publishes what they say on a timer of
 the wall (steady) clock, so a sim-time node reports at 2 Hz of wall time whether or not /clock
 moves, which is what lets a stopped lockstep show as STALE. The header stamp is the node's own
-clock (sim time in sim mode), so a bag lines the reports up with the samples. A node creates one
+clock (sim time in sim mode), or for the sim-time joint, which makes that time, its newest
+sample's stamp; so a bag lines the reports up with the samples. A node creates one
 ``NodeDiagnostics`` in its build/configure and destroys it in its drop/cleanup:
 
     self.diagnostics = NodeDiagnostics(self, HealthMonitor(...), self.health_snapshot)
@@ -47,9 +48,14 @@ class NodeDiagnostics:
         monitor: HealthMonitor,
         snapshot: Callable[[], Snapshot],
         period_s: float = REPORT_PERIOD_S,
+        stamp_ns: Optional[Callable[[], int]] = None,
     ) -> None:
-        """Create the publisher and the wall-clock timer (first report after one period)."""
+        """Create the publisher and the wall-clock timer (first report after one period).
+
+        ``stamp_ns``: the reports' stamp (None: the node's clock).
+        """
         self.node, self.monitor, self.snapshot = node, monitor, snapshot
+        self.stamp_ns = stamp_ns
         self.pub = node.create_publisher(DiagnosticArray, TOPIC, 10)
         self.timer = node.create_timer(
             period_s, self.publish, clock=Clock(clock_type=ClockType.STEADY_TIME)
@@ -66,7 +72,11 @@ class NodeDiagnostics:
             return None
         health = self.monitor.update(time.monotonic_ns(), self.snapshot())
         msg = DiagnosticArray()
-        msg.header.stamp = self.node.get_clock().now().to_msg()
+        if self.stamp_ns is None:
+            msg.header.stamp = self.node.get_clock().now().to_msg()
+        else:
+            stamp = self.stamp_ns()
+            msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp, 1_000_000_000)
         msg.status = [to_status(health)]
         self.pub.publish(msg)
         self.last = health

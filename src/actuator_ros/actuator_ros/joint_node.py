@@ -166,7 +166,12 @@ class JointNode(JointReport, ManagedNode):
         self.encode_clock = codec(ClockMsg).encode
         self.timer = self.create_timer(0.1, self.on_tick, clock=self.wall)
         self._reset_run()
-        self.diagnostics = NodeDiagnostics(self, self.health_monitor(), self.health)
+        self.diagnostics = NodeDiagnostics(
+            self,
+            self.health_monitor(),
+            self.health,
+            stamp_ns=(lambda: max(self.published_ns, 0)) if self.mode == 'sim' else None,
+        )
 
     def _reset_run(self) -> None:
         """Reset the sampling state for a new run (configure, and each activate)."""
