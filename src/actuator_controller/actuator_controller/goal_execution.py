@@ -39,7 +39,6 @@ from actuator_controller.trajectory_settings import SegmentTolerances, Trajector
 # control_msgs/action/FollowJointTrajectory result codes.
 SUCCESSFUL = 0
 INVALID_GOAL = -1
-INVALID_JOINTS = -2
 OLD_HEADER_TIMESTAMP = -3
 PATH_TOLERANCE_VIOLATED = -4
 GOAL_TOLERANCE_VIOLATED = -5
