@@ -12,18 +12,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import NamedTuple, Protocol
+from typing import Protocol
 
 from actuator_core import limits
 from actuator_core import xmath as xm
-
-
-class ReferenceSample(NamedTuple):
-    """Desired position x1d [rad], velocity [rad/s] and acceleration [rad/s^2] at one time."""
-
-    position_rad: object
-    velocity_rad_s: object
-    acceleration_rad_s2: object
+from actuator_controller.commanded_reference import CommandedReference
+from actuator_controller.excitation import ExcitationReference
+from actuator_controller.reference_sample import ReferenceSample
 
 
 class Reference(Protocol):
@@ -122,8 +117,6 @@ def make_reference(
     amplitude = {} if amplitude_rad is None else {'amplitude_rad': amplitude_rad}
     frequency = {} if frequency_rad_s is None else {'frequency_rad_s': frequency_rad_s}
     if kind == 'hold':
-        from actuator_controller.commanded_reference import CommandedReference
-
         ref: Reference = CommandedReference(max_deceleration)
     elif kind == 'slow':
         ref = slow_trajectory()
@@ -134,8 +127,6 @@ def make_reference(
     elif kind == 'sine':
         ref = SineReference(**amplitude, **frequency)
     elif kind == 'excitation':
-        from actuator_controller.excitation import ExcitationReference
-
         ref = excitation if excitation is not None else ExcitationReference()
     else:
         raise ValueError(f'reference must be one of {", ".join(REFERENCE_KINDS)}, got {kind!r}')
