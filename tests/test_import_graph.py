@@ -24,6 +24,8 @@ import functools
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
+import pytest
+
 REPO = Path(__file__).resolve().parent.parent
 SRC = REPO / 'src'
 
@@ -77,6 +79,12 @@ def _statements(body: list[ast.stmt], lazy: bool):
             yield from _statements(case.body, lazy)
 
 
+@functools.lru_cache(maxsize=None)
+def _body(path: Path) -> list[ast.stmt]:
+    """Return the statements of a file's module body."""
+    return ast.parse(path.read_text(), str(path)).body
+
+
 def _imports(name: str, path: Path, modules: dict[str, Path], lazy: bool) -> dict[str, int]:
     """Return {imported project module: line} of a module's imports.
 
@@ -84,7 +92,7 @@ def _imports(name: str, path: Path, modules: dict[str, Path], lazy: bool) -> dic
     """
     package = name if path.name == '__init__.py' else name.rpartition('.')[0]
     out: dict[str, int] = {}
-    for stmt in _statements(ast.parse(path.read_text(), str(path)).body, lazy):
+    for stmt in _statements(_body(path), lazy):
         if isinstance(stmt, ast.Import):
             targets = [alias.name for alias in stmt.names]
         elif isinstance(stmt, ast.ImportFrom):
@@ -201,6 +209,7 @@ def _report(graph: Graph) -> str:
     return '\n'.join(out)
 
 
+@pytest.mark.slow  # parses every Python file of src/ (once: cached)
 def test_the_graph_sees_the_project():
     modules, graph = _graph(SRC, lazy=False)
     assert 'actuator_core.limits' in modules and 'actuator_bag' in modules
@@ -209,6 +218,7 @@ def test_the_graph_sees_the_project():
     assert sum(map(len, graph.values())) > 300
 
 
+@pytest.mark.slow  # parses every Python file of src/ (once: cached)
 def test_no_module_imports_in_a_circle():
     """Module-level imports among the project's modules form no circle."""
     _, graph = _graph(SRC, lazy=False)
@@ -216,6 +226,7 @@ def test_no_module_imports_in_a_circle():
     assert not parts, 'import circles among the modules of src/:\n' + _report(graph)
 
 
+@pytest.mark.slow  # parses every Python file of src/ (once: cached)
 def test_no_lazy_import_closes_a_circle():
     """With the imports inside functions added, still no circle but the allowed ones.
 

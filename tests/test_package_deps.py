@@ -285,6 +285,7 @@ def test_the_packages_are_found():
     assert all(k and ' ' not in k for k in DEPENDENCY_KEYS.values())
 
 
+@pytest.mark.slow  # parses every Python file of src/: about 1 s in all
 @pytest.mark.parametrize('package', PYTHON_PACKAGES)
 def test_package_xml_declares_what_the_code_imports(package):
     problems = _problems(package, PACKAGES[package][0], PACKAGES, BY_NAME.get(package, {}))
