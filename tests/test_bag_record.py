@@ -299,10 +299,19 @@ def test_a_system_topic_under_a_namespace_has_its_type() -> None:
             parse_topic(wrong)
 
 
-@pytest.mark.parametrize('exe', ['recorder', 'player', 'bag_repair', 'bag_analyze'])
-def test_help(ros_process, exe: str) -> None:
-    """Every executable answers --help with usage and exit code 0."""
-    proc = ros_process('actuator_bag', exe, ['--help'])
+@pytest.mark.parametrize(
+    'package, exe',
+    [
+        ('actuator_bag', 'recorder'),
+        ('actuator_bag', 'player'),
+        ('actuator_bag', 'bag_repair'),
+        ('actuator_analysis', 'bag_analyze'),
+        ('actuator_analysis', 'bag_identify'),
+    ],
+)
+def test_help(ros_process, package: str, exe: str) -> None:
+    """Every executable of the bag tools answers --help with usage and exit code 0."""
+    proc = ros_process(package, exe, ['--help'])
     assert proc.wait(30) == 0, proc.describe()
     assert proc.stdout.startswith('usage: ')
 

@@ -118,7 +118,7 @@ def _documented_rows(title_start: str) -> dict[str, tuple[str, str]]:
             inside = line.startswith(title_start)
         elif inside and line.startswith('| `'):
             name, default, description = (c.strip() for c in line.strip('|').split(' | '))
-            rows[name.strip('`')] = (default, description)
+            rows[name.strip('`')] = (default, description.replace('\\|', '|'))
     return rows
 
 
