@@ -322,11 +322,11 @@ def joint_overrides(joint: str, eds_file: str, files: Sequence[Path]) -> dict:
     For a CiA 402 driver, what the user's parameter ``files`` give it (of '/**' the names it
     has, its own section whole), so the checks before start (a real drive's reaction values)
     judge the values it will run with; ``eds_file`` over the files' one. The files' form is
-    checked first (one line).
+    checked first, for any joint (one line).
     """
+    check_parameter_files(tuple(files), None)
     if joint not in ('cia402_sim', 'cia402'):
         return eds_parameters(joint, eds_file)
-    check_parameter_files(tuple(files), None)
     from actuator_cia402.launch_spec import DRIVER_NODE_NAME, known_names
 
     known = known_names()

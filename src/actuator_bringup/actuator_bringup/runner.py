@@ -384,8 +384,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         joint_parameters = joint_overrides(
             args['joint'], args['eds_file'], [Path(f) for f in args['params_file']]
         )
-    except OptionError as exc:
-        parser.error(str(exc))
+    except OptionError as exc:  # named as the launch file names it; here as the user typed it
+        problem = str(exc)
+        for option in RUN_OPTIONS:
+            if option.runner and problem.startswith(f'{option.name} '):
+                problem = option.cli + problem[len(option.name) :]
+        parser.error(problem)
     if args['joints'] > 1 and args['joint'] not in ('cia402_sim', 'cia402'):
         parser.error('--joints above 1 needs --joint cia402_sim or cia402 (drives on one bus)')
     if args['record_in_process'] and not (args['composed'] and args['mode'] == 'sim'):
