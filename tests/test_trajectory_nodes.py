@@ -399,14 +399,16 @@ def test_a_commanded_sim_run_equals_the_offline_loop_bit_for_bit(isolated):
     """
     from actuator_analysis.analyze import load_run
     from actuator_bringup.main import compare_with_offline
-    from actuator_bringup.commanded import replay_offline, scripted_run
+    from actuator_bringup.commanded import COMMANDED_DURATION_S, replay_offline, scripted_run
 
-    result, client = scripted_run(isolated / 'bags', isolated / 'runs', duration_s=3.0)
+    duration = COMMANDED_DURATION_S
+    result, client = scripted_run(isolated / 'bags', isolated / 'runs', duration_s=duration)
     assert all(code == 0 for code in result.exit_codes.values()), result.exit_codes
+    assert not client.error and len(client.ids) == 3, (client.error, client.ids)
     run = load_run(result.bag, quiet=True)
-    offline = replay_offline(run, client, duration_s=3.0)
+    offline = replay_offline(run, client, duration_s=duration)
     comparison = compare_with_offline(run, offline.trace)
-    assert comparison['samples_compared'] == 3000
+    assert comparison['samples_compared'] == round(duration * 1000)
     assert comparison['identical'], comparison
     kinds = [e.kind for e in offline.goal_events]
     assert kinds.count('started') == 3 and 'canceled' in kinds

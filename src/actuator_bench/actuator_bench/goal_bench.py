@@ -161,6 +161,7 @@ def tracking(duration_s: float, start_s: float, modes: Sequence[str], root: Path
                 'sim',
                 start_s + duration_s,
                 (fast_goal(kind, duration_s, start_s),),
+                from_ready=False,  # on the built-in run's clock: compared sample by sample
             )
             run = load_run(result.bag, quiet=True)
             ok = np.isin(run.status, CONTROLLED)
@@ -213,7 +214,7 @@ def cancel(duration_s: float, start_s: float, modes: Sequence[str], root: Path) 
     if 'sim' in modes:
         goal = fast_goal('pva', duration_s, start_s, cancel_s=start_s + peak_s)
         result, client = scripted_run(
-            root / 'bags', root / 'runs', 'sim', start_s + duration_s, (goal,)
+            root / 'bags', root / 'runs', 'sim', start_s + duration_s, (goal,), from_ready=False
         )
         run = load_run(result.bag, quiet=True)
         canceled = [e for e in run.goal_events if e.kind == 'canceled']

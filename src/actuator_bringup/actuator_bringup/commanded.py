@@ -31,8 +31,12 @@ from actuator_sim.params_yaml import all_scenarios
 from actuator_sim.scenarios import HOLD_SCENARIO
 
 JOINTS = ('joint',)
-#: Sample time the commanded run lasts [s]: the script's last goal is cancelled at 2.3 s.
-COMMANDED_DURATION_S = 3.0
+#: Sample time the commanded run lasts [s]: the script runs from when the client found the
+#: action server (from_ready) and cancels its last goal 2.3 s later; the client may take up to
+#: READY_BY_S of the loop's time to find it (a sim loop runs several times faster than real time).
+COMMANDED_DURATION_S = 6.0
+#: Loop time by which a client timing its script from_ready must have found the server [s].
+READY_BY_S = COMMANDED_DURATION_S - 3.0
 
 
 @dataclass(frozen=True)
@@ -84,23 +88,34 @@ class ScriptedGoal:
         )
 
 
-#: Multi-point, replaced mid-motion (sent while the first moves, starting 0.2 s later), and a
-#: third cancelled while it moves. Times on the loop's clock from its first sample (sim: the
-#: joint's SIM_START_NS; real time: when the client found the action server).
+#: Multi-point, replaced mid-motion (sent just after the first starts moving, starting 0.45 s
+#: later), and a third cancelled while it moves. Each is sent 0.3 s or more of loop time before
+#: its start stamp: a client thread that lags a sim loop running several times faster than real
+#: time on a loaded machine still hands each over before it starts. Times on the loop's clock
+#: from when the client found the action server (ScriptedClient.t0_ns; in sim without from_ready:
+#: from the joint's first sample, SIM_START_NS).
 SCRIPT = (
-    ScriptedGoal('multi-point', (0.3, 0.6, 0.9), (0.3, -0.2, 0.1), 0.1, 0.5),
-    ScriptedGoal('replacement', (0.3, 0.6), (-0.3, 0.0), 0.85, 1.05),
-    ScriptedGoal('cancelled', (0.8,), (0.5,), 1.75, 2.0, cancel_s=2.3),
+    ScriptedGoal('multi-point', (0.3, 0.6, 0.9), (0.3, -0.2, 0.1), 0.05, 0.5),
+    ScriptedGoal('replacement', (0.3, 0.6), (-0.3, 0.0), 0.6, 1.05),
+    ScriptedGoal('cancelled', (0.8,), (0.5,), 1.7, 2.0, cancel_s=2.3),
 )
 
 
 class ScriptedClient(threading.Thread):
     """Sends ``SCRIPT`` on the loop's clock (/clock in sim, the wall clock in real time)."""
 
-    def __init__(self, mode: str, script=SCRIPT, timeout_s: float = 600.0) -> None:
-        """Run in ``mode``; give up after ``timeout_s`` of wall time."""
+    def __init__(
+        self, mode: str, script=SCRIPT, timeout_s: float = 600.0, from_ready: bool = True
+    ) -> None:
+        """Run in ``mode``; give up after ``timeout_s`` of wall time.
+
+        ``from_ready``: the script's times count from when the client found the action server
+        (on the 1 ms grid in sim); False in sim: from the joint's first sample, however late
+        the client is ready.
+        """
         super().__init__(name='scripted-client', daemon=True)
         self.mode, self.script, self.timeout_s = mode, script, timeout_s
+        self.from_ready = from_ready
         self.stop = threading.Event()
         self.ids: dict[str, str] = {}  # script name -> goal id
         self.runs: dict = {}
@@ -145,7 +160,18 @@ class ScriptedClient(threading.Thread):
             if not spin_until(lambda: client.action.server_is_ready() and now_ns() is not None):
                 self.error = 'no action server or clock'
                 return
-            self.t0_ns = SIM_START_NS if self.mode == 'sim' else now_ns()
+            ready_ns = now_ns()
+            if self.mode == 'sim':
+                grid = 1_000_000  # the sim clock's sample grid: a start stamp on a sample
+                ready_ns = SIM_START_NS + -(-(ready_ns - SIM_START_NS) // grid) * grid
+                self.t0_ns = ready_ns if self.from_ready else SIM_START_NS
+                if self.from_ready and ready_ns - SIM_START_NS > READY_BY_S * 1e9:
+                    self.error = (
+                        f'the client found the action server only {ready_ns - SIM_START_NS} ns '
+                        f'into the run (by {READY_BY_S:g} s the script fits the run)'
+                    )
+            else:
+                self.t0_ns = ready_ns
             for goal in self.script:
                 if not spin_until(lambda g=goal: now_ns() >= self.t0_ns + g.send_s * 1e9):
                     return
@@ -173,15 +199,16 @@ def scripted_run(
     duration_s: float = 3.0,
     script=SCRIPT,
     thread_priority: Optional[int] = None,
+    from_ready: bool = True,
 ) -> tuple[RunResult, ScriptedClient]:
     """Run the hold scenario with the scripted client; return the run and the client.
 
     ``thread_priority``: the real-time runs' SCHED_FIFO priority (default 50 in real time, as
-    the main job's paper case; 0 in sim).
+    the main job's paper case; 0 in sim). ``from_ready``: as ScriptedClient's.
     """
     if thread_priority is None:
         thread_priority = 50 if mode == 'realtime' else 0
-    client = ScriptedClient(mode, script)
+    client = ScriptedClient(mode, script, from_ready=from_ready)
     client.start()
     try:
         result = run_closed_loop(
@@ -210,9 +237,11 @@ class OfflineReplay:
 def handovers(events: list[GoalEventRow], ids: list[str]) -> list[int]:
     """Return the sample each goal (in the order sent) was handed over at, from its events.
 
-    A goal that preempted the one before was handed over at that one's preemption; a goal that
-    starts when taken at the sample it started; one waiting for its start stamp no earlier
-    than it was accepted and the one before had ended (any such sample gives the same run).
+    A goal that preempted the one before was handed over at that one's preemption; any other
+    goal that started at the sample it started (one taken after its start stamp, or without
+    one, starts when taken; one that waited for its stamp gives the same run handed over at any
+    sample from its acceptance to its start); one that never started no earlier than it was
+    accepted and the one before had ended.
     """
     out = []
     for i, goal_id in enumerate(ids):
@@ -222,7 +251,7 @@ def handovers(events: list[GoalEventRow], ids: list[str]) -> list[int]:
         preempted = [e for e in previous if e.kind == 'aborted' and e.error_string == PREEMPTED]
         if preempted:
             out.append(preempted[0].stamp_ns)
-        elif 'started' in kinds and kinds['accepted'].start_ns == 0:
+        elif 'started' in kinds:
             out.append(kinds['started'].stamp_ns)
         else:
             ended = [
