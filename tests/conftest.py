@@ -33,7 +33,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import ros_helpers  # noqa: E402
-from host_probe import HostProbe, HostWindow  # noqa: E402
+from host_probe import SLOW_HOST_SPEED, HostProbe, HostWindow, host_speed  # noqa: E402
 
 
 def _require_project_environment():
@@ -221,6 +221,7 @@ class _Ledger:
         self.realtime: set[str] = set()
         self.reruns: dict[str, int] = {}
         self.host_skips: dict[str, str] = {}
+        self.slow_skips: dict[str, str] = {}
 
     def note(self, report) -> None:
         """Count one report of a real-time test."""
@@ -231,6 +232,8 @@ class _Ledger:
             self.reruns[report.nodeid] = self.reruns.get(report.nodeid, 0) + 1
         elif report.skipped and 'host stalled:' in str(report.longrepr):
             self.host_skips[report.nodeid] = str(report.longrepr[-1])
+        elif report.skipped and 'host slow:' in str(report.longrepr):
+            self.slow_skips[report.nodeid] = str(report.longrepr[-1])
 
     def line(self) -> str:
         """Return the one-line account (reruns and host skips per test, the share)."""
@@ -240,11 +243,18 @@ class _Ledger:
 
         reruns = ', '.join(f'{short(k)} x{v}' for k, v in sorted(self.reruns.items()))
         skips = ', '.join(short(k) for k in sorted(self.host_skips))
-        return (
+        slow = ', '.join(short(k) for k in sorted(self.slow_skips))
+        line = (
             f'real-time ledger: {len(self.realtime)} tests, {sum(self.reruns.values())} reruns '
             f'({reruns or "none"}), {len(self.host_skips)} host skips ({skips or "none"}); '
             f'host skips allowed up to {HOST_SKIP_SHARE_MAX:.0%}'
         )
+        if self.slow_skips:  # a precondition of the host, like SCHED_FIFO: said, not counted
+            line += (
+                f'; {len(self.slow_skips)} figures not judged on a slow host (speed '
+                f'{host_speed():.2f}, judged from {SLOW_HOST_SPEED:g}: {slow})'
+            )
+        return line
 
     def too_many_skips(self) -> bool:
         """Return whether host skips exceed HOST_SKIP_SHARE_MAX of the real-time tests run."""

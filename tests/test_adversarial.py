@@ -44,13 +44,15 @@ from adversarial_loop import (
     logged_after,
     logged_between,
 )
-from host_probe import skip_or_fail
+from host_probe import CIA402_LOOP, require_speed, skip_or_fail
 
 pytestmark = [pytest.mark.realtime, pytest.mark.slow]
 
 
 @pytest.fixture(params=JOINT_KINDS)
 def loop(request, ros_env, rclpy_context, tmp_path):
+    if request.param == 'cia402_sim':
+        require_speed(CIA402_LOOP)
     running = Loop(ros_env, tmp_path, request.param)
     attacker = Attacker(rclpy_context, request.param)
     try:

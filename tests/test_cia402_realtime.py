@@ -22,7 +22,7 @@ from actuator_cia402.config import DriverParameters
 from actuator_core import limits
 
 from cia402_helpers import DRIVER, driver_args, wait_for_output
-from host_probe import fifo_granted, skip_or_fail
+from host_probe import CIA402_LOOP, fifo_granted, require_speed, skip_or_fail
 from ros_helpers import start_closed_loop
 from cia402_helpers import harness_fixture, sim_drive_fixture  # noqa: F401 - fixtures by name
 
@@ -179,6 +179,7 @@ def test_end_to_end_fast_deep_sea_case_tracks_within_a_factor_of_the_offline_cor
 
     The drive adds quantisation, a torque loop and one SYNC of delay.
     """
+    require_speed(CIA402_LOOP)
     from actuator_analysis.analyze import analyze_run, load_run
     from actuator_cia402.offline import DRIVE_SCENARIO, run as offline_drive, window_errors
     from actuator_sim.loop import ClosedLoop
@@ -361,6 +362,7 @@ def test_two_joints_on_one_bus_close_two_loops_under_namespaces(isolated):
     measurements on one run here: the share of samples each driver applied its own controller's
     command over is judged (80 %) only on a host that ran both loops to their end.
     """
+    require_speed(CIA402_LOOP)
     from rosbags.highlevel import AnyReader
 
     from actuator_bringup.runner import run_closed_loop
@@ -426,6 +428,7 @@ def test_a_composed_cia402_loop_runs_driver_eso_and_controller_in_one_process(
     container to the run's end, on the SYNC grid, without a latch. Tracking is the end-to-end
     test's; here the share of samples commanded is judged only on a host that kept the loop.
     """
+    require_speed(CIA402_LOOP)
     from actuator_bringup.runner import run_closed_loop
     from actuator_bringup.supervisor import process_log
 
