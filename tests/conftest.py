@@ -33,7 +33,8 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import ros_helpers  # noqa: E402
-from host_probe import SLOW_HOST_SPEED, HostProbe, HostWindow, host_speed  # noqa: E402
+import host_probe  # noqa: E402
+from host_probe import SLOW_HOST_SPEED, HostProbe, HostWindow  # noqa: E402
 
 
 def _require_project_environment():
@@ -252,7 +253,7 @@ class _Ledger:
         if self.slow_skips:  # a precondition of the host, like SCHED_FIFO: said, not counted
             line += (
                 f'; {len(self.slow_skips)} figures not judged on a slow host (speed '
-                f'{host_speed():.2f}, judged from {SLOW_HOST_SPEED:g}: {slow})'
+                f'{host_probe.host_speed():.2f}, judged from {SLOW_HOST_SPEED:g}: {slow})'
             )
         return line
 

@@ -19,9 +19,12 @@ from conftest import HOST_SKIP_SHARE_MAX, _Ledger
 from host_probe import (
     EXPLAINED_SAMPLES_PER_STALLED_MS,
     RERUN_STALL_MS,
+    SLOW_HOST_SPEED,
     HostProbe,
     HostWindow,
+    require_speed,
     skip_or_fail,
+    slow_host,
 )
 
 MS = 1_000_000
@@ -52,7 +55,19 @@ def test_a_probe_without_sched_fifo_excuses_nothing():
     assert 'normal scheduling' in window.summary()
 
 
-def test_skip_or_fail_skips_with_both_figures_or_fails_naming_the_quiet_host():
+@pytest.fixture
+def host_speed(monkeypatch):
+    """Set the host's measured speed (host_probe.host_speed) for a test: a function of it."""
+    import host_probe
+
+    def set_speed(speed: float) -> None:
+        monkeypatch.setattr(host_probe, 'host_speed', lambda: speed)
+
+    set_speed(1.0)
+    return set_speed
+
+
+def test_skip_or_fail_skips_with_both_figures_or_fails_naming_the_quiet_host(host_speed):
     with pytest.raises(pytest.skip.Exception, match=r'^host stalled: 30 late; host probe '):
         skip_or_fail(_window(20.0), '30 late', samples=30)
     with pytest.raises(pytest.fail.Exception) as failed:
@@ -65,6 +80,29 @@ def test_skip_or_fail_skips_with_both_figures_or_fails_naming_the_quiet_host():
         skip_or_fail(_window(51.0), 'ended early', stall_ms=50.0)
     with pytest.raises(pytest.fail.Exception, match='does not explain a stall of 50 ms'):
         skip_or_fail(_window(49.0), 'ended early', stall_ms=50.0)
+
+
+def test_a_slow_host_skips_what_a_quiet_one_fails_and_says_its_speed(host_speed):
+    """Below SLOW_HOST_SPEED a bad figure skips as 'host slow' and require_speed skips first."""
+    host_speed(SLOW_HOST_SPEED)
+    assert slow_host() == ''
+    require_speed('the loop')  # no skip
+    host_speed(SLOW_HOST_SPEED - 0.01)
+    assert slow_host().startswith(f'host slow: it runs Python at {SLOW_HOST_SPEED - 0.01:.2f} ')
+    with pytest.raises(pytest.skip.Exception, match=r'^host slow: .*: 30 late; host probe '):
+        skip_or_fail(_window(1.0), '30 late', samples=30)
+    with pytest.raises(pytest.skip.Exception, match=r'^host slow: .*: the loop is judged only'):
+        require_speed('the loop')
+
+
+def test_the_reference_workload_gives_a_speed_near_the_calibration_here():
+    """host_speed is REFERENCE_WORKLOAD_S over the workload's best time: a positive number."""
+    import host_probe
+
+    host_probe.host_speed.cache_clear()
+    speed = host_probe.host_speed()
+    assert 0.05 < speed < 20.0, speed  # a workload that ran (not 0 s, not minutes)
+    assert host_probe.host_speed() == speed  # once per session
 
 
 @pytest.mark.slow
@@ -95,18 +133,21 @@ def _report(nodeid, outcome, reason=''):
     )
 
 
-def test_the_ledger_counts_reruns_and_host_skips_per_test_and_fails_beyond_the_share():
+def test_the_ledger_counts_reruns_and_host_skips_per_test_and_fails_beyond_the_share(host_speed):
+    host_speed(0.6)
     ledger = _Ledger()
     ledger.note(_report('t.py::a', 'rerun'))
     ledger.note(_report('t.py::a', 'passed'))
     ledger.note(_report('t.py::b', 'skipped', 'Skipped: host stalled: x; host probe ...'))
     ledger.note(_report('t.py::c', 'skipped', 'Skipped: this machine refuses SCHED_FIFO'))
+    ledger.note(_report('t.py::s', 'skipped', 'Skipped: host slow: it runs Python at 0.60 ...'))
     ledger.note(SimpleNamespace(nodeid='t.py::u', keywords={}, outcome='rerun'))  # not real-time
     assert ledger.line() == (
-        'real-time ledger: 3 tests, 1 reruns (a x1), 1 host skips (b); host skips allowed up to '
-        f'{HOST_SKIP_SHARE_MAX:.0%}'
+        'real-time ledger: 4 tests, 1 reruns (a x1), 1 host skips (b); host skips allowed up to '
+        f'{HOST_SKIP_SHARE_MAX:.0%}; 1 figures not judged on a slow host (speed 0.60, judged '
+        f'from {SLOW_HOST_SPEED:g}: s)'
     )
-    assert ledger.too_many_skips() == (1 > HOST_SKIP_SHARE_MAX * 3)
+    assert ledger.too_many_skips() == (1 > HOST_SKIP_SHARE_MAX * 4)  # a slow host's not counted
     for name in 'defgh':
         ledger.note(_report(f't.py::{name}', 'passed'))
-    assert not ledger.too_many_skips()  # 1 of 8
+    assert not ledger.too_many_skips()  # 1 of 9
