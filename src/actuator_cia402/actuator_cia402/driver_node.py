@@ -106,6 +106,8 @@ class Cia402DriverNode(JointNode):
         if self.active:
             response.success, response.message = False, 'deactivate first: the node is active'
             return response
+        # the service lives while the node is configured (build_extras to drop_extras)
+        assert isinstance(self.joint, Cia402Joint)
         try:
             response.message = self.joint.acknowledge_fault()
             response.success = True

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-from typing import Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -136,7 +136,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 f'at the current limit, max |e| {peak:.2e} rad'
             )
         return 0
-    cases = [
+    cases: list[tuple[str, dict[str, Any]]] = [
         ('offline core', dict(delay_syncs=0, tau_s=0.0, quantise=False)),
         ('+ quantisation', dict(delay_syncs=0, tau_s=0.0, quantise=True)),
         ('+ torque loop', dict(delay_syncs=0, quantise=True)),

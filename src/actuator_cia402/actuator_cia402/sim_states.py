@@ -16,8 +16,16 @@ from __future__ import annotations
 
 import math
 import time
+from typing import TYPE_CHECKING
 
 from actuator_cia402 import profile as p
+
+if TYPE_CHECKING:
+    import canopen
+
+    from actuator_cia402.scaling import Scaling
+    from actuator_cia402.sim_faults import Quirks
+    from actuator_plant.sim_joint import SimulatedJoint
 
 ERROR_REGISTER_GENERIC = 0x01
 ERROR_REGISTER_CURRENT = 0x02
@@ -31,6 +39,44 @@ STOP_VELOCITY_GAIN_A_S_RAD = 5.0
 
 class DriveStateMachine:
     """The power state machine of ``SimulatedDrive``; reads its objects, moves its power stage."""
+
+    # What SimulatedDrive holds (set in its __init__): read here, and the state moved here.
+    scaling: Scaling
+    dt_s: float
+    joint: SimulatedJoint
+    quirks: Quirks
+    node: canopen.LocalNode
+    state: p.State
+    last_controlword: int
+    target_permille: int
+    error_code: int
+    error_register: int
+    brake_closed: bool
+    _brake_closing_at: float | None
+    ramp_permille: float
+    _stopping: p.State | None
+    _decelerating: bool
+    _stop_velocity: float
+    _cut_ramps: int
+    sto: bool
+    remote_off: bool
+    target_ignored: bool
+    silent: bool
+    syncs: int
+    _heartbeat_seen: float | None
+    _heartbeat_lost: bool
+    _heartbeat_producer: int
+
+    if TYPE_CHECKING:  # SimulatedDrive's methods this part calls
+
+        @property
+        def _sign(self) -> int: ...
+
+        def _cfg(self, index: int, subindex: int = 0) -> int: ...
+
+        def _event(self, text: str) -> None: ...
+
+        def _applied_target(self) -> int: ...
 
     @property
     def statusword(self) -> int:

@@ -226,7 +226,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 def _run(joint: Cia402Joint, args) -> int:
     """Hold the brake, then the current under the judge; print the summary; the exit code."""
     print(f'active: {args.current:g} A after {args.hold:g} s of brake', flush=True)
-    announced = []
+    announced: list[int] = []  # the sample the current was announced at
 
     def on_sample(k, sample):
         if not announced and k * args.sync_period > args.hold + 0.05:
