@@ -198,6 +198,7 @@ class TrajectoryExecution:
                 self._abort_all(stamp_ns, f'Aborted: {self.blocked}')
                 self._refuse_commands(stamp_ns, f'Aborted: {self.blocked}')
             return
+        assert desired is not None  # the law ran: on this reference
         self.blocked = ''
         self._t = t_s
         self.desired = desired
@@ -279,6 +280,7 @@ class TrajectoryExecution:
     def _judge(self, stamp_ns, t_s, desired, actual_positions, actual_velocities) -> None:
         """JTC's update: path tolerances before the end, goal tolerances after it."""
         goal = self.active
+        assert goal is not None  # a goal runs
         position_errors = [d - a for d, a in zip(desired.positions, actual_positions)]
         velocity_errors = (
             None
@@ -312,6 +314,7 @@ class TrajectoryExecution:
         self, stamp_ns, t_s, actual_positions, actual_velocities, desired, code, why
     ) -> None:
         """Abort the running goal; the joint's own state comes to rest and holds."""
+        assert self.active is not None  # a goal runs
         self._end(stamp_ns, self.active, ABORTED, code, why)
         self.active = self.feedback = None
         velocities = desired.velocities if actual_velocities is None else actual_velocities

@@ -12,24 +12,27 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import NamedTuple, Protocol
+from typing import Any, NamedTuple, Protocol
 
 from actuator_core import limits
 from actuator_core import xmath as xm
+from actuator_core.xmath import FloatOrArray
 
 
 class ReferenceSample(NamedTuple):
     """Desired position x1d [rad], velocity [rad/s] and acceleration [rad/s^2] at one time."""
 
-    position_rad: object
-    velocity_rad_s: object
-    acceleration_rad_s2: object
+    position_rad: FloatOrArray
+    velocity_rad_s: FloatOrArray
+    acceleration_rad_s2: FloatOrArray
 
 
 class Reference(Protocol):
     """A reference trajectory: ``sample(t)`` gives x1d and its first two derivatives."""
 
-    name: str
+    @property
+    def name(self) -> str:
+        """The reference's kind (a frozen dataclass's field, or a class attribute)."""
 
     def sample(self, t) -> ReferenceSample:
         """Return the reference at time t [s] since the start of the run."""
@@ -119,8 +122,10 @@ def make_reference(
     it stops a motion [rad/s^2]; ``excitation`` (an ExcitationReference) replaces the
     excitation's defaults.
     """
-    amplitude = {} if amplitude_rad is None else {'amplitude_rad': amplitude_rad}
-    frequency = {} if frequency_rad_s is None else {'frequency_rad_s': frequency_rad_s}
+    amplitude: dict[str, Any] = {} if amplitude_rad is None else {'amplitude_rad': amplitude_rad}
+    frequency: dict[str, Any] = (
+        {} if frequency_rad_s is None else {'frequency_rad_s': frequency_rad_s}
+    )
     if kind == 'hold':
         from actuator_controller.commanded_reference import CommandedReference
 
