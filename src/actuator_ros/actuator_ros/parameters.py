@@ -18,7 +18,7 @@ import difflib
 import math
 import os
 from dataclasses import make_dataclass
-from typing import Any, Iterable, Sequence
+from typing import Any, Iterable, Mapping, Sequence
 
 from rcl_interfaces.msg import (
     FloatingPointRange,
@@ -43,7 +43,7 @@ class ParameterError(ValueError):
 
 
 def _descriptor(
-    name: str, meta: dict, default: Any, read_only: bool = False
+    name: str, meta: Mapping[str, Any], default: Any, read_only: bool = False
 ) -> ParameterDescriptor:
     """Descriptor with description, unit, valid range and, where finite, an enforced range."""
     text = meta['description']
