@@ -18,7 +18,7 @@ import difflib
 import math
 import os
 from dataclasses import make_dataclass
-from typing import Any, Iterable, Mapping, Sequence
+from typing import Any, Iterable, Mapping, Sequence, overload
 
 from rcl_interfaces.msg import (
     FloatingPointRange,
@@ -160,6 +160,18 @@ def _check_choice(name: str, value: str, choices: Sequence[str]) -> None:
         raise ParameterError(
             f'parameter {name!r} = {value!r} refused: must be one of {", ".join(choices)}{hint}'
         )
+
+
+@overload
+def declare_number(
+    node: Node, name: str, default: int, low: float, high: float, unit: str, description: str
+) -> int: ...
+
+
+@overload
+def declare_number(
+    node: Node, name: str, default: float, low: float, high: float, unit: str, description: str
+) -> float: ...
 
 
 def declare_number(
