@@ -297,7 +297,8 @@ class BagWriter:
             self._file = open_data_file(self.mcap_path)
             self._created.insert(0, self.mcap_path)
             self._mcap = McapWriter(
-                self._file,
+                # mcap types its output as a file object; it calls only write() and tell()
+                self._file,  # type: ignore[arg-type]
                 chunk_size=self.chunk_size,
                 compression=CompressionType.ZSTD
                 if self.compression == 'zstd'

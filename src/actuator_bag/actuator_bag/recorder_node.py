@@ -332,8 +332,9 @@ class RecorderNode(Node, ProcessMember):
         return self.thread.error is not None
 
     # --- ProcessMember: a failed write ends the run; at the end, take what came, then close --
+    # run_nodes only reads ProcessMember.finished; here it follows the writer thread
     @property
-    def finished(self) -> bool:
+    def finished(self) -> bool:  # type: ignore[override]
         """The run is over for the recorder once a write failed (release says why)."""
         return self.failed
 
