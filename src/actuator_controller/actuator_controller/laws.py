@@ -197,6 +197,10 @@ class Controller:
         """Zero the integral state (a new run)."""
         self.integral = 0.0
 
+    def update(self, t, y, x2_hat, x3_hat, ref: ReferenceSample) -> ControlOutput:
+        """Compute the current for this sample (each law its own)."""
+        raise NotImplementedError
+
     def _finish(self, u_unlimited, integrand, **terms) -> ControlOutput:
         """Limit u, decide the integral update (frozen on wind-up or non-finite output).
 

@@ -156,7 +156,8 @@ def run_case(runs: list[tuple[Scenario, float]], traces_dir: Path | None) -> lis
         trace, metrics, radius, wall = run_scenario(scenario)
         if traces_dir is not None:
             traces_dir.mkdir(parents=True, exist_ok=True)
-            np.savez_compressed(traces_dir / f'{scenario.name}.npz', **trace)
+            # numpy's stub types **kwds as if they could hold its allow_pickle flag
+            np.savez_compressed(traces_dir / f'{scenario.name}.npz', **trace)  # type: ignore[arg-type]
         rows.append(
             {
                 'name': scenario.name,
