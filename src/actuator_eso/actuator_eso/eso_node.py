@@ -207,7 +207,7 @@ class EsoNode(ManagedNode):
             return
         y = joint_position(msg, self.joint_name)
         problem = measurement_problem(y, self.joint_name, msg.position)
-        if problem:
+        if problem or y is None:  # (no angle is a problem)
             self._refuse('bad_measurement', lambda: problem)
             return
         stamp = stamp_to_ns(msg.header.stamp)
