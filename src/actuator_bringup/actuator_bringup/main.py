@@ -53,7 +53,7 @@ def timing_figures(result: RunResult) -> dict:
     def table(values, **kw) -> dict:
         return {k.rsplit('_', 1)[1]: v for k, v in percentiles(values, 'x', **kw).items()}
 
-    figures = {'updates': int(log['stamp_ns'].size)}
+    figures: dict[str, object] = {'updates': int(log['stamp_ns'].size)}
     if period_us.size:
         figures['period_us'] = table(period_us, mean=True)
     if result.mode == 'realtime' and log['latency_ns'].size:
@@ -128,6 +128,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 file=sys.stderr,
             )
             return 1
+        assert result.bag is not None  # a recorded run
         run = load_run(result.bag, quiet=True)
         runs.append(run)
         analysis = analyze_run(run)
@@ -164,6 +165,7 @@ def commanded_run(mode: str, out: Path) -> dict:
     if client.error or any(code != 0 for code in result.exit_codes.values()):
         print(f'  the run failed: {client.error or result.exit_codes}; logs in {result.run_dir}')
         return entry
+    assert result.bag is not None  # a recorded run
     run = load_run(result.bag, quiet=True)
     goals = goal_reports(run)
     entry['goals'] = [g.as_dict() for g in goals]

@@ -350,15 +350,19 @@ def build_parser() -> argparse.ArgumentParser:
     for option in RUN_OPTIONS:
         if not option.runner:
             continue
-        dest = {'dest': option.name}
         help_text = f'{option.description} ({option.range_text()})'
         if option.kind is bool:
             action = 'store_false' if option.default else 'store_true'
             what = option.flag_help or option.description
-            parser.add_argument(option.cli, action=action, help=what, **dest)
+            parser.add_argument(option.cli, action=action, help=what, dest=option.name)
         elif option.kind is list:
             parser.add_argument(
-                option.cli, action='append', default=[], metavar='PATH', help=help_text, **dest
+                option.cli,
+                action='append',
+                default=[],
+                metavar='PATH',
+                help=help_text,
+                dest=option.name,
             )
         else:
             parser.add_argument(
@@ -366,7 +370,7 @@ def build_parser() -> argparse.ArgumentParser:
                 default=None,
                 metavar=option.unit.upper() or option.name.split('_')[-1].upper(),
                 help=help_text,
-                **dest,
+                dest=option.name,
             )
     return parser
 
