@@ -230,6 +230,7 @@ def run_one(
     record.figures['steal_pct'] = steal_percent(times_before, cpu_times())
     if not variant.recorded:
         return record
+    assert result.bag is not None  # a recorded variant
     try:
         record.figures.update(bag_figures(result.bag))
     except (

@@ -94,18 +94,22 @@ def measure(samples: int, listened: bool = True) -> dict:
         args += ['-p', f'{name}:use_sim_time:=true']
     rclpy.init(args=args)
     try:
-        nodes = {'joint': PlantNode(), 'eso': EsoNode(), 'controller': ControllerNode()}
+        plant, eso, ctrl = PlantNode(), EsoNode(), ControllerNode()
+        nodes = {'joint': plant, 'eso': eso, 'controller': ctrl}
         for node in nodes.values():
             node.trigger_configure()
             node.trigger_activate()
         queue: collections.deque = collections.deque()
         _wire(nodes, queue, listened)
         per_node = {key: np.zeros(samples + 1, dtype=np.int64) for key in nodes}
-        commands = []
-        ctrl = nodes['controller']
+        commands: list[float] = []
         publish, read = ctrl.cmd_pub.publish, codec(CurrentCommand).decode
-        ctrl.cmd_pub.publish = lambda data: (commands.append(read(data).current_a), publish(data))
-        plant = nodes['joint']
+
+        def publish_keeping(data) -> None:  # the command's current kept, then published
+            commands.append(read(data).current_a)
+            publish(data)
+
+        ctrl.cmd_pub.publish = publish_keeping
         start = time.perf_counter_ns()
         plant._start_sampling()  # publishes sample 0: the chain runs from the queue
         while queue and plant.sample_index < samples:

@@ -130,7 +130,7 @@ class SourceNode(Node, ProcessMember):
 def main(argv: list[str] | None = None) -> int:
     """``python -m actuator_bench.floor echo|source [run_node options]``."""
     args = sys.argv[1:] if argv is None else list(argv)
-    roles = {
+    roles: dict[str, tuple[str, str, type[EchoNode] | type[SourceNode], str]] = {
         'echo': (
             'floor echo',
             'Echo node of the middleware floor benchmark.',
