@@ -173,7 +173,7 @@ def run_chunk(spec: SweepSpec, chunk: int) -> dict[str, list]:
     for group in _groups(spec, indices):
         for start in range(0, len(group), spec.batch):
             part = group[start : start + spec.batch]
-            values = {}
+            values: dict[str, Any] = {}  # a float, or a vector's array
             for name, column in spec.table.items():
                 v = column[indices[part]]
                 values[name] = float(v[0]) if not table[name].vector else v
