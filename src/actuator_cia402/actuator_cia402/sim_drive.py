@@ -268,14 +268,14 @@ class SimulatedDrive(DriveStateMachine):
         self.on_event(line)
 
     def _variable(self, index: int, subindex: int = 0) -> canopen.objectdictionary.ODVariable:
-        """The EDS's entry of an object (the sub-object of an array or a record)."""
+        """Return the EDS's entry of an object (the sub-object of an array or a record)."""
         obj = self.od[index]
         if not isinstance(obj, canopen.objectdictionary.ODVariable):
             obj = obj[subindex]
         return obj
 
     def _default(self, index: int, subindex: int = 0) -> int:
-        """The EDS's default of an integer object."""
+        """Return the EDS's default of an integer object."""
         default = self._variable(index, subindex).default
         assert default is not None, f'0x{index:04X} sub {subindex}: no default in the EDS'
         return default

@@ -83,7 +83,8 @@ class Cia402Stop:
         self.stop_report = ''  # what the drive did when control ended (the node logs it)
         self._stop_notes: list[str] = []  # warnings of a stop over SDO made in end_control
         self.silenced = False  # the master heartbeat is off: a stop failed, 0x1016 must act
-        self.brake_seen: Optional[bool] = None  # the brake's 'closed' as last read over SDO (None: unknown)
+        # the brake's 'closed' as last read over SDO (None: unknown)
+        self.brake_seen: Optional[bool] = None
 
     @property
     def _configured(self) -> Cia402Master:
