@@ -398,8 +398,8 @@ def test_a_commanded_sim_run_equals_the_offline_loop_bit_for_bit(isolated):
     taken at (and the cancel likewise): the nodes and the offline loop run the same execution.
     """
     from actuator_analysis.analyze import load_run
-    from actuator_bringup.main import compare_with_offline
     from actuator_bringup.commanded import replay_offline, scripted_run
+    from actuator_bringup.main import compare_with_offline
 
     result, client = scripted_run(isolated / 'bags', isolated / 'runs', duration_s=3.0)
     assert all(code == 0 for code in result.exit_codes.values()), result.exit_codes

@@ -10,6 +10,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 from tabulate import tabulate
+
 from actuator_core.status import Status
 
 from .analyze import RunReport, observer_input, steady_empty

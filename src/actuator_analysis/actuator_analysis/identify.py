@@ -63,8 +63,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from actuator_core.identified import FRICTION_MODELS
 from scipy import optimize, signal, stats
+
+from actuator_core.identified import FRICTION_MODELS
 
 from .identify_load import LoadProjection, filtered_hats
 

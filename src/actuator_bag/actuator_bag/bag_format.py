@@ -26,7 +26,8 @@ from pathlib import Path
 from typing import Any, Iterable, Mapping, Optional, Sequence
 
 import yaml
-from mcap.writer import CompressionType, Writer as McapWriter
+from mcap.writer import CompressionType
+from mcap.writer import Writer as McapWriter
 
 from .bag_qos import DURATION_INFINITE, QosProfile, qos_from_yaml, qos_to_yaml
 from .datafile import DataFile, describe_os_error, open_data_file

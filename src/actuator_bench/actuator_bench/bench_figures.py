@@ -17,10 +17,10 @@ from typing import Optional
 
 import numpy as np
 
-from actuator_core.limits import STEADY_STATE_START_S
-from actuator_core.stats import missed_samples, percentiles
 from actuator_bench.host_stalls import TIMEOUT_NS
 from actuator_bringup.supervisor import process_log
+from actuator_core.limits import STEADY_STATE_START_S
+from actuator_core.stats import missed_samples, percentiles
 
 #: The processes whose CPU and memory a run reports.
 NODES = ('plant', 'eso', 'controller', 'recorder', 'loop')  # loop: the composed process

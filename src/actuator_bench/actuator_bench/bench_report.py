@@ -30,7 +30,6 @@ from actuator_bench.bench_table import (
 )
 from actuator_bench.bench_variants import Variant
 
-
 # --- tracking reference --------------------------------------------------------------------------
 
 

@@ -28,9 +28,9 @@ import psutil
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 
+from actuator_bringup.supervisor import RosProcess
 from actuator_cia402.launch_spec import driver_arguments, driver_parameters
 from actuator_ros.realtime import RealtimeSettings
-from actuator_bringup.supervisor import RosProcess
 
 
 def run_rate(rate_hz: float, duration_s: float) -> dict:

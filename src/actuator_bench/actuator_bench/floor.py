@@ -25,11 +25,11 @@ import time
 import numpy as np
 from rclpy.node import Node
 
+from actuator_msgs.msg import CurrentCommand
 from actuator_ros.parameters import declare_number, declare_text
 from actuator_ros.process_member import ProcessMember
 from actuator_ros.qos import control_qos
 from actuator_ros.runner import run_node
-from actuator_msgs.msg import CurrentCommand
 
 PING, PONG = 'floor/ping', 'floor/pong'
 

@@ -44,7 +44,7 @@ import yaml
 from tabulate import tabulate
 
 from actuator_core import limits
-from actuator_plant.model import WorkingCondition, derive_constants, PlantParameters
+from actuator_plant.model import PlantParameters, WorkingCondition, derive_constants
 
 #: Draw ranges: factors on Table 1's J, k_t, k_b; seal c0 [N m]; depth [m]; encoder bits.
 DRAW_RANGES = {

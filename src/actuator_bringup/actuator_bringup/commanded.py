@@ -21,7 +21,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
-
 from actuator_analysis.goals import GoalEventRow
 from actuator_bringup.runner import RunResult, run_closed_loop
 from actuator_controller.goal_execution import PREEMPTED, Goal

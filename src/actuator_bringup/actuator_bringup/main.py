@@ -22,16 +22,15 @@ from typing import Sequence
 
 import numpy as np
 
-from actuator_core import limits
-from actuator_core.stats import missed_samples, percentiles
-from actuator_core.timing import period_ns
-
 from actuator_analysis.analyze import analyze_run, load_run
-from actuator_analysis.figures import draw_figures
 from actuator_analysis.analyze_table import format_table
+from actuator_analysis.figures import draw_figures
 from actuator_analysis.goals import format_goals, goal_reports
 from actuator_bringup.commanded import COMMANDED_DURATION_S, replay_offline, scripted_run
 from actuator_bringup.runner import RunResult, run_closed_loop
+from actuator_core import limits
+from actuator_core.stats import missed_samples, percentiles
+from actuator_core.timing import period_ns
 from actuator_sim.loop import ClosedLoop
 from actuator_sim.offline import trace_metrics
 from actuator_sim.params_yaml import all_scenarios

@@ -25,7 +25,8 @@ from typing import Optional, Sequence
 
 from ament_index_python.packages import get_package_share_directory
 
-from actuator_sim.params_yaml import all_scenarios
+from actuator_bringup.composition import compose
+from actuator_bringup.gain_check import UnstableGains, check_gains
 from actuator_bringup.run_description import (
     PINNING,
     closed_loop,
@@ -34,8 +35,6 @@ from actuator_bringup.run_description import (
     ros_arguments,
     run_name,
 )
-from actuator_bringup.composition import compose
-from actuator_bringup.gain_check import UnstableGains, check_gains
 from actuator_bringup.run_options import (
     MODES,
     RUN_OPTIONS,
@@ -46,6 +45,7 @@ from actuator_bringup.run_options import (
     parse,
 )
 from actuator_bringup.supervisor import ProcessFigures, RosProcess
+from actuator_sim.params_yaml import all_scenarios
 
 
 def scenario_file(scenario: str) -> Path:

@@ -36,7 +36,6 @@ from typing import Optional
 import can
 import canopen
 
-from actuator_core.joint import Joint, JointError, JointSample
 from actuator_cia402 import profile as p
 from actuator_cia402.answers import AnswerCount
 from actuator_cia402.busload import cycle_load
@@ -44,6 +43,7 @@ from actuator_cia402.hub import HubBus
 from actuator_cia402.master import Cia402Error, Cia402Master
 from actuator_cia402.stop import Cia402Stop
 from actuator_cia402.supervision import BusHealth, DriveHeartbeat, PositionUnwrap, torque_fault
+from actuator_core.joint import Joint, JointError, JointSample
 
 #: NMT state byte of the master's heartbeat: operational.
 HEARTBEAT_OPERATIONAL = 0x05

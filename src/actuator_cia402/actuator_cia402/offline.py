@@ -26,10 +26,10 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from actuator_core import limits
-from actuator_sim.scenarios import DRIVE_DELAY_SAMPLES, DRIVE_SCENARIO, PAPER_SCENARIO
-from actuator_plant.encoder import EncoderParameters
 from actuator_cia402.sim_settings import SimDriveSettings
+from actuator_core import limits
+from actuator_plant.encoder import EncoderParameters
+from actuator_sim.scenarios import DRIVE_DELAY_SAMPLES, DRIVE_SCENARIO, PAPER_SCENARIO
 
 #: The simulated drive's encoder: counts per motor revolution (EDS 0x608F).
 MOTOR_COUNTS_PER_REV = 4096

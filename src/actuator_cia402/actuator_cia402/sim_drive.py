@@ -51,8 +51,6 @@ from typing import Callable, cast
 
 import canopen
 
-from actuator_plant.model import PlantParameters
-from actuator_plant.sim_joint import SimulatedJoint
 from actuator_cia402 import profile as p
 from actuator_cia402.drive_clock import DriveClock
 from actuator_cia402.pdo_codec import PdoCodec
@@ -65,6 +63,8 @@ from actuator_cia402.sim_faults import (
     plant_parameters,
 )
 from actuator_cia402.sim_states import DriveStateMachine
+from actuator_plant.model import PlantParameters
+from actuator_plant.sim_joint import SimulatedJoint
 
 #: 0x60FD bit 16 (manufacturer-specific): the holding brake is closed.
 DI_BRAKE_CLOSED = 1 << 16

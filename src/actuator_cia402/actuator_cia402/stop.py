@@ -42,9 +42,9 @@ from actuator_cia402.master import Cia402Error, Cia402Master
 from actuator_cia402.supervision import DISABLED_STATES, BusHealth, describe, stopped
 
 if TYPE_CHECKING:
-    from actuator_core.joint import JointSample
     from actuator_cia402.config import DriverParameters
     from actuator_cia402.scaling import Scaling
+    from actuator_core.joint import JointSample
 
 SDO_ERRORS = (Cia402Error, canopen.SdoAbortedError, canopen.SdoCommunicationError, can.CanError)
 

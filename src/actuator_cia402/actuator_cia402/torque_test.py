@@ -29,10 +29,10 @@ import sys
 import time
 from typing import Callable, Optional, Sequence
 
-from actuator_core.joint import JointError, JointSettings, SoftLimits
 from actuator_cia402.config import DriverParameters, check_real_drive
 from actuator_cia402.joint import Cia402Joint
 from actuator_cia402.sign_check import WINDOW_S, SignCheck
+from actuator_core.joint import JointError, JointSettings, SoftLimits
 
 EXIT_FAULT, EXIT_REFUSED, EXIT_STOPPED, EXIT_INTERRUPTED = 1, 2, 3, 130
 

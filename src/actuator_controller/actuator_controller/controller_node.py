@@ -38,22 +38,26 @@ from __future__ import annotations
 import time
 from typing import Callable
 
-from actuator_core import limits
-from actuator_core.assembly import ESTIMATE_AHEAD_SAMPLES, ControlSample, ControlSampleAssembly
-from actuator_core.binding import MeasurementPlausibility
-from actuator_core.clock import Clock, StampClock
-from actuator_core.values import estimate_problem, measurement_problem
-from actuator_core.sample_log import SampleLog
-from actuator_core.status import Status
-from actuator_core.timebase import StampCheck, Verdict
-from actuator_core.timing import period_ns, stamp_to_ns
+from rclpy.clock import Clock as RosClock
+from rclpy.clock import ClockType
+from sensor_msgs.msg import JointState
+
 from actuator_controller.controller_parameters import declare_controller_parameters
 from actuator_controller.controller_report import ControllerReport
 from actuator_controller.controller_state import controller_state_fields
 from actuator_controller.goal_interface import GoalInterface
-from actuator_core.decimation import Decimator
 from actuator_controller.laws import make_controller
 from actuator_controller.reference import make_reference
+from actuator_core import limits
+from actuator_core.assembly import ESTIMATE_AHEAD_SAMPLES, ControlSample, ControlSampleAssembly
+from actuator_core.binding import MeasurementPlausibility
+from actuator_core.clock import Clock, StampClock
+from actuator_core.decimation import Decimator
+from actuator_core.sample_log import SampleLog
+from actuator_core.status import Status
+from actuator_core.timebase import StampCheck, Verdict
+from actuator_core.timing import period_ns, stamp_to_ns
+from actuator_core.values import estimate_problem, measurement_problem
 from actuator_msgs.msg import ControllerState, CurrentCommand, StateEstimate
 from actuator_ros.conversions import joint_position
 from actuator_ros.diagnostics import NodeDiagnostics
@@ -62,9 +66,6 @@ from actuator_ros.node import ManagedNode
 from actuator_ros.qos import control_qos
 from actuator_ros.runner import run_node
 from actuator_ros.wire_io import codec, subscribe_views
-from rclpy.clock import Clock as RosClock
-from rclpy.clock import ClockType
-from sensor_msgs.msg import JointState
 
 NODE_NAME = 'actuator_controller'
 STEADY = ClockType.STEADY_TIME

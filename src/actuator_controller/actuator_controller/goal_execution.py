@@ -30,11 +30,11 @@ import threading
 from dataclasses import dataclass
 from typing import NamedTuple, Optional
 
-from actuator_core.status import Status
 from actuator_controller.commanded_reference import CommandedReference
 from actuator_controller.goal_rules import feasibility_refusal, tolerance_violation
 from actuator_controller.trajectory import DesiredState, Waypoints, plan
 from actuator_controller.trajectory_settings import SegmentTolerances, TrajectorySettings
+from actuator_core.status import Status
 
 # control_msgs/action/FollowJointTrajectory result codes.
 SUCCESSFUL = 0

@@ -37,13 +37,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
-from actuator_core import limits
-from actuator_core import xmath as xm
-from actuator_core.xmath import FloatOrArray
-from actuator_core.loop_params import shared
-from actuator_core.params import spec, validate
 from actuator_controller.ppf import PrescribedPerformance, inside_band, transform_error
 from actuator_controller.reference import ReferenceSample
+from actuator_core import limits
+from actuator_core import xmath as xm
+from actuator_core.loop_params import shared
+from actuator_core.params import spec, validate
+from actuator_core.xmath import FloatOrArray
 
 CONTROLLER_NAMES = ('pp_nftsmc_eso', 'nftsmc_eso', 'smc_eso', 'pi')
 

@@ -33,8 +33,8 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 from actuator_core import xmath as xm
-from actuator_core.xmath import FloatOrArray
 from actuator_core.params import spec, validate
+from actuator_core.xmath import FloatOrArray
 
 #: Fraction of the band (l + h) kept between the clamped normalised error and each bound.
 BOUNDARY_MARGIN = 1.0e-4

@@ -59,10 +59,10 @@ import numpy as np
 
 from actuator_core import limits
 from actuator_core import xmath as xm
-from actuator_core.xmath import FloatOrArray
 from actuator_core.status import Status
 from actuator_core.timebase import ahead_ns
 from actuator_core.timing import sample_time_s
+from actuator_core.xmath import FloatOrArray
 
 #: Estimates kept while waiting for their measurement.
 PENDING_LIMIT = 64

@@ -20,6 +20,10 @@ from typing import NamedTuple
 import numpy as np
 
 from actuator_core import limits
+from actuator_core import xmath as xm
+from actuator_core.params import build, check_value, spec, validate
+from actuator_core.timing import period_ns, sample_time_s
+from actuator_core.xmath import FloatOrArray
 from actuator_plant.oil import (
     PA_PER_MPA,
     MotorGeometry,
@@ -27,10 +31,6 @@ from actuator_plant.oil import (
     dynamic_viscosity_pa_s,
     stirring_geometry_constant_m3,
 )
-from actuator_core import xmath as xm
-from actuator_core.xmath import FloatOrArray
-from actuator_core.params import build, check_value, spec, validate
-from actuator_core.timing import period_ns, sample_time_s
 
 #: Sea-water density [kg/m^3] and gravity [m/s^2] for the hydrostatic pressure at a depth.
 SEAWATER_DENSITY_KG_M3 = 1025.0

@@ -43,9 +43,8 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState
 
 from actuator_core import clock as stamp_time
-from actuator_core.gate import CommandGate, Held
 from actuator_core.binding import CommandBinding
-from actuator_core.limits import CYCLE_LATENESS_MAX_FRACTION
+from actuator_core.gate import CommandGate, Held
 from actuator_core.joint import (
     CommandFreshness,
     Joint,
@@ -53,6 +52,7 @@ from actuator_core.joint import (
     JointSettings,
     SoftLimits,
 )
+from actuator_core.limits import CYCLE_LATENESS_MAX_FRACTION
 from actuator_core.sample_log import SampleLog
 from actuator_core.timing import period_ns, stamp_to_ns
 from actuator_msgs.msg import CurrentCommand

@@ -31,7 +31,6 @@ from rclpy.node import Node
 from actuator_core.loop_params import shared
 from actuator_core.params import build, iter_specs, range_text, validate
 
-
 #: The one description of the ``timing_log`` parameter every node of the loop declares.
 TIMING_LOG_DESCRIPTION = (
     "the node's per-sample timing log (.npz: stamps, arrival and send times) written when it stops"

@@ -29,9 +29,9 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
+from actuator_ros.middleware import installed_profile, realtime_transport
 from actuator_ros.parameters import ParameterError
 from actuator_ros.process_member import SETTLE_LIMIT_S, MemberError, ProcessMember
-from actuator_ros.middleware import installed_profile, realtime_transport
 from actuator_ros.realtime import (
     PUBLICATION_MODE_VARIABLE,
     RealtimeSettings,

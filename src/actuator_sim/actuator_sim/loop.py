@@ -24,12 +24,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from actuator_core.assembly import ControlSampleAssembly
-from actuator_core.gate import CommandGate
-from actuator_core.limits import DIVERGENCE_ERROR_RAD
-from actuator_core.pairing import SIM_PATIENCE_SAMPLES, Estimate, ObserverInputPairing
-from actuator_core.status import Status
-from actuator_core.timing import period_ns, sample_time_s
 from actuator_controller.commanded_reference import CommandedReference
 from actuator_controller.goal_execution import Goal, GoalEvent, TrajectoryExecution
 from actuator_controller.laws import (
@@ -43,6 +37,12 @@ from actuator_controller.laws import (
 from actuator_controller.reference import make_reference
 from actuator_controller.trajectory import DesiredState
 from actuator_controller.trajectory_settings import TrajectorySettings
+from actuator_core.assembly import ControlSampleAssembly
+from actuator_core.gate import CommandGate
+from actuator_core.limits import DIVERGENCE_ERROR_RAD
+from actuator_core.pairing import SIM_PATIENCE_SAMPLES, Estimate, ObserverInputPairing
+from actuator_core.status import Status
+from actuator_core.timing import period_ns, sample_time_s
 from actuator_eso.observer import EsoGains, ExtendedStateObserver
 from actuator_plant.encoder import Encoder, EncoderParameters
 from actuator_plant.model import PlantParameters

@@ -23,14 +23,14 @@ from typing import Any
 
 import numpy as np
 
+from actuator_controller.ppf import PrescribedPerformance
 from actuator_core.limits import DIVERGENCE_ERROR_RAD
 from actuator_core.metrics import RunMetrics
-from actuator_controller.ppf import PrescribedPerformance
 from actuator_core.status import Status
 from actuator_sim.loop import ClosedLoop
 from actuator_sim.offline import trace_metrics
-from actuator_studies.streaming import StreamingMetrics
 from actuator_studies.space import BaseScenario, build_scenario, quantities, run_seeds
+from actuator_studies.streaming import StreamingMetrics
 
 #: Memory of a task's worker before its batch [bytes] (Python, numpy and the project's modules).
 TASK_BASE_MEMORY_BYTES = 300 * 1024 * 1024
