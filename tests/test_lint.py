@@ -61,6 +61,13 @@ def test_ruff_finds_nothing():
     assert proc.returncode == 0, proc.stdout + proc.stderr
 
 
+def test_isort_knows_every_project_package():
+    """ruff.toml's known-first-party names every src/<pkg>: one import order anywhere."""
+    known = tomllib.loads(CONFIG.read_text())['lint']['isort']['known-first-party']
+    packages = [p.name for p in (ROOT / 'src').iterdir() if (p / 'package.xml').is_file()]
+    assert sorted(known) == sorted(packages)
+
+
 def package_modules():
     """Count the .py files of every Python package src/<pkg>/<pkg> (what mypy.ini checks)."""
     packages = [
