@@ -257,3 +257,22 @@ def test_a_component_with_no_report_inside_the_run_is_never_said_ok() -> None:
         'actuator_eso WARN (OK 1 WARN 1): late',
         'actuator_plant none stamped inside the run (2 outside it)',
     ]
+
+
+def test_a_run_shorter_than_the_steady_window_gets_no_empty_panel(tmp_path: Path, monkeypatch):
+    from matplotlib.figure import Figure
+
+    from actuator_analysis.figures import STEADY_STATE_START_S, draw_figures
+
+    panels: dict[str, int] = {}
+    save = Figure.savefig
+
+    def counting(fig, path, *args, **kwargs):
+        panels[Path(path).name] = len(fig.axes)
+        return save(fig, path, *args, **kwargs)
+
+    monkeypatch.setattr(Figure, 'savefig', counting)
+    for duration in (STEADY_STATE_START_S - 1.0, STEADY_STATE_START_S + 1.0):
+        bag = write_run_bag(tmp_path / f'run{duration:g}', synthetic_run(duration_s=duration))
+        draw_figures([load_run(bag, quiet=True)], tmp_path / f'fig{duration:g}')
+        assert panels['tracking_error.png'] == (1 if duration < STEADY_STATE_START_S else 2)

@@ -22,6 +22,7 @@ ROS_FREE_MODULES = (
     'actuator_controller.laws',
     'actuator_controller.ppf',
     'actuator_controller.reference',
+    'actuator_controller.reference_sample',
     'actuator_controller.trajectory',
     'actuator_controller.trajectory_settings',
     'actuator_controller.goal_rules',

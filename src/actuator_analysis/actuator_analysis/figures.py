@@ -69,8 +69,13 @@ def draw_figures(runs: Sequence[RunData], out: Path) -> list[Path]:
     save(fig, 'position.png')
 
     # Two panels, as the paper's Figures 5b and 6b zoom: the whole run with the envelope, and the
-    # steady window at the error's own scale (the +-0.25 rad bounds flatten a 1e-3 rad error).
-    fig, (ax, zoom) = plt.subplots(2, 1, figsize=(8, 7))
+    # steady window at the error's own scale (the +-0.25 rad bounds flatten a 1e-3 rad error);
+    # the whole run alone when no run reaches the steady window.
+    reaches = any(bool(np.any(run.t >= STEADY_STATE_START_S)) for run in runs)
+    if reaches:
+        fig, (ax, zoom) = plt.subplots(2, 1, figsize=(8, 7))
+    else:
+        fig, ax = plt.subplots(figsize=(8, 4.5))
     steady_peak = 0.0
     for run, label in zip(runs, labels):
         (line,) = ax.plot(run.t, run.error, linewidth=0.9, label=label)
@@ -85,17 +90,17 @@ def draw_figures(runs: Sequence[RunData], out: Path) -> list[Path]:
                 label=f'{label} bounds',
             )
         steady = (run.t >= STEADY_STATE_START_S) & np.isfinite(run.error)
-        zoom.plot(
-            run.t[steady], run.error[steady], linewidth=0.9, color=line.get_color(), label=label
-        )
+        if reaches:
+            zoom.plot(run.t[steady], run.error[steady], linewidth=0.9, color=line.get_color())
         if steady.any():
             steady_peak = max(steady_peak, float(np.max(np.abs(run.error[steady]))))
     _decorate(ax, 'tracking error e [rad]', 'Tracking error and prescribed performance bounds')
-    if steady_peak > 0.0:
-        zoom.set_ylim(-1.2 * steady_peak, 1.2 * steady_peak)
-    steady_title = f'Steady window (t >= {STEADY_STATE_START_S:g} s) at its own scale'
-    _decorate(zoom, 'tracking error e [rad]', steady_title, legend=False)
-    zoom.ticklabel_format(axis='y', style='sci', scilimits=(-2, 2))
+    if reaches:
+        if steady_peak > 0.0:
+            zoom.set_ylim(-1.2 * steady_peak, 1.2 * steady_peak)
+        steady_title = f'Steady window (t >= {STEADY_STATE_START_S:g} s) at its own scale'
+        _decorate(zoom, 'tracking error e [rad]', steady_title, legend=False)
+        zoom.ticklabel_format(axis='y', style='sci', scilimits=(-2, 2))
     save(fig, 'tracking_error.png')
 
     for name, title, unit, est_attr, truth_attr in (

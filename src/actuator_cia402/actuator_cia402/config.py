@@ -11,6 +11,7 @@ docs/reference/parameters.md lists them (generated).
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass
 from typing import Optional
 
@@ -30,6 +31,19 @@ SIM_BRAKE_STATUS = (0x60FD, 1 << 16)
 #: Quick stop deceleration written to the simulated drive when none is set [rad/s^2 at the
 #: joint]: 2 rad/s to rest in 20 ms. A real drive has no default (``check_real_drive``).
 SIM_QUICK_STOP_DECELERATION_RAD_S2 = 100.0
+
+
+def default_eds() -> str:
+    """Return the simulated drive's EDS: installed share, else the source tree's."""
+    try:
+        from ament_index_python.packages import get_package_share_directory
+
+        return os.path.join(
+            get_package_share_directory('actuator_cia402'), 'eds', 'sim_joint_drive.eds'
+        )
+    except (ImportError, LookupError):
+        here = os.path.dirname(os.path.abspath(__file__))
+        return os.path.join(here, '..', 'eds', 'sim_joint_drive.eds')
 
 
 @dataclass(frozen=True)
@@ -307,8 +321,6 @@ class DriverParameters:
                 "eds_file must name the drive's EDS on a real bus (the simulated drive's EDS is "
                 'used only with simulated_drive = true)'
             )
-        from actuator_cia402.sim_drive_main import default_eds
-
         return default_eds()
 
 

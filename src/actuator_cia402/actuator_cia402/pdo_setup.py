@@ -19,8 +19,6 @@ from actuator_cia402.pdo_codec import PdoCodec
 
 #: Transmission type 1: synchronous, every SYNC (CiA 301).
 SYNCHRONOUS = 1
-#: COB-ID bit 31 of a PDO communication record: the PDO is not valid (disabled).
-PDO_NOT_VALID = 1 << 31
 #: Cycle PDO layout: RPDO1, TPDO1, TPDO2 (docs/cia402.md#bus-load: 4, 8, 5 bytes).
 RPDO1 = (p.CONTROLWORD, p.TARGET_TORQUE)
 TPDO1 = (p.STATUSWORD, p.POSITION_ACTUAL, p.TORQUE_ACTUAL)

@@ -31,9 +31,7 @@ ERROR_CODE = 0x603F  # UNSIGNED16, last error code (same codes as EMCY)
 CONTROLWORD = 0x6040  # UNSIGNED16
 STATUSWORD = 0x6041  # UNSIGNED16
 QUICK_STOP_OPTION = 0x605A  # INTEGER16
-SHUTDOWN_OPTION = 0x605B  # INTEGER16
 DISABLE_OPERATION_OPTION = 0x605C  # INTEGER16: 0 disable at once, 1 ramp, then disable
-HALT_OPTION = 0x605D  # INTEGER16
 FAULT_REACTION_OPTION = 0x605E  # INTEGER16: 0 disable at once, 2 quick-stop ramp
 MODES_OF_OPERATION = 0x6060  # INTEGER8
 MODES_OF_OPERATION_DISPLAY = 0x6061  # INTEGER8
@@ -92,12 +90,10 @@ _STATE_CODING = (
 # Statusword bits besides the state coding.
 SW_FAULT = 1 << 3
 SW_VOLTAGE_ENABLED = 1 << 4
-SW_QUICK_STOP = 1 << 5  # 0 = quick stop active (low active)
 SW_WARNING = 1 << 7
 SW_REMOTE = 1 << 9
 SW_TARGET_REACHED = 1 << 10
 SW_FOLLOWS_TARGET = 1 << 12  # cyclic modes: 1 = the drive follows the target, 0 = ignores it
-SW_FOLLOWING_ERROR = 1 << 13
 
 
 def decode_state(statusword: int) -> State | None:

@@ -16,7 +16,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import faulthandler
-import os
 import signal
 import sys
 import threading
@@ -25,7 +24,7 @@ from typing import Sequence
 import canopen
 
 from actuator_cia402.busload import frame_bits
-from actuator_cia402.config import RATED_CURRENT_A, RATED_TORQUE_NM
+from actuator_cia402.config import RATED_CURRENT_A, RATED_TORQUE_NM, default_eds
 from actuator_cia402.hub import Hub, error_frame
 from actuator_cia402.scaling import Scaling
 from actuator_cia402.sim_drive import SimulatedDrive
@@ -40,19 +39,6 @@ from actuator_cia402.sim_faults import (
 from actuator_cia402.sim_settings import SimDriveSettings
 from actuator_core import limits
 from actuator_ros.realtime import RealtimeSettings  # ROS-free: yaml only, no rclpy
-
-
-def default_eds() -> str:
-    """Return the simulated drive's EDS: installed share, else the source tree's."""
-    try:
-        from ament_index_python.packages import get_package_share_directory
-
-        return os.path.join(
-            get_package_share_directory('actuator_cia402'), 'eds', 'sim_joint_drive.eds'
-        )
-    except (ImportError, LookupError):
-        here = os.path.dirname(os.path.abspath(__file__))
-        return os.path.join(here, '..', 'eds', 'sim_joint_drive.eds')
 
 
 def _injection(text: str) -> tuple[str, float]:

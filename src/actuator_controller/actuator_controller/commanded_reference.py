@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from typing import Sequence
 
-from actuator_controller.reference import ReferenceSample
+from actuator_controller.reference_sample import ReferenceSample
 from actuator_controller.trajectory import DesiredState, Hold, Segments, stop_segment
 
 

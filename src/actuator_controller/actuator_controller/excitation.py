@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from actuator_controller.reference import ReferenceSample
+from actuator_controller.reference_sample import ReferenceSample
 from actuator_core import limits
 from actuator_core.params import spec, validate
 

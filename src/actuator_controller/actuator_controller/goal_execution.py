@@ -39,7 +39,6 @@ from actuator_core.status import Status
 # control_msgs/action/FollowJointTrajectory result codes.
 SUCCESSFUL = 0
 INVALID_GOAL = -1
-INVALID_JOINTS = -2
 OLD_HEADER_TIMESTAMP = -3
 PATH_TOLERANCE_VIOLATED = -4
 GOAL_TOLERANCE_VIOLATED = -5

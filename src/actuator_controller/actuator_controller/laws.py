@@ -225,6 +225,30 @@ class Controller:
             **terms,
         )
 
+    def _finish_sliding(
+        self, u_unlimited, integrand, z1, z2, ref: ReferenceSample, sigma, u_eq, u_sw
+    ) -> ControlOutput:
+        """``_finish`` for a sliding law without an envelope (SMC-ESO, NFTSMC-ESO)."""
+        return self._finish(
+            u_unlimited,
+            integrand,
+            error_rad=z1,
+            rho_rad=NAN,
+            lower_bound_rad=NAN,
+            upper_bound_rad=NAN,
+            bounds_kept=True,
+            z1=z1,
+            z2_rad_s=z2,
+            alpha_rad_s=ref.velocity_rad_s,
+            alpha_dot_rad_s2=ref.acceleration_rad_s2,
+            sigma_rad_s=sigma,
+            u_eq_rad_s2=u_eq,
+            u_sw_rad_s2=u_sw,
+            u_b_rad_s2=NAN,
+            proportional_a=NAN,
+            integral_a=NAN,
+        )
+
 
 class PiController(Controller):
     """u = kp (x1d - y) + ki int (x1d - y) dt, eq. (43); measurement only, no observer."""
@@ -274,24 +298,8 @@ class SmcEsoController(Controller):
         sigma = z2 + g.k1_per_s * z1
         u_eq = c.theta2n * x2_hat + x3_hat + g.k1_per_s * z2 - ref.acceleration_rad_s2
         u_sw = g.eta_rad_s2 * xm.sign(sigma) + g.k2_per_s * sigma
-        return self._finish(
-            -(u_eq + u_sw) / c.theta1n,
-            0.0 * z1,
-            error_rad=z1,
-            rho_rad=NAN,
-            lower_bound_rad=NAN,
-            upper_bound_rad=NAN,
-            bounds_kept=True,
-            z1=z1,
-            z2_rad_s=z2,
-            alpha_rad_s=ref.velocity_rad_s,
-            alpha_dot_rad_s2=ref.acceleration_rad_s2,
-            sigma_rad_s=sigma,
-            u_eq_rad_s2=u_eq,
-            u_sw_rad_s2=u_sw,
-            u_b_rad_s2=NAN,
-            proportional_a=NAN,
-            integral_a=NAN,
+        return self._finish_sliding(
+            -(u_eq + u_sw) / c.theta1n, 0.0 * z1, z1, z2, ref, sigma, u_eq, u_sw
         )
 
 
@@ -313,24 +321,8 @@ class NftsmcEsoController(Controller):
         sigma = z2 + self.integral
         u_eq = c.theta2n * x2_hat + x3_hat - ref.acceleration_rad_s2 + integrand
         u_sw = g.eta_rad_s2 * xm.sign(sigma) + g.k3_per_s * sigma
-        return self._finish(
-            -(u_eq + u_sw) / c.theta1n,
-            integrand,
-            error_rad=z1,
-            rho_rad=NAN,
-            lower_bound_rad=NAN,
-            upper_bound_rad=NAN,
-            bounds_kept=True,
-            z1=z1,
-            z2_rad_s=z2,
-            alpha_rad_s=ref.velocity_rad_s,
-            alpha_dot_rad_s2=ref.acceleration_rad_s2,
-            sigma_rad_s=sigma,
-            u_eq_rad_s2=u_eq,
-            u_sw_rad_s2=u_sw,
-            u_b_rad_s2=NAN,
-            proportional_a=NAN,
-            integral_a=NAN,
+        return self._finish_sliding(
+            -(u_eq + u_sw) / c.theta1n, integrand, z1, z2, ref, sigma, u_eq, u_sw
         )
 
 

@@ -12,19 +12,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, NamedTuple, Protocol
+from typing import Any, Protocol
 
+from actuator_controller.commanded_reference import CommandedReference
+from actuator_controller.excitation import ExcitationReference
+from actuator_controller.reference_sample import ReferenceSample
 from actuator_core import limits
 from actuator_core import xmath as xm
-from actuator_core.xmath import FloatOrArray
-
-
-class ReferenceSample(NamedTuple):
-    """Desired position x1d [rad], velocity [rad/s] and acceleration [rad/s^2] at one time."""
-
-    position_rad: FloatOrArray
-    velocity_rad_s: FloatOrArray
-    acceleration_rad_s2: FloatOrArray
 
 
 class Reference(Protocol):
@@ -127,8 +121,6 @@ def make_reference(
         {} if frequency_rad_s is None else {'frequency_rad_s': frequency_rad_s}
     )
     if kind == 'hold':
-        from actuator_controller.commanded_reference import CommandedReference
-
         ref: Reference = CommandedReference(max_deceleration)
     elif kind == 'slow':
         ref = slow_trajectory()
@@ -139,8 +131,6 @@ def make_reference(
     elif kind == 'sine':
         ref = SineReference(**amplitude, **frequency)
     elif kind == 'excitation':
-        from actuator_controller.excitation import ExcitationReference
-
         ref = excitation if excitation is not None else ExcitationReference()
     else:
         raise ValueError(f'reference must be one of {", ".join(REFERENCE_KINDS)}, got {kind!r}')

@@ -169,8 +169,6 @@ COMMAND_DELAY_MAX_SAMPLES = 10
 #: Water depth range of the envelope [m], surface to the deepest trench
 #: (WorkingCondition.at_depth).
 ENVELOPE_DEPTH_M = (0.0, 11000.0)
-#: Oil temperature range of the envelope [degC]: deep-sea water to a warm surface deck.
-ENVELOPE_TEMPERATURE_C = (-2.0, 30.0)
 #: A run counts as saturated, for gain design, beyond this fraction of samples
 #: at the current limit.
 SATURATED_FRACTION_LIMIT = 0.01

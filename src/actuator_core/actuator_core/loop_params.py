@@ -99,8 +99,6 @@ _SHARED: dict[str, dict[str, Any]] = {
         high=1.0e4,
     ),
 }
-#: The shared names.
-SHARED_NAMES = tuple(_SHARED)
 
 
 def shared(name: str) -> Any:

@@ -28,7 +28,6 @@ from actuator_core.limits import DIVERGENCE_ERROR_RAD
 from actuator_core.metrics import RunMetrics
 from actuator_core.status import Status
 from actuator_sim.loop import ClosedLoop
-from actuator_sim.offline import trace_metrics
 from actuator_studies.space import BaseScenario, build_scenario, quantities, run_seeds
 from actuator_studies.streaming import StreamingMetrics
 
@@ -190,21 +189,3 @@ def run_chunk(spec: SweepSpec, chunk: int) -> dict[str, list]:
         columns[name] = [float(v) for v in column[indices]]
     columns.update(metrics)
     return columns
-
-
-def run_single(spec: SweepSpec, run: int) -> dict[str, Any]:
-    """Metric columns of run ``run`` of the study as one scalar ClosedLoop run.
-
-    a reference for tests.
-    """
-    seed = run_seeds(spec.seed, np.array([run]))
-    values = {name: float(column[run]) for name, column in spec.table.items()}
-    scenario = build_scenario(spec.base, values, seeds=seed, name=f'run{run}')
-    with np.errstate(all='ignore'):
-        trace = ClosedLoop(scenario).run()
-        metrics = trace_metrics(trace)
-    if len(trace['t_s']) < scenario.samples:
-        metrics = dataclasses.replace(metrics, diverged=True)
-    return metrics_row(
-        metrics, paper_envelope_violations(trace['t_s'], trace['error_rad'], scenario.gains)
-    )
