@@ -16,11 +16,11 @@ import re
 import time
 from pathlib import Path
 
+from actuator_bringup.run_description import closed_loop, default_scenario
+from actuator_bringup.runner import scenario_file
+from actuator_bringup.supervisor import RosProcess, process_log
 from actuator_core import limits
 from actuator_core.timing import stamp_to_ns
-from actuator_bringup.runner import scenario_file
-from actuator_bringup.run_description import closed_loop, default_scenario
-from actuator_bringup.supervisor import RosProcess, process_log
 from host_probe import HostWindow, skip_or_fail
 from ros_helpers import TestNode, start_closed_loop
 
@@ -122,9 +122,10 @@ class Attacker(TestNode):
     """An rclpy node in the test process: the rogue publisher and the listener."""
 
     def __init__(self, context, joint: str):
+        from sensor_msgs.msg import JointState
+
         from actuator_msgs.msg import ControllerState, CurrentCommand, PlantTruth, StateEstimate
         from actuator_ros.qos import control_qos
-        from sensor_msgs.msg import JointState
 
         super().__init__(context, 'attacker')
         self.joint = joint

@@ -32,8 +32,8 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-import ros_helpers  # noqa: E402
 import host_probe  # noqa: E402
+import ros_helpers  # noqa: E402
 from host_probe import SLOW_HOST_SPEED, HostProbe, HostWindow  # noqa: E402
 
 

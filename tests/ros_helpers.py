@@ -309,10 +309,10 @@ class Harness(TestNode):
 
     def __init__(self, context):
         from rclpy.qos import HistoryPolicy, QoSProfile
-
-        from actuator_ros.qos import control_qos
-        from actuator_msgs.msg import ControllerState, CurrentCommand, PlantTruth, StateEstimate
         from sensor_msgs.msg import JointState
+
+        from actuator_msgs.msg import ControllerState, CurrentCommand, PlantTruth, StateEstimate
+        from actuator_ros.qos import control_qos
 
         super().__init__(context, 'harness')
         qos = control_qos('realtime')

@@ -15,19 +15,19 @@ import math
 import numpy as np
 import pytest
 
+from actuator_controller.laws import make_controller
+from actuator_controller.reference import ReferenceSample, StepReference, make_reference
 from actuator_core import limits
 from actuator_core.assembly import (
     PENDING_LIMIT,
     RESYNC_MAX_SAMPLES,
     RESYNC_REST_VELOCITY_RAD_S,
-    first_rest_s,
     RESYNC_SAMPLES,
     ControlSampleAssembly,
+    first_rest_s,
     gap_limit_samples,
 )
 from actuator_core.status import Status
-from actuator_controller.laws import make_controller
-from actuator_controller.reference import ReferenceSample, StepReference, make_reference
 
 P = 1_000_000  # 1 ms in ns
 #: Samples without a law sample beyond which the assembly resyncs: the command timeout (10 ms).

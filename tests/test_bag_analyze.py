@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 
 from actuator_analysis.analyze import analyze_run, load_run
-from actuator_analysis.cli import main
 from actuator_analysis.analyze_table import format_table
+from actuator_analysis.cli import main
 from actuator_bag.bag_format import mcap_name
 from bag_helpers import REPO, synthetic_run, write_run_bag
 

@@ -10,11 +10,9 @@ import os
 import time
 from pathlib import Path
 
+import mcap.reader as mcap_reader  # noqa: E402 - pinned: a broken install fails, never skips
 import pytest
 import yaml
-
-import mcap.reader as mcap_reader  # noqa: E402 - pinned: a broken install fails, never skips
-
 from rosbags.highlevel import AnyReader
 from rosbags.rosbag2 import Reader
 

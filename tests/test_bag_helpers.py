@@ -9,8 +9,8 @@ from pathlib import Path
 
 from rosbags.highlevel import AnyReader
 
-from bag_helpers import COMMAND_TYPE, add_command_topic, command_cdr, synthetic_run, write_run_bag
 from actuator_bag.bag_format import BagWriter
+from bag_helpers import COMMAND_TYPE, add_command_topic, command_cdr, synthetic_run, write_run_bag
 
 
 def test_synthetic_bag_counts(tmp_path: Path) -> None:

@@ -20,10 +20,10 @@ from pathlib import Path
 # skips them.
 import pytest
 import yaml
-from bag_load_publisher import TOPICS
 from rosbags.highlevel import AnyReader
 from rosbags.rosbag2 import Reader
 
+from bag_load_publisher import TOPICS
 from ros_helpers import RosProcess, wait_for_signal_handler
 
 N = 3000

@@ -20,7 +20,6 @@ import sys
 from pathlib import Path
 
 import pytest
-
 from rosbags.highlevel import AnyReader
 from rosbags.rosbag2 import Reader
 

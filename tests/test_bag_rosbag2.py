@@ -19,8 +19,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-
-from bag_helpers import SOURCE, TOPICS, run_messages, synthetic_run
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 from rosbags.rosbag2.enums import CompressionFormat, CompressionMode
 
@@ -28,6 +26,7 @@ from actuator_analysis.analyze import analyze_run, load_run
 from actuator_analysis.analyze_table import format_table
 from actuator_bag.repair import repair_bag
 from actuator_bag.scan import ScanReport, scan_mcap
+from bag_helpers import SOURCE, TOPICS, run_messages, synthetic_run
 
 WALL_T0_NS = 1_800_000_000_000_000_000  # 2027: the recorder's wall clock
 SPLIT_TOPIC = ('/events/write_split', 'rosbag2_interfaces/msg/WriteSplitEvent')

@@ -22,7 +22,6 @@ import sys
 from pathlib import Path
 
 import pytest
-
 from rosbags.highlevel import AnyReader
 
 from actuator_bag.bag_format import BagWriter, mcap_name

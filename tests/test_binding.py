@@ -11,6 +11,8 @@ import math
 
 import pytest
 
+from actuator_controller.laws import make_controller
+from actuator_controller.reference import make_reference
 from actuator_core import limits
 from actuator_core.assembly import ControlSampleAssembly
 from actuator_core.binding import (
@@ -26,8 +28,6 @@ from actuator_core.gate import CommandGate
 from actuator_core.pairing import ObserverInputPairing
 from actuator_core.status import CONTROLLED, Status
 from actuator_core.timebase import StampCheck, Verdict
-from actuator_controller.laws import make_controller
-from actuator_controller.reference import make_reference
 from actuator_eso.observer import EsoGains, ExtendedStateObserver
 
 pytestmark = pytest.mark.unit

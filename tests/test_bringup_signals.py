@@ -21,9 +21,9 @@ import psutil
 import pytest
 import yaml
 
-from ros_helpers import start_closed_loop, wait_until
-from actuator_bringup.runner import scenario_file
 from actuator_bringup.run_description import PINNING, closed_loop, ros_arguments
+from actuator_bringup.runner import scenario_file
+from ros_helpers import start_closed_loop, wait_until
 
 SCENARIO = 'case2_pp_nftsmc_eso'
 #: docs/safety.md#signals: "every node answers SIGINT within 0.1 s".
@@ -123,8 +123,8 @@ def test_pin_puts_a_composed_loop_on_its_joints_cpu_and_nothing_pins_it_otherwis
     The runner applies the first member's real-time settings to the whole process
     (realtime.pre_init_settings on the container's own arguments).
     """
-    from actuator_ros.realtime import pre_init_settings
     from actuator_bringup.composition import compose
+    from actuator_ros.realtime import pre_init_settings
 
     scenario = scenario_file('case2_pp_nftsmc_eso')
     for cpus, expected in ((PINNING, '0'), (None, '')):

@@ -20,17 +20,17 @@ import threading
 import time
 
 import canopen
-import pytest
 import numpy as np
+import pytest
 
-from actuator_core.joint import JointError
+from actuator_bringup.supervisor import RosProcess
 from actuator_cia402 import profile as p
 from actuator_cia402.config import DriverParameters
 from actuator_cia402.hub import HubBus
 from actuator_cia402.joint import Cia402Joint
 from actuator_cia402.sim_drive_main import default_eds
 from actuator_cia402.torque_test import run_on_grid
-from actuator_bringup.supervisor import RosProcess
+from actuator_core.joint import JointError
 
 pytestmark = pytest.mark.ros  # processes: the simulated drive (and a killed master)
 PERIOD_S = 0.002

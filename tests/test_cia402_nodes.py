@@ -16,8 +16,14 @@ import subprocess
 import numpy as np
 import pytest
 
-from cia402_helpers import DRIVER, NODE, driver_args, wait_for_output
-from cia402_helpers import harness_fixture, sim_drive_fixture  # noqa: F401 - fixtures by name
+from cia402_helpers import (  # noqa: F401 - fixtures by name
+    DRIVER,
+    NODE,
+    driver_args,
+    harness_fixture,
+    sim_drive_fixture,
+    wait_for_output,
+)
 from ros_helpers import executable_path
 
 

@@ -20,11 +20,9 @@ import pytest
 
 from actuator_cia402.config import DriverParameters
 from actuator_core import limits
-
-from cia402_helpers import DRIVER, driver_args, wait_for_output
+from cia402_helpers import DRIVER, driver_args, harness_fixture, sim_drive_fixture, wait_for_output  # noqa: F401 - fixtures by name
 from host_probe import CIA402_LOOP, fifo_granted, require_speed, skip_or_fail
 from ros_helpers import start_closed_loop
-from cia402_helpers import harness_fixture, sim_drive_fixture  # noqa: F401 - fixtures by name
 
 #: SCHED_FIFO priority of the ESO and controller in the closed loops through the drive (driver
 #: one above, simulated drive one above that: graph.closed_loop), as in test_adversarial. Under
@@ -64,8 +62,8 @@ def _closed_loop(ros_process, tmp_path, driver_params, record=True):
 
     What bringup --joint cia402_sim starts.
     """
-    from actuator_bringup.runner import scenario_file
     from actuator_bringup.run_description import closed_loop, default_scenario
+    from actuator_bringup.runner import scenario_file
 
     params = dict(driver_params)
     specs = closed_loop(
@@ -181,7 +179,8 @@ def test_end_to_end_fast_deep_sea_case_tracks_within_a_factor_of_the_offline_cor
     """
     require_speed(CIA402_LOOP)
     from actuator_analysis.analyze import analyze_run, load_run
-    from actuator_cia402.offline import DRIVE_SCENARIO, run as offline_drive, window_errors
+    from actuator_cia402.offline import DRIVE_SCENARIO, window_errors
+    from actuator_cia402.offline import run as offline_drive
     from actuator_sim.loop import ClosedLoop
     from actuator_sim.params_yaml import all_scenarios
 
@@ -365,8 +364,8 @@ def test_two_joints_on_one_bus_close_two_loops_under_namespaces(isolated):
     require_speed(CIA402_LOOP)
     from rosbags.highlevel import AnyReader
 
-    from actuator_bringup.runner import run_closed_loop
     from actuator_bringup.run_description import JOINT_TOPICS
+    from actuator_bringup.runner import run_closed_loop
     from actuator_bringup.supervisor import process_log
 
     result = run_closed_loop(

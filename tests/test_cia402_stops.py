@@ -19,7 +19,6 @@ from dataclasses import dataclass, field
 import canopen
 import pytest
 
-from actuator_core.joint import JointError
 from actuator_cia402 import profile as p
 from actuator_cia402.config import DriverParameters
 from actuator_cia402.hub import Hub, HubBus, error_frame
@@ -29,6 +28,7 @@ from actuator_cia402.sim_drive import SimulatedDrive
 from actuator_cia402.sim_drive_main import default_eds
 from actuator_cia402.sim_faults import FaultPlan, Quirks, plant_parameters
 from actuator_cia402.torque_test import run_on_grid
+from actuator_core.joint import JointError
 
 pytestmark = pytest.mark.ros  # bus threads in real time over loopback TCP
 PERIOD_S = 0.002

@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import pytest
 
-from actuator_core import limits
 from actuator_cia402 import profile as p
 from actuator_cia402.answers import TPDO_LAG_CYCLES, AnswerCount
 from actuator_cia402.scaling import Scaling
+from actuator_core import limits
 
 
 def cycles(count: AnswerCount, arrivals: list[int]) -> list[bool]:

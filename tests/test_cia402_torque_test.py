@@ -21,10 +21,10 @@ import time
 import canopen
 import pytest
 
+from actuator_bringup.supervisor import RosProcess
 from actuator_cia402 import profile as p
 from actuator_cia402.hub import HubBus
 from actuator_cia402.sim_drive_main import default_eds
-from actuator_bringup.supervisor import RosProcess
 
 pytestmark = pytest.mark.ros  # processes: the simulated drive and the tool
 PERIOD_S = 0.002

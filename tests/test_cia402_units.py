@@ -10,14 +10,14 @@ import math
 
 import pytest
 
-from actuator_core import limits
 from actuator_cia402 import profile as p
 from actuator_cia402.busload import BusLoadError, check_bus_load, cycle_load, frame_bits
 from actuator_cia402.config import DriverParameters
-from actuator_cia402.sim_settings import SimDriveSettings
-from actuator_cia402.supervision import PositionUnwrap, torque_fault
 from actuator_cia402.launch_spec import driver_arguments, driver_parameters, sim_drive_command
 from actuator_cia402.scaling import Scaling
+from actuator_cia402.sim_settings import SimDriveSettings
+from actuator_cia402.supervision import PositionUnwrap, torque_fault
+from actuator_core import limits
 
 SCALING = Scaling(
     encoder_counts_per_rev=4096,
@@ -244,8 +244,8 @@ def test_launch_spec_gives_checked_parameters_for_a_closed_loop_run():
 def test_the_simulated_drive_runs_one_priority_above_its_driver(priority, driver, drive):
     # Under normal scheduling the drive process answered SYNC with p90 0.9-2.4 ms and the loop
     # through it ran away; the simulated hardware must keep its cycle above the driver it serves.
-    from actuator_cia402.sim_drive_main import parser
     from actuator_bringup.run_description import closed_loop
+    from actuator_cia402.sim_drive_main import parser
 
     specs = {
         s.key: s

@@ -34,9 +34,9 @@ from actuator_bringup.supervisor import executable_path
 def test_sim_mode_across_three_processes_equals_the_offline_core(isolated, controller, composed):
     """Separate processes, or the three nodes composed in one (``composed``): bit for bit."""
     from actuator_analysis.analyze import load_run
+    from actuator_bringup.main import compare_with_offline
     from actuator_bringup.runner import run_closed_loop
     from actuator_sim.loop import ClosedLoop
-    from actuator_bringup.main import compare_with_offline
     from actuator_sim.params_yaml import all_scenarios
 
     scenario_name = f'case2_{controller}'
@@ -70,8 +70,8 @@ def test_sim_mode_equals_the_offline_core_through_a_latch_safe_stop_and_brake(is
     loop's sample by sample, after the latch too: both hold the same joint, gate and brake.
     """
     from actuator_analysis.analyze import load_run
-    from actuator_core.status import Status
     from actuator_bringup.runner import run_closed_loop
+    from actuator_core.status import Status
     from actuator_sim.loop import ClosedLoop
     from actuator_sim.params_yaml import all_scenarios
 

@@ -4,6 +4,7 @@
 """The joint, ESO and controller composed in one process keep every node's contract."""
 
 import pytest
+
 from ros_helpers import TestNode
 
 pytestmark = pytest.mark.usefixtures('rclpy_context')
@@ -11,10 +12,11 @@ pytestmark = pytest.mark.usefixtures('rclpy_context')
 
 def test_a_composed_loop_keeps_lifecycle_and_the_publisher_guard(rclpy_context, ros_process):
     """Each node is driven through its own lifecycle services; a second publisher is refused."""
+    from sensor_msgs.msg import JointState
+
+    from actuator_bringup.runner import scenario_file
     from actuator_msgs.msg import CurrentCommand
     from actuator_ros.qos import control_qos
-    from actuator_bringup.runner import scenario_file
-    from sensor_msgs.msg import JointState
 
     loop = ros_process(
         'actuator_bringup',

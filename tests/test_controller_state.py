@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 
 import pytest
+
 from actuator_controller.controller_state import (
     LAW_FIELDS,
     OUTPUT_FIELDS,

@@ -9,11 +9,6 @@ import math
 import numpy as np
 import pytest
 
-from actuator_sim.loop import ClosedLoop, Scenario
-from actuator_core.metrics import compute_run_metrics
-from actuator_sim.offline import run_scenario
-from actuator_sim.scenarios import case1, paper_scenario
-from actuator_sim.stability import radius_along_envelope
 from actuator_controller.laws import (
     CONTROLLER_NAMES,
     CommonConfig,
@@ -31,7 +26,12 @@ from actuator_controller.reference import (
     make_reference,
     slow_trajectory,
 )
+from actuator_core.metrics import compute_run_metrics
 from actuator_plant.model import PlantParameters
+from actuator_sim.loop import ClosedLoop, Scenario
+from actuator_sim.offline import run_scenario
+from actuator_sim.scenarios import case1, paper_scenario
+from actuator_sim.stability import radius_along_envelope
 
 
 @pytest.mark.parametrize('name', CONTROLLER_NAMES)

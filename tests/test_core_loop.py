@@ -8,13 +8,13 @@ import math
 import numpy as np
 import pytest
 
-from actuator_sim.loop import TRACE_FIELDS, ClosedLoop, Scenario
 from actuator_controller.laws import CommonConfig, ControlOutput
 from actuator_controller.reference import StepReference
 from actuator_core.limits import DIVERGENCE_ERROR_RAD
 from actuator_core.status import Status
 from actuator_plant.encoder import EncoderParameters
 from actuator_plant.model import PlantParameters
+from actuator_sim.loop import TRACE_FIELDS, ClosedLoop, Scenario
 
 
 def _ideal(**kwargs) -> Scenario:

@@ -17,8 +17,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from actuator_core import limits
 from actuator_core import clock as clock_module
+from actuator_core import limits
 from actuator_core import xmath as xm
 from actuator_core.clock import Clock, Schedule, SteppedClock
 from actuator_core.decimation import Decimator

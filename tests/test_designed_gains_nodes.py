@@ -27,11 +27,11 @@ def test_sim_loop_with_designed_gains_equals_the_offline_core_with_them(
 ) -> None:
     """The designed YAML by --params-file: 1000 of 1000 samples equal offline with those gains."""
     from actuator_analysis.analyze import load_run
+    from actuator_bringup import runner as bringup
+    from actuator_bringup.main import compare_with_offline
     from actuator_sim.loop import ClosedLoop
     from actuator_sim.params_yaml import all_scenarios
     from actuator_studies.gains_yaml import read_gains_yaml
-    from actuator_bringup import runner as bringup
-    from actuator_bringup.main import compare_with_offline
 
     designed = (
         Path(get_package_share_directory('actuator_studies'))

@@ -5,10 +5,9 @@
 
 from __future__ import annotations
 
-
-from actuator_analysis.analyze import load_run
 from rosbags.highlevel import AnyReader
 
+from actuator_analysis.analyze import load_run
 
 #: diagnostic_msgs/DiagnosticStatus.STALE
 STALE = 3
@@ -44,8 +43,8 @@ def test_a_sim_run_records_every_nodes_health_and_the_stop_of_its_inputs(
     the controller has reported the plant's silence (an event, not a sleep), then stopped, so the
     bag holds that report whatever the host's speed.
     """
-    from actuator_bringup.runner import scenario_file
     from actuator_bringup.run_description import closed_loop
+    from actuator_bringup.runner import scenario_file
     from ros_helpers import TestNode, start_closed_loop
 
     listener = TestNode(rclpy_context, 'diagnostics_listener')

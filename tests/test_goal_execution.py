@@ -13,8 +13,6 @@ import math
 import numpy as np
 import pytest
 
-from actuator_core import limits
-from actuator_core.status import Status
 from actuator_controller.commanded_reference import CommandedReference
 from actuator_controller.goal_execution import (
     ABORTED,
@@ -41,6 +39,8 @@ from actuator_controller.trajectory_settings import (
     TrajectoryConstraints,
     TrajectorySettings,
 )
+from actuator_core import limits
+from actuator_core.status import Status
 
 MS = 1_000_000
 DT = 1e-3
@@ -395,8 +395,8 @@ def test_offline_cancel_at_peak_velocity_stops_without_a_sample_at_the_current_l
 
 def test_a_resync_aborts_the_goal_and_the_reference_restarts_as_a_hold_of_the_joints_angle():
     """The assembly's restart hook: after the resync the joint holds the angle it is at."""
-    from actuator_core.assembly import RESYNC_SAMPLES, ControlSampleAssembly
     from actuator_controller.laws import make_controller
+    from actuator_core.assembly import RESYNC_SAMPLES, ControlSampleAssembly
 
     h = Harness()
     assembly = ControlSampleAssembly(make_controller('pp_nftsmc_eso'), h.reference, MS)

@@ -12,7 +12,6 @@ import math
 import numpy as np
 import pytest
 
-from actuator_core import limits
 from actuator_controller.goal_rules import (
     EFFORT_REFUSED,
     EMPTY_TRAJECTORY,
@@ -35,6 +34,7 @@ from actuator_controller.trajectory_settings import (
     TrajectoryConstraints,
     TrajectorySettings,
 )
+from actuator_core import limits
 
 JOINTS = ('joint',)
 S = 1_000_000_000

@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from actuator_sim.params_yaml import node_parameters
 from actuator_bringup import runner as bringup
+from actuator_bringup.composition import compose
 from actuator_bringup.run_description import (
     JOINTS,
     LIVE_DIAGNOSTICS_RATE_HZ,
@@ -21,7 +21,7 @@ from actuator_bringup.run_description import (
     default_scenario,
     ros_arguments,
 )
-from actuator_bringup.composition import compose
+from actuator_sim.params_yaml import node_parameters
 
 
 def _rates(specs) -> dict:

@@ -93,10 +93,9 @@ def test_two_records_identify_as_one(drag_joint):
 
 def test_theta1_of_the_suites_plant_is_found_despite_its_exponential_seal():
     """The plant of eq. (1), stirring loss (6), seal friction (42) at 1000 m, PD-controlled."""
-    from actuator_plant.model import JointPlant, PlantParameters
-
-    from identify_helpers import LOOP_DAMPING, LOOP_RAD_S, LOOP_THETA1
     from actuator_controller.excitation import ExcitationReference
+    from actuator_plant.model import JointPlant, PlantParameters
+    from identify_helpers import LOOP_DAMPING, LOOP_RAD_S, LOOP_THETA1
 
     params = PlantParameters(with_drift=False, with_external_torque=False)
     plant, ref = JointPlant(params, DT_S), ExcitationReference()

@@ -183,11 +183,11 @@ def test_the_tap_records_what_an_active_lifecycle_publisher_sends_and_counts_as_
     rclpy_context, tmp_path
 ):
     """Inactive: nothing sent, nothing recorded; active: each message, on the sim clock."""
-    from actuator_msgs.msg import CurrentCommand
     from rclpy.lifecycle import LifecycleNode
     from rosgraph_msgs.msg import Clock
 
     from actuator_bag.tap import InProcessRecording, RecordedPublisher
+    from actuator_msgs.msg import CurrentCommand
     from actuator_ros.conversions import ns_to_stamp
 
     recording = InProcessRecording(tmp_path / 'bag', topics=['current_command'])
@@ -222,11 +222,11 @@ def test_a_node_in_real_time_stops_the_in_process_recording_with_one_line(
     rclpy_context, tmp_path, capfd
 ):
     """A realtime node: nothing wrapped, one line saying why and what to use; close is False."""
-    from actuator_msgs.msg import CurrentCommand
     from rclpy.node import Node
     from rclpy.parameter import Parameter
 
     from actuator_bag.tap import InProcessRecording
+    from actuator_msgs.msg import CurrentCommand
 
     recording = InProcessRecording(tmp_path / 'bag')
     node = Node(

@@ -25,8 +25,9 @@ def make(node_class, context, **parameters):
 
 
 def command(stamp_ns: int, current_a: float, safe_stop: bool = False):
-    from actuator_msgs.msg import CurrentCommand
     from builtin_interfaces.msg import Time
+
+    from actuator_msgs.msg import CurrentCommand
 
     msg = CurrentCommand(current_a=current_a, safe_stop=safe_stop)
     msg.header.stamp = Time(sec=stamp_ns // 1_000_000_000, nanosec=stamp_ns % 1_000_000_000)

@@ -4,7 +4,7 @@
 """Static checks as ROS 2 packages run them: ament_flake8/ament_pep257 (ruff) and ament_copyright.
 
 The rules live in the repository's ruff.toml; its extend-exclude list is also the list of files
-the header check skips.
+the header check skips. The type check of src/ is mypy's with the repository's mypy.ini.
 """
 
 import fnmatch
@@ -15,6 +15,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIG = ROOT / 'ruff.toml'
+MYPY_CONFIG = ROOT / 'mypy.ini'
 CHECKED = ('src', 'tests')
 HEADER = ('# Copyright 2026 Actuator control team', '# SPDX-License-Identifier: Apache-2.0')
 
@@ -58,6 +59,30 @@ def python_files():
 def test_ruff_finds_nothing():
     proc = ruff('check', '--no-cache', '--output-format', 'concise')
     assert proc.returncode == 0, proc.stdout + proc.stderr
+
+
+def test_isort_knows_every_project_package():
+    """ruff.toml's known-first-party names every src/<pkg>: one import order anywhere."""
+    known = tomllib.loads(CONFIG.read_text())['lint']['isort']['known-first-party']
+    packages = [p.name for p in (ROOT / 'src').iterdir() if (p / 'package.xml').is_file()]
+    assert sorted(known) == sorted(packages)
+
+
+def package_modules():
+    """Count the .py files of every Python package src/<pkg>/<pkg> (what mypy.ini checks)."""
+    packages = [
+        p / p.name for p in (ROOT / 'src').iterdir() if (p / p.name / '__init__.py').is_file()
+    ]
+    return sum(1 for package in packages for _ in package.rglob('*.py'))
+
+
+def test_mypy_finds_nothing():
+    cmd = [sys.executable, '-m', 'mypy', '--config-file', str(MYPY_CONFIG)]
+    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    # mypy.ini's files cover every package: a new one is checked from its first commit
+    expected = f'no issues found in {package_modules()} source files'
+    assert expected in proc.stdout, proc.stdout
 
 
 def test_every_python_file_has_the_license_header():

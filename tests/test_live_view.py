@@ -196,6 +196,7 @@ def test_a_stuck_client_fills_only_its_own_outbox_and_it_is_counted():
     import logging
 
     import foxglove
+
     from foxglove_client import FoxgloveClient, stuck_client
 
     watch = live_core.OutboxWatch()

@@ -93,10 +93,11 @@ def test_exit_waits_until_reliable_subscribers_have_everything(
     import os
     import signal
 
+    from sensor_msgs.msg import JointState
+
     from actuator_ros.qos import control_qos
     from actuator_ros.runner import wait_for_acknowledgements
     from ros_helpers import TestNode
-    from sensor_msgs.msg import JointState
 
     recorder = ros_process(
         'actuator_bag',

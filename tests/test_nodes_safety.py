@@ -678,10 +678,11 @@ def test_a_sim_observer_holds_its_first_estimate_until_a_subscriber_matched(
     RELIABLE does not keep a message for a reader that has not matched: a lost x_hat(0) left the
     controller waiting for it and the observer for u(0), and the lockstep stopped at start-up.
     """
+    from sensor_msgs.msg import JointState
+
     from actuator_msgs.msg import StateEstimate
     from actuator_ros.qos import control_qos
     from ros_helpers import TestNode
-    from sensor_msgs.msg import JointState
 
     eso = ros_process('actuator_eso', 'eso_node', [*AUTOSTART, '-p', 'mode:=sim'])
     test = TestNode(rclpy_context, 'late_subscriber')

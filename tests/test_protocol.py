@@ -11,6 +11,8 @@ import math
 import numpy as np
 import pytest
 
+from actuator_controller.laws import make_controller
+from actuator_controller.reference import make_reference
 from actuator_core import limits
 from actuator_core.assembly import (
     AT_LIMIT_SAMPLES,
@@ -20,10 +22,8 @@ from actuator_core.assembly import (
 )
 from actuator_core.gate import CommandGate
 from actuator_core.pairing import MAX_STEPS_PER_CALL, ObserverInputPairing
-from actuator_core.timebase import StampCheck, Verdict
 from actuator_core.status import Status
-from actuator_controller.laws import make_controller
-from actuator_controller.reference import make_reference
+from actuator_core.timebase import StampCheck, Verdict
 from actuator_eso.observer import EsoGains, ExtendedStateObserver, eso_step
 
 P = 1_000_000  # 1 ms in ns

@@ -12,10 +12,10 @@ import json
 import numpy as np
 import pytest
 
+from actuator_bringup.supervisor import process_log
 from actuator_controller.ppf import PrescribedPerformance
 from actuator_core import limits
 from actuator_core.status import CONTROLLED, Status
-from actuator_bringup.supervisor import process_log
 from host_probe import fifo_granted, skip_or_fail
 
 #: The paper's initial envelope half-width rho0 [rad] (Table 4): the error of the whole run,
@@ -84,8 +84,8 @@ def test_realtime_loop_stays_stable_for_the_whole_fast_deep_sea_run(isolated, ho
     The loop closes and, under SCHED_FIFO, stays stable.
     """
     from actuator_analysis.analyze import analyze_run, load_run
-    from actuator_bringup.runner import run_closed_loop
     from actuator_bringup.main import timing_figures
+    from actuator_bringup.runner import run_closed_loop
 
     result = run_closed_loop(
         'case2_pp_nftsmc_eso',

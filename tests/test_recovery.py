@@ -17,17 +17,17 @@ from collections import deque
 import numpy as np
 import pytest
 
+from actuator_controller.laws import make_controller
+from actuator_controller.reference import make_reference
 from actuator_core import limits
 from actuator_core.assembly import RECOVERY_SAMPLES, RESYNC_SAMPLES, ControlSampleAssembly
 from actuator_core.binding import CommandBinding
 from actuator_core.gate import CommandGate
 from actuator_core.pairing import ObserverInputPairing
 from actuator_core.status import Status
-from actuator_sim.loop import Scenario
-from actuator_controller.laws import make_controller
-from actuator_controller.reference import make_reference
 from actuator_eso.observer import ExtendedStateObserver
 from actuator_plant.model import JointPlant
+from actuator_sim.loop import Scenario
 from actuator_sim.scenarios import case2
 
 pytestmark = pytest.mark.unit

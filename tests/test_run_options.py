@@ -16,7 +16,6 @@ from pathlib import Path
 import pytest
 
 from actuator_bringup import runner as bringup
-from actuator_core import limits
 from actuator_bringup.run_description import closed_loop, default_scenario
 from actuator_bringup.run_options import (
     OPTIONS,
@@ -29,6 +28,7 @@ from actuator_bringup.run_options import (
     node_section,
     parse,
 )
+from actuator_core import limits
 
 
 def test_each_value_is_parsed_by_its_kind_and_refused_in_one_line_naming_it():

@@ -13,15 +13,14 @@ import numpy as np
 import pytest
 import yaml
 
+from actuator_controller.laws import PpNftsmcGains
 from actuator_core import limits
 from actuator_core.params import iter_specs
-from actuator_controller.laws import PpNftsmcGains
 from actuator_eso.observer import EsoGains
 from actuator_studies.cli import design_main
 from actuator_studies.design import DesignRequest, run_design
 from actuator_studies.gains_yaml import read_gains_yaml, write_gains_yaml
 from actuator_studies.space import StudyInputError
-
 
 pytestmark = pytest.mark.slow  # designs gains: seconds of simulation per test
 

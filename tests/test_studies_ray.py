@@ -9,12 +9,10 @@ Equal to a local run, failed chunks retried, never missing.
 import pyarrow.parquet as pq
 import pytest
 
-from actuator_studies.results import tables_identical
-
 from actuator_studies import distributed
 from actuator_studies.distributed import ChunkFailed, InjectedFailure
+from actuator_studies.results import tables_identical
 from actuator_studies.sweep import SweepRequest, run_sweep
-
 
 pytestmark = pytest.mark.ros  # a local Ray instance: worker processes
 
@@ -148,6 +146,7 @@ def test_in_flight_tasks_are_bounded_and_every_task_declares_its_memory(ray_sess
 
 def test_design_batches_on_ray_equal_the_local_batch(ray_session):
     import numpy as np
+
     from actuator_studies.design import Evaluator, corner_table
     from actuator_studies.space import BaseScenario
 

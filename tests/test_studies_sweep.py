@@ -16,16 +16,15 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from actuator_studies.results import tables_identical
-
 from actuator_core.metrics import RunMetrics
+from actuator_plant.drive import CommandDelay
 from actuator_plant.encoder import Encoder, EncoderParameters
 from actuator_plant.model import WorkingCondition
-from actuator_plant.drive import CommandDelay
 from actuator_sim.loop import ClosedLoop
 from actuator_sim.offline import trace_metrics
 from actuator_sim.scenarios import paper_scenario
 from actuator_studies.cli import sweep_main
+from actuator_studies.results import tables_identical
 from actuator_studies.space import Axis, sample
 from actuator_studies.sweep import SweepRequest, run_sweep, table_arrays
 

@@ -15,10 +15,10 @@ from actuator_controller.trajectory import (
     Hold,
     Segments,
     Waypoints,
+    _stop_peak,
     cubic_end_accelerations,
     plan,
     quintic_coefficients,
-    _stop_peak,
     stop_segment,
     three_point_derivatives,
 )

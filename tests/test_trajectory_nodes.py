@@ -398,8 +398,8 @@ def test_a_commanded_sim_run_equals_the_offline_loop_bit_for_bit(isolated):
     taken at (and the cancel likewise): the nodes and the offline loop run the same execution.
     """
     from actuator_analysis.analyze import load_run
-    from actuator_bringup.main import compare_with_offline
     from actuator_bringup.commanded import COMMANDED_DURATION_S, replay_offline, scripted_run
+    from actuator_bringup.main import compare_with_offline
 
     duration = COMMANDED_DURATION_S
     result, client = scripted_run(isolated / 'bags', isolated / 'runs', duration_s=duration)

@@ -13,8 +13,8 @@ import importlib
 import math
 import struct
 
-
 import pytest
+
 from actuator_ros.wire import ENCAPSULATION, Codec, WireError
 from message_fill import fill_message, message_leaves
 
@@ -198,8 +198,9 @@ def test_encoding_without_a_field_fails_naming_it() -> None:
 def test_a_raw_subscription_hands_views_and_refuses_garbage_with_a_line(rclpy_context) -> None:
     """Via Fast DDS: a typed message arrives as a view; bytes that are none: logged, dropped."""
     import rclpy
-    from actuator_ros.wire_io import subscribe_views
     from rclpy.executors import SingleThreadedExecutor
+
+    from actuator_ros.wire_io import subscribe_views
 
     CurrentCommand = message('actuator_msgs/CurrentCommand')
     node = rclpy.create_node('wire_probe', context=rclpy_context)

@@ -33,15 +33,15 @@ from pathlib import Path
 from typing import Any, Optional, Sequence
 
 import numpy as np
-from actuator_core.metrics import STEADY_STATE_START_S, RunMetrics, compute_run_metrics
-from actuator_core.stats import missed_samples
-from actuator_core.status import CONTROLLED, Status
-from actuator_core.timing import stamp_to_ns
 
 from actuator_bag.errors import AnalysisError
 from actuator_bag.msgdefs import DefinitionSource
 from actuator_bag.progress import Progress
 from actuator_bag.reading import bag_typestore, find_topic, open_bag, topic_names
+from actuator_core.metrics import STEADY_STATE_START_S, RunMetrics, compute_run_metrics
+from actuator_core.stats import missed_samples
+from actuator_core.status import CONTROLLED, Status
+from actuator_core.timing import stamp_to_ns
 
 from .goals import goal_event_row
 from .mismatch import B0Mismatch, b0_mismatch

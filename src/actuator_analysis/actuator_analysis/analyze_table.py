@@ -10,6 +10,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 from tabulate import tabulate
+
 from actuator_core.status import Status
 
 from .analyze import RunReport, observer_input, steady_empty
@@ -76,16 +77,17 @@ def _b0(r: RunReport) -> str:
     if b is None:
         return f'n/a (no {WINDOW_S:g} s window of control after {START_S:g} s)'
     seen = f'{b.theta1_seen:.4g} rad/s^2/A'
-    if b.relative is None:
+    theta1n, relative = b.theta1n, b.relative
+    if not theta1n or relative is None:  # (the one condition: relative needs theta1n)
         return f'joint {seen} (theta1n not recorded: no eso/estimate)'
-    low, high = (100 * (x / b.theta1n - 1) for x in (b.window_low, b.window_high))
+    low, high = (100 * (x / theta1n - 1) for x in (b.window_low, b.window_high))
     text = (
-        f'joint {seen}, {100 * b.relative:+.1f} % from theta1n {b.theta1n:.4g} '
+        f'joint {seen}, {100 * relative:+.1f} % from theta1n {theta1n:.4g} '
         f'({b.windows} windows of {WINDOW_S:g} s: {low:+.1f} to {high:+.1f} %)'
     )
     if high - low > 2 * 100 * WORTH_IDENTIFYING:
         return text + ": the joint's theta1 drifts"
-    if abs(b.relative) > WORTH_IDENTIFYING:
+    if abs(relative) > WORTH_IDENTIFYING:
         return text + ': identify the joint (bag_identify)'
     return text
 

@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
+
 from actuator_core.metrics import STEADY_STATE_START_S
 
 if TYPE_CHECKING:

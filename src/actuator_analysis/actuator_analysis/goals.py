@@ -127,7 +127,12 @@ def goal_reports(run, band_rad: float = GOAL_SETTLING_BAND_RAD) -> list[GoalRepo
         path = window & (run.t <= path_end + 1e-12)
         if np.any(path):
             report.max_path_error_rad = float(np.max(np.abs(run.error[path])))
-        settle_from = report.due_s if report.result in ('succeeded', 'running') else report.ended_s
+        # a goal that ended otherwise has its end (ended_s) in the bag
+        settle_from = (
+            report.ended_s
+            if report.ended_s is not None and report.result not in ('succeeded', 'running')
+            else report.due_s
+        )
         after = window & (run.t >= settle_from - 1e-12)
         if np.any(after):
             errors = np.abs(run.error[after])

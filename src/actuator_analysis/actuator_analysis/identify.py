@@ -63,8 +63,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from actuator_core.identified import FRICTION_MODELS
 from scipy import optimize, signal, stats
+
+from actuator_core.identified import FRICTION_MODELS
 
 from .identify_load import LoadProjection, filtered_hats
 
@@ -174,8 +175,12 @@ class Regressors:
 
     def __post_init__(self) -> None:
         """Stack the columns the fit reads; the load's hats block-diagonal (one set per record)."""
-        for name in ('velocity', 'acceleration', 'current', 'sign', 'block', 'training'):
-            setattr(self, name, self.stack(name))
+        self.velocity = self.stack('velocity')
+        self.acceleration = self.stack('acceleration')
+        self.current = self.stack('current')
+        self.sign = self.stack('sign')
+        self.block = self.stack('block')
+        self.training = self.stack('training')
         self.load = np.zeros((self.velocity.size, sum(p.load.shape[1] for p in self.parts)))
         self.load_columns, row, column = [], 0, 0
         for p in self.parts:

@@ -21,13 +21,13 @@ from pathlib import Path
 from typing import Optional, Sequence
 
 import yaml
-from actuator_core import limits
-from actuator_core.identified import IdentifiedJoint, parameters_document
 from tabulate import tabulate
 
 from actuator_bag.errors import BagError, run_cli
 from actuator_bag.msgdefs import DefinitionSource, definition_roots
 from actuator_bag.outputs import check_output_file, check_output_folder
+from actuator_core import limits
+from actuator_core.identified import IdentifiedJoint, parameters_document
 
 from . import identify as idf
 from .cli import add_msg_path, write_figures, write_json

@@ -29,13 +29,13 @@ from pathlib import Path
 from typing import Any, Optional
 
 import numpy as np
-from actuator_core import limits
-from actuator_core.status import CONTROLLED
-from actuator_core.timing import stamp_to_ns
 
 from actuator_bag.errors import AnalysisError
 from actuator_bag.msgdefs import DefinitionSource
 from actuator_bag.reading import bag_typestore, find_topic, open_bag, topic_names
+from actuator_core import limits
+from actuator_core.status import CONTROLLED
+from actuator_core.timing import stamp_to_ns
 
 from .analyze import CONTROLLER_STATE, CURRENT_COMMAND, JOINT_STATE, PLANT_TRUTH
 from .identify import Record

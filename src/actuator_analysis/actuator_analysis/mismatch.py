@@ -74,14 +74,17 @@ def theta1_seen(
     x = np.column_stack([signal.sosfiltfilt(sos, c) for c in (current, vel, -np.sign(vel))])
     a = signal.sosfiltfilt(sos, acc)
     ok = np.asarray(usable, dtype=bool)[k]
-    rows, per_window = [], []
+    windows: list[np.ndarray] = []
+    per_window: list[float] = []
     for s in range(start, len(a) - width + 1, width):
         if ok[s : s + width].all():
-            rows.append(np.arange(s, s + width))
-            per_window.append(float(np.linalg.lstsq(x[rows[-1]], a[rows[-1]], rcond=None)[0][0]))
-    if not rows:
+            windows.append(np.arange(s, s + width))
+            per_window.append(
+                float(np.linalg.lstsq(x[windows[-1]], a[windows[-1]], rcond=None)[0][0])
+            )
+    if not windows:
         return None
-    rows = np.concatenate(rows)
+    rows = np.concatenate(windows)
     return float(np.linalg.lstsq(x[rows], a[rows], rcond=None)[0][0]), per_window
 
 

@@ -26,7 +26,8 @@ from pathlib import Path
 from typing import Any, Iterable, Mapping, Optional, Sequence
 
 import yaml
-from mcap.writer import CompressionType, Writer as McapWriter
+from mcap.writer import CompressionType
+from mcap.writer import Writer as McapWriter
 
 from .bag_qos import DURATION_INFINITE, QosProfile, qos_from_yaml, qos_to_yaml
 from .datafile import DataFile, describe_os_error, open_data_file
@@ -297,7 +298,8 @@ class BagWriter:
             self._file = open_data_file(self.mcap_path)
             self._created.insert(0, self.mcap_path)
             self._mcap = McapWriter(
-                self._file,
+                # mcap types its output as a file object; it calls only write() and tell()
+                self._file,  # type: ignore[arg-type]
                 chunk_size=self.chunk_size,
                 compression=CompressionType.ZSTD
                 if self.compression == 'zstd'

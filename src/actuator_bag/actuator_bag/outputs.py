@@ -49,7 +49,7 @@ def source_files(inputs: Iterable[Path]) -> list[Path]:
 
     An input folder's files are included.
     """
-    files = []
+    files: list[Path] = []
     for path in inputs:
         real = Path(path).resolve()
         if real.is_dir():

@@ -142,11 +142,11 @@ class PlayerNode(Node, ProcessMember):
                 conns = [c for c in conns if c.topic in wanted]
             if not conns:
                 raise BagError(f'{self.bag}: nothing to play (no topics)')
-            conns = self._playable(conns)
-            for conn, cls in conns:
+            playable = self._playable(conns)
+            for conn, cls in playable:
                 self.publishers_[conn.id] = self.create_publisher(cls, conn.topic, self.qos)
                 self.counts.setdefault(conn.topic, 0)
-            conns = [conn for conn, _ in conns]
+            conns = [conn for conn, _ in playable]
             self._wait_for_subscribers(stop)
             total = sum(c.msgcount for c in conns)
             self.get_logger().info(

@@ -48,13 +48,9 @@ import rclpy
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 
-from .bag_format import (
-    BagSummary,
-    BagWriter,
-    TopicSpec,
-)
-from .errors import BagError, BagIOError
-from .msgdefs import DefinitionSource
+from actuator_core.health import HealthMonitor, Level, Snapshot
+from actuator_ros.diagnostics import NodeDiagnostics
+from actuator_ros.node import declare_realtime
 from actuator_ros.parameters import (
     check_unknown_parameters,
     declare_choice,
@@ -63,12 +59,16 @@ from actuator_ros.parameters import (
     declare_text,
     declare_text_list,
 )
-from actuator_core.health import HealthMonitor, Level, Snapshot
-from actuator_ros.diagnostics import NodeDiagnostics
-from actuator_ros.node import declare_realtime
 from actuator_ros.process_member import MemberError, ProcessMember
 from actuator_ros.realtime import RealtimeSettings
 
+from .bag_format import (
+    BagSummary,
+    BagWriter,
+    TopicSpec,
+)
+from .errors import BagError, BagIOError
+from .msgdefs import DefinitionSource
 from .recording import (
     DESCRIPTION,
     BagWriterThread,
@@ -332,8 +332,9 @@ class RecorderNode(Node, ProcessMember):
         return self.thread.error is not None
 
     # --- ProcessMember: a failed write ends the run; at the end, take what came, then close --
+    # run_nodes only reads ProcessMember.finished; here it follows the writer thread
     @property
-    def finished(self) -> bool:
+    def finished(self) -> bool:  # type: ignore[override]
         """The run is over for the recorder once a write failed (release says why)."""
         return self.failed
 

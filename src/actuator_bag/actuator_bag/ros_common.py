@@ -21,7 +21,6 @@ from rclpy.qos import (
     QoSProfile,
     ReliabilityPolicy,
 )
-
 from rclpy.utilities import remove_ros_args
 
 from actuator_ros.process_member import MemberError, ProcessMember

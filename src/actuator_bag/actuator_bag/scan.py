@@ -359,8 +359,9 @@ def _scan(
             if damage.length is not None:
                 # The chunk's framing is intact: skip exactly it and count its messages from its
                 # index.
-                end: Optional[int] = pos + _HEAD + damage.length
-                messages = _indexed_messages(buf, end, size)
+                chunk_end = pos + _HEAD + damage.length
+                end: Optional[int] = chunk_end
+                messages = _indexed_messages(buf, chunk_end, size)
             else:
                 end = _resync(buf, pos + 1, size)
             if end is None:

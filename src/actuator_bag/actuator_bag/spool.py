@@ -27,7 +27,13 @@ import sys
 from pathlib import Path
 from typing import BinaryIO, Iterator, Optional, Sequence
 
-from .bag_format import DEFAULT_CHUNK_SIZE, DEFAULT_FLUSH_INTERVAL_S, BagWriter, topic_spec
+from .bag_format import (
+    DEFAULT_CHUNK_SIZE,
+    DEFAULT_FLUSH_INTERVAL_S,
+    BagWriter,
+    TopicSpec,
+    topic_spec,
+)
 from .bag_qos import QosProfile
 from .errors import BagError, BagIOError
 from .msgdefs import DefinitionSource
@@ -63,7 +69,7 @@ class FrameSpool:
         """Write frames to ``fd`` (blocking) in batches of about ``batch_bytes``."""
         self.fd = fd
         self.batch_bytes = batch_bytes
-        self.batch: list[bytes] = []
+        self.batch: list[bytes | bytearray] = []
         self.pending = 0
         self.frames = 0  # message frames accepted
         self.sent = 0  # message frames handed to the writer (all but the batch in hand)
@@ -77,7 +83,7 @@ class FrameSpool:
         self.pending += HEADER.size + len(payload)
         self.flush()
 
-    def add(self, index: int, log_ns: int, data: bytes) -> None:
+    def add(self, index: int, log_ns: int, data: bytes | bytearray) -> None:
         """One serialized message of topic ``index``, logged at ``log_ns``."""
         self.batch += (HEADER.pack(index, log_ns, len(data)), data)
         self.pending += HEADER.size + len(data)
@@ -153,7 +159,7 @@ def write_bag(
     """
     writer: Optional[BagWriter] = None
     source = DefinitionSource()
-    specs: dict[int, object] = {}
+    specs: dict[int, TopicSpec] = {}
     handles: dict[int, int] = {}
     try:
         for index, log_ns, payload in read_frames(stream):
@@ -183,6 +189,7 @@ def write_bag(
         if writer is not None:
             writer.close()
     except BagIOError as err:  # the writer is closed, its file cut back to a complete chunk
+        assert writer is not None  # only the writer raises it
         lost = sum(writer.counts) - writer.durable
         raise BagIOError(
             f'{err}; {writer.durable} messages are on disk, {lost} received ones were lost',

@@ -87,6 +87,7 @@ class InProcessRecording:
             [sys.executable, '-m', 'actuator_bag.spool', '--output', str(self.output)],
             stdin=subprocess.PIPE,
         )
+        assert self.process.stdin is not None  # stdin=PIPE
         fd = self.process.stdin.fileno()
         grow_pipe(fd)
         self.spool = FrameSpool(fd)
@@ -135,7 +136,7 @@ class InProcessRecording:
         if len(data) % 4:  # as Fast DDS delivers it to a recorder: a bag is the same either way
             data = bytes(data) + bytes(-len(data) % 4)
         if index is None or index == self.clock_index:
-            self.now_ns = stamp_to_ns(self.decode_clock(data).clock)
+            self.now_ns = stamp_to_ns(self.decode_clock(bytes(data)).clock)  # (bytes: no copy)
             if index is None:
                 return
         if self.error is not None:
@@ -158,6 +159,7 @@ class InProcessRecording:
                 self.spool.flush()
             except SpoolError as err:
                 self._fail(str(err))
+        assert self.process.stdin is not None  # stdin=PIPE
         try:
             self.process.stdin.close()
         except OSError:

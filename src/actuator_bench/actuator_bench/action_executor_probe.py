@@ -122,6 +122,7 @@ def drive(executor_kind: str, server: str, seconds: float) -> dict:
         stdout=subprocess.PIPE,
         text=True,
     )
+    assert child.stdout is not None  # stdout=PIPE
     child.stdout.readline()
     context = Context()
     rclpy.init(context=context)
@@ -130,18 +131,13 @@ def drive(executor_kind: str, server: str, seconds: float) -> dict:
     executor.add_node(node)
     sent: dict[int, int] = {}
     trips: list[tuple[float, float]] = []
-    node.create_subscription(
-        Header,
-        PONG,
-        lambda m: (
-            trips.append(
-                (time.monotonic(), (time.perf_counter_ns() - sent.pop(m.stamp.nanosec, 0)) / 1e3)
-            )
-            if m.stamp.nanosec in sent
-            else None
-        ),
-        10,
-    )
+
+    def on_pong(msg: Header) -> None:
+        if msg.stamp.nanosec in sent:
+            trip_us = (time.perf_counter_ns() - sent.pop(msg.stamp.nanosec, 0)) / 1e3
+            trips.append((time.monotonic(), trip_us))
+
+    node.create_subscription(Header, PONG, on_pong, 10)
     ping = node.create_publisher(Header, PING, 10)
     client = ActionClient(node, FollowJointTrajectory, ACTION) if server != 'none' else None
     goal = FollowJointTrajectory.Goal()

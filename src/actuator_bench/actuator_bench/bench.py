@@ -26,8 +26,6 @@ import sys
 from pathlib import Path
 from typing import Optional, Sequence
 
-from actuator_core import limits
-from actuator_sim.scenarios import PAPER_SCENARIO
 from actuator_bench.bench_figures import Figures
 from actuator_bench.bench_report import DOCS_BEGIN, one_line, report
 from actuator_bench.bench_run import (
@@ -42,11 +40,13 @@ from actuator_bench.bench_run import (
 from actuator_bench.bench_variants import (
     MODES,
     PUBLICATION_MODES,
-    TRANSPORTS,
     RT_VARIANTS,
+    TRANSPORTS,
     make_variants,
     missing_tool,
 )
+from actuator_core import limits
+from actuator_sim.scenarios import PAPER_SCENARIO
 
 DEFAULT_SCENARIO = PAPER_SCENARIO
 DURATION_RANGE_S = (1.0, 3600.0)
@@ -237,8 +237,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     if problem:
         print(f'bench: error: {problem}', file=sys.stderr)
         return 2
-    from actuator_sim.params_yaml import all_scenarios
     from actuator_core.timing import period_ns as to_period_ns
+    from actuator_sim.params_yaml import all_scenarios
 
     period_ns = to_period_ns(all_scenarios()[args.scenario].common.dt_s)
     variants = []

@@ -17,10 +17,10 @@ from typing import Optional
 
 import numpy as np
 
-from actuator_core.limits import STEADY_STATE_START_S
-from actuator_core.stats import missed_samples, percentiles
 from actuator_bench.host_stalls import TIMEOUT_NS
 from actuator_bringup.supervisor import process_log
+from actuator_core.limits import STEADY_STATE_START_S
+from actuator_core.stats import missed_samples, percentiles
 
 #: The processes whose CPU and memory a run reports.
 NODES = ('plant', 'eso', 'controller', 'recorder', 'loop')  # loop: the composed process
@@ -225,14 +225,9 @@ def error_ratios(figures: Figures, reference: Figures) -> Figures:
         ('rms_error_rad', 'error_ratio_rms'),
     ):
         ours, ref = figures.get(key), reference.get(key)
-        ok = (
-            ours is not None
-            and ref is not None
-            and math.isfinite(ours)
-            and math.isfinite(ref)
-            and ref > 0
-        )
-        out[ratio] = ours / ref if ok else None
+        out[ratio] = None
+        if ours is not None and ref is not None and math.isfinite(ours) and math.isfinite(ref):
+            out[ratio] = ours / ref if ref > 0 else None
     return out
 
 
@@ -249,8 +244,9 @@ def process_figures(cpu_percent: dict, peak_rss_mb: dict) -> Figures:
     loop = [cpu_percent.get(n) for n in ('loop',) if n in cpu_percent] or [
         cpu_percent.get(n) for n in ('plant', 'eso', 'controller') if n in cpu_percent
     ]
-    if loop and all(v is not None for v in loop):
-        figures['cpu_joint_loop_pct'] = float(sum(loop))  # joint + ESO + controller, one or three
+    known = [v for v in loop if v is not None]
+    if loop and len(known) == len(loop):
+        figures['cpu_joint_loop_pct'] = float(sum(known))  # joint + ESO + controller, one or three
     return figures
 
 
@@ -325,7 +321,7 @@ def bag_figures(bag: Path) -> Figures:
 
     report = analyze_run(load_run(bag, quiet=True))
     metrics = report.metrics
-    figures = {
+    figures: Figures = {
         'max_steady_error_rad': metrics.max_steady_error_rad,
         'rms_error_rad': metrics.rms_error_rad,
         'diverged': float(metrics.diverged),

@@ -14,7 +14,7 @@ import dataclasses
 import json
 import sys
 from pathlib import Path
-from typing import Sequence
+from typing import Any, Sequence
 
 from actuator_bench.bench_figures import Figures, error_ratios
 from actuator_bench.bench_run import RunRecord, environment, write_csv
@@ -29,7 +29,6 @@ from actuator_bench.bench_table import (
     spread,
 )
 from actuator_bench.bench_variants import Variant
-
 
 # --- tracking reference --------------------------------------------------------------------------
 
@@ -179,7 +178,7 @@ def report(
     failed = [r for r in records if r.error]
     for r in failed:
         print(f'bench: {r.variant} repeat {r.repeat}: {r.error}', file=sys.stderr)
-    summary = {
+    summary: dict[str, Any] = {
         'config': {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()},
         'period_ns': period_ns,
         'environment_start': env_start,

@@ -169,8 +169,8 @@ def run_one(
     variant: Variant, repeat: int, args: argparse.Namespace, base: Path, period_ns: int
 ) -> RunRecord:
     """One recorded run of ``variant``; figures from its files and bag, or the error."""
-    from actuator_bringup.runner import run_closed_loop, run_launched
     from actuator_bringup.run_description import PINNING
+    from actuator_bringup.runner import run_closed_loop, run_launched
 
     record = RunRecord(variant.slug, repeat)
     where = f'{variant.slug}_rep{repeat}'
@@ -230,6 +230,7 @@ def run_one(
     record.figures['steal_pct'] = steal_percent(times_before, cpu_times())
     if not variant.recorded:
         return record
+    assert result.bag is not None  # a recorded variant
     try:
         record.figures.update(bag_figures(result.bag))
     except (
@@ -246,8 +247,8 @@ def floor_run(args: argparse.Namespace, base: Path, repeat: int, rt_priority: in
 
     Echo and source as processes for --floor-s seconds.
     """
-    from actuator_bringup.runner import wait_for_leader
     from actuator_bench.bench_figures import hop_figures
+    from actuator_bringup.runner import wait_for_leader
     from actuator_bringup.supervisor import ProcessFigures, RosProcess
 
     run_dir = base / 'floor' / f'rep{repeat}'

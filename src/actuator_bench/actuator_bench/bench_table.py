@@ -14,7 +14,6 @@ from tabulate import tabulate
 
 from actuator_bench.bench_figures import NODES, START_UP_S, Figures
 
-
 # --- aggregation and targets ---------------------------------------------------------------------
 
 

@@ -39,9 +39,10 @@ def _wire(nodes: dict, queue: collections.deque, listened: bool = True) -> None:
     a subscriber is there (a recorder: they are filled each sample) or not (they are skipped).
     A subscriber's decoding of the bytes is counted in its callback, as in its subscription.
     """
+    from sensor_msgs.msg import JointState
+
     from actuator_msgs.msg import CurrentCommand, StateEstimate
     from actuator_ros.wire_io import codec
-    from sensor_msgs.msg import JointState
 
     plant, eso, ctrl = nodes['joint'], nodes['eso'], nodes['controller']
 
@@ -77,14 +78,14 @@ def measure(samples: int, listened: bool = True) -> dict:
     """
     import rclpy
 
+    from actuator_bringup.runner import scenario_file
     from actuator_controller.controller_node import ControllerNode
-    from actuator_msgs.msg import CurrentCommand
-    from actuator_ros.wire_io import codec
     from actuator_eso.eso_node import EsoNode
+    from actuator_msgs.msg import CurrentCommand
     from actuator_plant.plant_node import PlantNode
+    from actuator_ros.wire_io import codec
     from actuator_sim.loop import ClosedLoop
     from actuator_sim.params_yaml import all_scenarios
-    from actuator_bringup.runner import scenario_file
 
     scenario = all_scenarios()[SCENARIO]
     args = ['--ros-args', '--log-level', 'warn', '--params-file', str(scenario_file(SCENARIO))]
@@ -94,18 +95,22 @@ def measure(samples: int, listened: bool = True) -> dict:
         args += ['-p', f'{name}:use_sim_time:=true']
     rclpy.init(args=args)
     try:
-        nodes = {'joint': PlantNode(), 'eso': EsoNode(), 'controller': ControllerNode()}
+        plant, eso, ctrl = PlantNode(), EsoNode(), ControllerNode()
+        nodes = {'joint': plant, 'eso': eso, 'controller': ctrl}
         for node in nodes.values():
             node.trigger_configure()
             node.trigger_activate()
         queue: collections.deque = collections.deque()
         _wire(nodes, queue, listened)
         per_node = {key: np.zeros(samples + 1, dtype=np.int64) for key in nodes}
-        commands = []
-        ctrl = nodes['controller']
+        commands: list[float] = []
         publish, read = ctrl.cmd_pub.publish, codec(CurrentCommand).decode
-        ctrl.cmd_pub.publish = lambda data: (commands.append(read(data).current_a), publish(data))
-        plant = nodes['joint']
+
+        def publish_keeping(data) -> None:  # the command's current kept, then published
+            commands.append(read(data).current_a)
+            publish(data)
+
+        ctrl.cmd_pub.publish = publish_keeping
         start = time.perf_counter_ns()
         plant._start_sampling()  # publishes sample 0: the chain runs from the queue
         while queue and plant.sample_index < samples:

@@ -28,14 +28,15 @@ import psutil
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 
+from actuator_bringup.supervisor import RosProcess
 from actuator_cia402.launch_spec import driver_arguments, driver_parameters
 from actuator_ros.realtime import RealtimeSettings
-from actuator_bringup.supervisor import RosProcess
 
 
 def run_rate(rate_hz: float, duration_s: float) -> dict:
     """One run of the driver at ``rate_hz`` for ``duration_s``; returns its figures."""
     from actuator_cia402.driver_node import Cia402DriverNode
+    from actuator_cia402.joint import Cia402Joint
 
     period = 1.0 / rate_hz
     drive = RosProcess(
@@ -53,7 +54,9 @@ def run_rate(rate_hz: float, duration_s: float) -> dict:
     context = rclpy.Context()
     try:
         drive.wait_for_output(r'^drive 1 ready$', timeout=30)
-        address = re.search(r'bus hub on (\S+)', drive.stdout).group(1)
+        hub = re.search(r'bus hub on (\S+)', drive.stdout)
+        assert hub is not None, 'the drive did not say where its bus hub is'
+        address = hub.group(1)
         params = driver_parameters(
             simulated=True, channel=address, sample_time_s=period, stop_after_s=duration_s
         )
@@ -74,6 +77,7 @@ def run_rate(rate_hz: float, duration_s: float) -> dict:
         cpu_s = times.user + times.system - (cpu_start or 0.0)
         wall_s = time.monotonic() - (wall_start or time.monotonic())
         joint = node.joint
+        assert isinstance(joint, Cia402Joint)  # the driver node's, still configured
         log = node.samples_log.array()
         delay_us = (log[:, 1] - log[:, 0]) / 1e3 if len(log) else np.array([np.nan])
         cycles = joint.cycles

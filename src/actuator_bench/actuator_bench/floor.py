@@ -25,11 +25,11 @@ import time
 import numpy as np
 from rclpy.node import Node
 
+from actuator_msgs.msg import CurrentCommand
 from actuator_ros.parameters import declare_number, declare_text
 from actuator_ros.process_member import ProcessMember
 from actuator_ros.qos import control_qos
 from actuator_ros.runner import run_node
-from actuator_msgs.msg import CurrentCommand
 
 PING, PONG = 'floor/ping', 'floor/pong'
 
@@ -130,7 +130,7 @@ class SourceNode(Node, ProcessMember):
 def main(argv: list[str] | None = None) -> int:
     """``python -m actuator_bench.floor echo|source [run_node options]``."""
     args = sys.argv[1:] if argv is None else list(argv)
-    roles = {
+    roles: dict[str, tuple[str, str, type[EchoNode] | type[SourceNode], str]] = {
         'echo': (
             'floor echo',
             'Echo node of the middleware floor benchmark.',

@@ -102,9 +102,7 @@ def offline_goal_run(goal: ScriptedGoal, duration_s: float, cancel_at_s=None) ->
     loop.submit_at(0, Goal('bench', points, scenario.trajectory.default_tolerances(), start_ns))
     if cancel_at_s is not None:
         loop.cancel_at(int(round(cancel_at_s * 1e9)), 'bench')
-    trace = loop.run()
-    trace['events'] = loop.goal_events
-    return trace
+    return {**loop.run(), 'events': loop.goal_events}
 
 
 def tracking_figures(t, error, measured, start_s: float, end_s: float) -> dict:
@@ -149,6 +147,7 @@ def tracking(duration_s: float, start_s: float, modes: Sequence[str], root: Path
             results_root=root / 'runs',
             quiet=True,
         )
+        assert result.bag is not None  # a recorded run
         run = load_run(result.bag, quiet=True)
         ok = np.isin(run.status, CONTROLLED)
         out['sim built-in'] = tracking_figures(
@@ -163,6 +162,7 @@ def tracking(duration_s: float, start_s: float, modes: Sequence[str], root: Path
                 (fast_goal(kind, duration_s, start_s),),
                 from_ready=False,  # on the built-in run's clock: compared sample by sample
             )
+            assert result.bag is not None  # a recorded run
             run = load_run(result.bag, quiet=True)
             ok = np.isin(run.status, CONTROLLED)
             t = run.t[ok] + (run.t0_ns - SIM_START_NS) * 1e-9
@@ -216,6 +216,7 @@ def cancel(duration_s: float, start_s: float, modes: Sequence[str], root: Path) 
         result, client = scripted_run(
             root / 'bags', root / 'runs', 'sim', start_s + duration_s, (goal,), from_ready=False
         )
+        assert result.bag is not None  # a recorded run
         run = load_run(result.bag, quiet=True)
         canceled = [e for e in run.goal_events if e.kind == 'canceled']
         if not canceled:

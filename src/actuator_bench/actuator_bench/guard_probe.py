@@ -73,11 +73,14 @@ def trial(executor_name: str, kind: str) -> dict:
             seen['ns'] = time.time_ns()
             seen['received_before'] = len(received)
 
+    def on_state(msg: JointState) -> None:
+        received.append(int(msg.position[0]))
+
     guard = GraphGuard(node, on_change)
     node.create_subscription(
         JointState,
         'joint_states',
-        lambda m: received.append(int(m.position[0])),
+        on_state,
         control_qos('realtime'),
         event_callbacks=guard.callbacks('joint_states'),
     )

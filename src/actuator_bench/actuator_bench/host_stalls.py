@@ -160,7 +160,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         print('host_stalls: running', file=sys.stderr, flush=True)  # the probe waits for it
     count = run_grid(args.duration, StallCount(), stopped=lambda: bool(stop))
     seconds = max((count.end_ns - count.start_ns) * 1e-9, 1e-3)
-    figures = count.figures(seconds, 'host')
+    figures: dict[str, object] = {**count.figures(seconds, 'host')}
     figures['host_wakeups'] = float(count.wakeups)
     if args.until_stopped:
         figures['host_seconds'] = seconds

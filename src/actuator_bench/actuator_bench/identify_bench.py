@@ -37,14 +37,14 @@ import sys
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Optional, Sequence
+from typing import Any, Optional, Sequence
 
 import numpy as np
 import yaml
 from tabulate import tabulate
 
 from actuator_core import limits
-from actuator_plant.model import WorkingCondition, derive_constants, PlantParameters
+from actuator_plant.model import PlantParameters, WorkingCondition, derive_constants
 
 #: Draw ranges: factors on Table 1's J, k_t, k_b; seal c0 [N m]; depth [m]; encoder bits.
 DRAW_RANGES = {
@@ -141,9 +141,18 @@ def draw_joints(count: int, seed: int) -> list[Draw]:
     torque = limits.NOMINAL_TORQUE_CONSTANT_NM_A * uniform('torque_constant_factor')
     viscous = limits.NOMINAL_VISCOUS_NM_S_RAD * uniform('viscous_factor')
     seal, depth = uniform('seal_base_nm'), uniform('depth_m')
-    bits = rng.integers(r['encoder_bits'][0], r['encoder_bits'][1] + 1, count)
+    low_bits, high_bits = r['encoder_bits']  # whole numbers
+    bits = rng.integers(int(low_bits), int(high_bits) + 1, count)
     return [
-        Draw(i, *(float(x[i]) for x in (inertia, torque, viscous, seal, depth)), int(bits[i]))
+        Draw(
+            i,
+            float(inertia[i]),
+            float(torque[i]),
+            float(viscous[i]),
+            float(seal[i]),
+            float(depth[i]),
+            int(bits[i]),
+        )
         for i in range(count)
     ]
 
@@ -183,6 +192,7 @@ def record(draw: Draw, out: Path, duration_s: Optional[float], resume: bool = Fa
             failures.append(str(stop))
             continue
         if all(code == 0 for code in result.exit_codes.values()):
+            assert result.bag is not None  # record=True
             marker.write_text(f'{result.bag}\n')
             return result.bag
         failures.append(f'node exit codes {result.exit_codes}; logs in {result.run_dir}')
@@ -226,7 +236,7 @@ def tracking(draws: list[Draw], nominal: dict[str, np.ndarray]) -> np.ndarray:
 def _row(draw: Draw, result, error: Optional[str]) -> dict:
     """One draw's figures (identification only; tracking is added once all are in)."""
     truth = draw.truth()
-    row = {'draw': asdict(draw), 'truth': truth, 'error': error}
+    row: dict[str, Any] = {'draw': asdict(draw), 'truth': truth, 'error': error}
     if result is None:
         return row
     t1 = result.interval('theta1')
@@ -251,7 +261,7 @@ def summarise(rows: list[dict]) -> dict:
     ok = [r for r in rows if r['error'] is None]
     err = np.array([abs(r['theta1_error']) for r in ok])
     ratio = np.array([r['tracking_ratio'] for r in ok])
-    out = {
+    out: dict[str, Any] = {
         'draws': len(rows),
         'identified': len(ok),
         'refused_or_failed': [(r['draw']['index'], r['error']) for r in rows if r['error']],

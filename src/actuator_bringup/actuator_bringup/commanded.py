@@ -21,7 +21,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
 
-
 from actuator_analysis.goals import GoalEventRow
 from actuator_bringup.runner import RunResult, run_closed_loop
 from actuator_controller.goal_execution import PREEMPTED, Goal
@@ -101,6 +100,11 @@ SCRIPT = (
 )
 
 
+def _reached(now_ns: Optional[int], at_ns: float) -> bool:
+    """Whether the client's clock (None: no /clock yet) has reached ``at_ns``."""
+    return now_ns is not None and now_ns >= at_ns
+
+
 class ScriptedClient(threading.Thread):
     """Sends ``SCRIPT`` on the loop's clock (/clock in sim, the wall clock in real time)."""
 
@@ -139,10 +143,12 @@ class ScriptedClient(threading.Thread):
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(node)
         clock: list[int] = []
+
+        def on_clock(msg: Clock) -> None:
+            clock.append(msg.clock.sec * 10**9 + msg.clock.nanosec)
+
         if self.mode == 'sim':
-            node.create_subscription(
-                Clock, '/clock', lambda m: clock.append(m.clock.sec * 10**9 + m.clock.nanosec), 1
-            )
+            node.create_subscription(Clock, '/clock', on_clock, 1)
         client = GoalClient(node)
         deadline = time.monotonic() + self.timeout_s
 
@@ -161,6 +167,7 @@ class ScriptedClient(threading.Thread):
                 self.error = 'no action server or clock'
                 return
             ready_ns = now_ns()
+            assert ready_ns is not None  # the clock ticked (spin_until above)
             if self.mode == 'sim':
                 grid = 1_000_000  # the sim clock's sample grid: a start stamp on a sample
                 ready_ns = SIM_START_NS + -(-(ready_ns - SIM_START_NS) // grid) * grid
@@ -172,10 +179,11 @@ class ScriptedClient(threading.Thread):
                     )
             else:
                 self.t0_ns = ready_ns
+            t0_ns = self.t0_ns
             for goal in self.script:
-                if not spin_until(lambda g=goal: now_ns() >= self.t0_ns + g.send_s * 1e9):
+                if not spin_until(lambda g=goal: _reached(now_ns(), t0_ns + g.send_s * 1e9)):
                     return
-                stamp = self.t0_ns + int(round(goal.start_s * 1e9))
+                stamp = t0_ns + int(round(goal.start_s * 1e9))
                 run = client.send(follow_goal(goal.message(stamp)))
                 self.runs[goal.name] = run
                 if not spin_until(lambda r=run: r.accepted is not None):
@@ -183,7 +191,7 @@ class ScriptedClient(threading.Thread):
                 if run.accepted:
                     self.ids[goal.name] = goal_id(run)
                 if goal.cancel_s is not None and run.accepted:
-                    if not spin_until(lambda g=goal: now_ns() >= self.t0_ns + g.cancel_s * 1e9):
+                    if not spin_until(lambda g=goal: _reached(now_ns(), t0_ns + g.cancel_s * 1e9)):
                         return
                     client.cancel(run)
             spin_until(lambda: all(r.done for r in self.runs.values()))
@@ -270,6 +278,7 @@ def replay_offline(run, client: ScriptedClient, duration_s: float) -> OfflineRep
     sent = [g for g in client.script if g.name in client.ids]
     ids = [client.ids[g.name] for g in sent]
     t0 = run.t0_ns  # the bag's first sample is the offline loop's sample 0
+    assert client.t0_ns is not None  # the client ran
     for goal, goal_id, at_ns in zip(sent, ids, handovers(run.goal_events, ids)):
         stamp = client.t0_ns + int(round(goal.start_s * 1e9)) - t0
         points = waypoints(goal.request(), JOINTS)

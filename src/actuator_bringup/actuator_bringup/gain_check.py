@@ -17,9 +17,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Sequence
 
+from actuator_bringup.run_options import node_section
 from actuator_controller.laws import GAINS_BY_NAME
 from actuator_core.params import build
-from actuator_bringup.run_options import node_section
 from actuator_eso.observer import EsoGains
 from actuator_plant.model import PLANT_NODE_NAME, plant_from_values
 from actuator_sim.params_yaml import all_scenarios

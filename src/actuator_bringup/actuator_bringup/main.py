@@ -22,16 +22,15 @@ from typing import Sequence
 
 import numpy as np
 
-from actuator_core import limits
-from actuator_core.stats import missed_samples, percentiles
-from actuator_core.timing import period_ns
-
 from actuator_analysis.analyze import analyze_run, load_run
-from actuator_analysis.figures import draw_figures
 from actuator_analysis.analyze_table import format_table
+from actuator_analysis.figures import draw_figures
 from actuator_analysis.goals import format_goals, goal_reports
 from actuator_bringup.commanded import COMMANDED_DURATION_S, replay_offline, scripted_run
 from actuator_bringup.runner import RunResult, run_closed_loop
+from actuator_core import limits
+from actuator_core.stats import missed_samples, percentiles
+from actuator_core.timing import period_ns
 from actuator_sim.loop import ClosedLoop
 from actuator_sim.offline import trace_metrics
 from actuator_sim.params_yaml import all_scenarios
@@ -53,7 +52,7 @@ def timing_figures(result: RunResult) -> dict:
     def table(values, **kw) -> dict:
         return {k.rsplit('_', 1)[1]: v for k, v in percentiles(values, 'x', **kw).items()}
 
-    figures = {'updates': int(log['stamp_ns'].size)}
+    figures: dict[str, object] = {'updates': int(log['stamp_ns'].size)}
     if period_us.size:
         figures['period_us'] = table(period_us, mean=True)
     if result.mode == 'realtime' and log['latency_ns'].size:
@@ -128,6 +127,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 file=sys.stderr,
             )
             return 1
+        assert result.bag is not None  # a recorded run
         run = load_run(result.bag, quiet=True)
         runs.append(run)
         analysis = analyze_run(run)
@@ -164,6 +164,7 @@ def commanded_run(mode: str, out: Path) -> dict:
     if client.error or any(code != 0 for code in result.exit_codes.values()):
         print(f'  the run failed: {client.error or result.exit_codes}; logs in {result.run_dir}')
         return entry
+    assert result.bag is not None  # a recorded run
     run = load_run(result.bag, quiet=True)
     goals = goal_reports(run)
     entry['goals'] = [g.as_dict() for g in goals]

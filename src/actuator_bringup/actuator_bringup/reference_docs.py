@@ -110,6 +110,7 @@ def _configured(module: str, cls: str) -> Iterator:
             stderr=subprocess.DEVNULL,
             text=True,
         )
+        assert drive.stdout is not None  # stdout=PIPE
         while 'ready' not in (drive.stdout.readline() or 'ready'):
             pass
         overrides = [
@@ -143,6 +144,7 @@ def _entities(node) -> dict[str, list[tuple[str, str]]]:
 
     def kind(entity) -> str:
         t = getattr(entity, 'msg_type', None) or getattr(entity, 'srv_type', None)
+        assert t is not None  # a publisher, a subscription or a service
         return f'{t.__module__.split(".")[0]}/{t.__name__}'
 
     from rclpy.action import get_action_server_names_and_types_by_node

@@ -18,11 +18,11 @@ from typing import Any, Optional, Sequence
 
 import yaml
 
+from actuator_bringup.run_description import JOINTS, LIVE_DIAGNOSTICS_RATE_HZ, MAX_JOINTS_ON_BUS
 from actuator_core import limits
 from actuator_core.identified import SECTION as IDENTIFIED_SECTION
 from actuator_core.loop_params import MODES
 from actuator_sim.params_yaml import node_parameters
-from actuator_bringup.run_description import JOINTS, LIVE_DIAGNOSTICS_RATE_HZ, MAX_JOINTS_ON_BUS
 
 #: The executors a node can run (actuator_ros.runner).
 EXECUTORS = ('events', 'single_threaded')

@@ -25,7 +25,8 @@ from typing import Optional, Sequence
 
 from ament_index_python.packages import get_package_share_directory
 
-from actuator_sim.params_yaml import all_scenarios
+from actuator_bringup.composition import compose
+from actuator_bringup.gain_check import UnstableGains, check_gains
 from actuator_bringup.run_description import (
     PINNING,
     closed_loop,
@@ -34,8 +35,6 @@ from actuator_bringup.run_description import (
     ros_arguments,
     run_name,
 )
-from actuator_bringup.composition import compose
-from actuator_bringup.gain_check import UnstableGains, check_gains
 from actuator_bringup.run_options import (
     MODES,
     RUN_OPTIONS,
@@ -46,6 +45,7 @@ from actuator_bringup.run_options import (
     parse,
 )
 from actuator_bringup.supervisor import ProcessFigures, RosProcess
+from actuator_sim.params_yaml import all_scenarios
 
 
 def scenario_file(scenario: str) -> Path:
@@ -350,15 +350,19 @@ def build_parser() -> argparse.ArgumentParser:
     for option in RUN_OPTIONS:
         if not option.runner:
             continue
-        dest = {'dest': option.name}
         help_text = f'{option.description} ({option.range_text()})'
         if option.kind is bool:
             action = 'store_false' if option.default else 'store_true'
             what = option.flag_help or option.description
-            parser.add_argument(option.cli, action=action, help=what, **dest)
+            parser.add_argument(option.cli, action=action, help=what, dest=option.name)
         elif option.kind is list:
             parser.add_argument(
-                option.cli, action='append', default=[], metavar='PATH', help=help_text, **dest
+                option.cli,
+                action='append',
+                default=[],
+                metavar='PATH',
+                help=help_text,
+                dest=option.name,
             )
         else:
             parser.add_argument(
@@ -366,7 +370,7 @@ def build_parser() -> argparse.ArgumentParser:
                 default=None,
                 metavar=option.unit.upper() or option.name.split('_')[-1].upper(),
                 help=help_text,
-                **dest,
+                dest=option.name,
             )
     return parser
 

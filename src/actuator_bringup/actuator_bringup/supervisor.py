@@ -24,7 +24,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
-from typing import Mapping, Optional, Sequence, Union
+from typing import IO, Mapping, Optional, Sequence, Union
 
 import psutil
 
@@ -103,7 +103,7 @@ class RosProcess:
         self.cwd = cwd
         self.popen: Optional[subprocess.Popen] = None
         self.stopped_by: Optional[str] = None  # None, 'exit', 'SIGINT', 'SIGTERM' or 'SIGKILL'
-        self._files = []
+        self._files: list[IO[bytes]] = []  # its stdout and stderr files, while it runs
         if start:
             self.start()
 
@@ -147,8 +147,14 @@ class RosProcess:
         return self
 
     @property
+    def _process(self) -> subprocess.Popen:
+        """The started process (``start``)."""
+        assert self.popen is not None, f'{self.name} not started'
+        return self.popen
+
+    @property
     def pid(self) -> int:
-        return self.popen.pid
+        return self._process.pid
 
     def poll(self) -> Optional[int]:
         return None if self.popen is None else self.popen.poll()
@@ -169,20 +175,20 @@ class RosProcess:
         SIGUSR1.
         """
         try:
-            os.kill(self.popen.pid, signal.SIGUSR1)
+            os.kill(self._process.pid, signal.SIGUSR1)
         except ProcessLookupError:
             return
         self._wait(1.0)
 
     def _signal_group(self, sig: int) -> None:
         try:
-            os.killpg(self.popen.pid, sig)
+            os.killpg(self._process.pid, sig)
         except ProcessLookupError:
             pass
 
     def _wait(self, timeout: float) -> bool:
         try:
-            self.popen.wait(timeout=timeout)
+            self._process.wait(timeout=timeout)
             return True
         except subprocess.TimeoutExpired:
             return False
@@ -223,7 +229,7 @@ class RosProcess:
             self.stopped_by = 'exit'
         self._signal_group(signal.SIGKILL)
         self._close()
-        return self.popen.returncode
+        return self._process.returncode
 
     def _close(self) -> None:
         for f in self._files:
@@ -258,7 +264,7 @@ class RosProcess:
         deadline = time.monotonic() + timeout
         while True:
             text = (
-                {'stdout': self.stdout, 'stderr': self.stderr}.get(stream)
+                {'stdout': self.stdout, 'stderr': self.stderr}[stream]
                 if stream != 'any'
                 else self.output
             )
@@ -358,7 +364,11 @@ class ProcessFigures:
 
     def cpu_percent(self) -> Optional[float]:
         """CPU use since ``mark`` in % of one core."""
-        if self.wall_at_mark is None or self.wall_last <= self.wall_at_mark:
+        if (
+            self.cpu_at_mark is None
+            or self.wall_at_mark is None
+            or self.wall_last <= self.wall_at_mark
+        ):
             return None
         return 100.0 * (self.cpu_last - self.cpu_at_mark) / (self.wall_last - self.wall_at_mark)
 

@@ -40,7 +40,6 @@ from launch.events.process import ShutdownProcess
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import LifecycleNode, Node
 
-from actuator_sim.params_yaml import node_parameters
 from actuator_bringup.composition import compose
 from actuator_bringup.gain_check import UnstableGains, check_gains
 from actuator_bringup.run_description import (
@@ -59,6 +58,7 @@ from actuator_bringup.run_options import (
     node_names,
     parse,
 )
+from actuator_sim.params_yaml import node_parameters
 
 
 def _options(context) -> dict:

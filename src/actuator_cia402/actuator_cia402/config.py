@@ -15,11 +15,11 @@ import os
 from dataclasses import dataclass
 from typing import Optional
 
-from actuator_core import limits
-from actuator_core.params import spec, validate
 from actuator_cia402.busload import DEFAULT_LIMIT, MAX_JOINTS_ON_BUS, check_bus_load
 from actuator_cia402.scaling import Scaling
 from actuator_cia402.supervision import HEARTBEAT_PERIODS_MISSED
+from actuator_core import limits
+from actuator_core.params import spec, validate
 
 INTERFACES = ('hub', 'socketcan')
 #: Rated current of the joint motor [A] and its rated torque k_tn * I_rated [N m]

@@ -26,13 +26,13 @@ import os
 
 from std_srvs.srv import Trigger
 
+from actuator_cia402.busload import check_bus_load, cycle_load
+from actuator_cia402.config import DriverParameters, check_real_drive
+from actuator_cia402.joint import Cia402Joint
 from actuator_core.joint import JointError
 from actuator_ros.joint_node import JointNode
 from actuator_ros.parameters import ParameterError, declare_spec_parameters
 from actuator_ros.runner import run_node
-from actuator_cia402.busload import check_bus_load, cycle_load
-from actuator_cia402.config import DriverParameters, check_real_drive
-from actuator_cia402.joint import Cia402Joint
 
 NODE_NAME = 'actuator_cia402_driver'
 #: Fields of DriverParameters that are the joint node's common settings.
@@ -106,6 +106,8 @@ class Cia402DriverNode(JointNode):
         if self.active:
             response.success, response.message = False, 'deactivate first: the node is active'
             return response
+        # the service lives while the node is configured (build_extras to drop_extras)
+        assert isinstance(self.joint, Cia402Joint)
         try:
             response.message = self.joint.acknowledge_fault()
             response.success = True

@@ -36,7 +36,6 @@ from typing import Optional
 import can
 import canopen
 
-from actuator_core.joint import Joint, JointError, JointSample
 from actuator_cia402 import profile as p
 from actuator_cia402.answers import AnswerCount
 from actuator_cia402.busload import cycle_load
@@ -44,6 +43,7 @@ from actuator_cia402.hub import HubBus
 from actuator_cia402.master import Cia402Error, Cia402Master
 from actuator_cia402.stop import Cia402Stop
 from actuator_cia402.supervision import BusHealth, DriveHeartbeat, PositionUnwrap, torque_fault
+from actuator_core.joint import Joint, JointError, JointSample
 
 #: NMT state byte of the master's heartbeat: operational.
 HEARTBEAT_OPERATIONAL = 0x05
@@ -128,18 +128,19 @@ class Cia402Joint(Cia402Stop, Joint):
         cfg = self.cfg
         self.health = BusHealth()
         self.init_stop()
-        self.network = canopen.Network(self._open_bus())
-        self.network.NOTIFIER_CYCLE = 0.1
-        self.network.connect()
-        self.network.notifier.add_listener(self.health)
+        network = self.network = canopen.Network(self._open_bus())
+        network.NOTIFIER_CYCLE = 0.1
+        network.connect()
+        assert network.notifier is not None  # connect() started it
+        network.notifier.add_listener(self.health)
         self._heartbeat_stop.clear()
         self._heartbeat = threading.Thread(
             target=self._produce_heartbeat, daemon=True, name='cia402-heartbeat'
         )
         self._heartbeat.start()
         try:
-            self.master = Cia402Master(self.network, cfg.node_id, self.eds, self.scaling, cfg)
-            notes = self.master.configure()
+            master = self.master = Cia402Master(network, cfg.node_id, self.eds, self.scaling, cfg)
+            notes = master.configure()
         except (
             Cia402Error,
             canopen.SdoAbortedError,
@@ -150,14 +151,14 @@ class Cia402Joint(Cia402Stop, Joint):
             self.cleanup()
             raise JointError(f'configure: {exc}') from None
         rpdo, t1, t2 = cfg.cob_ids
-        self.network.subscribe(t1, self._on_tpdo1)
-        self.network.subscribe(t2, self._on_tpdo2)
-        self.network.subscribe(0x80, self._on_sync)
-        self.master.node.emcy.add_callback(self._on_emcy)
+        network.subscribe(t1, self._on_tpdo1)
+        network.subscribe(t2, self._on_tpdo2)
+        network.subscribe(0x80, self._on_sync)
+        master.node.emcy.add_callback(self._on_emcy)
         watch = self.drive_heartbeat = DriveHeartbeat(
             cfg.drive_heartbeat_period_s, time.monotonic()
         )
-        self.master.node.nmt.add_heartbeat_callback(
+        master.node.nmt.add_heartbeat_callback(
             lambda state: watch.on_heartbeat(state, time.monotonic())
         )
         return notes
@@ -168,16 +169,18 @@ class Cia402Joint(Cia402Stop, Joint):
         Refused when the drive rebooted or fell silent since configure, when the last stop left
         it powered, or when its configuration no longer reads as written.
         """
+        assert self.drive_heartbeat is not None  # configure watches it
         problem = self.drive_heartbeat.problem(time.monotonic()) or self.stop_refusal()
         if problem:
             raise JointError(f'activate: {problem}')
+        master = self._configured
         try:
-            self.master.enable()
+            master.enable()
         except (Cia402Error, canopen.SdoAbortedError, canopen.SdoCommunicationError) as exc:
             raise JointError(f'activate: {exc}') from None
         self.unwrap = PositionUnwrap()
         self.emcy_fault = ''
-        self.master.node.emcy.reset()
+        master.node.emcy.reset()
         self._enable_since_ns = self._not_following_since_ns = None
         self._missed_in_row = self._unsynced_in_row = 0
         with self._arrived:  # every SYNC before this run counts as answered
@@ -211,7 +214,7 @@ class Cia402Joint(Cia402Stop, Joint):
             controlword = p.Command.ENABLE_OPERATION.value
             if self._enable_since_ns is None:
                 self._enable_since_ns = time.monotonic_ns()
-        codec = self.master.codecs[0]
+        codec = self._configured.codecs[0]
         self._send(
             codec.cob_id,
             codec.pack((controlword, self.scaling.current_to_torque_permille(current_a))),
@@ -220,6 +223,7 @@ class Cia402Joint(Cia402Stop, Joint):
     def _send(self, cob_id: int, data: bytes) -> None:
         """One frame; a failing adapter is a bus fault."""
         try:
+            assert self.network is not None  # configure connected it
             self.network.send_message(cob_id, data)
         except (can.CanError, OSError) as exc:
             self.health.on_error(exc)
@@ -253,6 +257,7 @@ class Cia402Joint(Cia402Stop, Joint):
             self._missed_last = not got
         if got:  # taken first: a stop's braked cycles read the drive whatever ended control
             self._missed_in_row = 0
+            assert self._tpdo1 is not None  # an answer came
             statusword, counts, torque_permille = self._tpdo1
             self.statusword = statusword
             self.position_rad = (
@@ -300,7 +305,7 @@ class Cia402Joint(Cia402Stop, Joint):
 
     def _sync_data(self, stamp_ns: int) -> bytes:
         """Return the SYNC's data: its counter, 1 to the overflow value, one step per period."""
-        overflow = self.master.sync_counter_overflow
+        overflow = self._configured.sync_counter_overflow
         if not overflow:
             return b''
         return bytes((stamp_ns // self.period_ns % overflow + 1,))
@@ -370,7 +375,7 @@ class Cia402Joint(Cia402Stop, Joint):
 
     def _on_tpdo1(self, can_id, data, timestamp) -> None:
         """TPDO1 (bus thread): statusword, position actual, torque actual."""
-        values = self.master.codecs[1].unpack(bytes(data))
+        values = self._configured.codecs[1].unpack(bytes(data))
         with self._arrived:
             self._tpdo1 = values
             self._tpdo1_seq += 1
@@ -378,7 +383,7 @@ class Cia402Joint(Cia402Stop, Joint):
 
     def _on_tpdo2(self, can_id, data, timestamp) -> None:
         """TPDO2 (bus thread): current actual, error code, mode display."""
-        values = self.master.codecs[2].unpack(bytes(data))
+        values = self._configured.codecs[2].unpack(bytes(data))
         with self._arrived:
             self._tpdo2 = values
             self._tpdo2_seq += 1

@@ -21,10 +21,10 @@ import dataclasses
 import socket
 from typing import Any, Sequence
 
-from actuator_core import limits
 from actuator_cia402.config import DriverParameters, check_real_drive
-from actuator_cia402.sim_settings import SimDriveSettings
 from actuator_cia402.hub import LOOPBACK
+from actuator_cia402.sim_settings import SimDriveSettings
+from actuator_core import limits
 
 DRIVER_PACKAGE = 'actuator_cia402'
 DRIVER_EXECUTABLE = 'cia402_driver'

@@ -22,14 +22,14 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-from typing import Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
-from actuator_core import limits
-from actuator_sim.scenarios import DRIVE_DELAY_SAMPLES, DRIVE_SCENARIO, PAPER_SCENARIO
-from actuator_plant.encoder import EncoderParameters
 from actuator_cia402.sim_settings import SimDriveSettings
+from actuator_core import limits
+from actuator_plant.encoder import EncoderParameters
+from actuator_sim.scenarios import DRIVE_DELAY_SAMPLES, DRIVE_SCENARIO, PAPER_SCENARIO
 
 #: The simulated drive's encoder: counts per motor revolution (EDS 0x608F).
 MOTOR_COUNTS_PER_REV = 4096
@@ -136,7 +136,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 f'at the current limit, max |e| {peak:.2e} rad'
             )
         return 0
-    cases = [
+    cases: list[tuple[str, dict[str, Any]]] = [
         ('offline core', dict(delay_syncs=0, tau_s=0.0, quantise=False)),
         ('+ quantisation', dict(delay_syncs=0, tau_s=0.0, quantise=True)),
         ('+ torque loop', dict(delay_syncs=0, quantise=True)),

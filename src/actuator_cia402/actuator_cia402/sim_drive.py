@@ -47,12 +47,10 @@ from __future__ import annotations
 import random
 import threading
 import time
-from typing import Callable
+from typing import Callable, cast
 
 import canopen
 
-from actuator_plant.model import PlantParameters
-from actuator_plant.sim_joint import SimulatedJoint
 from actuator_cia402 import profile as p
 from actuator_cia402.drive_clock import DriveClock
 from actuator_cia402.pdo_codec import PdoCodec
@@ -65,6 +63,8 @@ from actuator_cia402.sim_faults import (
     plant_parameters,
 )
 from actuator_cia402.sim_states import DriveStateMachine
+from actuator_plant.model import PlantParameters
+from actuator_plant.sim_joint import SimulatedJoint
 
 #: 0x60FD bit 16 (manufacturer-specific): the holding brake is closed.
 DI_BRAKE_CLOSED = 1 << 16
@@ -129,7 +129,8 @@ class SimulatedDrive(DriveStateMachine):
         self._decelerating = False  # a velocity-based quick stop is under way
         self._stop_velocity = 0.0  # its velocity reference [rad/s at the joint]
         self.saved: dict[int, dict[int, bytes]] = {}  # the drive tool's stored settings
-        self._sync_task = None  # the SYNC this drive produces (0x1005 bit 30)
+        # the SYNC this drive produces (0x1005 bit 30)
+        self._sync_task: canopen.network.PeriodicMessageTask | None = None
         self.reboots = 0
         self._cut_ramps = 0
         self.sto = self.remote_off = self.target_ignored = self.silent = False
@@ -140,7 +141,7 @@ class SimulatedDrive(DriveStateMachine):
         self.tpdos_late = 0
         self._late_sends: list[Callable[[], None]] = []  # a late answer, sent with the next
         self.rpdos_discarded = 0
-        self._rpdo_data: tuple | None = None
+        self._rpdo_data: dict[int, int] | None = None  # the RPDO's objects by index
         self._last_sync_mono = 0.0
         self._pdo_ready = False
         self._injected: set = set()
@@ -150,7 +151,7 @@ class SimulatedDrive(DriveStateMachine):
         self.network: canopen.Network | None = None
         self.clock = DriveClock(self.period_ns, time.monotonic_ns())  # drive time's grid
         self._clock_stop = threading.Event()
-        self._cache: dict = {}
+        self._cache: dict[tuple[int, int], int] = {}
 
     # --- bus --------------------------------------------------------------------------------
     def attach(self, network: canopen.Network) -> 'SimulatedDrive':
@@ -164,13 +165,21 @@ class SimulatedDrive(DriveStateMachine):
         network.subscribe(0x80, self._on_sync)
         self.node.add_read_callback(self._on_read)
         self.node.add_write_callback(self._on_write)
-        self._set_data, self.node.set_data = self.node.set_data, self._set_data_unless_fixed
+        # LocalNode has no hook before it stores an SDO write: its method is wrapped.
+        self._set_data = self.node.set_data
+        self.node.set_data = self._set_data_unless_fixed  # type: ignore[method-assign]
         if self.quirks.sync_producer:
-            cob_id = self.od[p.SYNC_COB_ID].default
+            cob_id = self._default(p.SYNC_COB_ID)
             self.save(p.SYNC_COB_ID, 0, (cob_id | SYNC_PRODUCER_BIT).to_bytes(4, 'little'))
         self._boot()
         threading.Thread(target=self._clock, name=f'drive-{self.node.id}', daemon=True).start()
         return self
+
+    @property
+    def _net(self) -> canopen.Network:
+        """The network the drive joined (``attach``)."""
+        assert self.network is not None, 'the drive is not attached to a network'
+        return self.network
 
     def stop(self) -> None:
         """Stop the drive's clock and its SYNC production."""
@@ -211,7 +220,7 @@ class SimulatedDrive(DriveStateMachine):
             self.brake_closed, self._brake_closing_at = True, None
             self.sto = self.remote_off = self.target_ignored = False
             if self._heartbeat_producer:
-                self.network.unsubscribe(0x700 + self._heartbeat_producer, self._on_heartbeat)
+                self._net.unsubscribe(0x700 + self._heartbeat_producer, self._on_heartbeat)
             self._heartbeat_producer, self._heartbeat_seen, self._heartbeat_lost = 0, None, False
             self._pdo_ready, self._rpdo_data = False, None
             self.node.nmt.stop_heartbeat()
@@ -258,19 +267,31 @@ class SimulatedDrive(DriveStateMachine):
         self.events.append(line)
         self.on_event(line)
 
+    def _variable(self, index: int, subindex: int = 0) -> canopen.objectdictionary.ODVariable:
+        """Return the EDS's entry of an object (the sub-object of an array or a record)."""
+        obj = self.od[index]
+        if not isinstance(obj, canopen.objectdictionary.ODVariable):
+            obj = obj[subindex]
+        return obj
+
+    def _default(self, index: int, subindex: int = 0) -> int:
+        """Return the EDS's default of an integer object."""
+        default = self._variable(index, subindex).default
+        assert default is not None, f'0x{index:04X} sub {subindex}: no default in the EDS'
+        return default
+
     def _cfg(self, index: int, subindex: int = 0) -> int:
         """Value of a configuration object (stored, else the EDS default), cached until written."""
         key = (index, subindex)
         value = self._cache.get(key)
         if value is None:
-            obj = self.od[index]
-            if not isinstance(obj, canopen.objectdictionary.ODVariable):
-                obj = obj[subindex]
+            obj = self._variable(index, subindex)
             try:
                 raw = self.node.data_store[index][subindex]
             except KeyError:
-                raw = obj.encode_raw(obj.default)
-            value = self._cache[key] = obj.decode_raw(raw)
+                raw = obj.encode_raw(self._default(index, subindex))
+            # the configuration objects are integers (UNSIGNEDn, INTEGERn)
+            value = self._cache[key] = cast(int, obj.decode_raw(raw))
         return value
 
     def _on_sdo(self, can_id, data, timestamp) -> None:
@@ -326,7 +347,10 @@ class SimulatedDrive(DriveStateMachine):
             if self.rpdos_discarded == 1:
                 self._event('RPDO after the SYNC window discarded')
             return
-        values = self._rpdo_codec.unpack(bytes(pdo_map.data))
+        if self._rpdo_codec is None:  # not byte-aligned: canopen decodes it (as a TPDO's send)
+            values = tuple(var.raw for var in pdo_map.map)
+        else:
+            values = self._rpdo_codec.unpack(bytes(pdo_map.data))
         self._rpdo_data = dict(zip(self._rpdo_indices, values))
 
     def _on_heartbeat(self, can_id, data, timestamp) -> None:
@@ -368,10 +392,10 @@ class SimulatedDrive(DriveStateMachine):
             elif index == p.HEARTBEAT_CONSUMER and subindex == 1:
                 value = od.decode_raw(data)
                 if self._heartbeat_producer:
-                    self.network.unsubscribe(0x700 + self._heartbeat_producer, self._on_heartbeat)
+                    self._net.unsubscribe(0x700 + self._heartbeat_producer, self._on_heartbeat)
                 self._heartbeat_producer = (value >> 16) & 0x7F
                 if self._heartbeat_producer:
-                    self.network.subscribe(0x700 + self._heartbeat_producer, self._on_heartbeat)
+                    self._net.subscribe(0x700 + self._heartbeat_producer, self._on_heartbeat)
                 self._heartbeat_seen, self._heartbeat_lost = None, False
 
     @property
@@ -487,7 +511,7 @@ class SimulatedDrive(DriveStateMachine):
         """Return the sending of one TPDO with these values."""
         if codec is not None:
             frame = codec.pack(values)
-            return lambda: self.network.send_message(codec.cob_id, frame)
+            return lambda: self._net.send_message(codec.cob_id, frame)
 
         def transmit() -> None:
             for index, value in zip(indices, values):

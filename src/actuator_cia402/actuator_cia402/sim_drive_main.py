@@ -25,7 +25,6 @@ import canopen
 
 from actuator_cia402.busload import frame_bits
 from actuator_cia402.config import RATED_CURRENT_A, RATED_TORQUE_NM, default_eds
-from actuator_cia402.sim_settings import SimDriveSettings
 from actuator_cia402.hub import Hub, error_frame
 from actuator_cia402.scaling import Scaling
 from actuator_cia402.sim_drive import SimulatedDrive
@@ -37,6 +36,7 @@ from actuator_cia402.sim_faults import (
     mapping_entry,
     plant_parameters,
 )
+from actuator_cia402.sim_settings import SimDriveSettings
 from actuator_core import limits
 from actuator_ros.realtime import RealtimeSettings  # ROS-free: yaml only, no rclpy
 

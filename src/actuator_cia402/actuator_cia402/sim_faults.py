@@ -21,8 +21,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Optional
 
-from actuator_plant.model import PlantParameters, WorkingCondition
 from actuator_cia402 import profile as p
+from actuator_plant.model import PlantParameters, WorkingCondition
 
 FAULT_CODES = {'over_current': 0x2310, 'following_error': 0x8611}
 #: Injectable events besides the faults (FaultPlan.inject).

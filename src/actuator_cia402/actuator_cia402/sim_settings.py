@@ -11,9 +11,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from actuator_cia402.sim_faults import FAULT_CODES, Quirks, mapping_entry
 from actuator_core import limits
 from actuator_core.params import spec, validate
-from actuator_cia402.sim_faults import FAULT_CODES, Quirks, mapping_entry
 
 CONDITIONS = ('deep_sea', 'lab')
 

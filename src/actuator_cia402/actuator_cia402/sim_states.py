@@ -16,12 +16,22 @@ from __future__ import annotations
 
 import math
 import time
+from typing import TYPE_CHECKING
 
 from actuator_cia402 import profile as p
+
+if TYPE_CHECKING:
+    import canopen
+
+    from actuator_cia402.scaling import Scaling
+    from actuator_cia402.sim_faults import Quirks
+    from actuator_plant.sim_joint import SimulatedJoint
 
 ERROR_REGISTER_GENERIC = 0x01
 ERROR_REGISTER_CURRENT = 0x02
 HEARTBEAT_ERROR = 0x8130
+#: The states that need the power stage (none under STO).
+POWERED_STATES = (p.State.READY_TO_SWITCH_ON, p.State.SWITCHED_ON, p.State.OPERATION_ENABLED)
 #: Option codes of 0x605A that stay in 'quick stop active' (CiA 402: transition 16 possible).
 STAYING_QUICK_STOP_OPTIONS = (5, 6, 7, 8)
 #: Proportional gain of the drive's velocity loop in a velocity-based quick stop [A per rad/s
@@ -31,6 +41,44 @@ STOP_VELOCITY_GAIN_A_S_RAD = 5.0
 
 class DriveStateMachine:
     """The power state machine of ``SimulatedDrive``; reads its objects, moves its power stage."""
+
+    # What SimulatedDrive holds (set in its __init__): read here, and the state moved here.
+    scaling: Scaling
+    dt_s: float
+    joint: SimulatedJoint
+    quirks: Quirks
+    node: canopen.LocalNode
+    state: p.State
+    last_controlword: int
+    target_permille: int
+    error_code: int
+    error_register: int
+    brake_closed: bool
+    _brake_closing_at: float | None
+    ramp_permille: float
+    _stopping: p.State | None
+    _decelerating: bool
+    _stop_velocity: float
+    _cut_ramps: int
+    sto: bool
+    remote_off: bool
+    target_ignored: bool
+    silent: bool
+    syncs: int
+    _heartbeat_seen: float | None
+    _heartbeat_lost: bool
+    _heartbeat_producer: int
+
+    if TYPE_CHECKING:  # SimulatedDrive's methods this part calls
+
+        @property
+        def _sign(self) -> int: ...
+
+        def _cfg(self, index: int, subindex: int = 0) -> int: ...
+
+        def _event(self, text: str) -> None: ...
+
+        def _applied_target(self) -> int: ...
 
     @property
     def statusword(self) -> int:
@@ -46,7 +94,11 @@ class DriveStateMachine:
         return word
 
     def apply_controlword(self, controlword: int) -> None:
-        """One controlword 0x6040: CiA 402 transition; fault reset on the rising edge of bit 7."""
+        """One controlword 0x6040: CiA 402 transition; fault reset on the rising edge of bit 7.
+
+        The transitions are profile.TRANSITIONS; this drive adds its guards (``_holds``) and
+        the power stage's reactions (``_enter``).
+        """
         if self.remote_off:
             return  # controlled locally: the bus's controlword is ignored
         command = p.decode_command(controlword)
@@ -54,26 +106,38 @@ class DriveStateMachine:
         rising = bool(controlword & reset_bit) and not self.last_controlword & reset_bit
         self.last_controlword = controlword
         if command is p.Command.FAULT_RESET:
-            if rising and self.state is p.State.FAULT:
-                self.state, self.error_code, self.error_register = p.State.SWITCH_ON_DISABLED, 0, 0
-                self._send_emcy(0x0000, 0)
+            self._fault_reset(rising)
             return
         before = self.state
         if self._transition_16(before, command):
             return
         after = p.next_state(before, command)
+        if not self._holds(before, after, command):
+            self._enter(before, after)
+
+    def _fault_reset(self, rising: bool) -> None:
+        """Fault reset (transition 15): on the rising edge of bit 7, in 'fault' only."""
+        if rising and self.state is p.State.FAULT:
+            self.state, self.error_code, self.error_register = p.State.SWITCH_ON_DISABLED, 0, 0
+            self._send_emcy(0x0000, 0)
+
+    def _holds(self, before: p.State, after: p.State, command: p.Command) -> bool:
+        """Whether the drive stays in ``before`` although the table leads to ``after``.
+
+        No transition; a stop under way (only disable voltage cuts it); no power stage (STO)
+        for a state that needs one; operation asked in a mode other than CST.
+        """
         stopping = self._stopping is not None and command is not p.Command.DISABLE_VOLTAGE
         if after is before or stopping:
-            return
-        if self.sto and after in (
-            p.State.READY_TO_SWITCH_ON,
-            p.State.SWITCHED_ON,
-            p.State.OPERATION_ENABLED,
-        ):
-            return  # no power stage: stays in 'switch on disabled'
+            return True
+        if self.sto and after in POWERED_STATES:
+            return True  # no power stage: stays in 'switch on disabled'
+        enabling = after is p.State.OPERATION_ENABLED
+        return enabling and self._cfg(p.MODES_OF_OPERATION) != p.MODE_CST  # CST only
+
+    def _enter(self, before: p.State, after: p.State) -> None:
+        """Do the power stage's part of a transition: the brake, a stop's ramp, the new state."""
         if after is p.State.OPERATION_ENABLED:
-            if self._cfg(p.MODES_OF_OPERATION) != p.MODE_CST:
-                return  # this drive runs CST only
             self._event(f'operation enabled with 0x6071 = {self.target_permille} per mille')
             self.state, self.brake_closed, self._brake_closing_at = after, False, None
             self._event('brake released')
@@ -87,17 +151,21 @@ class DriveStateMachine:
                 return
             self._close_brake()
         if self._stopping is not None and after is p.State.SWITCH_ON_DISABLED:
-            self._cut_ramps += 1
-            self._event(
-                f'ramp cut by disable voltage at {self.ramp_permille:.0f} per mille, '
-                f'brake {"closed" if self.brake_closed else "open"}'
-            )
-            self._stopping = None
-            self.ramp_permille, self._decelerating = 0.0, False
-            self._close_brake()
+            self._cut_ramp()
         elif after is p.State.SWITCH_ON_DISABLED and not self.brake_closed:
             self._event('voltage disabled with the brake open')
         self.state = after
+
+    def _cut_ramp(self) -> None:
+        """Disable voltage during a stop's ramp: it ends at once, the brake starts closing."""
+        self._cut_ramps += 1
+        self._event(
+            f'ramp cut by disable voltage at {self.ramp_permille:.0f} per mille, '
+            f'brake {"closed" if self.brake_closed else "open"}'
+        )
+        self._stopping = None
+        self.ramp_permille, self._decelerating = 0.0, False
+        self._close_brake()
 
     def _transition_16(self, before: p.State, command: p.Command) -> bool:
         """Transition 16 (quick stop active -> operation enabled), where the quirk allows it."""

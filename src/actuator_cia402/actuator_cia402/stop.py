@@ -30,14 +30,21 @@ the cycles, SDO after them), never what was written.
 from __future__ import annotations
 
 import math
+import threading
 import time
+from typing import TYPE_CHECKING, Callable, Optional
 
 import can
 import canopen
 
 from actuator_cia402 import profile as p
-from actuator_cia402.master import Cia402Error
-from actuator_cia402.supervision import DISABLED_STATES, describe, stopped
+from actuator_cia402.master import Cia402Error, Cia402Master
+from actuator_cia402.supervision import DISABLED_STATES, BusHealth, describe, stopped
+
+if TYPE_CHECKING:
+    from actuator_cia402.config import DriverParameters
+    from actuator_cia402.scaling import Scaling
+    from actuator_core.joint import JointSample
 
 SDO_ERRORS = (Cia402Error, canopen.SdoAbortedError, canopen.SdoCommunicationError, can.CanError)
 
@@ -45,12 +52,45 @@ SDO_ERRORS = (Cia402Error, canopen.SdoAbortedError, canopen.SdoCommunicationErro
 class Cia402Stop:
     """The end of control of ``Cia402Joint``: braked cycles, the stop over SDO, the watchdog."""
 
+    # What Cia402Joint holds (set in its __init__, configure and cycle) and this part uses.
+    cfg: DriverParameters
+    scaling: Scaling
+    period_ns: int
+    wait_s: float
+    network: Optional[canopen.Network]
+    master: Optional[Cia402Master]
+    health: BusHealth
+    active: bool
+    statusword: int
+    _tpdo1_seq: int
+    _tpdo2: tuple[int, int, int]  # current actual, error code, mode display (TPDO2)
+    _tpdo2_seq: int
+    _last_stamp_ns: int
+    _no_enable: bool
+    _heartbeat_stop: threading.Event
+    _heartbeat: Optional[threading.Thread]
+
+    if TYPE_CHECKING:  # Cia402Joint's cycle
+
+        def write(self, current_a: float, brake: bool) -> None: ...
+
+        def read(self, stamp_ns: int) -> Optional[JointSample]: ...
+
+        def _wait(self, condition: Callable[[], bool], timeout_s: float) -> bool: ...
+
     def init_stop(self) -> None:
         """Nothing stopped yet (configure, activate)."""
         self.stop_report = ''  # what the drive did when control ended (the node logs it)
         self._stop_notes: list[str] = []  # warnings of a stop over SDO made in end_control
         self.silenced = False  # the master heartbeat is off: a stop failed, 0x1016 must act
-        self.brake_seen = None  # the brake's 'closed' as last read over SDO (None: unknown)
+        # the brake's 'closed' as last read over SDO (None: unknown)
+        self.brake_seen: Optional[bool] = None
+
+    @property
+    def _configured(self) -> Cia402Master:
+        """The master of the configured joint (``configure`` made it, ``cleanup`` drops it)."""
+        assert self.master is not None, 'the joint is not configured'
+        return self.master
 
     def end_control(self, reason: str) -> str:
         """Stop the drive now that control ended (``reason``); return (and keep) what it did."""
@@ -126,19 +166,20 @@ class Cia402Stop:
     def _sdo_stop(self) -> None:
         """Stop over SDO (quick stop, disable voltage, else NMT stop); keep its warnings."""
         try:
-            self._stop_notes += self.master.stop()
+            self._stop_notes += self._configured.stop()
         except SDO_ERRORS as exc:
             self._stop_notes.append(f'stop over SDO: {exc}')
-        if not self.master.disabled:
+        if not self._configured.disabled:
             self._silence()
         self._refresh()
 
     def _refresh(self) -> None:
         """Read the statusword, current actual, error code and brake over SDO (diagnostics)."""
         try:
-            self.statusword, current, code = self.master.read_process()
+            master = self._configured
+            self.statusword, current, code = master.read_process()
             self._tpdo2 = (current, code, self._tpdo2[2])
-            self.brake_seen = self.master.brake_closed()
+            self.brake_seen = master.brake_closed()
         except SDO_ERRORS:
             self.brake_seen = None
 
@@ -186,9 +227,10 @@ class Cia402Stop:
     def _release_watchdog(self) -> list[str]:
         """Clear the drive's heartbeat consumer if it is disabled (the master leaves calmly)."""
         try:
-            statusword, state = self.master.read_state()
+            master = self._configured
+            statusword, state = master.read_state()
             if state in DISABLED_STATES:
-                self.master.node.sdo[p.HEARTBEAT_CONSUMER][1].raw = 0
+                master.node.sdo[p.HEARTBEAT_CONSUMER][1].raw = 0
                 return []
             reason = f"drive '{state.value if state else 'undefined'}' (0x{statusword:04X})"
         except SDO_ERRORS as exc:

@@ -29,10 +29,10 @@ import sys
 import time
 from typing import Callable, Optional, Sequence
 
-from actuator_core.joint import JointError, JointSettings, SoftLimits
 from actuator_cia402.config import DriverParameters, check_real_drive
 from actuator_cia402.joint import Cia402Joint
 from actuator_cia402.sign_check import WINDOW_S, SignCheck
+from actuator_core.joint import JointError, JointSettings, SoftLimits
 
 EXIT_FAULT, EXIT_REFUSED, EXIT_STOPPED, EXIT_INTERRUPTED = 1, 2, 3, 130
 
@@ -226,7 +226,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 def _run(joint: Cia402Joint, args) -> int:
     """Hold the brake, then the current under the judge; print the summary; the exit code."""
     print(f'active: {args.current:g} A after {args.hold:g} s of brake', flush=True)
-    announced = []
+    announced: list[int] = []  # the sample the current was announced at
 
     def on_sample(k, sample):
         if not announced and k * args.sync_period > args.hold + 0.05:

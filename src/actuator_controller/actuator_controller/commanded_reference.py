@@ -32,7 +32,7 @@ class CommandedReference:
         """
         self.max_deceleration = tuple(max_deceleration)
         self.joint = joint
-        self.program = Hold((0.0,) * len(self.max_deceleration))
+        self.program: Hold | Segments = Hold((0.0,) * len(self.max_deceleration))
         self.restarts = 0
 
     # --- the assembly's side ---------------------------------------------------------------------

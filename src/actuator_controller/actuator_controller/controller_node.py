@@ -36,23 +36,28 @@ safe-stop command so the drive brakes at once.
 from __future__ import annotations
 
 import time
+from typing import Callable
 
-from actuator_core import limits
-from actuator_core.assembly import ESTIMATE_AHEAD_SAMPLES, ControlSample, ControlSampleAssembly
-from actuator_core.binding import MeasurementPlausibility
-from actuator_core.clock import Clock, StampClock
-from actuator_core.values import estimate_problem, measurement_problem
-from actuator_core.sample_log import SampleLog
-from actuator_core.status import Status
-from actuator_core.timebase import StampCheck, Verdict
-from actuator_core.timing import period_ns, stamp_to_ns
+from rclpy.clock import Clock as RosClock
+from rclpy.clock import ClockType
+from sensor_msgs.msg import JointState
+
 from actuator_controller.controller_parameters import declare_controller_parameters
 from actuator_controller.controller_report import ControllerReport
 from actuator_controller.controller_state import controller_state_fields
 from actuator_controller.goal_interface import GoalInterface
-from actuator_core.decimation import Decimator
 from actuator_controller.laws import make_controller
 from actuator_controller.reference import make_reference
+from actuator_core import limits
+from actuator_core.assembly import ESTIMATE_AHEAD_SAMPLES, ControlSample, ControlSampleAssembly
+from actuator_core.binding import MeasurementPlausibility
+from actuator_core.clock import Clock, StampClock
+from actuator_core.decimation import Decimator
+from actuator_core.sample_log import SampleLog
+from actuator_core.status import Status
+from actuator_core.timebase import StampCheck, Verdict
+from actuator_core.timing import period_ns, stamp_to_ns
+from actuator_core.values import estimate_problem, measurement_problem
 from actuator_msgs.msg import ControllerState, CurrentCommand, StateEstimate
 from actuator_ros.conversions import joint_position
 from actuator_ros.diagnostics import NodeDiagnostics
@@ -61,9 +66,6 @@ from actuator_ros.node import ManagedNode
 from actuator_ros.qos import control_qos
 from actuator_ros.runner import run_node
 from actuator_ros.wire_io import codec, subscribe_views
-from rclpy.clock import Clock as RosClock
-from rclpy.clock import ClockType
-from sensor_msgs.msg import JointState
 
 NODE_NAME = 'actuator_controller'
 STEADY = ClockType.STEADY_TIME
@@ -155,7 +157,7 @@ class ControllerNode(ControllerReport, ManagedNode):
         self.measurements_in = self.estimates_in = 0
         self.envelope_restarts = 0
         self.received_ns = 0
-        self.received_mono_ns = None
+        self.received_mono_ns: int | None = None
         self.command_done_ns: int | None = None  # perf_counter of the newest command published
         self.encode_command = codec(CurrentCommand).encode
         self.encode_state = codec(ControllerState).encode
@@ -191,7 +193,7 @@ class ControllerNode(ControllerReport, ManagedNode):
             self.destroy_lifecycle_publisher(pub)
 
     # --- inputs ----------------------------------------------------------------------------------
-    def _refuse(self, key: str, stamp: int, why) -> None:
+    def _refuse(self, key: str, stamp: int | None, why: Callable[[], str]) -> None:
         """Count and log a refused input; answer its sample with 0 A (no brake: one sample).
 
         An error, but for an estimate merely ahead of this node's newest measurement: that is
@@ -205,7 +207,7 @@ class ControllerNode(ControllerReport, ManagedNode):
                 self.assembly.safe_sample(stamp, Status.INVALID_INPUT, safe_stop=False), None
             )
 
-    def _received(self) -> int:
+    def _received(self) -> int | None:
         """Receipt time for ages: monotonic in real time; None in sim (the stamps are time)."""
         return self.clock.now_ns() if self.params.mode == 'realtime' else None
 
@@ -219,7 +221,7 @@ class ControllerNode(ControllerReport, ManagedNode):
         stamp = stamp_to_ns(msg.header.stamp)
         y = joint_position(msg, self.params.settings.joint_name)
         problem = measurement_problem(y, self.params.settings.joint_name, msg.position)
-        if problem:  # before its stamp is taken: a refused value moves nothing
+        if problem or y is None:  # before its stamp is taken: a refused value moves nothing
             self._refuse('bad_measurement', None, lambda: problem)
             return
         if self.conflict:  # whose sample this is cannot be told: no stamp is taken
@@ -431,6 +433,7 @@ class ControllerNode(ControllerReport, ManagedNode):
         latency_ns = (
             self.command_wall_ns - sample.stamp_ns if self.params.mode == 'realtime' else 0
         )
+        assert self.command_done_ns is not None  # _publish set it
         compute_ns = self.command_done_ns - started_ns
         if self.params.mode == 'realtime' and latency_ns > self.period_ns:
             self.late += 1
@@ -471,6 +474,7 @@ class ControllerNode(ControllerReport, ManagedNode):
             and self.state_decimator.admit(sample.stamp_ns, force=changed)
         ):
             return
+        assert self.command_done_ns is not None  # _publish set it
         compute_s = 0.0 if started_ns is None else (self.command_done_ns - started_ns) * 1e-9
         self.state_pub.publish(
             self.encode_state(

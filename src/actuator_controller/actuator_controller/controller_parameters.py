@@ -14,9 +14,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from actuator_core import limits
-from actuator_core.loop_params import shared
-from actuator_core.params import spec, validate
 from actuator_controller.excitation import ExcitationReference
 from actuator_controller.laws import CONTROLLER_NAMES, GAINS_BY_NAME, CommonConfig
 from actuator_controller.reference import REFERENCE_KINDS, SineReference, StepReference
@@ -26,6 +23,9 @@ from actuator_controller.trajectory_settings import (
     TrajectoryConstraints,
     TrajectorySettings,
 )
+from actuator_core import limits
+from actuator_core.loop_params import shared
+from actuator_core.params import spec, validate
 from actuator_ros.parameters import (
     TIMING_LOG_DESCRIPTION,
     ParameterError,

@@ -9,14 +9,51 @@ its assembly and its timing log, and changes nothing the control path reads.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from actuator_core.assembly import AT_LIMIT_SAMPLES, ControlSample
 from actuator_core.health import HealthMonitor, Level, Snapshot
 from actuator_core.stats import percentiles
 from actuator_core.status import Status
 
+if TYPE_CHECKING:
+    from rclpy.impl.rcutils_logger import RcutilsLogger
+
+    from actuator_controller.controller_parameters import ControllerParameters
+    from actuator_core.assembly import ControlSampleAssembly
+    from actuator_core.binding import MeasurementPlausibility
+    from actuator_core.sample_log import SampleLog
+    from actuator_ros.log import RateLimitedLog
+
 
 class ControllerReport:
     """Logs, /diagnostics and the timing summary of the controller node."""
+
+    # What ControllerNode (and ManagedNode) hold and this part reads or counts.
+    params: ControllerParameters
+    active: bool
+    log: RateLimitedLog
+    assembly: ControlSampleAssembly
+    plausibility: MeasurementPlausibility
+    timing: SampleLog
+    status: Status
+    conflict: str
+    resyncs: int
+    gap_resyncs: int
+    reported_rows: int
+    measurements_in: int
+    estimates_in: int
+    late: int
+    refused: int
+    stale_events: int
+    envelope_restarts: int
+    refusals: dict[str, int]
+
+    if TYPE_CHECKING:  # rclpy's Node
+
+        def get_logger(self) -> RcutilsLogger: ...
+
+        def get_name(self) -> str: ...
 
     def _log_recovery(self, sample: ControlSample) -> None:
         """Say when a resync starts, when RECOVERING starts and when it ends."""
@@ -77,7 +114,7 @@ class ControllerReport:
         """Report to /diagnostics: counts, status, timing percentiles since the last report."""
         a, rows = self.assembly, self.timing.since(self.reported_rows)
         self.reported_rows += len(rows)
-        values = {
+        values: dict[str, object] = {
             'controller': self.params.name,
             'mode': self.params.mode,
             'status': self.status.name,
@@ -105,11 +142,11 @@ class ControllerReport:
         return Snapshot('active' if self.active else 'inactive', counts, values, problems)
 
     # --- shutdown --------------------------------------------------------------------------------
-    def timing_summary(self) -> dict:
+    def timing_summary(self) -> dict[str, int | float | None]:
         """Period, latency and compute-time percentiles of the control updates so far."""
         rows = self.timing.array()
         a = self.assembly
-        summary = {
+        summary: dict[str, int | float | None] = {
             'updates': self.timing.rows,
             'measurements_in': self.measurements_in,
             'estimates_in': self.estimates_in,

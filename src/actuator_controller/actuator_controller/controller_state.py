@@ -68,6 +68,7 @@ def controller_state_fields(
     fields['reference_position_rad'] = float(ref.position_rad)
     fields['reference_velocity_rad_s'] = float(ref.velocity_rad_s)
     fields['reference_acceleration_rad_s2'] = float(ref.acceleration_rad_s2)
+    assert sample.estimate is not None  # the law ran on one
     velocity, disturbance = sample.estimate
     fields['estimated_velocity_rad_s'] = float(velocity)
     fields['estimated_disturbance_rad_s2'] = float(disturbance)

@@ -27,9 +27,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from actuator_controller.reference_sample import ReferenceSample
 from actuator_core import limits
 from actuator_core.params import spec, validate
-from actuator_controller.reference_sample import ReferenceSample
 
 #: Duration of each segment's fade in and fade out [s].
 FADE_S = 0.25

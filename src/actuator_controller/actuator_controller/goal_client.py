@@ -20,6 +20,7 @@ from builtin_interfaces.msg import Duration, Time
 from control_msgs.action import FollowJointTrajectory
 from control_msgs.msg import JointTolerance
 from rclpy.action import ActionClient
+from rclpy.action.client import ClientGoalHandle
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
@@ -81,7 +82,7 @@ class GoalRun:
     """One goal sent: its handle once answered, its feedback, its end."""
 
     goal: FollowJointTrajectory.Goal
-    handle: object = None
+    handle: Optional[ClientGoalHandle] = None  #: None until the server answered
     accepted: Optional[bool] = None  #: None until the server answered
     status: Optional[int] = None  #: action_msgs/GoalStatus at the end
     result: Optional[FollowJointTrajectory.Result] = None
@@ -121,10 +122,10 @@ class GoalClient:
         run = GoalRun(goal)
 
         def answered(future) -> None:
-            run.handle = future.result()
-            run.accepted = bool(run.handle.accepted)
+            handle = run.handle = future.result()
+            run.accepted = bool(handle.accepted)
             if run.accepted:
-                run.handle.get_result_async().add_done_callback(ended)
+                handle.get_result_async().add_done_callback(ended)
 
         def ended(future) -> None:
             response = future.result()
@@ -139,6 +140,7 @@ class GoalClient:
 
     def cancel(self, run: GoalRun):
         """Ask to cancel ``run`` (answered goals only); returns the cancel's future."""
+        assert run.handle is not None, 'the goal is not answered yet'
         return run.handle.cancel_goal_async()
 
     def publish(self, trajectory: JointTrajectory) -> None:
@@ -152,4 +154,5 @@ class GoalClient:
 
 def goal_id(run: GoalRun) -> str:
     """Return the hex UUID the controller names ``run``'s goal by (in its goal events)."""
+    assert run.handle is not None, 'the goal is not answered yet'
     return bytes(run.handle.goal_id.uuid).hex()

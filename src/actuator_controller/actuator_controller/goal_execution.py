@@ -30,11 +30,11 @@ import threading
 from dataclasses import dataclass
 from typing import NamedTuple, Optional
 
-from actuator_core.status import Status
 from actuator_controller.commanded_reference import CommandedReference
 from actuator_controller.goal_rules import feasibility_refusal, tolerance_violation
 from actuator_controller.trajectory import DesiredState, Waypoints, plan
 from actuator_controller.trajectory_settings import SegmentTolerances, TrajectorySettings
+from actuator_core.status import Status
 
 # control_msgs/action/FollowJointTrajectory result codes.
 SUCCESSFUL = 0
@@ -197,6 +197,7 @@ class TrajectoryExecution:
                 self._abort_all(stamp_ns, f'Aborted: {self.blocked}')
                 self._refuse_commands(stamp_ns, f'Aborted: {self.blocked}')
             return
+        assert desired is not None  # the law ran: on this reference
         self.blocked = ''
         self._t = t_s
         self.desired = desired
@@ -278,6 +279,7 @@ class TrajectoryExecution:
     def _judge(self, stamp_ns, t_s, desired, actual_positions, actual_velocities) -> None:
         """JTC's update: path tolerances before the end, goal tolerances after it."""
         goal = self.active
+        assert goal is not None  # a goal runs
         position_errors = [d - a for d, a in zip(desired.positions, actual_positions)]
         velocity_errors = (
             None
@@ -311,6 +313,7 @@ class TrajectoryExecution:
         self, stamp_ns, t_s, actual_positions, actual_velocities, desired, code, why
     ) -> None:
         """Abort the running goal; the joint's own state comes to rest and holds."""
+        assert self.active is not None  # a goal runs
         self._end(stamp_ns, self.active, ABORTED, code, why)
         self.active = self.feedback = None
         velocities = desired.velocities if actual_velocities is None else actual_velocities

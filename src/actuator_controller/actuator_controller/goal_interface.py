@@ -219,11 +219,13 @@ class GoalInterface:
             )
         if not self.controller.active:
             return None, NOT_RUNNING
-        blocked = self.execution.blocked
+        execution = self.execution
+        assert execution is not None  # a 'hold' reference has one
+        blocked = execution.blocked
         if blocked:
             return None, f"Can't accept new trajectories: {blocked}"
         request = trajectory_request(msg)
-        now_ns = self.execution.newest_stamp_ns
+        now_ns = execution.newest_stamp_ns
         goal = self.params.trajectory.goal
         refusal = trajectory_refusal(
             request, self.joint_names, goal.allow_nonzero_velocity_at_trajectory_end, now_ns
@@ -240,7 +242,7 @@ class GoalInterface:
         elapsed_s = max(0.0, (now_ns - request.stamp_ns) * 1e-9) if request.stamp_ns else 0.0
         ahead = points.after(elapsed_s)
         if len(ahead.times_s):
-            desired = self.execution.desired or DesiredState(
+            desired = execution.desired or DesiredState(
                 (0.0,) * len(self.joint_names),
                 (0.0,) * len(self.joint_names),
                 (0.0,) * len(self.joint_names),
@@ -286,6 +288,7 @@ class GoalInterface:
         if why:  # rclpy gives goal_callback no goal id: the refusal is numbered
             self._refuse(f'refused-{next(self.refused_count)}', True, why)
             return GoalResponse.REJECT
+        assert parts is not None  # _check made them, or said why not
         self.prepared[id(goal)] = parts  # the same message object reaches _execute
         return GoalResponse.ACCEPT
 
@@ -322,6 +325,7 @@ class GoalInterface:
         self.mailbox.post(('goal', Goal(goal_id, points, tolerances, request.stamp_ns, False)))
 
     def _accepted(self, goal_id: str, from_action: bool, request, points) -> None:
+        assert self.execution is not None  # _check accepted it: a 'hold' reference has one
         msg = self._event_msg(
             GoalEvent(self.execution.newest_stamp_ns, goal_id, 'accepted'), from_action
         )

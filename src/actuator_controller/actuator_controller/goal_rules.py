@@ -21,13 +21,13 @@ from typing import Sequence
 
 import numpy as np
 
-from actuator_core import limits
 from actuator_controller.trajectory import Segments, Waypoints
 from actuator_controller.trajectory_settings import (
     GoalSettings,
     SegmentTolerances,
     StateTolerance,
 )
+from actuator_core import limits
 
 #: JTC treats a last velocity within float32's epsilon as zero.
 FLOAT32_EPSILON = float(np.finfo(np.float32).eps)

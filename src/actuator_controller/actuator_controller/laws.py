@@ -37,12 +37,13 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
+from actuator_controller.ppf import PrescribedPerformance, inside_band, transform_error
+from actuator_controller.reference import ReferenceSample
 from actuator_core import limits
 from actuator_core import xmath as xm
 from actuator_core.loop_params import shared
 from actuator_core.params import spec, validate
-from actuator_controller.ppf import PrescribedPerformance, inside_band, transform_error
-from actuator_controller.reference import ReferenceSample
+from actuator_core.xmath import FloatOrArray
 
 CONTROLLER_NAMES = ('pp_nftsmc_eso', 'nftsmc_eso', 'smc_eso', 'pi')
 
@@ -140,25 +141,25 @@ class PpNftsmcGains(NftsmcGains):
 class ControlOutput(NamedTuple):
     """Everything a controller computed for one sample (NaN where a term does not apply)."""
 
-    current_a: object
-    current_unlimited_a: object
-    saturated: object
-    error_rad: object
-    rho_rad: object
-    lower_bound_rad: object
-    upper_bound_rad: object
-    bounds_kept: object
-    z1: object
-    z2_rad_s: object
-    alpha_rad_s: object
-    alpha_dot_rad_s2: object
-    sigma_rad_s: object
-    u_eq_rad_s2: object
-    u_sw_rad_s2: object
-    u_b_rad_s2: object
-    proportional_a: object
-    integral_a: object
-    finite: object
+    current_a: FloatOrArray
+    current_unlimited_a: FloatOrArray
+    saturated: FloatOrArray
+    error_rad: FloatOrArray
+    rho_rad: FloatOrArray
+    lower_bound_rad: FloatOrArray
+    upper_bound_rad: FloatOrArray
+    bounds_kept: FloatOrArray
+    z1: FloatOrArray
+    z2_rad_s: FloatOrArray
+    alpha_rad_s: FloatOrArray
+    alpha_dot_rad_s2: FloatOrArray
+    sigma_rad_s: FloatOrArray
+    u_eq_rad_s2: FloatOrArray
+    u_sw_rad_s2: FloatOrArray
+    u_b_rad_s2: FloatOrArray
+    proportional_a: FloatOrArray
+    integral_a: FloatOrArray
+    finite: FloatOrArray
 
 
 def signed_power(z, alpha: float):
@@ -195,6 +196,10 @@ class Controller:
     def reset(self) -> None:
         """Zero the integral state (a new run)."""
         self.integral = 0.0
+
+    def update(self, t, y, x2_hat, x3_hat, ref: ReferenceSample) -> ControlOutput:
+        """Compute the current for this sample (each law its own)."""
+        raise NotImplementedError
 
     def _finish(self, u_unlimited, integrand, **terms) -> ControlOutput:
         """Limit u, decide the integral update (frozen on wind-up or non-finite output).

@@ -34,6 +34,7 @@ from typing import NamedTuple
 
 from actuator_core import xmath as xm
 from actuator_core.params import spec, validate
+from actuator_core.xmath import FloatOrArray
 
 #: Fraction of the band (l + h) kept between the clamped normalised error and each bound.
 BOUNDARY_MARGIN = 1.0e-4
@@ -115,9 +116,9 @@ class PrescribedPerformance:
 class Transformed(NamedTuple):
     """Transformed error z (11), its gain r (12) and whether e was inside the bounds (8)."""
 
-    z: object
-    r: object
-    inside: object
+    z: FloatOrArray
+    r: FloatOrArray
+    inside: FloatOrArray
 
 
 def inside_band(e, rho, ppf: PrescribedPerformance):

@@ -12,19 +12,21 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Any, Protocol
 
-from actuator_core import limits
-from actuator_core import xmath as xm
 from actuator_controller.commanded_reference import CommandedReference
 from actuator_controller.excitation import ExcitationReference
 from actuator_controller.reference_sample import ReferenceSample
+from actuator_core import limits
+from actuator_core import xmath as xm
 
 
 class Reference(Protocol):
     """A reference trajectory: ``sample(t)`` gives x1d and its first two derivatives."""
 
-    name: str
+    @property
+    def name(self) -> str:
+        """The reference's kind (a frozen dataclass's field, or a class attribute)."""
 
     def sample(self, t) -> ReferenceSample:
         """Return the reference at time t [s] since the start of the run."""
@@ -114,8 +116,10 @@ def make_reference(
     it stops a motion [rad/s^2]; ``excitation`` (an ExcitationReference) replaces the
     excitation's defaults.
     """
-    amplitude = {} if amplitude_rad is None else {'amplitude_rad': amplitude_rad}
-    frequency = {} if frequency_rad_s is None else {'frequency_rad_s': frequency_rad_s}
+    amplitude: dict[str, Any] = {} if amplitude_rad is None else {'amplitude_rad': amplitude_rad}
+    frequency: dict[str, Any] = (
+        {} if frequency_rad_s is None else {'frequency_rad_s': frequency_rad_s}
+    )
     if kind == 'hold':
         ref: Reference = CommandedReference(max_deceleration)
     elif kind == 'slow':

@@ -12,10 +12,12 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+from actuator_core.xmath import FloatOrArray
+
 
 class ReferenceSample(NamedTuple):
     """Desired position x1d [rad], velocity [rad/s] and acceleration [rad/s^2] at one time."""
 
-    position_rad: object
-    velocity_rad_s: object
-    acceleration_rad_s2: object
+    position_rad: FloatOrArray
+    velocity_rad_s: FloatOrArray
+    acceleration_rad_s2: FloatOrArray

@@ -53,7 +53,7 @@ arithmetic elementwise, the latch included.
 from __future__ import annotations
 
 from enum import Enum
-from typing import NamedTuple, Optional
+from typing import Any, NamedTuple, Optional
 
 import numpy as np
 
@@ -62,6 +62,7 @@ from actuator_core import xmath as xm
 from actuator_core.status import Status
 from actuator_core.timebase import ahead_ns
 from actuator_core.timing import sample_time_s
+from actuator_core.xmath import FloatOrArray
 
 #: Estimates kept while waiting for their measurement.
 PENDING_LIMIT = 64
@@ -114,17 +115,22 @@ def gap_limit_samples(period_ns: int) -> int:
     return max(1, int(round(limits.COMMAND_TIMEOUT_S * 1e9 / period_ns)))
 
 
+#: An estimate kept for its sample: (x2_hat, x3_hat, input_ns, input_current_a,
+#: input_current_gain), the arguments of ``ControlSampleAssembly.add_estimate``.
+EstimateEntry = tuple[FloatOrArray, FloatOrArray, Optional[int], FloatOrArray, FloatOrArray]
+
+
 class ControlSample(NamedTuple):
     """One sample's command and everything behind it (None where the law did not run)."""
 
     stamp_ns: int
-    current_a: object
-    status: object  # Status for a scalar run, an int array for a batch
+    current_a: FloatOrArray
+    status: Any  # Status for a scalar run, an int array for a batch
     t_s: Optional[float]
-    y: object
+    y: FloatOrArray
     estimate: Optional[tuple]  # (x2_hat, x3_hat) as used, after any correction
-    reference: object  # ReferenceSample or None
-    output: object  # ControlOutput or None
+    reference: Any  # actuator_controller's ReferenceSample, or None
+    output: Any  # actuator_controller's ControlOutput, or None
     safe_stop: bool = False  # the command asks the drive for 0 A and the brake
     #: False: the joint already applies a command for this sample and takes only a safe stop in
     #: its place (actuator_core.binding.CommandBinding), so no command is sent, only the state
@@ -176,7 +182,8 @@ class ControlSampleAssembly:
         self.resync_until_received_ns = 0
         self.stall_noticed_ns: Optional[int] = None  # receipt clock: when a stall was noticed
         self.refusal = ''  # why the last input was refused ('' when it was not)
-        self.initial_ahead: Optional[tuple] = None  # an observer restart ahead of y, kept aside
+        # an observer restart ahead of y, kept aside: (stamp, entry, received_ns)
+        self.initial_ahead: Optional[tuple[int, EstimateEntry, Optional[int]]] = None
         self.at_limit_run = 0  # the law's samples in a row at the current limit, up to now
         self.corrected = self.unanswered = self.missed = self.resyncs = 0
         self.refused = self.conflicts = self.gap_resyncs = 0
@@ -203,7 +210,7 @@ class ControlSampleAssembly:
         plus one sample. An ``initial`` one after the start means the observer restarted:
         resync (PI uses none).
         """
-        entry = (x2_hat, x3_hat, input_ns, input_current_a, input_current_gain)
+        entry: EstimateEntry = (x2_hat, x3_hat, input_ns, input_current_a, input_current_gain)
         self.refusal = input_stamp_refusal(stamp_ns, input_ns)
         if self.refusal:  # not the observer's own: no restart is kept aside either
             self.refused += 1
@@ -276,7 +283,8 @@ class ControlSampleAssembly:
 
         0 A and brake while the observer converges, then restart.
         """
-        if self.supervision is Supervision.RESYNC and stamp_ns < self.resync_until_ns:
+        until_ns = self.resync_until_ns  # set while resyncing
+        if self.supervision is Supervision.RESYNC and until_ns is not None and stamp_ns < until_ns:
             return  # already resyncing
         self.resyncs += 1
         self.supervision = Supervision.RESYNC
@@ -285,8 +293,9 @@ class ControlSampleAssembly:
         # A stall caught this node with the sample in hand (received long before the stall was
         # noticed): its stamp is from before the stall, so the hold counts from waking too.
         noticed, received = self.stall_noticed_ns, self.measurement_received_ns
-        caught = None not in (noticed, received) and noticed - received > self.gap_limit_ns
-        self.resync_until_received_ns = noticed + hold_ns if caught else 0
+        self.resync_until_received_ns = 0
+        if noticed is not None and received is not None and noticed - received > self.gap_limit_ns:
+            self.resync_until_received_ns = noticed + hold_ns
         self.estimates = {s: e for s, e in self.estimates.items() if s >= stamp_ns}
         if self.pending is not None and self.pending[0] < stamp_ns:
             self.pending = None
@@ -316,7 +325,8 @@ class ControlSampleAssembly:
 
     def reset(self) -> None:
         """Clear the latch and start over (lifecycle: cleanup and configure)."""
-        self.__init__(
+        ControlSampleAssembly.__init__(
+            self,
             self.law,
             self.reference,
             self.period_ns,
@@ -384,10 +394,12 @@ class ControlSampleAssembly:
                 xm.fabs(estimate[0]) > RESYNC_REST_VELOCITY_RAD_S
             )
             received_ns = self._latest_received_ns(stamp)
+            until_ns = self.resync_until_ns
+            assert until_ns is not None  # resync set it
             if (
-                stamp < self.resync_until_ns
+                stamp < until_ns
                 or received_ns < self.resync_until_received_ns
-                or (sliding and stamp < self.resync_until_ns + self.resync_extra_ns)
+                or (sliding and stamp < until_ns + self.resync_extra_ns)
             ):
                 return self.safe_sample(stamp, Status.RESYNC, y)
             self.supervision = Supervision.RUNNING

@@ -156,9 +156,11 @@ class CommandBinding:
             return f'{kind} stamped {stamp_ns} ns answers no sample this joint produced: refused'
         if safe_stop:
             return ''
-        oldest = self.samples.newest_ns - self.late_samples * self.period_ns
+        newest = self.samples.newest_ns
+        assert newest is not None  # stamp_ns is one of the samples
+        oldest = newest - self.late_samples * self.period_ns
         if stamp_ns < oldest:
-            age_ms = (self.samples.newest_ns - stamp_ns) / 1e6
+            age_ms = (newest - stamp_ns) / 1e6
             return (
                 f'command for sample {stamp_ns} ns is {age_ms:g} ms old (the window is the '
                 f'newest sample and {self.late_samples} before): refused'

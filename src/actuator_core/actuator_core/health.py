@@ -101,9 +101,9 @@ class HealthMonitor:
         self,
         name: str,
         *,
-        inputs: Mapping[str, str] = (),
-        warn_on: Mapping[str, str] = (),
-        error_on: Mapping[str, str] = (),
+        inputs: Optional[Mapping[str, str]] = None,
+        warn_on: Optional[Mapping[str, str]] = None,
+        error_on: Optional[Mapping[str, str]] = None,
         stale_after_s: float = STALE_AFTER_S,
         hardware_id: str = '',
     ) -> None:
@@ -115,8 +115,8 @@ class HealthMonitor:
         if not stale_after_s > 0:
             raise ValueError(f'stale_after_s must be > 0, not {stale_after_s}')
         self.name, self.hardware_id = name, hardware_id
-        self.inputs = dict(inputs)
-        self.warn_on, self.error_on = dict(warn_on), dict(error_on)
+        self.inputs = dict(inputs or {})
+        self.warn_on, self.error_on = dict(warn_on or {}), dict(error_on or {})
         self.stale_after_ns = int(stale_after_s * 1e9)
         self._last_ns: Optional[int] = None
         self._last_counts: dict[str, int] = {}

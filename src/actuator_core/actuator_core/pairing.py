@@ -33,6 +33,7 @@ from __future__ import annotations
 from typing import Callable, NamedTuple, Optional, Protocol
 
 from actuator_core.timebase import ahead_ns
+from actuator_core.xmath import FloatOrArray
 
 #: Unpaired samples kept of each kind; older ones are dropped.
 PENDING_LIMIT = 256
@@ -104,11 +105,12 @@ class ObserverInputPairing:
         )
         self.gap_restarts = 0
         self.sample_ns: Optional[int] = None  # stamp x_hat is valid at
-        self.measurements: dict[int, object] = {}
-        self.currents: dict[int, object] = {}
-        self.substitutes: dict[int, object] = {}  # current used in place of each missing command
+        self.measurements: dict[int, FloatOrArray] = {}
+        self.currents: dict[int, FloatOrArray] = {}
+        # current used in place of each missing command
+        self.substitutes: dict[int, FloatOrArray] = {}
         self.newest_measurement_ns = -1
-        self.last_current = 0.0
+        self.last_current: FloatOrArray = 0.0
         self.steps = self.substituted = self.repaired = self.restarts = 0
         self.ignored = 0  # duplicates and samples older than x_hat's
         self.refused = self.conflicts = 0
@@ -149,7 +151,7 @@ class ObserverInputPairing:
             self.refused += 1
             self.refusal = f'command stamped {stamp_ns} ns refused: ' + (
                 'off the sample grid'
-                if off_grid
+                if off_grid or ahead is None
                 else f'{ahead / 1e6:g} ms ahead of the newest measurement received'
             )
             return []
@@ -207,6 +209,7 @@ class ObserverInputPairing:
         used = self.substitutes.pop(stamp_ns, None)
         if used is None:
             return
+        assert self.sample_ns is not None  # a substitute was used: x_hat has a stamp
         steps_since = (self.sample_ns - stamp_ns) // self.period_ns - 1
         self.observer.add(self.correction(u - used, steps_since))
         if steps_since == 0:
@@ -215,6 +218,7 @@ class ObserverInputPairing:
 
     def _advance(self) -> list[Estimate]:
         """Step while the pair of the held sample is complete, or provably never will be."""
+        assert self.sample_ns is not None  # restart gave x_hat a stamp
         out: list[Estimate] = []
         while len(out) < MAX_STEPS_PER_CALL:
             k = self.sample_ns

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any, Iterator
+from typing import Any, Iterator, Mapping
 
 import numpy as np
 
@@ -44,7 +44,7 @@ def spec(
     )
 
 
-def range_text(meta: dict) -> str:
+def range_text(meta: Mapping[str, Any]) -> str:
     """Human-readable valid range of a spec'd field, e.g. '(0, inf] rad/s', or its choices."""
     if meta.get('choices'):
         return 'one of ' + ', '.join(meta['choices'])
@@ -53,7 +53,7 @@ def range_text(meta: dict) -> str:
     return f'{left}{meta["low"]:g}, {meta["high"]:g}]{unit}'
 
 
-def check_value(name: str, value: Any, meta: dict) -> None:
+def check_value(name: str, value: Any, meta: Mapping[str, Any]) -> None:
     """Raise ValueError naming ``name``.
 
     Its value and its valid range when ``value`` is outside it.

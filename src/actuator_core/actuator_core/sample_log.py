@@ -57,4 +57,5 @@ class SampleLog:
     def save(self, path: str) -> None:
         """Write the columns as arrays of an .npz file."""
         data = self.array()
-        np.savez(path, **{name: data[:, i] for i, name in enumerate(self.columns)})
+        # numpy's stub types **kwds as if they could hold its allow_pickle flag
+        np.savez(path, **{name: data[:, i] for i, name in enumerate(self.columns)})  # type: ignore[arg-type]

@@ -19,7 +19,7 @@ def percentiles(values, prefix: str, mean: bool = False) -> dict[str, Optional[f
     keys = ('p50', 'p99', 'max') + (('mean',) if mean else ())
     if v.size == 0:
         return {f'{prefix}_{k}': None for k in keys}
-    out = {
+    out: dict[str, Optional[float]] = {
         f'{prefix}_p50': float(np.percentile(v, 50)),
         f'{prefix}_p99': float(np.percentile(v, 99)),
         f'{prefix}_max': float(v.max()),

@@ -12,10 +12,15 @@ offline loop, so the two agree to the bit.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
 _ndarray = np.ndarray
+
+#: A float, or a numpy array of floats (one per run of a batch): what these functions, the model
+#: and the laws compute on. Any to a type checker: the two are used with the same operators.
+FloatOrArray = Any
 
 
 def exp(x):

@@ -33,10 +33,12 @@ from __future__ import annotations
 
 import json
 
+from rclpy.event_handler import PublisherEventCallbacks
+from sensor_msgs.msg import JointState
+
 from actuator_core.assembly import gap_limit_samples
 from actuator_core.binding import MeasurementPlausibility
 from actuator_core.clock import Clock, StampClock
-from actuator_core.values import command_problem, measurement_problem
 from actuator_core.health import HealthMonitor, Level, Snapshot
 from actuator_core.pairing import (
     REALTIME_PATIENCE_SAMPLES,
@@ -46,9 +48,9 @@ from actuator_core.pairing import (
 )
 from actuator_core.timebase import StampCheck, Verdict
 from actuator_core.timing import period_ns, stamp_to_ns
+from actuator_core.values import command_problem, measurement_problem
 from actuator_eso.observer import EsoGains, ExtendedStateObserver
 from actuator_msgs.msg import CurrentCommand, StateEstimate
-from rclpy.event_handler import PublisherEventCallbacks
 from actuator_ros.conversions import joint_position
 from actuator_ros.diagnostics import NodeDiagnostics
 from actuator_ros.guard import GraphGuard
@@ -57,7 +59,6 @@ from actuator_ros.parameters import declare_output_path, declare_shared, declare
 from actuator_ros.qos import control_qos
 from actuator_ros.runner import run_node
 from actuator_ros.wire_io import codec, subscribe_views
-from sensor_msgs.msg import JointState
 
 NODE_NAME = 'actuator_eso'
 #: Control inputs whose publishers are counted (one each, or the observer stops).
@@ -207,7 +208,7 @@ class EsoNode(ManagedNode):
             return
         y = joint_position(msg, self.joint_name)
         problem = measurement_problem(y, self.joint_name, msg.position)
-        if problem:
+        if problem or y is None:  # (no angle is a problem)
             self._refuse('bad_measurement', lambda: problem)
             return
         stamp = stamp_to_ns(msg.header.stamp)

@@ -33,9 +33,15 @@ import logging
 import time
 
 import foxglove
+from rclpy.node import Node
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+
 from actuator_bag.msgdefs import DefinitionSource
-from actuator_bag.recording import DEFAULT_TOPICS as RECORDED_TOPICS, parse_topic
+from actuator_bag.recording import DEFAULT_TOPICS as RECORDED_TOPICS
+from actuator_bag.recording import parse_topic
+from actuator_core.decimation import Decimator
 from actuator_core.health import HealthMonitor, Level, Snapshot
+from actuator_live_view.live_core import SEND_LOSSY_LOGGER, OutboxWatch
 from actuator_ros.diagnostics import NodeDiagnostics
 from actuator_ros.node import declare_realtime
 from actuator_ros.parameters import (
@@ -46,10 +52,6 @@ from actuator_ros.parameters import (
 )
 from actuator_ros.process_member import ProcessMember
 from actuator_ros.runner import run_node
-from actuator_core.decimation import Decimator
-from actuator_live_view.live_core import SEND_LOSSY_LOGGER, OutboxWatch
-from rclpy.node import Node
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 NODE_NAME = 'live_view'
 #: What the layout shows: the topics the recorder records, and every node's health.

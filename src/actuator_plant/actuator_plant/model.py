@@ -20,6 +20,10 @@ from typing import NamedTuple
 import numpy as np
 
 from actuator_core import limits
+from actuator_core import xmath as xm
+from actuator_core.params import build, check_value, spec, validate
+from actuator_core.timing import period_ns, sample_time_s
+from actuator_core.xmath import FloatOrArray
 from actuator_plant.oil import (
     PA_PER_MPA,
     MotorGeometry,
@@ -27,9 +31,6 @@ from actuator_plant.oil import (
     dynamic_viscosity_pa_s,
     stirring_geometry_constant_m3,
 )
-from actuator_core import xmath as xm
-from actuator_core.params import build, check_value, spec, validate
-from actuator_core.timing import period_ns, sample_time_s
 
 #: Sea-water density [kg/m^3] and gravity [m/s^2] for the hydrostatic pressure at a depth.
 SEAWATER_DENSITY_KG_M3 = 1025.0
@@ -346,21 +347,21 @@ def _plain(x):
 class JointForces(NamedTuple):
     """Physical parameters (41) and torques (6), (40), (42) at one instant."""
 
-    inertia_kg_m2: object
-    torque_constant_nm_a: object
-    viscous_coefficient_nm_s_rad: object
-    stirring_torque_nm: object  # T_v at the motor shaft
-    external_torque_nm: object  # T_d at the output shaft
-    seal_torque_nm: object  # T_f at the output shaft
+    inertia_kg_m2: FloatOrArray
+    torque_constant_nm_a: FloatOrArray
+    viscous_coefficient_nm_s_rad: FloatOrArray
+    stirring_torque_nm: FloatOrArray  # T_v at the motor shaft
+    external_torque_nm: FloatOrArray  # T_d at the output shaft
+    seal_torque_nm: FloatOrArray  # T_f at the output shaft
 
 
 class TimeTerms(NamedTuple):
     """What eq. (40)-(41) give at one instant, whatever the velocity."""
 
-    inertia_kg_m2: object
-    torque_constant_nm_a: object
-    viscous_coefficient_nm_s_rad: object
-    external_torque_nm: object  # T_d at the output shaft
+    inertia_kg_m2: FloatOrArray
+    torque_constant_nm_a: FloatOrArray
+    viscous_coefficient_nm_s_rad: FloatOrArray
+    external_torque_nm: FloatOrArray  # T_d at the output shaft
 
 
 def time_terms(t: float, c: PlantConstants) -> TimeTerms:
@@ -423,12 +424,12 @@ def joint_acceleration(t: float, velocity_rad_s, current_a, c: PlantConstants):
 class DisturbanceParts(NamedTuple):
     """The lumped disturbance d of eq. (5) split into its sources [rad/s^2], with the torques."""
 
-    acceleration_rad_s2: object
-    disturbance_rad_s2: object
-    parametric_rad_s2: object
-    stirring_rad_s2: object
-    external_rad_s2: object
-    seal_rad_s2: object
+    acceleration_rad_s2: FloatOrArray
+    disturbance_rad_s2: FloatOrArray
+    parametric_rad_s2: FloatOrArray
+    stirring_rad_s2: FloatOrArray
+    external_rad_s2: FloatOrArray
+    seal_rad_s2: FloatOrArray
     forces: JointForces
 
 

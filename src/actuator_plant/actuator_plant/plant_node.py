@@ -113,12 +113,19 @@ class PlantNode(JointNode):
             encoder=Encoder.from_parameters(encoder) if encoder.active else None,
         )
 
+    @property
+    def _sim_joint(self) -> SimulatedJoint:
+        """The simulated joint of the configured node (``make_joint`` built it)."""
+        joint = self._joint
+        assert isinstance(joint, SimulatedJoint)
+        return joint
+
     def build_extras(self) -> None:
         """plant/truth, and the start-up line with the oil's viscosity."""
         self.truth_pub = self.create_lifecycle_publisher(
             PlantTruth, 'plant/truth', control_qos(self.mode)
         )
-        constants = self.joint.plant.constants
+        constants = self._sim_joint.plant.constants
         self.encode_truth = codec(PlantTruth).encode
         self.truth_constants = {  # the oil's condition, the same every sample
             'header.frame_id': '',
@@ -147,7 +154,7 @@ class PlantNode(JointNode):
         """
         if self.sample_index % self.truth_every or not self.truth_pub.get_subscription_count():
             return
-        joint = self.joint
+        joint = self._sim_joint
         plant, parts = joint.plant, joint.truth()
         f = parts.forces
         self.truth_pub.publish(

@@ -13,7 +13,7 @@ on numpy arrays (a batch of offline runs).
 
 from __future__ import annotations
 
-from typing import Optional
+from typing import Any, Optional
 
 import numpy as np
 
@@ -44,7 +44,8 @@ class SimulatedJoint(Joint):
         self.plant = JointPlant(
             params, dt_s, position_rad=position_rad, velocity_rad_s=velocity_rad_s
         )
-        zero = 0.0 * np.asarray(position_rad) if np.ndim(position_rad) else 0.0
+        # a float, or in a batch an array (Any: the same arithmetic serves both)
+        zero: Any = 0.0 * np.asarray(position_rad) if np.ndim(position_rad) else 0.0
         self.encoder = encoder
         self.delay = (
             CommandDelay(command_delay_samples, zero)

@@ -20,9 +20,10 @@ from __future__ import annotations
 import time
 from typing import Callable, Optional
 
-from actuator_core.health import REPORT_PERIOD_S, Health, HealthMonitor, Snapshot
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.clock import Clock, ClockType
+
+from actuator_core.health import REPORT_PERIOD_S, Health, HealthMonitor, Snapshot
 
 #: The topic of the ROS convention (absolute: a namespaced node still reports there).
 TOPIC = '/diagnostics'

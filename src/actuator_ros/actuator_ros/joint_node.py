@@ -43,9 +43,8 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState
 
 from actuator_core import clock as stamp_time
-from actuator_core.gate import CommandGate, Held
 from actuator_core.binding import CommandBinding
-from actuator_core.limits import CYCLE_LATENESS_MAX_FRACTION
+from actuator_core.gate import CommandGate, Held
 from actuator_core.joint import (
     CommandFreshness,
     Joint,
@@ -53,6 +52,7 @@ from actuator_core.joint import (
     JointSettings,
     SoftLimits,
 )
+from actuator_core.limits import CYCLE_LATENESS_MAX_FRACTION
 from actuator_core.sample_log import SampleLog
 from actuator_core.timing import period_ns, stamp_to_ns
 from actuator_msgs.msg import CurrentCommand
@@ -201,7 +201,7 @@ class JointNode(JointReport, ManagedNode):
     def start(self) -> None:
         """Activate the joint and open the gate; sampling starts once the graph is ready."""
         self._reset_run()
-        for note in self.joint.activate():
+        for note in self._joint.activate():
             self.get_logger().warning(note)
         with self.gate_lock:
             self.gate.activate()
@@ -213,12 +213,12 @@ class JointNode(JointReport, ManagedNode):
         self.stop_sampling.set()
         if self.sampler is not None and self.sampler is not threading.current_thread():
             self.sampler.join(timeout=SAMPLER_JOIN_TIMEOUT_S)
-        self.joint.write(0.0, True)
-        for note in self.joint.deactivate():
+        self._joint.write(0.0, True)
+        for note in self._joint.deactivate():
             self.get_logger().warning(note)
         self.held = self.gate.hold(0)  # 0 A and the brake: /diagnostics says so from now on
         self._log_warnings()
-        what = self.joint.describe()
+        what = self._joint.describe()
         if what:
             self.get_logger().info(f'{self.summary} stopped: {what}')
         self.close_log()
@@ -232,7 +232,7 @@ class JointNode(JointReport, ManagedNode):
                 self.destroy_lifecycle_publisher(pub)
         self.drop_extras()
         self.diagnostics.destroy()
-        for note in self.joint.close():
+        for note in self._joint.close():
             self.get_logger().warning(note)
         self.joint = None
 
@@ -372,7 +372,7 @@ class JointNode(JointReport, ManagedNode):
                     time.sleep(wait_ns * 1e-9)
                 since_start_ns = time.monotonic_ns() - self.start_mono_ns
                 due = since_start_ns // self.period_ns
-                if self.joint.replays_missed:  # a simulation loses no time: each sample in turn
+                if self._joint.replays_missed:  # a simulation loses no time: each sample in turn
                     while self.sample_index < due and self._cycle(self.sample_index + 1):
                         pass
                 elif since_start_ns - due * self.period_ns > self.late_cycle_ns:
@@ -393,18 +393,19 @@ class JointNode(JointReport, ManagedNode):
         if write:
             instant = (
                 self.start_mono_ns + self.sample_index * self.period_ns
-                if self.mode == 'realtime' and self.joint.replays_missed
+                if self.mode == 'realtime' and self._joint.replays_missed
                 else self._gate_now_ns()
             )
             with self.gate_lock:
                 self.held = self.gate.hold(instant)
             if self.held.reason == 'command timeout':
                 self.log.warn('command_timeout', lambda: 'commands stopped: 0 A, then the brake')
-            self.joint.write(self.held.current_a, self.held.brake)
+            self._joint.write(self.held.current_a, self.held.brake)
             if self._judge_freshness():
                 return False
+        assert self.start_ns is not None  # sampling started
         stamp_ns = self.start_ns + k * self.period_ns
-        sample = self.joint.read(stamp_ns)
+        sample = self._joint.read(stamp_ns)
         self.sample_index = k
         if sample is None:
             self.lost_feedback += 1
@@ -445,7 +446,7 @@ class JointNode(JointReport, ManagedNode):
         if fault:
             self.fault = reason
         try:
-            what = self.joint.end_control(reason)
+            what = self._joint.end_control(reason)
         finally:
             self.ending = False
         self.get_logger().error(f'control ended: {reason}; {what}')
@@ -510,9 +511,9 @@ class JointNode(JointReport, ManagedNode):
             return
         valid_from_ns = self.binding.valid_from_ns(stamp_ns, msg.safe_stop, self._gate_now_ns())
         with self.gate_lock:
-            refusal = self.gate.offer(msg.current_a, stamp_ns, msg.safe_stop, valid_from_ns)
-        if refusal:
-            self.log.error('bad_command', lambda: refusal)
+            offer_refusal = self.gate.offer(msg.current_a, stamp_ns, msg.safe_stop, valid_from_ns)
+        if offer_refusal:
+            self.log.error('bad_command', lambda: offer_refusal)
         if (
             self.mode == 'sim'
             and stamp_ns == self.published_ns

@@ -9,11 +9,55 @@ and its joint, and changes nothing the sampling loop reads.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Optional
+
 from actuator_core.health import HealthMonitor, Level, Snapshot
+
+if TYPE_CHECKING:
+    from rclpy.impl.rcutils_logger import RcutilsLogger
+
+    from actuator_core.gate import CommandGate, Held
+    from actuator_core.joint import CommandFreshness, Joint
+    from actuator_core.sample_log import SampleLog
+    from actuator_ros.log import RateLimitedLog
 
 
 class JointReport:
     """The closing line, the host-stall and joint-warning lines and /diagnostics of the node."""
+
+    # What JointNode (and ManagedNode) hold and this part reads or counts.
+    summary: str
+    mode: str
+    active: bool
+    log: RateLimitedLog
+    timing_log: str
+    samples_log: SampleLog
+    joint: Optional[Joint]
+    gate: CommandGate
+    held: Held
+    freshness: CommandFreshness
+    period_ns: int
+    sample_index: int
+    refused: int
+    lockstep_timeouts: int
+    skipped_cycles: int
+    longest_stall_cycles: int
+    lost_feedback: int
+    joint_warnings: int
+    stopped_reason: str
+    conflict: bool
+
+    if TYPE_CHECKING:  # rclpy's Node
+
+        def get_logger(self) -> RcutilsLogger: ...
+
+        def get_name(self) -> str: ...
+
+    @property
+    def _joint(self) -> Joint:
+        """The joint of the configured node (``build`` makes it, ``drop`` closes it)."""
+        assert self.joint is not None, 'the node is not configured'
+        return self.joint
 
     def close_log(self) -> None:
         """Log a one-line summary; write the per-sample log if asked."""
@@ -60,7 +104,7 @@ class JointReport:
                 'lockstep_timeouts': 'sim lockstep timeouts (control ended)',
                 'joint_warnings': 'warnings of the joint (logged)',
             },
-            hardware_id=self.joint.kind,
+            hardware_id=self._joint.kind,
         )
 
     def health(self) -> Snapshot:
@@ -84,7 +128,7 @@ class JointReport:
                 'joint_warnings': self.joint_warnings,
             },
             {
-                **self.joint.diagnostics(),  # the node's own keys below win (its 'brake': held)
+                **self._joint.diagnostics(),  # the node's own keys below win (its 'brake': held)
                 'mode': self.mode,
                 'brake': bool(self.held.brake),
                 'held': self.held.reason or f'{self.held.current_a:.3f} A',

@@ -208,8 +208,8 @@ class ManagedNode(LifecycleNode, ProcessMember):
         self._drop()
         return TransitionCallbackReturn.SUCCESS
 
-    def on_shutdown(self, state: LifecycleState) -> TransitionCallbackReturn:
-        """From any state: stop and drop."""
+    def on_shutdown(self, state: LifecycleState | None) -> TransitionCallbackReturn:
+        """From any state: stop and drop (``state`` None: ``release`` at exit)."""
         self._stop()
         self._drop()
         return TransitionCallbackReturn.SUCCESS

@@ -18,7 +18,7 @@ import difflib
 import math
 import os
 from dataclasses import make_dataclass
-from typing import Any, Iterable, Sequence
+from typing import Any, Iterable, Mapping, Sequence, overload
 
 from rcl_interfaces.msg import (
     FloatingPointRange,
@@ -31,7 +31,6 @@ from rclpy.node import Node
 from actuator_core.loop_params import shared
 from actuator_core.params import build, iter_specs, range_text, validate
 
-
 #: The one description of the ``timing_log`` parameter every node of the loop declares.
 TIMING_LOG_DESCRIPTION = (
     "the node's per-sample timing log (.npz: stamps, arrival and send times) written when it stops"
@@ -43,7 +42,7 @@ class ParameterError(ValueError):
 
 
 def _descriptor(
-    name: str, meta: dict, default: Any, read_only: bool = False
+    name: str, meta: Mapping[str, Any], default: Any, read_only: bool = False
 ) -> ParameterDescriptor:
     """Descriptor with description, unit, valid range and, where finite, an enforced range."""
     text = meta['description']
@@ -160,6 +159,18 @@ def _check_choice(name: str, value: str, choices: Sequence[str]) -> None:
         raise ParameterError(
             f'parameter {name!r} = {value!r} refused: must be one of {", ".join(choices)}{hint}'
         )
+
+
+@overload
+def declare_number(
+    node: Node, name: str, default: int, low: float, high: float, unit: str, description: str
+) -> int: ...
+
+
+@overload
+def declare_number(
+    node: Node, name: str, default: float, low: float, high: float, unit: str, description: str
+) -> float: ...
 
 
 def declare_number(

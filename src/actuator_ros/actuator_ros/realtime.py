@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass, fields
-from typing import Optional, Sequence
+from typing import Any, Optional, Sequence
 
 import yaml
 
@@ -137,9 +137,9 @@ def pre_init_settings(args: Sequence[str], node_name: str) -> RealtimeSettings:
     Later wins.
     """
     found = _parameters(args, node_name, tuple(f.name for f in fields(RealtimeSettings)))
-    return RealtimeSettings(
-        **{k: (str(v) if k == 'cpu_affinity' else v) for k, v in found.items()}
-    )
+    # as the command line gives them: RealtimeSettings.problems judges them
+    values: dict[str, Any] = {k: (str(v) if k == 'cpu_affinity' else v) for k, v in found.items()}
+    return RealtimeSettings(**values)
 
 
 def in_sim_time(args: Sequence[str], node_name: str) -> bool:

@@ -29,9 +29,9 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
+from actuator_ros.middleware import installed_profile, realtime_transport
 from actuator_ros.parameters import ParameterError
 from actuator_ros.process_member import SETTLE_LIMIT_S, MemberError, ProcessMember
-from actuator_ros.middleware import installed_profile, realtime_transport
 from actuator_ros.realtime import (
     PUBLICATION_MODE_VARIABLE,
     RealtimeSettings,
@@ -257,7 +257,8 @@ def share_clock_subscription(nodes: Sequence[Node]) -> int:
     sim = [n for n in nodes if n.get_parameter('use_sim_time').value]
     for node in sim[1:]:
         node._time_source.detach_node()  # rclpy 7.1: the node's own TimeSource (private)
-        sim[0]._time_source.attach_clock(node.get_clock())
+        # rclpy types get_clock() as Clock; a node's clock is a ROSClock
+        sim[0]._time_source.attach_clock(node.get_clock())  # type: ignore[arg-type]
     return max(0, len(sim) - 1)
 
 

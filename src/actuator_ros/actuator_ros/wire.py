@@ -27,7 +27,7 @@ from __future__ import annotations
 import importlib
 import struct
 from collections import namedtuple
-from typing import Any, Callable, Mapping
+from typing import Any, Callable, Mapping, NamedTuple, cast
 
 #: CDR, little endian: the 4-byte encapsulation header this codec writes and reads.
 ENCAPSULATION = b'\x00\x01\x00\x00'
@@ -88,7 +88,8 @@ def _walk(cls, prefix: str, leaves: list, shape: list) -> None:
             leaves.append((path, _Leaf(type_name)))
             shape.append(None)
             continue
-        nested, inner = _message_class(type_name), []
+        nested = _message_class(type_name)
+        inner: list = []
         shape.append((nested, inner))
         _walk(nested, f'{path}.', leaves, inner)
 
@@ -114,7 +115,8 @@ class Codec:
     def _view_type(self, cls, shape: list):
         """Return the named-tuple class of ``cls`` (nested ones for nested messages)."""
         names = list(cls.get_fields_and_field_types())
-        view = namedtuple(cls.__name__ + 'View', names)
+        # a class made at run time from the message's fields: Any to mypy
+        view: Any = cast(Any, namedtuple(cls.__name__ + 'View', names))
         view.inner = [None if s is None else self._view_type(*s) for s in shape]
         return view
 
@@ -333,5 +335,11 @@ def _read_string(data: bytes, offset: int, size: int) -> tuple[str, int]:
     return bytes(data[offset + 4 : end - 1]).decode(), end
 
 
-#: A decoded builtin_interfaces/Time.
-_TIME_VIEW = namedtuple('TimeView', ('sec', 'nanosec'))
+class TimeView(NamedTuple):
+    """A decoded builtin_interfaces/Time."""
+
+    sec: int
+    nanosec: int
+
+
+_TIME_VIEW = TimeView

@@ -21,9 +21,9 @@ from typing import Sequence
 import numpy as np
 
 from actuator_core.limits import FOLLOWING_ERROR_LIMIT_RAD
+from actuator_core.metrics import STEADY_STATE_START_S
 from actuator_sim.loop import ClosedLoop
 from actuator_sim.scenarios import paper_scenario
-from actuator_core.metrics import STEADY_STATE_START_S
 
 
 def late_mask(samples: int, fraction: float, burst: int, seed: int) -> np.ndarray:

@@ -24,17 +24,25 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from actuator_core.assembly import ControlSampleAssembly
-from actuator_core.gate import CommandGate
-from actuator_core.limits import DIVERGENCE_ERROR_RAD
-from actuator_core.pairing import SIM_PATIENCE_SAMPLES, ObserverInputPairing
-from actuator_core.status import Status
-from actuator_core.timing import period_ns, sample_time_s
+from actuator_controller.commanded_reference import CommandedReference
 from actuator_controller.goal_execution import Goal, GoalEvent, TrajectoryExecution
-from actuator_controller.laws import CommonConfig, ControlOutput, make_controller
+from actuator_controller.laws import (
+    CommonConfig,
+    ControlOutput,
+    NftsmcGains,
+    PiGains,
+    SmcGains,
+    make_controller,
+)
 from actuator_controller.reference import make_reference
 from actuator_controller.trajectory import DesiredState
 from actuator_controller.trajectory_settings import TrajectorySettings
+from actuator_core.assembly import ControlSampleAssembly
+from actuator_core.gate import CommandGate
+from actuator_core.limits import DIVERGENCE_ERROR_RAD
+from actuator_core.pairing import SIM_PATIENCE_SAMPLES, Estimate, ObserverInputPairing
+from actuator_core.status import Status
+from actuator_core.timing import period_ns, sample_time_s
 from actuator_eso.observer import EsoGains, ExtendedStateObserver
 from actuator_plant.encoder import Encoder, EncoderParameters
 from actuator_plant.model import PlantParameters
@@ -66,7 +74,8 @@ class Scenario:
     reference: str = 'fast'
     plant: PlantParameters = field(default_factory=PlantParameters)
     eso: EsoGains = field(default_factory=EsoGains)
-    gains: object = None
+    #: the law's gains (PpNftsmcGains is an NftsmcGains); None: Table 4's
+    gains: PiGains | SmcGains | NftsmcGains | None = None
     common: CommonConfig = field(default_factory=CommonConfig)
     duration_s: float = 10.0
     #: Encoder between the joint and the controller/ESO (None: the exact angle, as in the paper).
@@ -123,22 +132,21 @@ class ClosedLoop:
         )
         common = scenario.common
         #: Goals and cancels by the stamp of the sample before which they are handed over.
-        self.schedule: list[tuple[int, object]] = []
+        self.schedule: list[tuple[int, Goal | str]] = []
         self.goal_events: list[GoalEvent] = []
-        self.execution = (
-            TrajectoryExecution(
+        self.execution: TrajectoryExecution | None = None
+        if scenario.reference == 'hold' and batch is None:
+            assert isinstance(reference, CommandedReference)  # make_reference's 'hold'
+            self.execution = TrajectoryExecution(
                 reference,
                 scenario.trajectory,
                 (common.theta1n, common.theta2n, common.current_limit_a),
             )
-            if scenario.reference == 'hold' and batch is None
-            else None
-        )
         self.gate = CommandGate(scenario.common.current_limit_a)
         self.gate.activate()
         self.joint.activate()
         self.sample_index = 0
-        self.estimate = None
+        self.estimate: Estimate | None = None  # the newest the observer gave
         self.input_current_gain = self.eso.dt_s * self.eso.gains.theta1n  # as the ESO node has it
 
     def step(self, command_lost: bool = False, eso_integrates_applied: bool = False) -> dict:
@@ -155,8 +163,10 @@ class ClosedLoop:
         velocity = self.plant.velocity_rad_s
         truth = self.joint.truth()
         self.deliver_estimates(self.pairing.add_measurement(stamp, y))
+        assert self.estimate is not None  # a measurement gives x_hat(k) (sim patience)
         x1_hat, x2_hat, x3_hat = self.estimate.x_hat
         sample = self.assembly.add_measurement(stamp, y)
+        assert sample is not None  # x_hat(k) came first: the law runs at once
         if self.execution is not None:
             self._execute(sample)
         if not command_lost:
@@ -207,6 +217,7 @@ class ClosedLoop:
 
     def _execute(self, sample) -> None:
         """Hand over what is due, then the execution's judgement of this sample (node order)."""
+        assert self.execution is not None  # a commanded run
         due = [item for item in self.schedule if item[0] <= sample.stamp_ns]
         if due:
             self.schedule = [item for item in self.schedule if item[0] > sample.stamp_ns]

@@ -21,14 +21,14 @@ from typing import Sequence
 import numpy as np
 from tabulate import tabulate
 
-from actuator_sim.loop import ClosedLoop, Scenario
-from actuator_core.status import Status
+from actuator_controller.laws import CONTROLLER_NAMES
+from actuator_controller.ppf import PrescribedPerformance
+from actuator_controller.reference import REFERENCE_KINDS
 from actuator_core.metrics import STEADY_STATE_START_S, RunMetrics, compute_run_metrics
+from actuator_core.status import Status
+from actuator_sim.loop import ClosedLoop, Scenario
 from actuator_sim.scenarios import CONDITIONS, case1, case2, paper_scenario
 from actuator_sim.stability import radius_along_envelope
-from actuator_controller.laws import CONTROLLER_NAMES
-from actuator_controller.reference import REFERENCE_KINDS
-from actuator_controller.ppf import PrescribedPerformance
 
 
 def trace_metrics(
@@ -156,7 +156,8 @@ def run_case(runs: list[tuple[Scenario, float]], traces_dir: Path | None) -> lis
         trace, metrics, radius, wall = run_scenario(scenario)
         if traces_dir is not None:
             traces_dir.mkdir(parents=True, exist_ok=True)
-            np.savez_compressed(traces_dir / f'{scenario.name}.npz', **trace)
+            # numpy's stub types **kwds as if they could hold its allow_pickle flag
+            np.savez_compressed(traces_dir / f'{scenario.name}.npz', **trace)  # type: ignore[arg-type]
         rows.append(
             {
                 'name': scenario.name,

@@ -16,10 +16,10 @@ from pathlib import Path
 
 import yaml
 
-from actuator_sim.loop import Scenario
-from actuator_sim.scenarios import case1, case2, commanded, excitation, through_a_drive
 from actuator_controller.laws import GAINS_BY_NAME
 from actuator_plant.model import PLANT_NODE_NAME
+from actuator_sim.loop import Scenario
+from actuator_sim.scenarios import case1, case2, commanded, excitation, through_a_drive
 
 
 def _nested(obj) -> dict:

@@ -20,11 +20,11 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from actuator_sim.loop import Scenario
 from actuator_controller.excitation import ExcitationReference
 from actuator_controller.laws import PpNftsmcGains, SmcGains
 from actuator_eso.observer import EsoGains
 from actuator_plant.model import CONDITIONS, PlantParameters
+from actuator_sim.loop import Scenario
 
 #: Table 5: maximum steady-state tracking error [rad] of PP-NFTSMC-ESO.
 PAPER_TABLE5 = {

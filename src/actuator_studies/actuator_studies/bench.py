@@ -167,7 +167,7 @@ def run_bench(
     for n in workers:
         by_workers[n], starts[n] = ray_rate(n, runs_per_worker, duration_s)
     base = by_workers.get(1)
-    rows = [
+    worker_rows = [
         (
             n,
             f'{by_workers[n]:.1f}',
@@ -185,7 +185,7 @@ def run_bench(
         )
         log(
             tabulate(
-                rows,
+                worker_rows,
                 headers=(
                     'workers', 'runs/s', 'per core, 10 s runs', 'parallel efficiency',
                     'Ray start s',

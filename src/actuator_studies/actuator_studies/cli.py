@@ -328,6 +328,7 @@ def compare_main(argv: Sequence[str] | None = None) -> int:
     Exit 0 when two studies' runs.parquet are identical cell for cell (NaN == NaN).
     """
     import pyarrow.parquet as pq
+
     from actuator_studies.results import tables_identical
 
     p = _OneLineParser(prog='sweep-compare', description='Are two studies identical row for row?')

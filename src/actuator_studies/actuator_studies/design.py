@@ -300,10 +300,10 @@ def search(
             trial.set_user_attr('record', record)
             study.tell(trial, value)
             records.append(record)
-        best = [r for r in records if r['feasible']]
+        feasible_so_far = [r for r in records if r['feasible']]
         best_text = (
-            f'best feasible {min(r["objective_rad"] for r in best):.3e} rad (in sample)'
-            if best
+            f'best feasible {min(r["objective_rad"] for r in feasible_so_far):.3e} rad (in sample)'
+            if feasible_so_far
             else 'none feasible yet'
         )
         log(f'design_gains: {len(records)}/{req.trials} trials, {best_text}')
@@ -401,7 +401,8 @@ def run_design(req: DesignRequest, out: Path, ray_target: str = '', log=print) -
     """
     target = _check(req, out)
     fixed = tuple(parse_setting(text, req.controller) for text in req.settings)
-    eso, joint_notes, corner_texts = EsoGains(), [], req.corners
+    eso, corner_texts = EsoGains(), req.corners
+    joint_notes: list[str] = []
     if req.joint:
         eso, settings, joint_notes = joint_design(read_joint(Path(req.joint)))
         joint_fixed = tuple(parse_setting(f'{n}={v!r}', req.controller) for n, v in settings)

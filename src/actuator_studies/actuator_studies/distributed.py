@@ -143,10 +143,14 @@ def check_reachable(address: str) -> None:
 
 def shipped_modules() -> list[str]:
     """Directories of SHIPPED_PACKAGES as this process imports them (symlinks resolved)."""
-    return [
-        str(Path(importlib.import_module(name).__file__).resolve().parent)
-        for name in SHIPPED_PACKAGES
-    ]
+    return [str(Path(_module_file(name)).resolve().parent) for name in SHIPPED_PACKAGES]
+
+
+def _module_file(name: str) -> str:
+    """Return the file a package of the project is imported from (none is a namespace one)."""
+    path = importlib.import_module(name).__file__
+    assert path is not None, f'{name} is a namespace package'
+    return path
 
 
 def runtime_env() -> dict:

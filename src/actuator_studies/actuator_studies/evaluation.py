@@ -14,6 +14,7 @@ interior points use different tags, so they never share a noise sequence.
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 import numpy as np
 
@@ -54,7 +55,9 @@ def split_gains(
 
     The others keep Table 4's; the observer's nominal model is ``eso``'s (default Table 1's).
     """
-    g = {k.split('.', 1)[1]: v for k, v in values.items() if k.startswith('pp_nftsmc_eso.')}
+    g: dict[str, Any] = {
+        k.split('.', 1)[1]: v for k, v in values.items() if k.startswith('pp_nftsmc_eso.')
+    }
     return dataclasses.replace(PpNftsmcGains(), **g), dataclasses.replace(
         eso or EsoGains(), omega0_rad_s=values['eso.omega0_rad_s']
     )
@@ -137,7 +140,7 @@ class Evaluator:
             if plant not in plants:
                 plants.append(plant)
         self.plants = plants
-        self.margin_plants = []
+        self.margin_plants: list[PlantParameters] = []
         for plant in plants:
             for vertex in drift_extremes(plant, viscous=False):
                 if vertex not in self.margin_plants:

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import yaml
 
-from actuator_core.params import build, iter_specs
 from actuator_controller.laws import GAINS_BY_NAME
+from actuator_core.params import build, iter_specs
 from actuator_eso.observer import EsoGains
 from actuator_sim.params_yaml import dotted
 from actuator_studies.space import StudyInputError

@@ -23,13 +23,13 @@ from typing import Any
 
 import numpy as np
 
+from actuator_controller.ppf import PrescribedPerformance
 from actuator_core.limits import DIVERGENCE_ERROR_RAD
 from actuator_core.metrics import RunMetrics
-from actuator_controller.ppf import PrescribedPerformance
 from actuator_core.status import Status
 from actuator_sim.loop import ClosedLoop
-from actuator_studies.streaming import StreamingMetrics
 from actuator_studies.space import BaseScenario, build_scenario, quantities, run_seeds
+from actuator_studies.streaming import StreamingMetrics
 
 #: Memory of a task's worker before its batch [bytes] (Python, numpy and the project's modules).
 TASK_BASE_MEMORY_BYTES = 300 * 1024 * 1024
@@ -172,7 +172,7 @@ def run_chunk(spec: SweepSpec, chunk: int) -> dict[str, list]:
     for group in _groups(spec, indices):
         for start in range(0, len(group), spec.batch):
             part = group[start : start + spec.batch]
-            values = {}
+            values: dict[str, Any] = {}  # a float, or a vector's array
             for name, column in spec.table.items():
                 v = column[indices[part]]
                 values[name] = float(v[0]) if not table[name].vector else v

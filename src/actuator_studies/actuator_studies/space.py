@@ -28,9 +28,9 @@ from typing import Any
 
 import numpy as np
 
+from actuator_controller.laws import CONTROLLER_NAMES, GAINS_BY_NAME, CommonConfig
 from actuator_core import limits
 from actuator_core.params import iter_specs
-from actuator_controller.laws import CONTROLLER_NAMES, GAINS_BY_NAME, CommonConfig
 from actuator_eso.observer import EsoGains
 from actuator_plant.encoder import EncoderParameters
 from actuator_plant.model import GRAVITY_M_S2, SEAWATER_DENSITY_KG_M3, PlantParameters

@@ -21,8 +21,8 @@ from tqdm import tqdm
 from actuator_core.metrics import STEADY_STATE_START_S
 from actuator_studies import distributed, plots, results
 from actuator_studies.gains_yaml import read_gains_yaml
-from actuator_studies.runner import SweepSpec
 from actuator_studies.provenance import provenance
+from actuator_studies.runner import SweepSpec
 from actuator_studies.space import (
     BaseScenario,
     StudyInputError,
