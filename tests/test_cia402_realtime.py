@@ -57,10 +57,13 @@ def _late_commands(driver_log: str) -> float | None:
     return int(match.group(2)) / int(match.group(1))
 
 
-def _closed_loop(ros_process, tmp_path, driver_params, record=True):
+def _closed_loop(ros_process, tmp_path, driver_params, record=True, watchers=0):
     """Return the run as graph.closed_loop describes it with the driver as the joint.
 
-    What bringup --joint cia402_sim starts.
+    What bringup --joint cia402_sim starts. ``watchers``: the test's own subscriptions on
+    joint_states, which the driver's start condition counts as well: without them a test
+    subscription could stand in for a loop node not yet discovered (the ESO then saw no
+    measurement in a run whose fault came before its discovery, and the loop never started).
     """
     from actuator_bringup.run_description import closed_loop, default_scenario
     from actuator_bringup.runner import scenario_file
@@ -75,6 +78,9 @@ def _closed_loop(ros_process, tmp_path, driver_params, record=True):
         thread_priority=CLOSED_LOOP_PRIORITY,
         joint_parameters=params,
     )
+    for spec in specs:
+        if spec.key == 'driver':
+            spec.parameters['wait_for_subscribers'] += watchers
 
     def drive_ready(key, proc) -> None:
         if key == 'drive':  # the simulated drive: listening before the driver configures
@@ -107,7 +113,7 @@ def test_silent_or_faulted_drive_gives_the_stale_measurement_stop_of_the_control
     harness, ros_process, tmp_path, fault, driver_says
 ):
     """Silent or faulted drive in closed loop: the controller commands 0 A with safe_stop."""
-    procs = _closed_loop(ros_process, tmp_path, fault, record=False)
+    procs = _closed_loop(ros_process, tmp_path, fault, record=False, watchers=1)
     wait_for_output(procs['driver'], driver_says, timeout=40)
     harness.command.clear()
     try:
