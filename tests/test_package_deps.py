@@ -222,20 +222,26 @@ def _used(
     return runtime, test, problems
 
 
-def _problems(
-    name: str, folder: Path, in_repo: Iterable[str], by_name: dict[str, str]
-) -> list[str]:
-    """Every way the package.xml in ``folder`` differs from what the package's code uses."""
-    xml = f'{folder.parent.name}/{folder.name}/package.xml'
-    declared = _declared(folder)
-    runtime, test, problems = _used(name, folder, in_repo, by_name)
-    runtime_declared = {k for tag in RUNTIME_TAGS for k in declared[tag]}
-    test_declared = set(declared['test_depend'])
-
+def _doubled(name: str, xml: str, declared: dict[str, list[str]]) -> list[str]:
+    """Every key the package.xml declares more than once under one tag."""
+    problems = []
     for tag, keys in declared.items():
         for key, count in Counter(keys).items():
             if count > 1:
                 problems.append(f'{name}: {xml} declares <{tag}>{key}</{tag}> {count} times')
+    return problems
+
+
+def _undeclared(
+    name: str,
+    xml: str,
+    runtime: dict[str, set[str]],
+    test: dict[str, set[str]],
+    runtime_declared: set[str],
+    test_declared: set[str],
+) -> list[str]:
+    """Every key used by the run-time code, then by the test code, that package.xml omits."""
+    problems = []
     for key, uses in sorted(runtime.items()):
         if key not in runtime_declared:
             problems.append(
@@ -248,6 +254,18 @@ def _problems(
                 f'{name}: test code: {"; ".join(sorted(uses))}, but {xml} does not declare '
                 f'{key}: add <test_depend>{key}</test_depend>'
             )
+    return problems
+
+
+def _stale(
+    name: str,
+    xml: str,
+    declared: dict[str, list[str]],
+    runtime: dict[str, set[str]],
+    test: dict[str, set[str]],
+) -> list[str]:
+    """Every <depend>, <exec_depend>, then <test_depend>, that the code it is for does not use."""
+    problems = []
     for tag in RUNTIME_TAGS:
         for key in declared[tag]:
             if key not in runtime and key not in test:
@@ -266,6 +284,12 @@ def _problems(
                 f'{name}: {xml} declares <test_depend>{key}</test_depend>, but no test code of '
                 f'the package imports it and it is no test tool (TEST_TOOLS): remove it'
             )
+    return problems
+
+
+def _not_build_tools(name: str, xml: str, declared: dict[str, list[str]]) -> list[str]:
+    """Every <buildtool_depend> and <build_depend> that is no build tool (BUILD_TOOLS)."""
+    problems = []
     for tag in BUILD_TAGS:
         for key in declared[tag]:
             if key not in BUILD_TOOLS:
@@ -274,6 +298,24 @@ def _problems(
                     f'(BUILD_TOOLS); what the Python code imports is an <exec_depend>'
                 )
     return problems
+
+
+def _problems(
+    name: str, folder: Path, in_repo: Iterable[str], by_name: dict[str, str]
+) -> list[str]:
+    """Every way the package.xml in ``folder`` differs from what the package's code uses."""
+    xml = f'{folder.parent.name}/{folder.name}/package.xml'
+    declared = _declared(folder)
+    runtime, test, problems = _used(name, folder, in_repo, by_name)
+    runtime_declared = {k for tag in RUNTIME_TAGS for k in declared[tag]}
+    test_declared = set(declared['test_depend'])
+    return (
+        problems
+        + _doubled(name, xml, declared)
+        + _undeclared(name, xml, runtime, test, runtime_declared, test_declared)
+        + _stale(name, xml, declared, runtime, test)
+        + _not_build_tools(name, xml, declared)
+    )
 
 
 def test_the_packages_are_found():

@@ -115,21 +115,8 @@ class RealTimeModel:
             for m in mine[:-QUEUE]:
                 box.remove(m)
 
-    def step(self, eso_stalled=False, controller_stalled=False, joint_stalled=False):
-        """Sample k: y(k) out, the awake nodes answer, the joint applies what it accepted.
-
-        A stalled joint (the sim joint's sampling thread) replays its missed samples with the
-        gate's hold and publishes them when it wakes; commands wait in its queue meanwhile.
-        """
-        stamp = self.k * P
-        y = self.plant.position_rad
-        self.binding.produced(stamp)
-        self.joint_outbox.append(('y', stamp, y))
-        if not joint_stalled:
-            for box in (self.eso_inbox, self.controller_inbox):
-                box.extend(self.joint_outbox)
-                self._keep_last(box)  # a burst after a joint stall: the newest QUEUE stay
-            self.joint_outbox.clear()
+    def _exchange(self, stamp, eso_stalled, controller_stalled, joint_stalled):
+        """Run the awake nodes' rounds of sample ``stamp``; return the controller's samples."""
         samples = []
         for _ in range(3):  # estimates and commands ping-pong within the sample
             if not eso_stalled:
@@ -145,6 +132,24 @@ class RealTimeModel:
                     if not self.binding.check(s.stamp_ns, s.safe_stop):
                         self.gate.offer(s.current_a, s.stamp_ns, s.safe_stop, stamp)
                 self.joint_inbox.clear()
+        return samples
+
+    def step(self, eso_stalled=False, controller_stalled=False, joint_stalled=False):
+        """Sample k: y(k) out, the awake nodes answer, the joint applies what it accepted.
+
+        A stalled joint (the sim joint's sampling thread) replays its missed samples with the
+        gate's hold and publishes them when it wakes; commands wait in its queue meanwhile.
+        """
+        stamp = self.k * P
+        y = self.plant.position_rad
+        self.binding.produced(stamp)
+        self.joint_outbox.append(('y', stamp, y))
+        if not joint_stalled:
+            for box in (self.eso_inbox, self.controller_inbox):
+                box.extend(self.joint_outbox)
+                self._keep_last(box)  # a burst after a joint stall: the newest QUEUE stay
+            self.joint_outbox.clear()
+        samples = self._exchange(stamp, eso_stalled, controller_stalled, joint_stalled)
         for box, stalled in (
             (self.eso_inbox, eso_stalled),
             (self.controller_inbox, controller_stalled),

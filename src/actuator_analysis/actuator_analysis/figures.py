@@ -43,31 +43,8 @@ def _decorate(ax: Any, ylabel: str, title: str, legend: bool = True) -> None:
     ax.grid(True, alpha=0.3)
 
 
-def draw_figures(runs: Sequence[RunData], out: Path) -> list[Path]:
-    """Write the paper's figures as PNG files into ``out``; return their paths."""
-    import matplotlib
-
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
-
-    out.mkdir(parents=True, exist_ok=True)
-    labels = _labels(runs)
-    written: list[Path] = []
-
-    def save(fig: Any, name: str) -> None:
-        path = out / name
-        fig.tight_layout()
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
-        written.append(path)
-
-    fig, ax = plt.subplots(figsize=(8, 4.5))
-    ax.plot(runs[0].t, runs[0].reference, 'k--', linewidth=1.2, label='reference')
-    for run, label in zip(runs, labels):
-        ax.plot(run.t, run.measured, linewidth=0.9, label=label)
-    _decorate(ax, 'joint angle [rad]', 'Position response')
-    save(fig, 'position.png')
-
+def _tracking_error_figure(plt: Any, runs: Sequence[RunData], labels: list[str]) -> Any:
+    """Draw the tracking error with the PPF bounds, and the steady window zoomed when reached."""
     # Two panels, as the paper's Figures 5b and 6b zoom: the whole run with the envelope, and the
     # steady window at the error's own scale (the +-0.25 rad bounds flatten a 1e-3 rad error);
     # the whole run alone when no run reaches the steady window.
@@ -101,43 +78,90 @@ def draw_figures(runs: Sequence[RunData], out: Path) -> list[Path]:
         steady_title = f'Steady window (t >= {STEADY_STATE_START_S:g} s) at its own scale'
         _decorate(zoom, 'tracking error e [rad]', steady_title, legend=False)
         zoom.ticklabel_format(axis='y', style='sci', scilimits=(-2, 2))
-    save(fig, 'tracking_error.png')
+    return fig
 
-    for name, title, unit, est_attr, truth_attr in (
-        (
-            'velocity_estimate.png',
-            'Velocity estimate vs truth',
-            'velocity [rad/s]',
-            'est_velocity',
-            'truth_velocity',
-        ),
-        (
-            'disturbance_estimate.png',
-            'Disturbance estimate vs truth',
-            'disturbance [rad/s^2]',
-            'est_disturbance',
-            'truth_disturbance',
-        ),
-    ):
-        with_data = [(r, lab) for r, lab in zip(runs, labels) if getattr(r, est_attr).size]
-        if not with_data:
-            continue
-        fig, ax = plt.subplots(figsize=(8, 4.5))
-        for run, label in with_data:
-            if getattr(run, truth_attr).size:
-                ax.plot(
-                    run.truth_t,
-                    getattr(run, truth_attr),
-                    'k-',
-                    linewidth=1.0,
-                    alpha=0.6,
-                    label=f'truth ({label})' if len(with_data) > 1 else 'truth',
-                )
+
+#: The estimate figures: file, title, y label, estimate attribute, truth attribute of RunData.
+_ESTIMATE_FIGURES = (
+    (
+        'velocity_estimate.png',
+        'Velocity estimate vs truth',
+        'velocity [rad/s]',
+        'est_velocity',
+        'truth_velocity',
+    ),
+    (
+        'disturbance_estimate.png',
+        'Disturbance estimate vs truth',
+        'disturbance [rad/s^2]',
+        'est_disturbance',
+        'truth_disturbance',
+    ),
+)
+
+
+def _estimate_figure(
+    plt: Any,
+    runs: Sequence[RunData],
+    labels: list[str],
+    title: str,
+    unit: str,
+    est_attr: str,
+    truth_attr: str,
+) -> Any:
+    """Draw one estimate against its truth for the runs that have it (None: no run has it)."""
+    with_data = [(r, lab) for r, lab in zip(runs, labels) if getattr(r, est_attr).size]
+    if not with_data:
+        return None
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    for run, label in with_data:
+        if getattr(run, truth_attr).size:
             ax.plot(
-                run.est_t, getattr(run, est_attr), '--', linewidth=0.9, label=f'estimate ({label})'
+                run.truth_t,
+                getattr(run, truth_attr),
+                'k-',
+                linewidth=1.0,
+                alpha=0.6,
+                label=f'truth ({label})' if len(with_data) > 1 else 'truth',
             )
-        _decorate(ax, unit, title)
-        save(fig, name)
+        ax.plot(
+            run.est_t, getattr(run, est_attr), '--', linewidth=0.9, label=f'estimate ({label})'
+        )
+    _decorate(ax, unit, title)
+    return fig
+
+
+def draw_figures(runs: Sequence[RunData], out: Path) -> list[Path]:
+    """Write the paper's figures as PNG files into ``out``; return their paths."""
+    import matplotlib
+
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    out.mkdir(parents=True, exist_ok=True)
+    labels = _labels(runs)
+    written: list[Path] = []
+
+    def save(fig: Any, name: str) -> None:
+        path = out / name
+        fig.tight_layout()
+        fig.savefig(path, dpi=120)
+        plt.close(fig)
+        written.append(path)
+
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    ax.plot(runs[0].t, runs[0].reference, 'k--', linewidth=1.2, label='reference')
+    for run, label in zip(runs, labels):
+        ax.plot(run.t, run.measured, linewidth=0.9, label=label)
+    _decorate(ax, 'joint angle [rad]', 'Position response')
+    save(fig, 'position.png')
+
+    save(_tracking_error_figure(plt, runs, labels), 'tracking_error.png')
+
+    for name, title, unit, est_attr, truth_attr in _ESTIMATE_FIGURES:
+        fig = _estimate_figure(plt, runs, labels, title, unit, est_attr, truth_attr)
+        if fig is not None:
+            save(fig, name)
 
     fig, ax = plt.subplots(figsize=(8, 4.5))
     for run, label in zip(runs, labels):

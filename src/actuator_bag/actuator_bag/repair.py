@@ -19,7 +19,7 @@ import json
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Optional, Sequence, Union
+from typing import Any, Callable, Optional, Sequence, Union
 
 import yaml
 from mcap.records import Channel, Message, Schema
@@ -164,6 +164,80 @@ class RepairResult:
         }
 
 
+class _RepairedBag:
+    """The new bag folder, created at the first channel registered; one writer topic per name."""
+
+    def __init__(self, out: Path, bag: Path) -> None:
+        """Write to ``out`` (not created yet) what is readable of ``bag``."""
+        self.out = out
+        self.bag = bag
+        self.writer: Optional[BagWriter] = None
+
+    def handle(self, channel: Channel, schema: Optional[Schema]) -> int:
+        """Writer handle of the channel's topic (bag opened, topic added when first met)."""
+        if self.writer is None:
+            self.writer = BagWriter(
+                self.out, custom_data={'repaired_from': str(self.bag.resolve())}
+            )
+            self.writer.open()
+        topic = _topic_from(channel, schema)
+        known = [i for i, t in enumerate(self.writer.topics) if t.name == topic.name]
+        return known[0] if known else self.writer.add_topic(topic)
+
+
+def _repair_file(
+    path: Path, report: ScanReport, repaired: _RepairedBag, on_progress: Callable[[int], None]
+) -> None:
+    """Copy what the scan of one MCAP file reads into the repaired bag (``report``: the rest)."""
+    # The summary's definitions (closed files only) stand in for those lost with a damaged chunk.
+    spare_schemas, spare_channels = summary_definitions(path)
+    schemas: dict[int, Schema] = {}
+    handles: dict[int, int] = {}
+
+    def register(channel: Channel) -> None:
+        schema = schemas.get(channel.schema_id) or spare_schemas.get(channel.schema_id)
+        handles[channel.id] = repaired.handle(channel, schema)
+
+    for record in scan_mcap(path, report, on_progress):
+        if isinstance(record, Schema):
+            schemas[record.id] = record
+        elif isinstance(record, Channel) and record.id not in handles:
+            register(record)
+        elif isinstance(record, Message):
+            if record.channel_id not in handles and record.channel_id in spare_channels:
+                register(spare_channels[record.channel_id])
+            if record.channel_id not in handles:
+                report.without_channel += 1
+                continue
+            assert repaired.writer is not None
+            repaired.writer.write(
+                handles[record.channel_id],
+                record.log_time,
+                record.data,
+                record.publish_time,
+            )
+    # rosbag2 writes the channel of a topic that never had a message only in the summary: keep
+    # it, as ``ros2 bag info`` shows it (0 messages).
+    for channel_id, channel in spare_channels.items():
+        if channel_id not in handles and channel.schema_id in spare_schemas:
+            register(channel)
+    if report.profile and report.profile != 'ros2':
+        raise RepairError(f'{path} has MCAP profile {report.profile!r}, not ros2')
+
+
+def _nothing_recoverable(bag: Path, scans: Sequence[ScanReport]) -> RepairError:
+    """Build the error of a repair that found no complete chunk with a channel (and why)."""
+    reasons = '; '.join(s.stop_reason for s in scans)
+    orphans = sum(s.without_channel for s in scans)
+    if orphans:
+        reasons += (
+            f'; {orphans} messages of intact chunks whose channel was defined in a lost part'
+        )
+    return RepairError(
+        f'nothing recoverable in {bag}: no complete chunk with a channel ({reasons})'
+    )
+
+
 def repair_bag(
     bag: Union[str, os.PathLike], out: Union[str, os.PathLike, None] = None, *, quiet: bool = False
 ) -> RepairResult:
@@ -179,77 +253,29 @@ def repair_bag(
         )
     total = sum(p.stat().st_size for p in files)
     progress = Progress(f'bag_repair {bag.name}', total, unit='bytes', enabled=not quiet)
-    writer: Optional[BagWriter] = None
+    repaired = _RepairedBag(out, bag)
     scans: list[ScanReport] = []
     done = 0
     try:
         for path in files:
             report = ScanReport(path=path, file_size=path.stat().st_size)
             scans.append(report)
-            # The summary's definitions (closed files only) stand in for those lost with a damaged
-            # chunk.
-            spare_schemas, spare_channels = summary_definitions(path)
-            schemas: dict[int, Schema] = {}
-            handles: dict[int, int] = {}
             base = done
-
-            def register(channel: Channel) -> None:
-                nonlocal writer
-                if writer is None:
-                    writer = BagWriter(out, custom_data={'repaired_from': str(bag.resolve())})
-                    writer.open()
-                schema = schemas.get(channel.schema_id) or spare_schemas.get(channel.schema_id)
-                topic = _topic_from(channel, schema)
-                known = [i for i, t in enumerate(writer.topics) if t.name == topic.name]
-                handles[channel.id] = known[0] if known else writer.add_topic(topic)
-
-            for record in scan_mcap(path, report, lambda pos: progress.update(base + pos)):
-                if isinstance(record, Schema):
-                    schemas[record.id] = record
-                elif isinstance(record, Channel) and record.id not in handles:
-                    register(record)
-                elif isinstance(record, Message):
-                    if record.channel_id not in handles and record.channel_id in spare_channels:
-                        register(spare_channels[record.channel_id])
-                    if record.channel_id not in handles:
-                        report.without_channel += 1
-                        continue
-                    assert writer is not None
-                    writer.write(
-                        handles[record.channel_id],
-                        record.log_time,
-                        record.data,
-                        record.publish_time,
-                    )
-            # rosbag2 writes the channel of a topic that never had a message only in the
-            # summary: keep it, as ``ros2 bag info`` shows it (0 messages).
-            for channel_id, channel in spare_channels.items():
-                if channel_id not in handles and channel.schema_id in spare_schemas:
-                    register(channel)
-            if report.profile and report.profile != 'ros2':
-                raise RepairError(f'{path} has MCAP profile {report.profile!r}, not ros2')
+            _repair_file(path, report, repaired, lambda pos: progress.update(base + pos))
             done += report.file_size
             progress.update(done)
+        writer = repaired.writer
         if writer is None:
-            reasons = '; '.join(s.stop_reason for s in scans)
-            orphans = sum(s.without_channel for s in scans)
-            if orphans:
-                reasons += (
-                    f'; {orphans} messages of intact chunks '
-                    'whose channel was defined in a lost part'
-                )
-            raise RepairError(
-                f'nothing recoverable in {bag}: no complete chunk with a channel ({reasons})'
-            )
+            raise _nothing_recoverable(bag, scans)
         writer.custom_data = {**_recorded_custom_data(scans), **writer.custom_data}
         return RepairResult(writer.close(), scans)
     except OSError as err:
-        if writer is not None:
-            writer.discard()
+        if repaired.writer is not None:
+            repaired.writer.discard()
         raise RepairError(f'{err.filename or bag}: {describe_os_error(err)}') from None
     except BaseException as err:
-        if writer is not None:
-            writer.discard()
+        if repaired.writer is not None:
+            repaired.writer.discard()
         if isinstance(err, BagWriteError) and not isinstance(err, RepairError):
             raise RepairError(f'{err}; nothing was left in {out}') from None
         raise

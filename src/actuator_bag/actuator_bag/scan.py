@@ -341,6 +341,49 @@ def scan_mcap(
             yield from _scan(buf, size, report, on_progress)
 
 
+def _skip_damage(
+    buf: Any, pos: int, size: int, report: ScanReport, damage: _Damage
+) -> Optional[int]:
+    """Report the damage at ``pos`` as a Loss; return where the scan goes on (None: it stops)."""
+    reason = str(damage)
+    messages = None
+    if damage.length is not None:
+        # The chunk's framing is intact: skip exactly it and count its messages from its index.
+        chunk_end = pos + _HEAD + damage.length
+        end: Optional[int] = chunk_end
+        messages = _indexed_messages(buf, chunk_end, size)
+    else:
+        end = _resync(buf, pos + 1, size)
+    if end is None:
+        report.losses.append(Loss(pos, size, reason))
+        report.stop_reason = reason
+        report.bytes_read = size
+        return None
+    report.losses.append(Loss(pos, end, reason, messages))
+    return end
+
+
+def _records(opcode: int, record: Any, report: ScanReport) -> Iterator[Record]:
+    """Yield what a decoded record holds for the caller (a chunk: its records), counting it."""
+    if opcode == Opcode.HEADER:
+        report.profile = record.profile
+    elif opcode == Opcode.METADATA:
+        report.metadata[record.name] = dict(record.metadata)
+        yield record
+    elif opcode in (Opcode.SCHEMA, Opcode.CHANNEL):
+        yield record
+    elif opcode == Opcode.MESSAGE:
+        report.messages += 1
+        yield record
+    elif opcode == Opcode.CHUNK:
+        report.chunks += 1
+        for inner in record:
+            if isinstance(inner, Message):
+                report.messages += 1
+            if isinstance(inner, (Schema, Channel, Message)):
+                yield inner
+
+
 def _scan(
     buf: Any, size: int, report: ScanReport, on_progress: Optional[Callable[[int], None]]
 ) -> Iterator[Record]:
@@ -354,42 +397,13 @@ def _scan(
         try:
             opcode, length, record = _decode(buf, pos, size)
         except _Damage as damage:
-            reason = str(damage)
-            messages = None
-            if damage.length is not None:
-                # The chunk's framing is intact: skip exactly it and count its messages from its
-                # index.
-                chunk_end = pos + _HEAD + damage.length
-                end: Optional[int] = chunk_end
-                messages = _indexed_messages(buf, chunk_end, size)
-            else:
-                end = _resync(buf, pos + 1, size)
+            end = _skip_damage(buf, pos, size, report, damage)
             if end is None:
-                report.losses.append(Loss(pos, size, reason))
-                report.stop_reason = reason
-                report.bytes_read = size
                 return
-            report.losses.append(Loss(pos, end, reason, messages))
             pos = report.bytes_read = end
             continue
-        if opcode == Opcode.HEADER:
-            report.profile = record.profile
-        elif opcode == Opcode.METADATA:
-            report.metadata[record.name] = dict(record.metadata)
-            yield record
-        elif opcode in (Opcode.SCHEMA, Opcode.CHANNEL):
-            yield record
-        elif opcode == Opcode.MESSAGE:
-            report.messages += 1
-            yield record
-        elif opcode == Opcode.CHUNK:
-            report.chunks += 1
-            for inner in record:
-                if isinstance(inner, Message):
-                    report.messages += 1
-                if isinstance(inner, (Schema, Channel, Message)):
-                    yield inner
-        elif opcode in (Opcode.DATA_END, Opcode.FOOTER):
+        yield from _records(opcode, record, report)
+        if opcode in (Opcode.DATA_END, Opcode.FOOTER):
             report.complete = True
             report.stop_reason = 'end of data section'
             report.bytes_read = pos + _HEAD + length

@@ -19,7 +19,7 @@ import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Optional
+from typing import Callable, Optional
 
 from actuator_analysis.goals import GoalEventRow
 from actuator_bringup.runner import RunResult, run_closed_loop
@@ -134,7 +134,7 @@ class ScriptedClient(threading.Thread):
         from rclpy.node import Node
         from rosgraph_msgs.msg import Clock
 
-        from actuator_controller.goal_client import GoalClient, follow_goal, goal_id
+        from actuator_controller.goal_client import GoalClient
         from actuator_ros.joint_node import SIM_START_NS
 
         context = Context()
@@ -168,36 +168,54 @@ class ScriptedClient(threading.Thread):
                 return
             ready_ns = now_ns()
             assert ready_ns is not None  # the clock ticked (spin_until above)
-            if self.mode == 'sim':
-                grid = 1_000_000  # the sim clock's sample grid: a start stamp on a sample
-                ready_ns = SIM_START_NS + -(-(ready_ns - SIM_START_NS) // grid) * grid
-                self.t0_ns = ready_ns if self.from_ready else SIM_START_NS
-                if self.from_ready and ready_ns - SIM_START_NS > READY_BY_S * 1e9:
-                    self.error = (
-                        f'the client found the action server only {ready_ns - SIM_START_NS} ns '
-                        f'into the run (by {READY_BY_S:g} s the script fits the run)'
-                    )
-            else:
-                self.t0_ns = ready_ns
-            t0_ns = self.t0_ns
-            for goal in self.script:
-                if not spin_until(lambda g=goal: _reached(now_ns(), t0_ns + g.send_s * 1e9)):
-                    return
-                stamp = t0_ns + int(round(goal.start_s * 1e9))
-                run = client.send(follow_goal(goal.message(stamp)))
-                self.runs[goal.name] = run
-                if not spin_until(lambda r=run: r.accepted is not None):
-                    return
-                if run.accepted:
-                    self.ids[goal.name] = goal_id(run)
-                if goal.cancel_s is not None and run.accepted:
-                    if not spin_until(lambda g=goal: _reached(now_ns(), t0_ns + g.cancel_s * 1e9)):
-                        return
-                    client.cancel(run)
+            self._set_t0(ready_ns, SIM_START_NS)
+            if not self._send_script(client, spin_until, now_ns):
+                return
             spin_until(lambda: all(r.done for r in self.runs.values()))
         finally:
             node.destroy_node()
             context.try_shutdown()
+
+    def _set_t0(self, ready_ns: int, sim_start_ns: int) -> None:
+        """Set the script's time origin from when the client found the server (``t0_ns``)."""
+        if self.mode == 'sim':
+            grid = 1_000_000  # the sim clock's sample grid: a start stamp on a sample
+            ready_ns = sim_start_ns + -(-(ready_ns - sim_start_ns) // grid) * grid
+            self.t0_ns = ready_ns if self.from_ready else sim_start_ns
+            if self.from_ready and ready_ns - sim_start_ns > READY_BY_S * 1e9:
+                self.error = (
+                    f'the client found the action server only {ready_ns - sim_start_ns} ns '
+                    f'into the run (by {READY_BY_S:g} s the script fits the run)'
+                )
+        else:
+            self.t0_ns = ready_ns
+
+    def _send_script(
+        self,
+        client,
+        spin_until: Callable[[Callable[..., bool]], bool],
+        now_ns: Callable[[], Optional[int]],
+    ) -> bool:
+        """Send each goal, cancel it when due; return False when a wait was cut short."""
+        from actuator_controller.goal_client import follow_goal, goal_id
+
+        t0_ns = self.t0_ns
+        assert t0_ns is not None  # _set_t0 ran
+        for goal in self.script:
+            if not spin_until(lambda g=goal: _reached(now_ns(), t0_ns + g.send_s * 1e9)):
+                return False
+            stamp = t0_ns + int(round(goal.start_s * 1e9))
+            run = client.send(follow_goal(goal.message(stamp)))
+            self.runs[goal.name] = run
+            if not spin_until(lambda r=run: r.accepted is not None):
+                return False
+            if run.accepted:
+                self.ids[goal.name] = goal_id(run)
+            if goal.cancel_s is not None and run.accepted:
+                if not spin_until(lambda g=goal: _reached(now_ns(), t0_ns + g.cancel_s * 1e9)):
+                    return False
+                client.cancel(run)
+        return True
 
 
 def scripted_run(

@@ -158,101 +158,19 @@ def closed_loop(
     (keys ``driver<i>``, ``eso<i>``, ``controller<i>``); drive 1's driver produces the one SYNC,
     and every driver checks the bus load of all n.
     """
-    if joint not in JOINTS:
-        raise ValueError(f'joint must be one of {", ".join(JOINTS)}, got {joint!r}')
-    if not 1 <= joints <= MAX_JOINTS_ON_BUS:
-        raise ValueError(f'joints must be in [1, {MAX_JOINTS_ON_BUS}], got {joints}')
-    if joints > 1 and joint not in ('cia402_sim', 'cia402'):
-        raise ValueError(
-            f'several joints share a CAN bus: joint cia402_sim or cia402, not {joint}'
-        )
-    if joints > 1 and live_view:
-        raise ValueError('the live view shows one joint: run it with joints = 1')
-    cpus = cpus or {}
+    _check_joints(joint, joints, live_view)
+    common = _Common(executor, autostart, cpus or {}, logs)
     sim = mode == 'sim'
     namespaces = [''] if joints == 1 else [f'joint{i}' for i in range(1, joints + 1)]
-
-    def settings(key: str, priority: int) -> dict:
-        out = {'executor': executor, 'autostart': autostart}
-        if priority:
-            out['thread_priority'] = priority
-        if key in cpus:
-            out['cpu_affinity'] = cpus[key]
-        return out
-
-    def logged(name, ns=''):
-        if logs is None:
-            return {}
-        stem, _, ext = name[1].rpartition('.')
-        return {name[0]: str(logs / (f'{stem}_{ns}.{ext}' if ns else name[1]))}
-
-    def keyed(key, ns):
-        return f'{key}{ns.removeprefix("joint")}'
-
     loop_params = {'mode': mode, 'use_sim_time': sim}
     if diagnostics_rate_hz is None:
         diagnostics_rate_hz = 0.0 if record or sim else LIVE_DIAGNOSTICS_RATE_HZ
     specs = []
     if record:
-        topics = (
-            {}
-            if joints == 1
-            else {
-                'topics': [f'/{ns}/{topic}' for ns in namespaces for topic in JOINT_TOPICS],
-            }
-        )
-        specs.append(
-            NodeSpec(
-                'recorder',
-                'actuator_bag',
-                'recorder',
-                'recorder',
-                {
-                    'use_sim_time': sim,
-                    'record_diagnostics': True,
-                    **recorder_parameters(mode),
-                    **({'output': str(bag)} if bag else {}),
-                    **topics,
-                },
-                scenario_file=False,
-                managed=False,
-            )
-        )
-
-    def named(ns):  # several joints: each its own name in its joint_states, as in a URDF
-        return {'joint_name': ns} if ns else {}
-
+        specs.append(_recorder(mode, bag, joints, namespaces))
     for ns in namespaces:
-        specs.append(
-            NodeSpec(
-                keyed('controller', ns),
-                'actuator_controller',
-                'controller_node',
-                'actuator_controller',
-                {
-                    **loop_params,
-                    'state_rate_hz': float(diagnostics_rate_hz),
-                    **named(ns),
-                    **settings('controller', thread_priority),
-                    **logged(('timing_log', 'controller_timing.npz'), ns),
-                },
-                namespace=ns,
-            )
-        )
-        specs.append(
-            NodeSpec(
-                keyed('eso', ns),
-                'actuator_eso',
-                'eso_node',
-                'actuator_eso',
-                {
-                    **loop_params,
-                    **named(ns),
-                    **settings('eso', thread_priority),
-                    **logged(('stats_log', 'eso_stats.json'), ns),
-                },
-                namespace=ns,
-            )
+        specs += _estimator_and_controller(
+            ns, loop_params, diagnostics_rate_hz, thread_priority, common
         )
     if live_view:
         specs.append(
@@ -280,8 +198,8 @@ def closed_loop(
                     'stop_after_s': float(duration_s),
                     'wait_for_subscribers': subscribers,
                     'truth_rate_hz': float(diagnostics_rate_hz),
-                    **settings('joint', joint_priority),
-                    **logged(('timing_log', 'plant_samples.npz')),
+                    **common.settings('joint', joint_priority),
+                    **common.logged(('timing_log', 'plant_samples.npz')),
                 },
                 leader=True,
             )
@@ -289,83 +207,218 @@ def closed_loop(
     elif joint in ('cia402_sim', 'cia402'):
         if sim:
             raise ValueError('the CiA 402 driver runs in real time only (mode realtime)')
-        from actuator_cia402.launch_spec import (
-            DRIVER_EXECUTABLE,
-            DRIVER_NODE_NAME,
-            DRIVER_PACKAGE,
-            SIM_DRIVE_EXECUTABLE,
-            SIM_DRIVE_PACKAGE,
-            driver_parameters,
-            free_port,
-            sim_drive_command,
+        specs += _cia402(
+            joint,
+            joints,
+            namespaces,
+            duration_s,
+            subscribers,
+            joint_priority,
+            joint_parameters,
+            common,
         )
-
-        simulated = joint == 'cia402_sim'
-        overrides = dict(joint_parameters or {})
-        sim_settings = {k: overrides.pop(k) for k in list(overrides) if k.startswith('sim.')}
-        port = free_port() if simulated else 0
-        drivers = []
-        for node_id, ns in enumerate(namespaces, start=1):
-            producer = node_id == 1
-            params = driver_parameters(
-                simulated=simulated,
-                hub_port=port,
-                node_id=node_id,
-                # a bounded run: the SYNC producer outlives the consumers, so that none of them
-                # loses its SYNC before its own end (the first to end ends the run)
-                stop_after_s=float(duration_s)
-                + (SYNC_PRODUCER_GRACE_S if joints > 1 and duration_s and producer else 0.0),
-                wait_for_subscribers=subscribers,
-                autostart=autostart,
-                **(
-                    {}
-                    if joints == 1
-                    else {
-                        'master_node_id': MASTER_NODE_ID - node_id + 1,
-                        **named(ns),
-                        'sync_producer': producer,
-                        'joints_on_bus': joints,
-                    }
-                ),
-                **overrides,
-            )
-            params.update(logged(('timing_log', 'plant_samples.npz'), ns))
-            drivers.append(
-                NodeSpec(
-                    keyed('driver', ns),
-                    DRIVER_PACKAGE,
-                    DRIVER_EXECUTABLE,
-                    DRIVER_NODE_NAME,
-                    {**params, **settings('joint', joint_priority)},
-                    leader=True,
-                    namespace=ns,
-                )
-            )
-        if simulated:  # the drive in a process of its own, as hardware: it outlives the driver
-            specs.append(
-                NodeSpec(
-                    'drive',
-                    SIM_DRIVE_PACKAGE,
-                    SIM_DRIVE_EXECUTABLE,
-                    SIM_DRIVE_EXECUTABLE,
-                    scenario_file=False,
-                    managed=False,
-                    arguments=tuple(
-                        sim_drive_command(
-                            port,
-                            node_ids=tuple(range(1, joints + 1)),
-                            sync_period_s=drivers[0].parameters['sample_time_s'],
-                            # the simulated hardware above the software it serves
-                            thread_priority=min(joint_priority + 1, 99) if joint_priority else 0,
-                            **sim_settings,
-                        )
-                    ),
-                )
-            )
-        # The SYNC producer first, so it is stopped last (the runner stops in reverse order):
-        # a consumer that lost its SYNC would end control with an error.
-        specs += drivers
     return specs
+
+
+def _check_joints(joint: str, joints: int, live_view: bool) -> None:
+    """Refuse (ValueError) a joint kind, a number of joints or a live view a run cannot have."""
+    if joint not in JOINTS:
+        raise ValueError(f'joint must be one of {", ".join(JOINTS)}, got {joint!r}')
+    if not 1 <= joints <= MAX_JOINTS_ON_BUS:
+        raise ValueError(f'joints must be in [1, {MAX_JOINTS_ON_BUS}], got {joints}')
+    if joints > 1 and joint not in ('cia402_sim', 'cia402'):
+        raise ValueError(
+            f'several joints share a CAN bus: joint cia402_sim or cia402, not {joint}'
+        )
+    if joints > 1 and live_view:
+        raise ValueError('the live view shows one joint: run it with joints = 1')
+
+
+@dataclass(frozen=True)
+class _Common:
+    """What every loop node of a run gets: executor, autostart, CPUs, the timing logs' folder."""
+
+    executor: str
+    autostart: bool
+    cpus: dict
+    logs: Optional[Path]
+
+    def settings(self, key: str, priority: int) -> dict:
+        """Return a node's executor, autostart and real-time parameters (``key``: its CPU)."""
+        out = {'executor': self.executor, 'autostart': self.autostart}
+        if priority:
+            out['thread_priority'] = priority
+        if key in self.cpus:
+            out['cpu_affinity'] = self.cpus[key]
+        return out
+
+    def logged(self, name: tuple, ns: str = '') -> dict:
+        """Return the timing log ``name`` (parameter, file) with its path in ``logs`` (or none)."""
+        if self.logs is None:
+            return {}
+        stem, _, ext = name[1].rpartition('.')
+        return {name[0]: str(self.logs / (f'{stem}_{ns}.{ext}' if ns else name[1]))}
+
+
+def _keyed(key: str, ns: str) -> str:
+    """Return a node's key in namespace ``ns`` (controller, joint2: controller2)."""
+    return f'{key}{ns.removeprefix("joint")}'
+
+
+def _named(ns: str) -> dict:
+    """Return the joint name of a namespace (several joints: each its own, as in a URDF)."""
+    return {'joint_name': ns} if ns else {}
+
+
+def _recorder(mode: str, bag: Optional[Path], joints: int, namespaces: list[str]) -> NodeSpec:
+    """Return the recorder's spec: every joint's loop topics, into ``bag`` if named."""
+    topics = (
+        {}
+        if joints == 1
+        else {
+            'topics': [f'/{ns}/{topic}' for ns in namespaces for topic in JOINT_TOPICS],
+        }
+    )
+    return NodeSpec(
+        'recorder',
+        'actuator_bag',
+        'recorder',
+        'recorder',
+        {
+            'use_sim_time': mode == 'sim',
+            'record_diagnostics': True,
+            **recorder_parameters(mode),
+            **({'output': str(bag)} if bag else {}),
+            **topics,
+        },
+        scenario_file=False,
+        managed=False,
+    )
+
+
+def _estimator_and_controller(
+    ns: str, loop_params: dict, diagnostics_rate_hz: float, thread_priority: int, common: _Common
+) -> list[NodeSpec]:
+    """Return the controller's and the ESO's specs of the joint in namespace ``ns``."""
+    return [
+        NodeSpec(
+            _keyed('controller', ns),
+            'actuator_controller',
+            'controller_node',
+            'actuator_controller',
+            {
+                **loop_params,
+                'state_rate_hz': float(diagnostics_rate_hz),
+                **_named(ns),
+                **common.settings('controller', thread_priority),
+                **common.logged(('timing_log', 'controller_timing.npz'), ns),
+            },
+            namespace=ns,
+        ),
+        NodeSpec(
+            _keyed('eso', ns),
+            'actuator_eso',
+            'eso_node',
+            'actuator_eso',
+            {
+                **loop_params,
+                **_named(ns),
+                **common.settings('eso', thread_priority),
+                **common.logged(('stats_log', 'eso_stats.json'), ns),
+            },
+            namespace=ns,
+        ),
+    ]
+
+
+def _cia402(
+    joint: str,
+    joints: int,
+    namespaces: list[str],
+    duration_s: float,
+    subscribers: int,
+    joint_priority: int,
+    joint_parameters: Optional[dict],
+    common: _Common,
+) -> list[NodeSpec]:
+    """Return the CiA 402 joints' specs: the simulated drive (cia402_sim), then the drivers."""
+    from actuator_cia402.launch_spec import (
+        DRIVER_EXECUTABLE,
+        DRIVER_NODE_NAME,
+        DRIVER_PACKAGE,
+        SIM_DRIVE_EXECUTABLE,
+        SIM_DRIVE_PACKAGE,
+        driver_parameters,
+        free_port,
+        sim_drive_command,
+    )
+
+    specs = []
+    simulated = joint == 'cia402_sim'
+    overrides = dict(joint_parameters or {})
+    sim_settings = {k: overrides.pop(k) for k in list(overrides) if k.startswith('sim.')}
+    port = free_port() if simulated else 0
+    drivers = []
+    for node_id, ns in enumerate(namespaces, start=1):
+        producer = node_id == 1
+        params = driver_parameters(
+            simulated=simulated,
+            hub_port=port,
+            node_id=node_id,
+            # a bounded run: the SYNC producer outlives the consumers, so that none of them
+            # loses its SYNC before its own end (the first to end ends the run)
+            stop_after_s=float(duration_s)
+            + (SYNC_PRODUCER_GRACE_S if joints > 1 and duration_s and producer else 0.0),
+            wait_for_subscribers=subscribers,
+            autostart=common.autostart,
+            **(
+                {}
+                if joints == 1
+                else {
+                    'master_node_id': MASTER_NODE_ID - node_id + 1,
+                    **_named(ns),
+                    'sync_producer': producer,
+                    'joints_on_bus': joints,
+                }
+            ),
+            **overrides,
+        )
+        params.update(common.logged(('timing_log', 'plant_samples.npz'), ns))
+        drivers.append(
+            NodeSpec(
+                _keyed('driver', ns),
+                DRIVER_PACKAGE,
+                DRIVER_EXECUTABLE,
+                DRIVER_NODE_NAME,
+                {**params, **common.settings('joint', joint_priority)},
+                leader=True,
+                namespace=ns,
+            )
+        )
+    if simulated:  # the drive in a process of its own, as hardware: it outlives the driver
+        specs.append(
+            NodeSpec(
+                'drive',
+                SIM_DRIVE_PACKAGE,
+                SIM_DRIVE_EXECUTABLE,
+                SIM_DRIVE_EXECUTABLE,
+                scenario_file=False,
+                managed=False,
+                arguments=tuple(
+                    sim_drive_command(
+                        port,
+                        node_ids=tuple(range(1, joints + 1)),
+                        sync_period_s=drivers[0].parameters['sample_time_s'],
+                        # the simulated hardware above the software it serves
+                        thread_priority=min(joint_priority + 1, 99) if joint_priority else 0,
+                        **sim_settings,
+                    )
+                ),
+            )
+        )
+    # The SYNC producer first, so it is stopped last (the runner stops in reverse order):
+    # a consumer that lost its SYNC would end control with an error.
+    return specs + drivers
 
 
 def ros_arguments(

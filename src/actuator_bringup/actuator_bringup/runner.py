@@ -29,6 +29,7 @@ from actuator_bringup.composition import compose
 from actuator_bringup.gain_check import UnstableGains, check_gains
 from actuator_bringup.run_description import (
     PINNING,
+    NodeSpec,
     closed_loop,
     default_scenario,
     node_kind,
@@ -158,12 +159,7 @@ def run_closed_loop(
     except OptionError as exc:
         raise SystemExit(f'bringup: {exc}') from None
     files = [Path(f).resolve() for f in params_files]
-    try:
-        _, warning = check_gains(scenario, [params, *files], joint, allow_unstable_gains)
-    except UnstableGains as exc:
-        raise SystemExit(f'bringup: {exc}') from None
-    if warning:
-        print(f'[bringup] warning: {warning}', file=sys.stderr, flush=True)
+    _judge_gains(scenario, [params, *files], joint, allow_unstable_gains)
     run_dir.mkdir(parents=True, exist_ok=True)  # nothing is made for a run refused above
     if bag is not None:
         bag_root.mkdir(parents=True, exist_ok=True)
@@ -173,13 +169,7 @@ def run_closed_loop(
     start = time.monotonic()
     codes: dict = {}
     try:
-        for spec in specs:
-            extra = _extra_arguments(spec, extra_params)
-            args = ros_arguments(spec, params, run_dir, files)
-            procs[spec.key] = RosProcess.installed(
-                spec.package, spec.executable, args + extra, log_dir=run_dir, name=spec.key
-            )
-            figures[spec.key] = ProcessFigures(procs[spec.key].pid)
+        _start(specs, extra_params, params, run_dir, files, procs, figures)
         if not quiet:
             print(
                 f'[bringup] {scenario} in {mode} mode: {", ".join(procs)} started; '
@@ -198,16 +188,60 @@ def run_closed_loop(
         for s, handler in previous.items():
             signal.signal(s, handler)
     wall = time.monotonic() - start
+    return _run_result(name, mode, bag, run_dir, codes, figures, wall)
+
+
+def _judge_gains(
+    scenario: str, files: Sequence[Path], joint: str, allow_unstable_gains: bool
+) -> None:
+    """Refuse gains unstable at the joint's delay (one line); print a warning the check gives."""
+    try:
+        _, warning = check_gains(scenario, files, joint, allow_unstable_gains)
+    except UnstableGains as exc:
+        raise SystemExit(f'bringup: {exc}') from None
+    if warning:
+        print(f'[bringup] warning: {warning}', file=sys.stderr, flush=True)
+
+
+def _start(
+    specs: Sequence[NodeSpec],
+    extra_params: Sequence[str],
+    params: Path,
+    run_dir: Path,
+    files: Sequence[Path],
+    procs: dict[str, RosProcess],
+    figures: dict[str, ProcessFigures],
+) -> None:
+    """Start each spec's process in order, adding it to ``procs`` and ``figures`` as it starts."""
+    for spec in specs:
+        extra = _extra_arguments(spec, extra_params)
+        args = ros_arguments(spec, params, run_dir, files)
+        procs[spec.key] = RosProcess.installed(
+            spec.package, spec.executable, args + extra, log_dir=run_dir, name=spec.key
+        )
+        figures[spec.key] = ProcessFigures(procs[spec.key].pid)
+
+
+def _run_result(
+    name: str,
+    mode: str,
+    bag: Optional[Path],
+    run_dir: Path,
+    exit_codes: dict,
+    figures: dict[str, ProcessFigures],
+    wall_s: float,
+) -> RunResult:
+    """Return a run's result, with each process' CPU use and peak memory from its figures."""
     return RunResult(
         name,
         mode,
         bag,
         run_dir,
         run_dir / 'controller_timing.npz',
-        codes,
+        exit_codes,
         {k: f.cpu_percent() for k, f in figures.items()},
         {k: f.peak_rss_mb for k, f in figures.items()},
-        wall,
+        wall_s,
     )
 
 
@@ -290,16 +324,8 @@ def run_launched(
             time.sleep(0.2)
     finally:
         code = launch.stop()
-    return RunResult(
-        name,
-        mode,
-        bag,
-        run_dir,
-        run_dir / 'controller_timing.npz',
-        {'launch': code},
-        {k: f.cpu_percent() for k, f in figures.items()},
-        {k: f.peak_rss_mb for k, f in figures.items()},
-        time.monotonic() - start,
+    return _run_result(
+        name, mode, bag, run_dir, {'launch': code}, figures, time.monotonic() - start
     )
 
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -64,6 +64,151 @@ class TrajectoryRequest:
     stamp_ns: int = 0
 
 
+@dataclass(frozen=True)
+class _Goal:
+    """What the rules of trajectory_refusal look at: the request and the controller's side."""
+
+    request: TrajectoryRequest
+    joint_names: Sequence[str]
+    allow_nonzero_end_velocity: bool
+    now_ns: int
+
+
+def _joint_count_refusal(goal: _Goal) -> str:
+    """Refuse a trajectory naming more or fewer joints than the controller has."""
+    return JOINTS_MISMATCH if len(goal.request.joint_names) != len(goal.joint_names) else ''
+
+
+def _empty_names_refusal(goal: _Goal) -> str:
+    """Refuse a trajectory without joint names."""
+    return '' if goal.request.joint_names else EMPTY_JOINT_NAMES
+
+
+def _empty_points_refusal(goal: _Goal) -> str:
+    """Refuse a trajectory without points."""
+    return '' if goal.request.points else EMPTY_TRAJECTORY
+
+
+def _unknown_joint_refusal(goal: _Goal) -> str:
+    """Refuse a trajectory naming a joint the controller does not have."""
+    for name in goal.request.joint_names:
+        if name not in goal.joint_names:
+            return f"Incoming joint {name} doesn't match the controller's joints."
+    return ''
+
+
+def _duplicate_joint_refusal(goal: _Goal) -> str:
+    """Refuse a trajectory naming a joint twice."""
+    names = goal.request.joint_names
+    for name in names:
+        if names.count(name) > 1:
+            return f'Joint {name} appears more than once on incoming trajectory.'
+    return ''
+
+
+def _end_velocity_refusal(goal: _Goal) -> str:
+    """Refuse a last point that does not stop the joint, unless the controller allows it."""
+    if goal.allow_nonzero_end_velocity:
+        return ''
+    for name, velocity in zip(goal.request.joint_names, goal.request.points[-1].velocities):
+        if abs(velocity) > FLOAT32_EPSILON:
+            return (
+                f'Velocity of last trajectory point of joint {name} is not zero: {velocity:.15f}'
+            )
+    return ''
+
+
+def _past_end_refusal(goal: _Goal) -> str:
+    """Refuse a trajectory with a start time that ends before now."""
+    request = goal.request
+    if request.stamp_ns != 0:
+        end_ns = request.stamp_ns + request.points[-1].time_from_start_ns
+        if end_ns < goal.now_ns:
+            return (
+                f'Received trajectory with non-zero start time ({request.stamp_ns * 1e-9:f}) '
+                f'that ends in the past ({end_ns * 1e-9:f})'
+            )
+    return ''
+
+
+def _field_refusal(
+    names: Sequence[str], i: int, field: str, values: tuple, allow_empty: bool
+) -> str:
+    """Refuse a field of point #i with a value per joint missing, or a non-finite value."""
+    if not (allow_empty and not values) and len(values) != len(names):
+        return (
+            f'Mismatch between joint_names size ({len(names)}) and {field} '
+            f'({len(values)}) at point #{i}.'
+        )
+    for name, value in zip(names, values):
+        if not math.isfinite(value):
+            return f'Non-finite {field} of joint {name} at point #{i}: {value}'
+    return ''
+
+
+def _point_refusal(names: Sequence[str], i: int, point: RequestPoint, previous_ns: int) -> str:
+    """Refuse point #i: its time not after the previous one's, its fields, an effort field."""
+    if i > 0 and point.time_from_start_ns <= previous_ns:
+        return (
+            f'Time between points {i - 1} and {i} is not strictly increasing, it is '
+            f'{previous_ns * 1e-9:f} and {point.time_from_start_ns * 1e-9:f} respectively'
+        )
+    for field, values, allow_empty in (
+        ('positions', point.positions, False),
+        ('velocities', point.velocities, True),
+        ('accelerations', point.accelerations, True),
+    ):
+        refusal = _field_refusal(names, i, field, values, allow_empty)
+        if refusal:
+            return refusal
+    if point.effort:
+        return EFFORT_REFUSED
+    return ''
+
+
+def _points_refusal(goal: _Goal) -> str:
+    """Refuse the first point that fails a check of its own (points in order)."""
+    previous_ns = 0
+    for i, point in enumerate(goal.request.points):
+        refusal = _point_refusal(goal.request.joint_names, i, point, previous_ns)
+        if refusal:
+            return refusal
+        previous_ns = point.time_from_start_ns
+    return ''
+
+
+def _negative_start_refusal(goal: _Goal) -> str:
+    """Refuse a first point before the trajectory's start."""
+    first_ns = goal.request.points[0].time_from_start_ns
+    return f'Time of point 0 is negative: {first_ns * 1e-9:f}' if first_ns < 0 else ''
+
+
+def _mixed_fields_refusal(goal: _Goal) -> str:
+    """Refuse points that carry different fields, or accelerations without velocities."""
+    carried = {(bool(p.velocities), bool(p.accelerations)) for p in goal.request.points}
+    if len(carried) > 1 or (False, True) in carried:
+        return (
+            'Points carry different fields (positions only, with velocities, or with velocities '
+            'and accelerations: one kind for every point)'
+        )
+    return ''
+
+
+#: The rules of trajectory_refusal, in the order they are checked (JTC's, then this controller's).
+_TRAJECTORY_RULES: tuple[Callable[[_Goal], str], ...] = (
+    _joint_count_refusal,
+    _empty_names_refusal,
+    _empty_points_refusal,
+    _unknown_joint_refusal,
+    _duplicate_joint_refusal,
+    _end_velocity_refusal,
+    _past_end_refusal,
+    _points_refusal,
+    _negative_start_refusal,
+    _mixed_fields_refusal,
+)
+
+
 def trajectory_refusal(
     request: TrajectoryRequest,
     joint_names: Sequence[str],
@@ -71,66 +216,11 @@ def trajectory_refusal(
     now_ns: int,
 ) -> str:
     """'' when the trajectory may be taken, else why not (JTC's checks in JTC's order)."""
-    names = request.joint_names
-    points = request.points
-    if len(names) != len(joint_names):
-        return JOINTS_MISMATCH
-    if not names:
-        return EMPTY_JOINT_NAMES
-    if not points:
-        return EMPTY_TRAJECTORY
-    for name in names:
-        if name not in joint_names:
-            return f"Incoming joint {name} doesn't match the controller's joints."
-    for name in names:
-        if names.count(name) > 1:
-            return f'Joint {name} appears more than once on incoming trajectory.'
-    last = points[-1].velocities
-    if not allow_nonzero_end_velocity:
-        for name, velocity in zip(names, last):
-            if abs(velocity) > FLOAT32_EPSILON:
-                return (
-                    f'Velocity of last trajectory point of joint {name} is not zero: '
-                    f'{velocity:.15f}'
-                )
-    if request.stamp_ns != 0:
-        end_ns = request.stamp_ns + points[-1].time_from_start_ns
-        if end_ns < now_ns:
-            return (
-                f'Received trajectory with non-zero start time ({request.stamp_ns * 1e-9:f}) '
-                f'that ends in the past ({end_ns * 1e-9:f})'
-            )
-    previous_ns = 0
-    for i, point in enumerate(points):
-        if i > 0 and point.time_from_start_ns <= previous_ns:
-            return (
-                f'Time between points {i - 1} and {i} is not strictly increasing, it is '
-                f'{previous_ns * 1e-9:f} and {point.time_from_start_ns * 1e-9:f} respectively'
-            )
-        previous_ns = point.time_from_start_ns
-        for field, values, allow_empty in (
-            ('positions', point.positions, False),
-            ('velocities', point.velocities, True),
-            ('accelerations', point.accelerations, True),
-        ):
-            if not (allow_empty and not values) and len(values) != len(names):
-                return (
-                    f'Mismatch between joint_names size ({len(names)}) and {field} '
-                    f'({len(values)}) at point #{i}.'
-                )
-            for name, value in zip(names, values):
-                if not math.isfinite(value):
-                    return f'Non-finite {field} of joint {name} at point #{i}: {value}'
-        if point.effort:
-            return EFFORT_REFUSED
-    if points[0].time_from_start_ns < 0:
-        return f'Time of point 0 is negative: {points[0].time_from_start_ns * 1e-9:f}'
-    carried = {(bool(p.velocities), bool(p.accelerations)) for p in points}
-    if len(carried) > 1 or (False, True) in carried:
-        return (
-            'Points carry different fields (positions only, with velocities, or with velocities '
-            'and accelerations: one kind for every point)'
-        )
+    goal = _Goal(request, joint_names, allow_nonzero_end_velocity, now_ns)
+    for rule in _TRAJECTORY_RULES:
+        refusal = rule(goal)
+        if refusal:
+            return refusal
     return ''
 
 

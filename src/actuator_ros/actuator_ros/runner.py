@@ -29,7 +29,7 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
-from actuator_ros.middleware import installed_profile, realtime_transport
+from actuator_ros.middleware import TransportChoice, installed_profile, realtime_transport
 from actuator_ros.parameters import ParameterError
 from actuator_ros.process_member import SETTLE_LIMIT_S, MemberError, ProcessMember
 from actuator_ros.realtime import (
@@ -100,49 +100,14 @@ def run_nodes(
     Every node is a ``ProcessMember`` (process_member.py says the order); no attribute probing.
     """
     args = sys.argv[1:] if argv is None else list(argv)
-    try:
-        own_args = rclpy.utilities.remove_ros_args(args)
-    except (
-        Exception
-    ) as exc:  # rcl's RCLInvalidROSArgsError: an unparsable params file, bad --ros-args
-        print(f'{prog}: ROS arguments refused: {str(exc).splitlines()[0]}', file=sys.stderr)
-        return 2
-    parser = argparse.ArgumentParser(
-        prog=prog,
-        description=description,
-        epilog='ROS arguments: --ros-args -p name:=value --params-file file.yaml; '
-        'real-time: -p thread_priority:=50 -p cpu_affinity:=1 -p executor:=events',
-    )
-    if own_arguments is not None:
-        own_arguments(parser)
-    parser.parse_args(own_args)
-    settings = pre_init_settings(args, settings_node)
-    problems = settings.problems()
-    if problems:
-        print(f'{prog}: {problems[0]}', file=sys.stderr)
+    settings = _parse_settings(prog, description, args, settings_node, own_arguments)
+    if settings is None:
         return 2
     stop = threading.Event()
     wake = rclpy.task.Future()
-
-    def request_stop(*_) -> None:
-        stop.set()
-        if not wake.done():
-            wake.set_result(True)  # spin_until returns now, not at its next 0.1 s check
-
-    for signum in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(signum, request_stop)
-    faulthandler.register(signal.SIGUSR1, all_threads=True)  # kill -USR1: every thread's stack
+    _stop_on_signals(stop, wake)
     refused = settings.apply()  # before rclpy.init: the middleware's threads inherit it
-    sim = in_sim_time(args, settings_node)
-    # read by rmw_fastrtps when rclpy.init creates it
-    os.environ.setdefault(
-        PUBLICATION_MODE_VARIABLE,
-        publication_mode(sim, fifo=os.sched_getscheduler(0) == os.SCHED_FIFO),
-    )
-    transport = None
-    if not sim:  # a lockstep has no deadline to miss
-        transport = realtime_transport(os.environ, installed_profile())
-        transport.apply(os.environ)
+    transport = _prepare_middleware(args, settings_node)
     try:
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     except Exception as exc:  # rcl's RCLError: an unparsable parameter file, a bad --ros-args
@@ -151,29 +116,10 @@ def run_nodes(
     nodes: list = []
     executor = None
     try:
-        try:
-            for factory in node_factories:
-                node = factory(settings)
-                if not isinstance(node, ProcessMember):  # a programming error: said plainly
-                    node.destroy_node()
-                    raise TypeError(f'{type(node).__name__} is not a ProcessMember')
-                nodes.append(node)
-        except ParameterError as exc:
-            print(f'{prog}: {exc}', file=sys.stderr)
-            return 2
-        except MemberError as exc:  # a node that could not be built for what it was given
-            print(f'{prog}: error: {exc}', file=sys.stderr)
-            return 1
-        first = nodes[0]
-        if transport is not None and transport.note:
-            say = first.get_logger().warning if transport.warning else first.get_logger().info
-            say(transport.note)
-        if refused:
-            first.get_logger().warning(refused)
-        elif settings.thread_priority:
-            first.get_logger().info(
-                f'running under SCHED_FIFO priority {settings.thread_priority} (all threads)'
-            )
+        code = _build_nodes(prog, node_factories, settings, nodes)
+        if code is not None:
+            return code
+        _log_settings(nodes[0], transport, refused, settings)
         share_clock_subscription(nodes)
         executor = make_executor(settings.executor)
         for node in nodes:
@@ -202,6 +148,107 @@ def run_nodes(
             _end(prog, nodes, executor)
         if rclpy.ok():
             rclpy.shutdown()
+
+
+def _parse_settings(
+    prog: str,
+    description: str,
+    args: list[str],
+    settings_node: str,
+    own_arguments: Callable[[argparse.ArgumentParser], None] | None,
+) -> RealtimeSettings | None:
+    """Parse the command line; return the real-time settings (None: refused, said on stderr)."""
+    try:
+        own_args = rclpy.utilities.remove_ros_args(args)
+    except (
+        Exception
+    ) as exc:  # rcl's RCLInvalidROSArgsError: an unparsable params file, bad --ros-args
+        print(f'{prog}: ROS arguments refused: {str(exc).splitlines()[0]}', file=sys.stderr)
+        return None
+    parser = argparse.ArgumentParser(
+        prog=prog,
+        description=description,
+        epilog='ROS arguments: --ros-args -p name:=value --params-file file.yaml; '
+        'real-time: -p thread_priority:=50 -p cpu_affinity:=1 -p executor:=events',
+    )
+    if own_arguments is not None:
+        own_arguments(parser)
+    parser.parse_args(own_args)
+    settings = pre_init_settings(args, settings_node)
+    problems = settings.problems()
+    if problems:
+        print(f'{prog}: {problems[0]}', file=sys.stderr)
+        return None
+    return settings
+
+
+def _stop_on_signals(stop: threading.Event, wake: rclpy.task.Future) -> None:
+    """Stop on SIGINT or SIGTERM (set ``stop``, complete ``wake``); dump stacks on SIGUSR1."""
+
+    def request_stop(*_) -> None:
+        stop.set()
+        if not wake.done():
+            wake.set_result(True)  # spin_until returns now, not at its next 0.1 s check
+
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, request_stop)
+    faulthandler.register(signal.SIGUSR1, all_threads=True)  # kill -USR1: every thread's stack
+
+
+def _prepare_middleware(args: list[str], settings_node: str) -> TransportChoice | None:
+    """Set the middleware's environment before rclpy.init; return the real-time transport."""
+    sim = in_sim_time(args, settings_node)
+    # read by rmw_fastrtps when rclpy.init creates it
+    os.environ.setdefault(
+        PUBLICATION_MODE_VARIABLE,
+        publication_mode(sim, fifo=os.sched_getscheduler(0) == os.SCHED_FIFO),
+    )
+    transport = None
+    if not sim:  # a lockstep has no deadline to miss
+        transport = realtime_transport(os.environ, installed_profile())
+        transport.apply(os.environ)
+    return transport
+
+
+def _build_nodes(
+    prog: str,
+    node_factories: Sequence[Callable[[RealtimeSettings], ProcessMember]],
+    settings: RealtimeSettings,
+    nodes: list,
+) -> int | None:
+    """Build each node into ``nodes``; return the exit code when one is refused (None: built)."""
+    try:
+        for factory in node_factories:
+            node = factory(settings)
+            if not isinstance(node, ProcessMember):  # a programming error: said plainly
+                node.destroy_node()
+                raise TypeError(f'{type(node).__name__} is not a ProcessMember')
+            nodes.append(node)
+    except ParameterError as exc:
+        print(f'{prog}: {exc}', file=sys.stderr)
+        return 2
+    except MemberError as exc:  # a node that could not be built for what it was given
+        print(f'{prog}: error: {exc}', file=sys.stderr)
+        return 1
+    return None
+
+
+def _log_settings(
+    first: Node,
+    transport: TransportChoice | None,
+    refused: str | None,
+    settings: RealtimeSettings,
+) -> None:
+    """Log on ``first`` the transport's note and the real-time settings (or what was refused)."""
+    if transport is not None and transport.note:
+        say = first.get_logger().warning if transport.warning else first.get_logger().info
+        say(transport.note)
+    if refused:
+        first.get_logger().warning(refused)
+    elif settings.thread_priority:
+        first.get_logger().info(
+            f'running under SCHED_FIFO priority {settings.thread_priority} (all threads)'
+        )
 
 
 def settle(executor, nodes: Sequence[ProcessMember], limit_s: float = SETTLE_LIMIT_S) -> bool:

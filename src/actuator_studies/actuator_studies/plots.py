@@ -87,12 +87,7 @@ def draw_maps(table, x_name: str, y_name: str, path: Path, grid: bool, title: st
         )
         ax.set_xlabel(x_name)
         ax.set_ylabel(y_name)
-    if title:
-        fig.suptitle(title, fontsize=10)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=80)
-    plt.close(fig)
-    return path
+    return _save(fig, path, title)
 
 
 def draw_cdfs(table, path: Path, title: str = '') -> Path:
@@ -119,6 +114,11 @@ def draw_cdfs(table, path: Path, title: str = '') -> Path:
         ax.set_ylabel('fraction of runs')
         ax.set_ylim(0, 1.02)
         ax.grid(alpha=0.3)
+    return _save(fig, path, title)
+
+
+def _save(fig, path: Path, title: str) -> Path:
+    """Write ``fig`` to ``path`` (PNG) under ``title``, if any; close it; return the path."""
     if title:
         fig.suptitle(title, fontsize=10)
     path.parent.mkdir(parents=True, exist_ok=True)
