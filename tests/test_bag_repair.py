@@ -469,3 +469,17 @@ def test_lost_channel_definition_is_reported(tmp_path: Path) -> None:
         in str(err.value)
     )
     assert not (tmp_path / 'fixed').exists()
+
+
+def test_a_schema_whose_text_is_not_utf8_is_refused_in_one_line() -> None:
+    """A damaged schema text ends the repair with its reason, not a UnicodeDecodeError."""
+    from mcap.records import Channel, Schema
+
+    from actuator_bag.repair import _topic_from
+
+    schema = Schema(id=1, name='sensor_msgs/msg/JointState', encoding='ros2msg', data=b'\xff\xfe')
+    channel = Channel(
+        id=1, schema_id=1, topic='/joint_states', message_encoding='cdr', metadata={}
+    )
+    with pytest.raises(RepairError, match=r'/joint_states: the text of its schema .* not UTF-8'):
+        _topic_from(channel, schema)

@@ -82,13 +82,20 @@ def _topic_from(channel: Channel, schema: Optional[Schema]) -> TopicSpec:
     if schema is None:
         raise RepairError(f'channel {channel.topic} has no schema; cannot rebuild it')
     try:
+        definition = schema.data.decode('utf-8')
+    except UnicodeDecodeError:
+        raise RepairError(
+            f'channel {channel.topic}: the text of its schema {schema.name!r} is not UTF-8 '
+            '(damaged); cannot rebuild it'
+        ) from None
+    try:
         qos = qos_from_yaml(channel.metadata.get('offered_qos_profiles', ''))
     except (yaml.YAMLError, KeyError, TypeError, ValueError, BagWriteError):
         qos = ()
     return TopicSpec(
         name=channel.topic,
         msgtype=schema.name,
-        definition=schema.data.decode('utf-8'),
+        definition=definition,
         type_hash=channel.metadata.get('topic_type_hash') or _type_hash(schema),
         qos=qos,
         serialization_format=channel.message_encoding,
