@@ -259,6 +259,7 @@ def test_a_component_with_no_report_inside_the_run_is_never_said_ok() -> None:
     ]
 
 
+@pytest.mark.slow
 def test_a_run_shorter_than_the_steady_window_gets_no_empty_panel(tmp_path: Path, monkeypatch):
     from matplotlib.figure import Figure
 

@@ -24,6 +24,8 @@ import re
 from pathlib import Path
 from typing import Iterator, NamedTuple
 
+import pytest
+
 ROOT = Path(__file__).resolve().parent.parent
 #: Where code may cite documentation.
 CODE_DIRS = ('src', 'tests', 'scripts')
@@ -211,6 +213,7 @@ def test_every_markdown_link_resolves():
     assert not problems, '\n'.join(map(str, problems))
 
 
+@pytest.mark.slow
 def test_every_document_cited_in_code_resolves_and_no_code_names_the_readme():
     problems = code_problems(ROOT, skip=(Path(__file__).resolve(),))
     assert not problems, '\n'.join(map(str, problems))

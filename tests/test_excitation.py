@@ -22,6 +22,7 @@ def _trace(ref: ExcitationReference, cycles: float = 1.0):
     return t, ref.sample(t)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     'ref',
     [
@@ -52,6 +53,7 @@ def test_the_excitation_stays_inside_its_bounds(ref):
     assert len(starts) == 4
 
 
+@pytest.mark.slow
 def test_the_excitation_starts_at_rest_and_is_twice_differentiable():
     ref = ExcitationReference()
     assert tuple(ref.sample(0.0)) == (0.0, 0.0, 0.0)
@@ -67,6 +69,7 @@ def test_the_excitation_starts_at_rest_and_is_twice_differentiable():
         assert np.allclose(ref.sample(start), 0.0, atol=1e-12)
 
 
+@pytest.mark.slow
 def test_the_sweeps_hold_their_speeds_both_ways():
     ref = ExcitationReference(sweep_velocity_rad_s=2.0)
     t, (x, v, a) = _trace(ref)
@@ -93,6 +96,7 @@ def test_bad_excitation_parameters_are_refused():
     )
 
 
+@pytest.mark.slow
 def test_the_reference_kind_and_the_scenario():
     from actuator_sim.params_yaml import all_scenarios
 

@@ -13,6 +13,8 @@ import sys
 import tomllib
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parent.parent
 CONFIG = ROOT / 'ruff.toml'
 MYPY_CONFIG = ROOT / 'mypy.ini'
@@ -76,6 +78,7 @@ def package_modules():
     return sum(1 for package in packages for _ in package.rglob('*.py'))
 
 
+@pytest.mark.slow
 def test_mypy_finds_nothing():
     cmd = [sys.executable, '-m', 'mypy', '--config-file', str(MYPY_CONFIG)]
     proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)

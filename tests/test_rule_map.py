@@ -65,6 +65,7 @@ def _test_functions(path: Path) -> set[str]:
     return {n.name for n in ast.walk(tree) if isinstance(n, ast.FunctionDef)}
 
 
+@pytest.mark.slow
 def test_every_row_names_a_class_a_node_and_a_test_that_exist():
     rows = _rows()
     assert len(rows) >= 12, rows

@@ -170,6 +170,7 @@ def test_table_4_gains_are_refused_on_a_synchronous_drive_before_anything_starts
     assert insisted[1].endswith('run anyway (allow_unstable_gains)')
 
 
+@pytest.mark.slow
 def test_a_users_parameter_file_is_part_of_the_gains_judged(tmp_path):
     """A file that raises k3 beyond what one sample of delay allows is judged with it."""
     from actuator_bringup.gain_check import loop_radius
@@ -184,6 +185,7 @@ def test_a_users_parameter_file_is_part_of_the_gains_judged(tmp_path):
     assert loop_radius('drive_pp_nftsmc_eso', [*files, hot], 'cia402_sim')[1] > stable
 
 
+@pytest.mark.slow
 def test_the_simulated_joint_judged_is_the_one_the_files_give_the_plant_node(tmp_path):
     """An identified nominal model (b0 20) is unstable on the paper's joint, stable on its own."""
     from actuator_bringup.gain_check import loop_radius
