@@ -63,6 +63,43 @@ def test_sim_mode_across_three_processes_equals_the_offline_core(isolated, contr
     assert eso['substituted_pairs'] == 0 and eso['exact_pairs'] >= 2000
 
 
+def test_a_node_that_refuses_its_parameter_ends_the_run_with_its_own_line(isolated):
+    """A misspelled gain in a parameter file: the runner's one line is the node's refusal."""
+    from actuator_bringup.runner import run_closed_loop
+
+    params = isolated / 'gains.yaml'
+    params.write_text(
+        'actuator_controller:\n  ros__parameters:\n    pp_nftsmc_eso:\n      k0_per_sec: 80.0\n'
+    )
+    with pytest.raises(SystemExit) as ended:
+        run_closed_loop(
+            'case2_pp_nftsmc_eso',
+            'sim',
+            2.0,
+            record=False,
+            results_root=isolated / 'runs',
+            quiet=True,
+            params_files=[params],
+        )
+    said = str(ended.value)
+    assert said.startswith('bringup: controller exited early with code 2: '), said
+    assert "'pp_nftsmc_eso.k0_per_sec' is not a parameter of actuator_controller" in said, said
+    assert "did you mean 'pp_nftsmc_eso.k0_per_s'" in said and '\n' not in said, said
+
+
+def test_a_joint_that_refuses_its_parameter_is_named_with_its_line_by_the_runner(isolated, capsys):
+    """The joint ends the run itself (it leads it): the runner still says why, in one line."""
+    from actuator_bringup.runner import main
+
+    params = isolated / 'joint.yaml'
+    params.write_text('actuator_plant:\n  ros__parameters:\n    depth_meters: 100.0\n')
+    args = ['--scenario', 'case2_pp_nftsmc_eso', '--mode', 'sim', '--duration', '2']
+    assert main([*args, '--no-record', '--params-file', str(params)]) == 1
+    said = [x for x in capsys.readouterr().err.splitlines() if x.startswith('bringup: ')]
+    assert len(said) == 1 and said[0].startswith('bringup: plant exited with code 2: '), said
+    assert "'depth_meters' is not a parameter of actuator_plant" in said[0], said
+
+
 def test_sim_mode_equals_the_offline_core_through_a_latch_safe_stop_and_brake(isolated):
     """A following-error latch at about 1 s: safe-stop commands, 0 A, the joint braked.
 

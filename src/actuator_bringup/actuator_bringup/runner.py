@@ -359,8 +359,8 @@ def wait_for_leader(
         for key, proc in procs.items():
             if key not in leaders and not proc.running:
                 raise SystemExit(
-                    f'bringup: {key} exited early with code {proc.returncode}; see '
-                    f'{proc.stderr_path}'
+                    f'bringup: {key} exited early with code {proc.returncode}'
+                    + _said(proc.stderr_path)
                 )
         if time.monotonic() > deadline:
             raise SystemExit('bringup: the run did not finish in time; see the logs')
@@ -470,7 +470,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     # A stop by SIGINT/SIGTERM is a clean end (exit 0) when every node then ended cleanly; the
     # JSON keeps 'bringup': 130 to say the run was cut short.
     nodes = {k: v for k, v in result.exit_codes.items() if k != 'bringup'}
+    for key, code in nodes.items():
+        if code != 0:
+            said = _said(result.run_dir / f'{key}.stderr')
+            print(f'bringup: {key} exited with code {code}{said}', file=sys.stderr)
     return 0 if all(code == 0 for code in nodes.values()) else 1
+
+
+def _said(stderr_path: Path) -> str:
+    """Return ': <the last line the process wrote to stderr> (its log: <path>)'."""
+    text = stderr_path.read_text(errors='replace') if stderr_path.exists() else ''
+    last = next((x.strip() for x in reversed(text.splitlines()) if x.strip()), '')
+    return (f': {last}' if last else '') + f' (its log: {stderr_path})'
 
 
 if __name__ == '__main__':
