@@ -151,14 +151,21 @@ class HostProbe:
 
 
 def skip_or_fail(
-    window: HostWindow, figures: str, *, samples: float = 0.0, stall_ms: float = 0.0
+    window: HostWindow,
+    figures: str,
+    *,
+    samples: float = 0.0,
+    stall_ms: float = 0.0,
+    slow_host_excuses: bool = True,
 ) -> None:
     """End a test whose loop figure is bad: skip if the host explains it, else fail.
 
     Explained: the probe's stalls account for ``samples`` samples of trouble, or (``stall_ms``:
     a figure that one stall of that length sets, such as a watchdog's timeout) the probe saw a
-    stall at least that long. ``figures``: the loop's figures, said either way. Call it only
-    after the test's safety assertions: those never skip.
+    stall at least that long. ``figures``: the loop's figures, said either way. A slow host
+    excuses the figures too unless ``slow_host_excuses`` is False (a loop even a slow host keeps:
+    the plant loop's three nodes). Call it only after the test's safety assertions: those
+    never skip.
     """
     window.settle()
     explained = window.explains(samples) if samples else False
@@ -166,7 +173,7 @@ def skip_or_fail(
         explained = explained or (window.fifo and window.longest_ms >= stall_ms)
     if explained:
         pytest.skip(f'host stalled: {figures}; {window.summary()}')
-    slow = slow_host()
+    slow = slow_host() if slow_host_excuses else ''
     if slow:
         pytest.skip(f'{slow}: {figures}; {window.summary()}')
     what = f'{samples:.0f} samples of it' if samples else f'a stall of {stall_ms:g} ms'

@@ -143,6 +143,27 @@ def start(r: Rig) -> None:
     r.joint.activate()
 
 
+def test_each_current_written_is_what_the_drive_applies_from_the_next_sync_on(rig):
+    # One SYNC of delay from the write to the drive's current, and no more: the delay the
+    # drive-tuned gains and the stability check at the joint's delay are computed with
+    # (tests/test_cia402_units.py). A driver holding a command one cycle longer fails here.
+    r = rig()
+    start(r)
+    assert run_on_grid(r.joint, 1.0, 0.05, 0.05, PERIOD_S)['fault'] == ''  # enabled, at 1 A
+    period_ns = round(PERIOD_S * 1e9)
+    first_ns = (time.monotonic_ns() // period_ns + 2) * period_ns
+    written = {}  # SYNC frame number -> the current written just before it
+    for k in range(40):
+        t_k = first_ns + k * period_ns
+        time.sleep(max(0.0, (t_k - time.monotonic_ns()) * 1e-9))
+        current_a = 1.0 + 0.5 * (k % 4)  # each differs from the one before by 0.5 A or more
+        r.joint.write(current_a, False)
+        r.joint.read(t_k)
+        written[r.joint._syncs_sent] = current_a
+    applied = {n: r.after(r.period_of_sync(n))[0] for n in written}
+    assert applied == pytest.approx(written, abs=0.01)
+
+
 @pytest.mark.parametrize(
     'why',
     [

@@ -300,20 +300,12 @@ def test_position_unwrap_follows_the_int32_counter_across_its_wrap():
 # --- PDO codec -------------------------------------------------------------------------------
 def test_pdo_codec_packs_the_eds_tpdo1_layout_like_canopen_and_refuses_unaligned_maps():
     """PdoCodec agrees with canopen on the TPDO1 layout and refuses a bit-packed one."""
-    from pathlib import Path
-
     import canopen
 
+    from actuator_cia402.config import default_eds
     from actuator_cia402.pdo_codec import PdoCodec
 
-    eds = (
-        Path(__file__).resolve().parent.parent
-        / 'src'
-        / 'actuator_cia402'
-        / 'eds'
-        / 'sim_joint_drive.eds'
-    )
-    node = canopen.LocalNode(1, str(eds))
+    node = canopen.LocalNode(1, default_eds())  # installed, or the source tree's
     tpdo1 = node.tpdo[1]
     for index in (
         p.STATUSWORD,

@@ -93,6 +93,11 @@ def test_a_slow_host_skips_what_a_quiet_one_fails_and_says_its_speed(host_speed)
         skip_or_fail(_window(1.0), '30 late', samples=30)
     with pytest.raises(pytest.skip.Exception, match=r'^host slow: .*: the loop is judged only'):
         require_speed('the loop')
+    # a figure any host speed keeps is excused by the probe's stalls only
+    with pytest.raises(pytest.fail.Exception, match='^30 late; the host does not explain'):
+        skip_or_fail(_window(1.0), '30 late', samples=30, slow_host_excuses=False)
+    with pytest.raises(pytest.skip.Exception, match=r'^host stalled: 30 late'):
+        skip_or_fail(_window(20.0), '30 late', samples=30, slow_host_excuses=False)
 
 
 def test_the_reference_workload_gives_a_speed_near_the_calibration_here():

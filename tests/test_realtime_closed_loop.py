@@ -8,6 +8,7 @@ with the newest measurement. Sim time against the offline core: tests/test_close
 """
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -28,6 +29,10 @@ DOCUMENTED_REALTIME_ERROR_RAD = 7.3e-4
 #: figure (the offline core's own max over [1, 10) s is 9.7e-4 rad, 1.3x).
 TRACKING_FROM_S = 1.0
 TRACKING_MAX_RAD = 3 * DOCUMENTED_REALTIME_ERROR_RAD
+#: One sample period [ns].
+PERIOD_NS = round(limits.SAMPLE_TIME_S * 1e9)
+#: Share of the answers that may take the controller more than a period to compute.
+SLOW_ANSWERS_MAX_SHARE = 0.01
 #: A stall answer (stale input, resync) lasts the stall plus the resync policy's 50 samples of
 #: 0 A and brake: longer than this is no calm recovery (the worst seen here: 47 samples).
 STALL_EPISODE_MAX = 120
@@ -126,8 +131,25 @@ def test_realtime_loop_stays_stable_for_the_whole_fast_deep_sea_run(isolated, ho
     tracking = _max_error_from(run, controlled, TRACKING_FROM_S)
     eso = json.loads((result.run_dir / 'eso_stats.json').read_text())
     paired = (eso['exact_pairs'] + eso['repaired_pairs']) / eso['steps']
-    latency_ns = np.load(result.timing_log)['latency_ns']
-    late = int(np.sum(latency_ns > 1_000_000))
+    timing_log = np.load(result.timing_log)
+    latency_ns = timing_log['latency_ns']
+    late = int(np.sum(latency_ns > PERIOD_NS))
+    # The lateness count the controller reports (its timing line, /diagnostics and
+    # controller/state carry it) is its own log's, whatever the host did.
+    reported = re.search(r'\btiming .*\blate=(\d+)', logs['controller'])
+    assert reported and int(reported[1]) == late, (reported and reported[0], late)
+    # The controller's own time per answer, on its SCHED_FIFO thread: a host of any speed keeps
+    # it under a period (here 4 answers in 9809 over, 5 % with every 20th answer 2 ms late), so
+    # only the host's stalls excuse it, not a slow host.
+    slow_answers = int(np.sum(timing_log['compute_ns'] > PERIOD_NS))
+    if slow_answers > SLOW_ANSWERS_MAX_SHARE * latency_ns.size:
+        skip_or_fail(
+            host_window,
+            f'{slow_answers} of {latency_ns.size} answers took the controller more than a '
+            f'period ({late} commands after the next sample)',
+            samples=slow_answers,
+            slow_host_excuses=False,
+        )
     outside = (
         paired < 0.9,
         controlled.mean() <= 0.9,
