@@ -7,19 +7,25 @@ The tool in its own process against ``cia402_sim_drive`` in another, as on the b
 limits it writes, the refusal of a current above them, the automatic sign check, and the stop
 on Ctrl-C, each judged by what the DRIVE shows over SDO (a service tool on the hub). Each
 comment says what the tool before issue 44 did, and so why the test fails on it (checked with
-its torque_test.py, joint.py and master.py of 6a9c8a1).
+its torque_test.py, joint.py and master.py of 6a9c8a1). Steps 4 and 8 of
+docs/how-to/real-cia402-joint.md are taken from the page as written: the tool's command run on
+the simulated drive (the bus changed, nothing else) printing the lines the page quotes, and the
+driver's parameters a real drive the driver takes.
 """
 
 from __future__ import annotations
 
 import re
+import shlex
 import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import canopen
 import pytest
+import yaml
 
 from actuator_bringup.supervisor import RosProcess
 from actuator_cia402 import profile as p
@@ -154,3 +160,77 @@ def test_the_sign_check_passes_a_right_drive_and_stops_a_wrong_one(
     assert line in run.output, run.describe()
     assert re.search(r'samples \d+, missed TPDOs \d+, position .* rad, mean torque', run.stdout)
     assert drive_state(node) == (p.State.SWITCH_ON_DISABLED, 0.0, True)
+
+
+# --- docs/how-to/real-cia402-joint.md, word for word -----------------------------------------
+PAGE = Path(__file__).resolve().parents[1] / 'docs' / 'how-to' / 'real-cia402-joint.md'
+
+
+def _step(number: int) -> str:
+    """Return the text of the page's step ``number`` (its heading to the next)."""
+    return re.search(rf'\n## {number}\. .*?(?=\n## |\Z)', PAGE.read_text(), flags=re.S)[0]
+
+
+def _command(step: str) -> list[str]:
+    """Return the step's first fenced command, continuation lines joined, as words."""
+    body = re.search(r'```\n(.*?)```', step, flags=re.S)[1]
+    return shlex.split(body.replace('\\\n', ' '))
+
+
+def test_step_4_runs_as_written_on_the_simulated_drive_and_prints_what_it_says(bench, tmp_path):
+    # The command of step 4 with the bus changed and nothing else: the simulated drive's hub
+    # for can0, its EDS for the vendor's; the lines the page tells the user to check, as it
+    # quotes them ('...' any text).
+    step = _step(4)
+    words = _command(step)
+    assert words[:4] == ['ros2', 'run', 'actuator_cia402', 'cia402_torque_test'], words
+    args = words[4:]
+    args[args.index('--eds') + 1] = default_eds()
+    address, node = bench()
+    args[args.index('--channel') + 1] = address
+    run = tool(address, tmp_path, *args)
+    assert run.wait(60) == 0, run.describe()
+    checks = step.split('In the output, check:')[1].split('Beyond')[0]
+    quoted = [' '.join(q.split()) for q in re.findall(r'`([^`]+)`', checks)]  # lines unwrapped
+    expected = [q for q in quoted if q.startswith(('sign check: ', 'samples ', 'control ended'))]
+    expected += [q for q in quoted if q.startswith('deactivated: ')]
+    assert len(expected) == 4, quoted
+    number = r'[-+]?\d+(?:\.\d+)?'
+    for line in expected:
+        pattern = re.escape(line).replace(r'\.\.\.', '.*')
+        if line.startswith('samples '):
+            # N, M, A, B, T stand for numbers; N m (newton metre) is the unit
+            pattern = re.sub(r'\b[NMABT]\b(?!\\ m\b)', lambda _: number, pattern)
+        assert re.search(pattern, run.stdout), (line, run.stdout)
+    assert drive_state(node) == (p.State.SWITCH_ON_DISABLED, 0.0, True)
+    assert node.sdo[p.MAX_CURRENT].raw == 50  # --current-limit 0.5: 0.5 A of the 10 A rated
+
+
+def test_step_8_parameters_are_a_real_drive_the_driver_takes():
+    # Every '-p name:=value' of step 8 as the node reads it (the joint node's settings, the
+    # driver's, the node's thread priority): each name known, and a real drive (socketcan)
+    # with the settings step 1 asks for, none refused.
+    from dataclasses import fields
+
+    from actuator_cia402.config import DriverParameters, check_real_drive
+    from actuator_cia402.driver_node import FROM_JOINT_SETTINGS
+    from actuator_core.joint import JointSettings
+
+    values = {}
+    for word in _command(_step(8)):
+        name, sep, text = word.partition(':=')
+        if sep:
+            values[name] = yaml.safe_load(text)  # as the ROS 2 command line types it
+    assert values.pop('thread_priority') == 51  # the node's, above the loop's 50
+    joint_names = {f.name for f in fields(JointSettings)}
+    drive_names = {f.name for f in fields(DriverParameters)} - set(FROM_JOINT_SETTINGS)
+    assert set(values) <= joint_names | drive_names, set(values) - joint_names - drive_names
+    joint = JointSettings(**{k: v for k, v in values.items() if k in joint_names})
+    drive = DriverParameters(
+        **{k: v for k, v in values.items() if k in drive_names},
+        current_limit_a=joint.current_limit_a,
+    )
+    check_real_drive(drive, (joint.position_min_rad, joint.position_max_rad))
+    assert (drive.interface, drive.simulated_drive) == ('socketcan', False)
+    assert (drive.brake_status_index, drive.brake_status_mask) == (0x60FD, 1 << 16)
+    assert (joint.current_limit_a, drive.velocity_limit_rad_s) == (2.0, 2.0)
