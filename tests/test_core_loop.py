@@ -3,6 +3,7 @@
 
 """The offline closed loop (actuator_sim.loop.ClosedLoop): its joint, its law, what run() gives."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -169,3 +170,42 @@ def test_the_loop_gate_holds_each_command_with_its_sample_stamp():
     loop.step(command_lost=True)
     held = loop.gate.hold(2 * period)
     assert (held.current_a, held.command_stamp_ns) == (sent, period)
+
+
+def test_the_loop_runs_the_scenarios_gains_and_stops_a_goal_at_its_deceleration():
+    """The law gets the scenario's gains (not Table 4's), hold its trajectory settings' stop.
+
+    A goal canceled 30 ms into its motion decelerates at the scenario's 40 rad/s^2 (the
+    default is the joint's STOP_DECELERATION_RAD_S2), as the controller node's goals do.
+    """
+    from actuator_controller.goal_execution import Goal
+    from actuator_controller.laws import PpNftsmcGains
+    from actuator_controller.trajectory import Waypoints
+    from actuator_controller.trajectory_settings import JointConstraints
+    from actuator_core.limits import STOP_DECELERATION_RAD_S2
+    from actuator_sim.scenarios import DRIVE_HOLD_SCENARIO, commanded
+
+    (scenario,) = [s for s in commanded(0.2) if s.name == DRIVE_HOLD_SCENARIO]
+    stop = JointConstraints(max_deceleration_on_cancel=40.0)
+    scenario.trajectory = dataclasses.replace(scenario.trajectory, joints=(stop,))
+    assert 40.0 != STOP_DECELERATION_RAD_S2 and scenario.gains != PpNftsmcGains()
+    loop = ClosedLoop(scenario)
+    assert loop.assembly.law.gains == scenario.gains
+    wp = Waypoints(np.array([0.5]), np.array([[0.5]]))
+    loop.submit_at(0, Goal('a', wp, scenario.trajectory.default_tolerances()))
+    loop.cancel_at(30 * 1_000_000, 'a')
+    trace = loop.run()
+    after = trace['t_s'] >= 0.03
+    peak = np.max(np.abs(trace['reference_acceleration_rad_s2'][after]))
+    assert 0.99 * 40.0 <= peak <= 40.0 * (1 + 1e-9), peak
+
+
+def test_a_batch_runs_each_element_as_the_single_run_from_its_first_sample():
+    """batch = 3: every state an array of three from the start, each column the single run's."""
+    single = ClosedLoop(_ideal()).run()
+    loop = ClosedLoop(_ideal(), batch=3)
+    assert np.shape(loop.plant.position_rad) == np.shape(loop.plant.velocity_rad_s) == (3,)
+    batch = loop.run()
+    for name in ('measured_position_rad', 'x2_hat_rad_s', 'current_a'):
+        assert batch[name].shape == (50, 3)
+        assert np.allclose(batch[name], single[name][:, None], rtol=1e-12, atol=0.0), name

@@ -354,6 +354,31 @@ def _deep_sea_hold(duration_s):
     return ClosedLoop(paper_scenario('hold', 'pp_nftsmc_eso', 'hold', 'deep_sea', duration_s))
 
 
+def test_offline_goals_and_cancels_are_handed_over_before_their_sample_in_stamp_order():
+    """ClosedLoop.submit_at / cancel_at: each before the first sample at or after its stamp.
+
+    Two due at the same sample go in stamp order: the cancel stamped after the second goal's
+    hand-over ends it there; stamped before, it would find no goal and the goal would run on.
+    """
+    loop = _deep_sea_hold(0.12)
+    tolerances = loop.scenario.trajectory.default_tolerances()
+    wp = Waypoints(np.array([1.0]), np.array([[0.5]]))
+    loop.submit_at(20 * MS, Goal('a', wp, tolerances))
+    loop.cancel_at(50 * MS + 700, 'b')  # due at 51 ms, after b's hand-over
+    loop.submit_at(50 * MS + 300, Goal('b', wp, tolerances))  # due at 51 ms
+    trace = loop.run()
+    assert [(e.stamp_ns, e.goal_id, e.kind, e.error_string) for e in loop.goal_events] == [
+        (20 * MS, 'a', STARTED, ''),
+        (51 * MS, 'a', ABORTED, PREEMPTED),
+        (51 * MS, 'b', CANCELED, ''),  # canceled before its first sample: it never started
+    ]
+    moving = trace['reference_velocity_rad_s'] != 0.0
+    assert not moving[:21].any() and moving[21:52].all()  # a's motion from the sample after
+    assert np.all(trace['reference_position_rad'][:21] == 0.0)
+    assert np.all(np.diff(trace['reference_position_rad'][20:52]) > 0.0)
+    assert loop.schedule == []
+
+
 @pytest.mark.slow
 def test_offline_hold_keeps_the_joint_still_against_the_deep_sea_disturbance():
     loop = _deep_sea_hold(1.0)
