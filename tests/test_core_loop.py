@@ -201,7 +201,7 @@ def test_the_loop_runs_the_scenarios_gains_and_stops_a_goal_at_its_deceleration(
 
 
 def test_a_batch_runs_each_element_as_the_single_run_from_its_first_sample():
-    """batch = 3: every state an array of three from the start, each column the single run's."""
+    """A batch of 3: every state an array of three from the start, each column the single run."""
     single = ClosedLoop(_ideal()).run()
     loop = ClosedLoop(_ideal(), batch=3)
     assert np.shape(loop.plant.position_rad) == np.shape(loop.plant.velocity_rad_s) == (3,)
