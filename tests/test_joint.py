@@ -224,3 +224,39 @@ def test_freshness_describes_the_share_against_its_minimum():
     for x in (True, False, False, False):
         f.add(x)
     assert f.describe() == 'fresh commands 25.0% of the last 4 samples (minimum 50%)'
+
+
+def test_a_joint_ends_control_by_default_with_0_a_and_the_brake_and_says_so():
+    """Joint.end_control's default: one write of 0 A with the brake; describe adds nothing."""
+    from actuator_core.joint import Joint
+
+    class Recorded(Joint):
+        """The smallest joint: it records its writes."""
+
+        def __init__(self):
+            self.writes = []
+
+        def write(self, current_a, brake):
+            self.writes.append((current_a, brake))
+
+        def read(self, stamp_ns):
+            return None
+
+    joint = Recorded()
+    assert joint.end_control('joint angle outside the soft limits') == '0 A, brake engaged'
+    assert joint.writes == [(0.0, True)]
+    assert joint.describe() == ''
+
+
+def test_a_plant_node_s_values_give_its_joint_at_the_named_condition_and_depth():
+    """plant_from_values: dotted parameters, the named condition, a depth's pressure."""
+    from actuator_plant.model import DEFAULT_DEPTH_M, WorkingCondition, plant_from_values
+
+    lab = plant_from_values({'working_condition': 'lab', 'seal.base_nm': 0.5})
+    assert lab.condition == WorkingCondition.lab() and lab.seal.base_nm == 0.5
+    assert plant_from_values({}).condition == WorkingCondition.deep_sea()
+    deep = plant_from_values({'working_condition': 'depth', 'depth_m': 500.0})
+    assert deep.condition == WorkingCondition.at_depth(500.0)
+    assert deep.condition != WorkingCondition.at_depth(DEFAULT_DEPTH_M)
+    warm = plant_from_values({'working_condition': 'depth', 'condition.temperature_c': 20.0})
+    assert warm.condition == WorkingCondition.at_depth(DEFAULT_DEPTH_M, 20.0)

@@ -153,7 +153,7 @@ def test_a_survivor_of_a_module_whose_name_starts_with_x_is_filed_under_it():
 
 
 def test_unchecked_lists_the_unjudged_and_the_unexplained_survivors_of_the_globs(tmp_path):
-    """No result or survived without an equivalent: listed; killed or explained: not."""
+    """No result, no test, or survived without an equivalent: listed; killed or explained: not."""
     spec = importlib.util.spec_from_file_location(
         'mutation_unchecked', ROOT / 'scripts' / 'mutation' / 'unchecked.py'
     )
@@ -171,6 +171,7 @@ def test_unchecked_lists_the_unjudged_and_the_unexplained_survivors_of_the_globs
                 'actuator_core.gate.x_a__mutmut_2': 0,
                 'actuator_core.gate.x_a__mutmut_3': 0,
                 'actuator_core.gate.x_a__mutmut_4': 1,
+                'actuator_core.gate.x_a__mutmut_5': 33,  # no test covered it
             },
             'actuator_core/pairing.py': {'actuator_core.pairing.x_b__mutmut_1': None},
         },
@@ -179,8 +180,9 @@ def test_unchecked_lists_the_unjudged_and_the_unexplained_survivors_of_the_globs
     assert module.unchecked(stage, ['actuator_core.gate*'], explained) == [
         'actuator_core.gate.x_a__mutmut_1',
         'actuator_core.gate.x_a__mutmut_2',
+        'actuator_core.gate.x_a__mutmut_5',
     ]
-    assert len(module.unchecked(stage, [], explained)) == 3
+    assert len(module.unchecked(stage, [], explained)) == 4
 
 
 def test_mark_stale_withholds_the_score_of_a_row_whose_module_changed_and_keeps_the_rest():

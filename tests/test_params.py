@@ -116,6 +116,22 @@ def test_validate_checks_every_spec_field_and_names_the_class():
         _Outer(rate_hz=2000.0)
 
 
+@pytest.mark.parametrize('value', [None, '150', True, np.bool_(True)])
+def test_validate_refuses_a_number_field_that_is_not_a_number(value):
+    """None, a string or a flag in a number (a hand-edited file, a call) is refused by name."""
+    with pytest.raises(ValueError) as info:
+        _Outer(rate_hz=value)
+    assert str(info.value) == f'_Outer.rate_hz = {value!r} is not a number: a rate'
+
+
+def test_validate_takes_ints_floats_and_numeric_arrays_as_numbers():
+    """An int where a float is declared (YAML's 100), numpy scalars and a batch's array."""
+    assert _Outer(rate_hz=100).rate_hz == 100
+    assert _Outer(rate_hz=np.float64(5.0)).rate_hz == 5.0
+    assert list(_Outer(rate_hz=np.array([2.0, 3.0])).rate_hz) == [2.0, 3.0]
+    assert _Outer(name='x').name == 'x'  # a text field stays text
+
+
 @dataclasses.dataclass(frozen=True)
 class _Flags:
     """A spec'd flag, as the plant model's with_* switches."""

@@ -3,8 +3,9 @@
 
 """Print the mutants of mutmut name globs still to judge (MUTATION_UNCHECKED=1).
 
-Those without a result, and the survivors not explained in equivalent.toml (tests written since
-their run may kill them; mutmut keeps a result until the mutated function changes). mutmut
+Those without a result, those no test covered, and the survivors not explained in
+equivalent.toml (tests written since their run may cover or kill them; mutmut keeps a result
+until the mutated function changes). mutmut
 reruns every mutant a name glob matches; this finishes a stopped run without redoing what it
 judged. Reads the .meta files of build/mutation/mutants; prints one name per line.
 """
@@ -24,7 +25,7 @@ from report import EQUIVALENT, status  # scripts/mutation/report.py, beside this
 def unchecked(stage: Path, globs: list[str], equivalent: dict[str, str]) -> list[str]:
     """Return the names matching any of ``globs`` (all if none) that are unjudged or unexplained.
 
-    Unjudged: no exit code. Unexplained: survived and not in ``equivalent``.
+    Unjudged: no exit code, or no test covered it. Unexplained: survived, not in ``equivalent``.
     """
     names = []
     for meta in sorted((stage / 'mutants').rglob('*.py.meta')):
@@ -32,7 +33,11 @@ def unchecked(stage: Path, globs: list[str], equivalent: dict[str, str]) -> list
         names += [
             name
             for name, code in codes.items()
-            if (code is None or (status(code) == 'survived' and name not in equivalent))
+            if (
+                code is None
+                or status(code) == 'no tests'
+                or (status(code) == 'survived' and name not in equivalent)
+            )
             and (not globs or any(fnmatch.fnmatch(name, g) for g in globs))
         ]
     return names

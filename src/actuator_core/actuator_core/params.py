@@ -80,8 +80,9 @@ def check_value(name: str, value: Any, meta: Mapping[str, Any]) -> None:
 def validate(obj: Any) -> None:
     """Check every spec'd field of a dataclass instance; raise ValueError on the first bad one.
 
-    A number against its range; a flag (a field whose default is a bool) must be a bool, as a
-    string such as 'false' or None would otherwise pass for one by its truth value.
+    A number against its range, and a number it must be (a string or None in a file or a call
+    would otherwise pass unchecked); a flag (a field whose default is a bool) must be a bool, as
+    a string such as 'false' or None would otherwise pass for one by its truth value.
     """
     for f in dataclasses.fields(obj):
         if 'low' in f.metadata:
@@ -90,7 +91,18 @@ def validate(obj: Any) -> None:
                 raise ValueError(
                     f'{name} = {value!r} is not true or false: {f.metadata["description"]}'
                 )
+            if _is_number(f.default) and not _is_number(value):
+                raise ValueError(
+                    f'{name} = {value!r} is not a number: {f.metadata["description"]}'
+                )
             check_value(name, value, f.metadata)
+
+
+def _is_number(value: Any) -> bool:
+    """Return whether ``value`` is a real number or an array of them (a bool is not one)."""
+    if isinstance(value, (bool, np.bool_, str)) or value is None:
+        return False
+    return np.asarray(value).dtype.kind in 'iuf'
 
 
 def require_below(obj: Any, low: str, high: str) -> None:
