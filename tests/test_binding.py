@@ -536,6 +536,35 @@ def test_a_time_base_ahead_of_the_receivers_is_adopted_after_a_stream_not_a_stra
     assert fresh.check(now + 10**9 + FUTURE_STREAM_SAMPLES * P, now) is Verdict.FUTURE
 
 
+def test_a_stream_ahead_counts_anew_after_a_genuine_stamp_a_jump_and_a_reset():
+    """FUTURE_STREAM_SAMPLES in a row on one grid, counted from 1 after each interruption.
+
+    A genuine stamp, a JUMP (the receiver not adopting it: the stream stays ahead) and a reset
+    each end the run; the stream's grid goes on across them. After a JUMP the stream's newest is
+    its stamp: a duplicate of it, once the receiver's time got there, is OLD.
+    """
+    from actuator_core.timebase import FUTURE_STREAM_SAMPLES as N
+    from actuator_core.timebase import StampCheck, Verdict
+
+    def stream(first_ns, count, now_ns):
+        return [check.check(first_ns + k * P, now_ns) for k in range(count)]
+
+    check, now = StampCheck(P, False, 2 * P), 5 * 10**9
+    first = now + 10**9
+    runs = [Verdict.FUTURE] * (N - 1) + [Verdict.JUMP]
+    assert check.check(now, now) is Verdict.OK
+    assert stream(first, 30, now) == [Verdict.FUTURE] * 30
+    assert check.check(now + P, now) is Verdict.OK  # genuine: the run ends
+    assert stream(first + 30 * P, N, now) == runs
+    assert (check.jumps, check.refused_future) == (1, 30 + N - 1)
+    assert stream(first + (30 + N) * P, N, now) == runs  # still ahead after the JUMP
+    assert check.jumps == 2
+    newest = first + (30 + 2 * N - 1) * P
+    assert check.check(newest, newest) is Verdict.OLD
+    check.reset()
+    assert stream(newest + P, N, now) == runs
+
+
 def test_injected_wall_clock_steps_move_the_wall_clock_of_every_clock_in_the_process(monkeypatch):
     """ACTUATOR_WALL_CLOCK_STEPS: at monotonic time T the wall clock steps, never the monotonic."""
     import time as real_time

@@ -593,3 +593,27 @@ def test_a_bad_identified_section_is_refused_with_what_is_wrong():
         from_document({'actuator_eso': {}})
     with pytest.raises(ValueError, match=r'^identified_joint: .* must be a mapping, not list$'):
         from_document({'identified_joint': {'ros__parameters': ['theta1']}})
+
+
+def test_stamp_time_adopted_from_a_stamp_runs_on_with_the_monotonic_clock():
+    """StampClock.adopt: that stamp is now; then the monotonic clock moves it, a wall step not."""
+    from actuator_core.clock import StampClock
+
+    host = SteppedClock()
+    stamp_clock = StampClock(host)
+    stamp_clock.adopt(5 * 10**9, host.now_ns())
+    assert stamp_clock.now_ns() == 5 * 10**9
+    host.step_wall(-(10**9))
+    host.advance(1_000_000)
+    assert stamp_clock.now_ns() == 5 * 10**9 + 1_000_000
+    assert stamp_clock.at(host.now_ns() + 7) == 5 * 10**9 + 1_000_007
+
+
+def test_injected_steps_are_read_to_the_nanosecond_and_apply_from_their_instant(monkeypatch):
+    """ACTUATOR_WALL_CLOCK_STEPS 'at_s:step_s,...', sorted; a step counts from its own instant."""
+    monkeypatch.setenv(clock_module.STEPS_ENV, '2:0.25, 1.5:-0.005')
+    clock = Clock()
+    assert clock.steps == ((1_500_000_000, -5_000_000), (2_000_000_000, 250_000_000))
+    monkeypatch.setattr(clock_module.time, 'time_ns', lambda: 10**18)
+    monkeypatch.setattr(clock_module.time, 'monotonic_ns', lambda: 2_000_000_000)
+    assert clock.wall_ns() == 10**18 - 5_000_000 + 250_000_000
