@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 import ast
-import datetime
 import hashlib
 import json
 import os
@@ -221,8 +220,8 @@ def render(
         '',
         f'Command: `{command}` (scripts/mutation.sh; mutmut {version("mutmut")}, configuration',
         '`scripts/mutation/pyproject.toml`: what is mutated and which unit tests run). Not in CI.',
-        f'Written {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC on a shared',
-        f'2-core machine (load average at the end {load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f}).',
+        'Run on a shared 2-core machine (load average at the end '
+        f'{load[0]:.1f} / {load[1]:.1f} / {load[2]:.1f}); each row names its code by hash.',
         '',
         'Score = killed / (killed + survived + no tests); a timeout counts as killed. "w/o eq."',
         'leaves out the survivors explained as equivalent (scripts/mutation/equivalent.toml).',
