@@ -2,13 +2,13 @@
 # Mutation score of the ROS-free core (mutmut 3, pinned in requirements/python.lock): set-up,
 # build, then `mutmut run` in build/mutation/ (links to the packages under src/, the tests, the
 # configuration scripts/mutation/pyproject.toml), niced, and the report docs/mutation-report.md.
-#   scripts/mutation.sh                       every mutant of the core (hours on 2 cores)
+#   scripts/mutation.sh                       every mutant of the core (tens of minutes on 2 cores)
 #   scripts/mutation.sh 'actuator_core.gate*' the mutants of one module (mutmut's name globs)
 # MUTATION_JOBS (default 2) sets mutmut's --max-children; MUTATION_FRESH=1 starts from scratch
 # (mutmut otherwise keeps the results of mutants whose function did not change);
-# MUTATION_UNCHECKED=1 runs only the mutants of those globs that have no result yet or survived
-# without an explanation in equivalent.toml (mutmut reruns every mutant a glob names), e.g. to
-# finish a stopped run and judge the survivors again against the tests written since.
+# MUTATION_UNCHECKED=1 runs only the mutants of those globs that have no result yet, no test, or
+# survived without an explanation in equivalent.toml (mutmut reruns every mutant a glob names),
+# e.g. to finish a stopped run and judge them again against the tests written since.
 # Not in CI: CPU-heavy.
 set -euo pipefail
 
