@@ -145,9 +145,15 @@ def test_a_joint_fault_ends_control_and_goes_through_error_processing(rclpy_cont
     for _ in range(5):
         node.on_command(command(node.published_ns, 2.0))
     assert node.fault == 'safe torque off' and joint.written[-1] == (0.0, True)
+    timer = node.timer
     node.on_tick()  # supervision: deactivate -> error processing -> unconfigured
-    assert node._state_machine.current_state[1] == 'unconfigured'
-    assert not node.configured and node.joint is None
+    assert node._state_machine.current_state[1] == 'unconfigured' and not node.active
+    # nothing destroyed inside the timer's own callback: dropped at the next configure
+    assert node.joint is joint and not timer.is_canceled() and timer in node.timers
+    node.trigger_configure()
+    assert node._state_machine.current_state[1] == 'inactive'
+    assert timer not in node.timers and node.timer in node.timers
+    assert node.joint is not joint and node.fault == ''
     node.destroy_node()
 
 

@@ -176,6 +176,7 @@ class ManagedNode(LifecycleNode, ProcessMember):
         a refusal is logged and the node stays unconfigured.
         """
         self._outside('configure')
+        self._drop()  # what a joint fault's error processing left built (JointNode.on_error)
         try:
             self.load_parameters()
             self.build()
