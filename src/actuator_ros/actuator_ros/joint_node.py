@@ -264,7 +264,7 @@ class JointNode(JointReport, ManagedNode):
         The topics, the timer and the joint's connection stay until the next configure or the
         exit (``_drop`` there): this runs in the supervision timer's own callback, and
         destroying that timer and the subscriptions while the events executor dispatches them
-        ended the process with SIGSEGV (2 of 14 faulted CiA 402 runs).
+        ended the process with SIGSEGV (2 of 14 conflict attacks on the CiA 402 joint here).
         """
         if self.fault:
             self.get_logger().error(
