@@ -7,10 +7,11 @@ from __future__ import annotations
 
 import dataclasses
 
+import numpy as np
 import pytest
 import yaml
 
-from actuator_core.identified import IdentifiedJoint, parameters_document
+from actuator_core.identified import IdentifiedJoint, from_document, parameters_document
 from actuator_plant.model import derive_constants
 from actuator_studies.design import DesignRequest, run_design
 from actuator_studies.evaluation import split_gains, worst_radius
@@ -82,3 +83,38 @@ def test_design_gains_refuses_setting_what_the_joint_sets(tmp_path):
     with pytest.raises(StudyInputError) as err:
         run_design(req, tmp_path / 'out', log=lambda *_: None)
     assert str(err.value) == '--joint sets nominal.inertia_kg_m2: do not --set it too'
+
+
+def test_the_identified_parameter_file_gives_both_nodes_the_model_and_reads_back_the_same():
+    """The nominal model where the ESO and the controller read it; numbers as Python floats."""
+    joint = IdentifiedJoint(theta1=np.float64(20.5), theta2=np.float64(-1.25))
+    document = parameters_document(joint)
+    nominal = {'theta1n': 20.5, 'theta2n': -1.25}
+    assert document['actuator_eso'] == {'ros__parameters': nominal}
+    assert document['actuator_controller'] == {'ros__parameters': {'common': nominal}}
+    section = document['identified_joint']['ros__parameters']
+    assert section['friction_model'] == 'coulomb_viscous'
+    assert all(type(v) is float for k, v in section.items() if k != 'friction_model')
+    assert from_document(document) == joint
+
+
+def test_a_bad_identified_section_is_refused_with_what_is_wrong():
+    """A friction model, an unknown name, a value that is not a number: each in one line."""
+    with pytest.raises(ValueError) as refused:
+        IdentifiedJoint(friction_model='lugre')
+    assert str(refused.value) == (
+        "friction_model must be one of coulomb_viscous, stribeck, drag: 'lugre'"
+    )
+    section = {'theta1': 20.0, 'theta3': 1.0, 'j': 2.0}
+    with pytest.raises(ValueError) as refused:
+        from_document({'identified_joint': {'ros__parameters': section}})
+    assert str(refused.value) == 'identified_joint: unknown parameter(s) j, theta3'
+    with pytest.raises(ValueError) as refused:
+        from_document({'identified_joint': {'ros__parameters': {'theta1': 'fast'}}})
+    assert str(refused.value) == (
+        "IdentifiedJoint.theta1 = 'fast' is not a number: theta1 = k_t/(J N) (eq. (2))"
+    )
+    with pytest.raises(ValueError, match=r'^no identified_joint section \(write one with '):
+        from_document({'actuator_eso': {}})
+    with pytest.raises(ValueError, match=r'^identified_joint: .* must be a mapping, not list$'):
+        from_document({'identified_joint': {'ros__parameters': ['theta1']}})
