@@ -166,11 +166,12 @@ def closed_loop(
     if diagnostics_rate_hz is None:
         diagnostics_rate_hz = 0.0 if record or sim else LIVE_DIAGNOSTICS_RATE_HZ
     specs = []
+    watchers = int(record) + int(live_view)  # readers of every loop topic beside the loop's
     if record:
         specs.append(_recorder(mode, bag, joints, namespaces))
     for ns in namespaces:
         specs += _estimator_and_controller(
-            ns, loop_params, diagnostics_rate_hz, thread_priority, common
+            ns, loop_params, diagnostics_rate_hz, thread_priority, common, watchers
         )
     if live_view:
         specs.append(
@@ -185,7 +186,7 @@ def closed_loop(
             )
         )
     joint_priority = min(thread_priority + 1, 99) if thread_priority else 0
-    subscribers = 2 + int(record) + int(live_view)
+    subscribers = 2 + watchers
     if joint == 'plant':
         specs.append(
             NodeSpec(
@@ -297,9 +298,19 @@ def _recorder(mode: str, bag: Optional[Path], joints: int, namespaces: list[str]
 
 
 def _estimator_and_controller(
-    ns: str, loop_params: dict, diagnostics_rate_hz: float, thread_priority: int, common: _Common
+    ns: str,
+    loop_params: dict,
+    diagnostics_rate_hz: float,
+    thread_priority: int,
+    common: _Common,
+    watchers: int,
 ) -> list[NodeSpec]:
-    """Return the controller's and the ESO's specs of the joint in namespace ``ns``."""
+    """Return the controller's and the ESO's specs of the joint in namespace ``ns``.
+
+    ``watchers``: the recorder and the live view, readers of every topic; with them, in sim, the
+    controller holds its commands for the joint and the ESO, the ESO its estimates for the
+    controller (``lockstep_subscribers``).
+    """
     return [
         NodeSpec(
             _keyed('controller', ns),
@@ -309,6 +320,7 @@ def _estimator_and_controller(
             {
                 **loop_params,
                 'state_rate_hz': float(diagnostics_rate_hz),
+                'lockstep_subscribers': 2 + watchers,
                 **_named(ns),
                 **common.settings('controller', thread_priority),
                 **common.logged(('timing_log', 'controller_timing.npz'), ns),
@@ -322,6 +334,7 @@ def _estimator_and_controller(
             'actuator_eso',
             {
                 **loop_params,
+                'lockstep_subscribers': 1 + watchers,
                 **_named(ns),
                 **common.settings('eso', thread_priority),
                 **common.logged(('stats_log', 'eso_stats.json'), ns),

@@ -40,6 +40,7 @@ from typing import Callable
 
 from rclpy.clock import Clock as RosClock
 from rclpy.clock import ClockType
+from rclpy.event_handler import PublisherEventCallbacks
 from sensor_msgs.msg import JointState
 
 from actuator_controller.controller_parameters import declare_controller_parameters
@@ -62,6 +63,7 @@ from actuator_msgs.msg import ControllerState, CurrentCommand, StateEstimate
 from actuator_ros.conversions import joint_position
 from actuator_ros.diagnostics import NodeDiagnostics
 from actuator_ros.guard import GraphGuard
+from actuator_ros.lockstep_hold import LockstepHold
 from actuator_ros.node import ManagedNode
 from actuator_ros.qos import control_qos
 from actuator_ros.runner import run_node
@@ -117,7 +119,19 @@ class ControllerNode(ControllerReport, ManagedNode):
         self.plausibility = MeasurementPlausibility()
         self.guard = GraphGuard(self, self.on_conflict)
         qos = control_qos(self.params.mode)
-        self.cmd_pub = self.create_lifecycle_publisher(CurrentCommand, 'current_command', qos)
+        # sim: commands are held until the joint's and the observer's readers matched (a lost
+        # u(0) leaves the lockstep waiting for good at start-up)
+        self.cmd_pub = self.create_lifecycle_publisher(
+            CurrentCommand,
+            'current_command',
+            qos,
+            event_callbacks=PublisherEventCallbacks(
+                matched=lambda info: self.cmd_hold.on_matched(info)
+            ),
+        )
+        self.cmd_hold = LockstepHold(
+            self.cmd_pub, settings.lockstep_subscribers if self.params.mode == 'sim' else 0
+        )
         self.state_pub = self.create_lifecycle_publisher(ControllerState, 'controller/state', qos)
         self.subs = [
             subscribe_views(
@@ -451,7 +465,7 @@ class ControllerNode(ControllerReport, ManagedNode):
         changed = sample.status != self.status
         self.status = Status(sample.status)
         if sample.command:  # (a sample the joint already has a command for: the state only)
-            self.cmd_pub.publish(
+            self.cmd_hold.publish(
                 self.encode_command(
                     {
                         'header.stamp': sample.stamp_ns,

@@ -65,6 +65,7 @@ class ControllerSettings:
     )
     future_stamp_tolerance_s: float = shared('future_stamp_tolerance_s')
     joint_name: str = shared('joint_name')
+    lockstep_subscribers: int = shared('lockstep_subscribers')
     state_rate_hz: float = spec(
         0.0,
         'rate of controller/state on the sample stamps, and every change of status; 0: every '

@@ -4,11 +4,12 @@
 """The parameters the nodes of one joint's loop share, each specified once.
 
 The joint (plant or driver), the observer and the controller all read the sample time, the current
-limit, the joint's name and the mode; the observer and the controller the nominal model and the
-future-stamp tolerance; the joint and the controller the soft limits (the joint brakes at them, the
-controller refuses goals that come near them). Each node's specification takes these fields from
-here (``shared``), so a name has one description, one unit and one range wherever it is declared
-(tests/test_param_docs.py holds the generated reference to that).
+limit, the joint's name and the mode; the observer and the controller the nominal model, the
+future-stamp tolerance and the lockstep's start-up hold; the joint and the controller the soft
+limits (the joint brakes at them, the controller refuses goals that come near them). Each node's
+specification takes these fields from here (``shared``), so a name has one description, one unit
+and one range wherever it is declared (tests/test_param_docs.py holds the generated reference to
+that).
 """
 
 from __future__ import annotations
@@ -90,6 +91,14 @@ _SHARED: dict[str, dict[str, Any]] = {
         low=0.0,
         high=limits.VELOCITY_LIMIT_RAD_S,
         low_open=True,
+    ),
+    'lockstep_subscribers': dict(
+        default=1,
+        description="sim: this node's output (eso/estimate, current_command) is held until its "
+        'topic has this many subscribers, then sent in order: a sample sent before the next '
+        "node's reader matched is lost, and the lockstep stops at start-up",
+        low=0,
+        high=100,
     ),
     'theta2n': dict(
         default=limits.THETA2N,

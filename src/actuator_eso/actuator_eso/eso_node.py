@@ -54,6 +54,7 @@ from actuator_msgs.msg import CurrentCommand, StateEstimate
 from actuator_ros.conversions import joint_position
 from actuator_ros.diagnostics import NodeDiagnostics
 from actuator_ros.guard import GraphGuard
+from actuator_ros.lockstep_hold import LockstepHold
 from actuator_ros.node import ManagedNode
 from actuator_ros.parameters import declare_output_path, declare_shared, declare_spec_parameters
 from actuator_ros.qos import control_qos
@@ -80,6 +81,7 @@ class EsoNode(ManagedNode):
         self.current_limit_a = declare_shared(self, 'current_limit_a')
         self.future_tolerance_s = declare_shared(self, 'future_stamp_tolerance_s')
         self.joint_name = declare_shared(self, 'joint_name')
+        self.lockstep_subscribers = declare_shared(self, 'lockstep_subscribers')
         self.stats_log = declare_output_path(
             self, 'stats_log', 'pairing counts (.json) written at shutdown'
         )
@@ -111,15 +113,17 @@ class EsoNode(ManagedNode):
         self.restart_next = False
         self.guard = GraphGuard(self, self.on_conflict)
         qos = control_qos(self.mode)
-        # sim: an estimate made before the controller's subscription matched is held and sent
-        # once it has (a lost x_hat(0) left the lockstep waiting for good at start-up)
-        self.unsent: list = []
+        # sim: estimates are held until the controller's (and the recorder's) readers matched
+        # (a lost x_hat(0) left the lockstep waiting for good at start-up)
         self.pub = self.create_lifecycle_publisher(
             StateEstimate,
             'eso/estimate',
             qos,
-            event_callbacks=PublisherEventCallbacks(matched=self._on_matched),
+            event_callbacks=PublisherEventCallbacks(
+                matched=lambda info: self.hold.on_matched(info)
+            ),
         )
+        self.hold = LockstepHold(self.pub, self.lockstep_subscribers if self.mode == 'sim' else 0)
         self.subs = [
             subscribe_views(
                 self, kind, topic, callback, qos, event_callbacks=self.guard.callbacks(topic)
@@ -288,7 +292,7 @@ class EsoNode(ManagedNode):
                 ),
             )
         x1, x2, x3 = e.x_hat
-        self._send(
+        self.hold.publish(
             self.encode_estimate(
                 {
                     'header.stamp': e.sample_ns,
@@ -306,20 +310,6 @@ class EsoNode(ManagedNode):
                 }
             )
         )
-
-    def _send(self, message) -> None:
-        """Publish an estimate; in sim, hold it until a subscriber matched (no RELIABLE loss)."""
-        if self.mode == 'sim' and (self.unsent or not self.pub.get_subscription_count()):
-            self.unsent.append(message)
-            return
-        self.pub.publish(message)
-
-    def _on_matched(self, info) -> None:
-        """Send what was held for a subscriber of eso/estimate, in order, once one matched."""
-        if info.current_count > 0 and self.unsent:
-            held, self.unsent = self.unsent, []
-            for message in held:
-                self.pub.publish(message)
 
     def close_log(self) -> None:
         """Log a one-line summary; write the pairing counts as JSON if asked."""
