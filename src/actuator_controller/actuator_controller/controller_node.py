@@ -40,7 +40,6 @@ from typing import Callable
 
 from rclpy.clock import Clock as RosClock
 from rclpy.clock import ClockType
-from rclpy.event_handler import PublisherEventCallbacks
 from sensor_msgs.msg import JointState
 
 from actuator_controller.controller_parameters import declare_controller_parameters
@@ -63,7 +62,7 @@ from actuator_msgs.msg import ControllerState, CurrentCommand, StateEstimate
 from actuator_ros.conversions import joint_position
 from actuator_ros.diagnostics import NodeDiagnostics
 from actuator_ros.guard import GraphGuard
-from actuator_ros.lockstep_hold import LockstepHold
+from actuator_ros.lockstep_hold import create_held_publisher
 from actuator_ros.node import ManagedNode
 from actuator_ros.qos import control_qos
 from actuator_ros.runner import run_node
@@ -121,16 +120,12 @@ class ControllerNode(ControllerReport, ManagedNode):
         qos = control_qos(self.params.mode)
         # sim: commands are held until the joint's and the observer's readers matched (a lost
         # u(0) leaves the lockstep waiting for good at start-up)
-        self.cmd_pub = self.create_lifecycle_publisher(
+        self.cmd_pub, self.cmd_hold = create_held_publisher(
+            self,
             CurrentCommand,
             'current_command',
             qos,
-            event_callbacks=PublisherEventCallbacks(
-                matched=lambda info: self.cmd_hold.on_matched(info)
-            ),
-        )
-        self.cmd_hold = LockstepHold(
-            self.cmd_pub, settings.lockstep_subscribers if self.params.mode == 'sim' else 0
+            settings.lockstep_subscribers if self.params.mode == 'sim' else 0,
         )
         self.state_pub = self.create_lifecycle_publisher(ControllerState, 'controller/state', qos)
         self.subs = [

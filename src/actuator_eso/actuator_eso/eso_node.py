@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import json
 
-from rclpy.event_handler import PublisherEventCallbacks
 from sensor_msgs.msg import JointState
 
 from actuator_core.assembly import gap_limit_samples
@@ -54,7 +53,7 @@ from actuator_msgs.msg import CurrentCommand, StateEstimate
 from actuator_ros.conversions import joint_position
 from actuator_ros.diagnostics import NodeDiagnostics
 from actuator_ros.guard import GraphGuard
-from actuator_ros.lockstep_hold import LockstepHold
+from actuator_ros.lockstep_hold import create_held_publisher
 from actuator_ros.node import ManagedNode
 from actuator_ros.parameters import declare_output_path, declare_shared, declare_spec_parameters
 from actuator_ros.qos import control_qos
@@ -115,15 +114,13 @@ class EsoNode(ManagedNode):
         qos = control_qos(self.mode)
         # sim: estimates are held until the controller's (and the recorder's) readers matched
         # (a lost x_hat(0) left the lockstep waiting for good at start-up)
-        self.pub = self.create_lifecycle_publisher(
+        self.pub, self.hold = create_held_publisher(
+            self,
             StateEstimate,
             'eso/estimate',
             qos,
-            event_callbacks=PublisherEventCallbacks(
-                matched=lambda info: self.hold.on_matched(info)
-            ),
+            self.lockstep_subscribers if self.mode == 'sim' else 0,
         )
-        self.hold = LockstepHold(self.pub, self.lockstep_subscribers if self.mode == 'sim' else 0)
         self.subs = [
             subscribe_views(
                 self, kind, topic, callback, qos, event_callbacks=self.guard.callbacks(topic)

@@ -56,3 +56,23 @@ class LockstepHold:
         for msg in held:
             self.publisher.publish(msg)
         self.released = True
+
+
+def create_held_publisher(
+    node: Any, msg_type: Any, topic: str, qos: Any, subscribers: int
+) -> tuple[Any, LockstepHold]:
+    """Return a lifecycle publisher of ``node`` and its hold (``subscribers`` 0: none).
+
+    The node publishes through the hold; the publisher's matched events reach it.
+    """
+    from rclpy.event_handler import PublisherEventCallbacks
+
+    holder: list[LockstepHold] = []
+    publisher = node.create_lifecycle_publisher(
+        msg_type,
+        topic,
+        qos,
+        event_callbacks=PublisherEventCallbacks(matched=lambda info: holder[0].on_matched(info)),
+    )
+    holder.append(LockstepHold(publisher, subscribers))
+    return publisher, holder[0]
