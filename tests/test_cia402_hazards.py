@@ -31,6 +31,7 @@ from actuator_cia402.joint import Cia402Joint
 from actuator_cia402.sim_drive_main import default_eds
 from actuator_cia402.torque_test import run_on_grid
 from actuator_core.joint import JointError
+from host_probe import skip_or_fail
 
 pytestmark = pytest.mark.ros  # processes: the simulated drive (and a killed master)
 PERIOD_S = 0.002
@@ -491,7 +492,8 @@ def test_an_eds_of_another_product_is_refused(sim_drive, tmp_path):
     joint.close()
 
 
-def test_two_joints_share_one_sync_producer(sim_drive):
+@pytest.mark.realtime  # the samples each joint took on its grid: judged with the host probe
+def test_two_joints_share_one_sync_producer(sim_drive, host_window):
     drive = sim_drive(ids=(1, 2))
     a, b = producer_and_consumer(drive)
     results = run_pair(a, b, 0.3, 1.0, 1.0)
@@ -500,12 +502,19 @@ def test_two_joints_share_one_sync_producer(sim_drive):
     # one SYNC stream seen by both drives (a drive's bus thread may lag a few frames at exit)
     assert len(syncs) == 2 and min(syncs) > 0.9 * max(syncs)
     assert results['a']['fault'] == results['b']['fault'] == ''
-    # both joints in this one process with their bus threads, on a shared 2-core machine:
-    # measured 338 and 408 of 525 cycles at load 3 (the drive process serves both drives)
-    for r in results.values():
-        assert r['samples'] > 0.5 * 1.05 / PERIOD_S, results
     # one SYNC per cycle of the producer (plus none from b): not two producers
     assert max(syncs) <= a.cycles + 5
+    # both joints in this one process with their bus threads, on a shared 2-core machine:
+    # measured 338 and 408 of 525 cycles at load 3 (the drive process serves both drives), 192
+    # on a loaded CI host
+    bound = 0.5 * 1.05 / PERIOD_S
+    short = {k: r['samples'] for k, r in results.items() if r['samples'] <= bound}
+    if short:
+        skip_or_fail(
+            host_window,
+            f'samples taken {short} of {1.05 / PERIOD_S:.0f} cycles (bound {bound:.0f})',
+            samples=sum(bound - n for n in short.values()),
+        )
 
 
 def test_a_sync_consumer_waits_for_a_late_producer_and_stops_on_a_silent_one(sim_drive):
