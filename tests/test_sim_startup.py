@@ -30,9 +30,7 @@ def test_a_sim_lockstep_without_commands_ends_the_run_with_its_reason(ros_proces
         'actuator_plant',
         'plant_node',
         [
-            '--ros-args',
-            '-p',
-            'autostart:=true',
+            *AUTOSTART,
             '-p',
             'mode:=sim',
             '-p',
