@@ -44,10 +44,14 @@ class LockstepHold:
             self.unsent.append(msg)
             self._release_if_matched(self.publisher.get_subscription_count())
 
-    def on_matched(self, info: Any) -> None:
-        """Take a matched event of the publisher (``info.current_count``: its readers now)."""
+    def on_matched(self, _info: Any = None) -> None:
+        """Take a matched event of the publisher: count its readers again.
+
+        The publisher's own count, not the event's: an in-process recording counts as one reader
+        that no event reports (actuator_bag.tap).
+        """
         with self._lock:
-            self._release_if_matched(info.current_count)
+            self._release_if_matched(self.publisher.get_subscription_count())
 
     def _release_if_matched(self, readers: int) -> None:
         if self.released or readers < self.subscribers:
