@@ -134,13 +134,13 @@ def start_closed_loop(start, specs, params, extra=None, on_start=None) -> dict:
     """Start the processes of a closed loop in the description's order; return {key: process}.
 
     ``specs``: ``actuator_bringup.run_description.closed_loop``'s NodeSpecs (or some of them). Each
-    process gets the arguments the runner gives it (``graph.ros_arguments`` with the scenario file
+    process gets the arguments the runner gives it (``ros_arguments`` with the scenario file
     ``params``, e.g. ``actuator_bringup.runner.scenario_file(name)``) and then ``extra[key]``.
     ``start``: the ``ros_process`` fixture, or any factory of its signature, called as
     ``start(package, executable, args, name=key)``. ``on_start(key, process)``, if given, runs
     after each start and before the next (e.g. a wait until a simulated drive listens).
     """
-    from actuator_bringup.run_description import ros_arguments
+    from actuator_bringup.ros_arguments import ros_arguments
 
     procs = {}
     for spec in specs:

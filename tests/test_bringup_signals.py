@@ -21,7 +21,8 @@ import psutil
 import pytest
 import yaml
 
-from actuator_bringup.run_description import PINNING, closed_loop, ros_arguments
+from actuator_bringup.ros_arguments import ros_arguments
+from actuator_bringup.run_description import PINNING, closed_loop
 from actuator_bringup.runner import scenario_file
 from ros_helpers import start_closed_loop, wait_until
 

@@ -214,7 +214,8 @@ def test_closed_loop_description_is_one_for_runner_and_launch():
 
     The processes, their parameters and real-time settings, as both starters use them.
     """
-    from actuator_bringup.run_description import closed_loop, ros_arguments
+    from actuator_bringup.ros_arguments import ros_arguments
+    from actuator_bringup.run_description import closed_loop
 
     specs = closed_loop('realtime', 5.0, record=True, thread_priority=50, cpus={'joint': '0'})
     by_key = {s.key: s for s in specs}

@@ -12,6 +12,7 @@ import pytest
 
 from actuator_bringup import runner as bringup
 from actuator_bringup.composition import compose
+from actuator_bringup.ros_arguments import ros_arguments
 from actuator_bringup.run_description import (
     JOINTS,
     LIVE_DIAGNOSTICS_RATE_HZ,
@@ -19,7 +20,6 @@ from actuator_bringup.run_description import (
     SYNC_PRODUCER_GRACE_S,
     closed_loop,
     default_scenario,
-    ros_arguments,
 )
 from actuator_sim.params_yaml import node_parameters
 

@@ -315,7 +315,8 @@ def test_a_full_disk_stops_the_in_process_recording_not_the_loop(isolated, monke
 def test_compose_moves_the_recording_into_the_container_in_sim_time_only(tmp_path):
     """The recorder's bag goes to the container's --record; refused where it cannot hold."""
     from actuator_bringup.composition import compose
-    from actuator_bringup.run_description import closed_loop, ros_arguments
+    from actuator_bringup.ros_arguments import ros_arguments
+    from actuator_bringup.run_description import closed_loop
 
     bag = tmp_path / 'bag'
     specs = compose(closed_loop('sim', 5.0, bag=bag), record_in_process=True)

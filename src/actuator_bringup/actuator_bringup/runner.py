@@ -27,13 +27,13 @@ from ament_index_python.packages import get_package_share_directory
 
 from actuator_bringup.composition import compose
 from actuator_bringup.gain_check import UnstableGains, check_gains
+from actuator_bringup.ros_arguments import ros_arguments
 from actuator_bringup.run_description import (
     PINNING,
     NodeSpec,
     closed_loop,
     default_scenario,
     node_kind,
-    ros_arguments,
     run_name,
 )
 from actuator_bringup.run_options import (

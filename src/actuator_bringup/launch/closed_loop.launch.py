@@ -42,11 +42,11 @@ from launch_ros.actions import LifecycleNode, Node
 
 from actuator_bringup.composition import compose
 from actuator_bringup.gain_check import UnstableGains, check_gains
+from actuator_bringup.ros_arguments import ros_arguments
 from actuator_bringup.run_description import (
     PINNING,
     closed_loop,
     default_scenario,
-    ros_arguments,
     run_name,
 )
 from actuator_bringup.run_options import (
